@@ -1,0 +1,49 @@
+#include "embree_device.hpp"
+
+#include <string>
+
+#include "fillgs/accel.hpp"
+#include "fillgs/error.hpp"
+
+namespace fillgs::accel {
+
+EmbreeDevice::EmbreeDevice(const char* config) {
+  device_ = rtcNewDevice(config);
+  if (!device_) throw_error("Embree: cannot create a device (error ", int(rtcGetDeviceError(nullptr)), ")");
+  rtcSetDeviceErrorFunction(device_, &EmbreeDevice::on_error, this);
+}
+
+EmbreeDevice::~EmbreeDevice() {
+  if (device_) rtcReleaseDevice(device_);
+}
+
+void EmbreeDevice::on_error(void* user, RTCError code, const char* message) {
+  // Runs inside Embree: record, never throw.
+  auto* self = static_cast<EmbreeDevice*>(user);
+  std::lock_guard<std::mutex> lock(self->mutex_);
+  if (self->first_error_.empty())
+    self->first_error_ = "Embree error " + std::to_string(int(code)) + ": " + (message ? message : "");
+}
+
+void EmbreeDevice::check(const char* where) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (first_error_.empty()) return;
+  std::string e;
+  e.swap(first_error_);
+  throw_error(where, ": ", e);
+}
+
+std::string openvdb_version_string();
+
+AccelInfo accel_info() {
+  EmbreeDevice device;
+  AccelInfo info;
+  const ssize_t v = rtcGetDeviceProperty(device.get(), RTC_DEVICE_PROPERTY_VERSION);
+  info.embree_version = std::to_string(v / 10000) + "." + std::to_string((v / 100) % 100) + "." + std::to_string(v % 100);
+  info.embree_ray_mask_supported = int(rtcGetDeviceProperty(device.get(), RTC_DEVICE_PROPERTY_RAY_MASK_SUPPORTED));
+  device.check("Embree device query");
+  info.openvdb_version = openvdb_version_string();
+  return info;
+}
+
+}  // namespace fillgs::accel

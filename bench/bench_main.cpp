@@ -1,0 +1,27 @@
+// fillgs_bench <benchmark> [--smoke] [options]: benchmarks that call the library's own
+// code paths and print ratios against references measured in the same run.
+#include <cstring>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "fillgs/error.hpp"
+
+int bench_render(const std::vector<std::string>& args);
+
+int main(int argc, char** argv) {
+  if (argc < 2) {
+    std::cerr << "usage: fillgs_bench render [--smoke] [--scene PLY] [--frames N]\n";
+    return 2;
+  }
+  const std::string name = argv[1];
+  std::vector<std::string> args(argv + 2, argv + argc);
+  try {
+    if (name == "render") return bench_render(args);
+    std::cerr << "error: unknown benchmark '" << name << "'\n";
+    return 2;
+  } catch (const fillgs::Error& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  }
+}

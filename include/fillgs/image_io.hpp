@@ -1,0 +1,27 @@
+#pragma once
+// Image files through OpenImageIO. Images are float, row-major, interleaved channels.
+#include <string>
+#include <vector>
+
+namespace fillgs {
+
+struct Image {
+  int width = 0, height = 0, channels = 0;
+  std::vector<float> pixels;  ///< [height][width][channels]
+  Image() = default;
+  Image(int w, int h, int c, float fill = 0.0f) : width(w), height(h), channels(c), pixels(size_t(w) * h * c, fill) {}
+  float& at(int x, int y, int c) { return pixels[(size_t(y) * width + x) * channels + c]; }
+  float at(int x, int y, int c) const { return pixels[(size_t(y) * width + x) * channels + c]; }
+};
+
+/// Writes an image atomically. `.png`/`.jpg`: 8-bit, values clamped to [0, 1], no gamma
+/// (like the original 3DGS); `.exr`: 32-bit float, values as they are.
+void write_image(const std::string& path, const Image& image);
+
+/// Reads an image as float in [0, 1] (8/16-bit) or as stored (float formats).
+Image read_image(const std::string& path);
+
+/// Size of an image file without reading its pixels; false if it cannot be opened.
+bool image_size(const std::string& path, int* width, int* height);
+
+}  // namespace fillgs

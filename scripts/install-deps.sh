@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Installs fillgs's build dependencies from Debian 12 packages. Idempotent: only
+# packages that are not already installed are requested from apt.
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config ninja-build
+  libembree-dev            # Embree 3.13: ray-traced Gaussian proxies
+  libopenvdb-dev           # OpenVDB: exploration grid
+  libboost-iostreams-dev   # needed by OpenVDB's CMake module
+  libeigen3-dev
+  libopenimageio-dev
+  openimageio-tools        # needed by OpenImageIO's CMake config
+  libopencv-dev
+  catch2                   # Catch2 2.13
+  libtbb-dev
+  nlohmann-json3-dev
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

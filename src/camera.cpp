@@ -1,0 +1,39 @@
+#include "fillgs/camera.hpp"
+
+#include <cmath>
+
+namespace fillgs {
+
+Mat4d Camera::camera_to_world() const {
+  Mat4d m = Mat4d::Identity();
+  m.block<3, 3>(0, 0) = R.transpose();
+  m.block<3, 1>(0, 3) = centre();
+  return m;
+}
+
+Vec3d Camera::project(const Vec3d& world) const {
+  const Vec3d v = R * world + t;
+  return Vec3d(fx * v.x() / v.z() + cx, fy * v.y() / v.z() + cy, v.z());
+}
+
+void Camera::look_at(const Vec3d& eye, const Vec3d& target, const Vec3d& up) {
+  const Vec3d z = (target - eye).normalized();          // forward
+  Vec3d x = z.cross(up);                                  // right (y is down)
+  if (x.norm() < 1e-12) x = z.cross(Vec3d::UnitX());
+  x.normalize();
+  const Vec3d y = z.cross(x);                             // down
+  R.row(0) = x.transpose();
+  R.row(1) = y.transpose();
+  R.row(2) = z.transpose();
+  t = -R * eye;
+}
+
+void Camera::set_fov_x(double fov_x, int w, int h) {
+  width = w;
+  height = h;
+  fx = fy = w / (2.0 * std::tan(fov_x / 2.0));
+  cx = w / 2.0;
+  cy = h / 2.0;
+}
+
+}  // namespace fillgs

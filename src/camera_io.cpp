@@ -1,0 +1,554 @@
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "fillgs/camera.hpp"
+#include "fillgs/error.hpp"
+#include "fillgs/fs_util.hpp"
+#include "fillgs/image_io.hpp"
+#include "fillgs/npy.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace fillgs {
+
+CameraFormat parse_camera_format(const std::string& n) {
+  if (n == "auto") return CameraFormat::Auto;
+  if (n == "colmap") return CameraFormat::Colmap;
+  if (n == "llff") return CameraFormat::Llff;
+  if (n == "transforms" || n == "nerf") return CameraFormat::Transforms;
+  if (n == "3dgs") return CameraFormat::GaussianJson;
+  if (n == "technicolor") return CameraFormat::Technicolor;
+  throw_error("unknown camera format '", n, "' (expected auto, colmap, llff, transforms, 3dgs or technicolor)");
+}
+
+const char* to_string(CameraFormat f) {
+  switch (f) {
+    case CameraFormat::Auto: return "auto";
+    case CameraFormat::Colmap: return "colmap";
+    case CameraFormat::Llff: return "llff";
+    case CameraFormat::Transforms: return "transforms";
+    case CameraFormat::GaussianJson: return "3dgs";
+    case CameraFormat::Technicolor: return "technicolor";
+  }
+  return "?";
+}
+
+namespace {
+
+std::string strip_extension_and_dot(std::string p) {
+  if (p.rfind("./", 0) == 0) p = p.substr(2);
+  const fs::path fp(p);
+  if (fp.has_extension()) p = (fp.parent_path() / fp.stem()).string();
+  return p;
+}
+
+Mat3d quat_wxyz_to_matrix(double w, double x, double y, double z) {
+  Vec4d q(w, x, y, z);
+  q.normalize();
+  return quat_to_matrix<double>(q);
+}
+
+void check_finite_camera(const std::string& source, const std::string& element, const Camera& c) {
+  const bool ok = std::isfinite(c.fx) && std::isfinite(c.fy) && std::isfinite(c.cx) && std::isfinite(c.cy) &&
+                  c.R.allFinite() && c.t.allFinite() && c.fx > 0 && c.fy > 0 && c.width > 0 && c.height > 0;
+  if (!ok) throw_error(source, ": ", element, " has a non-finite or non-positive value (f ", c.fx, ", ", c.fy,
+                       ", size ", c.width, "x", c.height, ")");
+  if (c.has_time() && !std::isfinite(c.time)) throw_error(source, ": ", element, " has a non-finite time");
+}
+
+// ---------------------------------------------------------------- COLMAP
+
+struct ColmapIntrinsics {
+  int width = 0, height = 0;
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+};
+
+const char* colmap_model_name(int id) {
+  static const char* names[] = {"SIMPLE_PINHOLE", "PINHOLE", "SIMPLE_RADIAL", "RADIAL", "OPENCV", "OPENCV_FISHEYE",
+                                "FULL_OPENCV", "FOV", "SIMPLE_RADIAL_FISHEYE", "RADIAL_FISHEYE", "THIN_PRISM_FISHEYE",
+                                "RAD_TAN_THIN_PRISM_FISHEYE", "SIMPLE_DIVISION", "DIVISION", "SIMPLE_FISHEYE",
+                                "FISHEYE", "EUCM", "EQUIRECTANGULAR"};
+  return (id >= 0 && id < 18) ? names[id] : "unknown";
+}
+
+ColmapIntrinsics colmap_pinhole(const std::string& source, long id, const std::string& model, const std::vector<double>& p,
+                                int w, int h) {
+  ColmapIntrinsics k;
+  k.width = w;
+  k.height = h;
+  if (model == "SIMPLE_PINHOLE") {
+    if (p.size() < 3) throw_error(source, ": camera ", id, " SIMPLE_PINHOLE needs 3 parameters, has ", p.size());
+    k.fx = k.fy = p[0];
+    k.cx = p[1];
+    k.cy = p[2];
+  } else if (model == "PINHOLE") {
+    if (p.size() < 4) throw_error(source, ": camera ", id, " PINHOLE needs 4 parameters, has ", p.size());
+    k.fx = p[0];
+    k.fy = p[1];
+    k.cx = p[2];
+    k.cy = p[3];
+  } else {
+    throw_error(source, ": camera ", id, " uses model ", model,
+                ", which fillgs does not undistort (supported: PINHOLE, SIMPLE_PINHOLE; run colmap image_undistorter)");
+  }
+  return k;
+}
+
+struct ColmapImage {
+  long id;
+  double q[4], t[3];
+  long camera_id;
+  std::string name;
+};
+
+std::vector<Camera> assemble_colmap(const std::string& source, const std::map<long, ColmapIntrinsics>& intr,
+                                    std::vector<ColmapImage> images) {
+  std::sort(images.begin(), images.end(), [](const ColmapImage& a, const ColmapImage& b) { return a.name < b.name; });
+  std::vector<Camera> cams;
+  for (const ColmapImage& im : images) {
+    auto it = intr.find(im.camera_id);
+    if (it == intr.end()) throw_error(source, ": image ", im.id, " ('", im.name, "') refers to missing camera ", im.camera_id);
+    Camera c;
+    c.name = strip_extension_and_dot(im.name);
+    c.image_path = im.name;
+    c.width = it->second.width;
+    c.height = it->second.height;
+    c.fx = it->second.fx;
+    c.fy = it->second.fy;
+    c.cx = it->second.cx;
+    c.cy = it->second.cy;
+    c.R = quat_wxyz_to_matrix(im.q[0], im.q[1], im.q[2], im.q[3]);
+    c.t = Vec3d(im.t[0], im.t[1], im.t[2]);
+    check_finite_camera(source, "image " + std::to_string(im.id), c);
+    cams.push_back(c);
+  }
+  return cams;
+}
+
+std::vector<Camera> read_colmap_text(const std::string& dir) {
+  const std::string cam_path = join_path(dir, "cameras.txt"), img_path = join_path(dir, "images.txt");
+  std::map<long, ColmapIntrinsics> intr;
+  {
+    std::istringstream in(read_file(cam_path));
+    std::string line;
+    int line_no = 0;
+    while (std::getline(in, line)) {
+      ++line_no;
+      if (line.empty() || line[0] == '#' || line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      std::istringstream ls(line);
+      long id;
+      std::string model;
+      long w, h;
+      if (!(ls >> id >> model >> w >> h)) throw_error(cam_path, ": line ", line_no, ": malformed camera line");
+      std::vector<double> p;
+      double v;
+      while (ls >> v) p.push_back(v);
+      intr[id] = colmap_pinhole(cam_path, id, model, p, int(w), int(h));
+    }
+  }
+  std::vector<ColmapImage> images;
+  {
+    std::istringstream in(read_file(img_path));
+    std::string line;
+    int line_no = 0;
+    bool expect_points = false;
+    while (std::getline(in, line)) {
+      ++line_no;
+      if (!line.empty() && line[0] == '#') continue;
+      if (expect_points) {  // the 2D-point line, possibly empty
+        expect_points = false;
+        continue;
+      }
+      if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+      std::istringstream ls(line);
+      ColmapImage im;
+      if (!(ls >> im.id >> im.q[0] >> im.q[1] >> im.q[2] >> im.q[3] >> im.t[0] >> im.t[1] >> im.t[2] >> im.camera_id >> im.name))
+        throw_error(img_path, ": line ", line_no, ": malformed image line");
+      images.push_back(im);
+      expect_points = true;
+    }
+  }
+  return assemble_colmap(img_path, intr, images);
+}
+
+class BinaryReader {
+ public:
+  BinaryReader(std::string path) : path_(std::move(path)), data_(read_file(path_)) {}
+  template <typename T>
+  T get(const char* what) {
+    if (pos_ + sizeof(T) > data_.size()) throw_error(path_, ": truncated while reading ", what, " at byte ", pos_);
+    T v;
+    std::memcpy(&v, data_.data() + pos_, sizeof(T));
+    pos_ += sizeof(T);
+    return v;
+  }
+  std::string cstring(const char* what) {
+    const size_t e = data_.find('\0', pos_);
+    if (e == std::string::npos) throw_error(path_, ": truncated while reading ", what);
+    std::string s = data_.substr(pos_, e - pos_);
+    pos_ = e + 1;
+    return s;
+  }
+  void skip(size_t n, const char* what) {
+    if (pos_ + n > data_.size()) throw_error(path_, ": truncated while reading ", what);
+    pos_ += n;
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  std::string data_;
+  size_t pos_ = 0;
+};
+
+std::vector<Camera> read_colmap_binary(const std::string& dir) {
+  static const int param_counts[] = {3, 4, 4, 5, 8, 8, 12, 5, 4, 5, 12};
+  std::map<long, ColmapIntrinsics> intr;
+  {
+    BinaryReader r(join_path(dir, "cameras.bin"));
+    const uint64_t n = r.get<uint64_t>("camera count");
+    for (uint64_t i = 0; i < n; ++i) {
+      const int32_t id = r.get<int32_t>("camera id");
+      const int32_t model = r.get<int32_t>("camera model");
+      const uint64_t w = r.get<uint64_t>("width"), h = r.get<uint64_t>("height");
+      if (model < 0 || model > 10)
+        throw_error(r.path(), ": camera ", id, " uses model id ", model, " (", colmap_model_name(model),
+                    "), which fillgs cannot read (binary records carry no length; supported: PINHOLE, SIMPLE_PINHOLE)");
+      std::vector<double> p(static_cast<size_t>(param_counts[model]));
+      for (double& v : p) v = r.get<double>("camera parameters");
+      intr[id] = colmap_pinhole(r.path(), id, colmap_model_name(model), p, int(w), int(h));
+    }
+  }
+  std::vector<ColmapImage> images;
+  BinaryReader r(join_path(dir, "images.bin"));
+  const uint64_t n = r.get<uint64_t>("image count");
+  for (uint64_t i = 0; i < n; ++i) {
+    ColmapImage im;
+    im.id = r.get<int32_t>("image id");
+    for (double& v : im.q) v = r.get<double>("quaternion");
+    for (double& v : im.t) v = r.get<double>("translation");
+    im.camera_id = r.get<int32_t>("camera id");
+    im.name = r.cstring("image name");
+    const uint64_t np = r.get<uint64_t>("point count");
+    r.skip(np * 24, "2D points");
+    images.push_back(im);
+  }
+  return assemble_colmap(r.path(), intr, images);
+}
+
+std::vector<Camera> read_colmap(const std::string& path) {
+  std::error_code ec;
+  std::string dir = fs::is_directory(path, ec) ? path : fs::path(path).parent_path().string();
+  for (const char* sub : {"", "sparse/0", "sparse"}) {
+    const std::string d = join_path(dir, sub);
+    if (fs::exists(join_path(d, "cameras.bin"), ec) && fs::exists(join_path(d, "images.bin"), ec)) return read_colmap_binary(d);
+    if (fs::exists(join_path(d, "cameras.txt"), ec) && fs::exists(join_path(d, "images.txt"), ec)) return read_colmap_text(d);
+  }
+  throw_error(path, ": no COLMAP model (cameras.{bin,txt} and images.{bin,txt}) here or in sparse/0");
+}
+
+// ---------------------------------------------------------------- LLFF
+
+std::vector<Camera> read_llff(const std::string& path, const CameraReadOptions& opt) {
+  const NpyArray a = read_npy(path);
+  if (a.shape.size() != 2 || a.shape[1] != 17)
+    throw_error(path, ": LLFF poses_bounds.npy must have shape (N, 17), not (", a.shape.size() ? a.shape[0] : 0, ", ...)");
+  const std::vector<double> v = a.to_doubles(path);
+  if (!(opt.llff_downscale > 0)) throw_error("LLFF downscale must be positive");
+  std::vector<Camera> cams;
+  for (size_t i = 0; i < a.shape[0]; ++i) {
+    const double* r = &v[i * 17];
+    for (int k = 0; k < 17; ++k)
+      if (!std::isfinite(r[k])) throw_error(path, ": row ", i, " column ", k, " is not finite");
+    auto col = [&](int c) { return Vec3d(r[0 * 5 + c], r[1 * 5 + c], r[2 * 5 + c]); };
+    Mat3d c2w;
+    c2w.col(0) = col(1);   // right
+    c2w.col(1) = col(0);   // down
+    c2w.col(2) = -col(2);  // forward = -back
+    Camera c;
+    char name[32];
+    std::snprintf(name, sizeof name, "cam%02zu", i);
+    c.name = name;
+    const Vec3d hwf = col(4);
+    c.height = int(std::lround(hwf[0] / opt.llff_downscale));
+    c.width = int(std::lround(hwf[1] / opt.llff_downscale));
+    c.fx = c.fy = hwf[2] / opt.llff_downscale;
+    c.cx = c.width / 2.0;
+    c.cy = c.height / 2.0;
+    c.R = c2w.transpose();
+    c.t = -c.R * col(3);
+    check_finite_camera(path, "row " + std::to_string(i), c);
+    cams.push_back(c);
+  }
+  return cams;
+}
+
+// ---------------------------------------------------------------- transforms.json
+
+double json_number(const json& j, const std::string& source, const std::string& element, const char* key) {
+  if (!j.contains(key)) throw_error(source, ": ", element, " has no '", key, "'");
+  if (!j[key].is_number()) throw_error(source, ": ", element, " '", key, "' is not a number");
+  const double v = j[key].get<double>();
+  if (!std::isfinite(v)) throw_error(source, ": ", element, " '", key, "' is not finite");
+  return v;
+}
+
+json parse_json_file(const std::string& path) {
+  const std::string text = read_file(path);
+  try {
+    return json::parse(text);
+  } catch (const json::parse_error& e) {
+    throw_error(path, ": invalid JSON (", e.what(), ")");
+  }
+}
+
+std::vector<Camera> read_transforms(const std::string& path, const CameraReadOptions& opt) {
+  const json root = parse_json_file(path);
+  if (!root.is_object() || !root.contains("frames") || !root["frames"].is_array())
+    throw_error(path, ": not a transforms file (no 'frames' list)");
+  const fs::path base = fs::path(path).parent_path();
+  std::vector<Camera> cams;
+  const json& frames = root["frames"];
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const json& f = frames[i];
+    const std::string el = "frame " + std::to_string(i);
+    auto pick = [&](const char* key) -> const json* {
+      if (f.contains(key)) return &f[key];
+      if (root.contains(key)) return &root[key];
+      return nullptr;
+    };
+    Camera c;
+    if (f.contains("file_path") && f["file_path"].is_string()) c.image_path = f["file_path"].get<std::string>();
+    c.name = c.image_path.empty() ? "frame" + std::to_string(i) : strip_extension_and_dot(c.image_path);
+    // Image size: w/h, else the image itself, else the options.
+    int w = 0, h = 0;
+    if (const json* jw = pick("w")) w = int(jw->get<double>());
+    if (const json* jh = pick("h")) h = int(jh->get<double>());
+    if ((w <= 0 || h <= 0) && !c.image_path.empty()) {
+      const fs::path ip = base / c.image_path;
+      for (const char* ext : {"", ".png", ".jpg", ".jpeg", ".exr"})
+        if (image_size(ip.string() + ext, &w, &h)) break;
+    }
+    if (w <= 0 || h <= 0) {
+      w = opt.width;
+      h = opt.height;
+    }
+    if (w <= 0 || h <= 0)
+      throw_error(path, ": ", el, " has no image size (no w/h, image '", c.image_path, "' not found); pass --width and --height");
+    c.width = w;
+    c.height = h;
+    if (pick("fl_x")) {
+      const json& src = f.contains("fl_x") ? f : root;
+      c.fx = json_number(src, path, el, "fl_x");
+      c.fy = pick("fl_y") ? json_number(f.contains("fl_y") ? f : root, path, el, "fl_y") : c.fx;
+    } else if (pick("camera_angle_x")) {
+      const double ax = json_number(f.contains("camera_angle_x") ? f : root, path, el, "camera_angle_x");
+      c.fx = w / (2.0 * std::tan(ax / 2.0));
+      c.fy = c.fx;
+      if (pick("camera_angle_y"))
+        c.fy = h / (2.0 * std::tan(json_number(f.contains("camera_angle_y") ? f : root, path, el, "camera_angle_y") / 2.0));
+    } else if (pick("x_fov")) {
+      const double ax = json_number(f.contains("x_fov") ? f : root, path, el, "x_fov") * kPi / 180.0;
+      c.fx = c.fy = w / (2.0 * std::tan(ax / 2.0));
+    } else {
+      throw_error(path, ": ", el, " has no focal length (fl_x, camera_angle_x or x_fov)");
+    }
+    c.cx = pick("cx") ? json_number(f.contains("cx") ? f : root, path, el, "cx") : w / 2.0;
+    c.cy = pick("cy") ? json_number(f.contains("cy") ? f : root, path, el, "cy") : h / 2.0;
+    for (const char* k : {"k1", "k2", "p1", "p2"})
+      if (const json* d = pick(k))
+        if (d->is_number() && d->get<double>() != 0.0)
+          throw_error(path, ": ", el, " has distortion '", k, "' = ", d->get<double>(), ", which fillgs does not undistort");
+    if (!f.contains("transform_matrix") || !f["transform_matrix"].is_array() || f["transform_matrix"].size() < 3)
+      throw_error(path, ": ", el, " has no 4x4 'transform_matrix'");
+    Mat4d m = Mat4d::Identity();
+    for (int r = 0; r < 3; ++r) {
+      const json& row = f["transform_matrix"][size_t(r)];
+      if (!row.is_array() || row.size() < 4) throw_error(path, ": ", el, " 'transform_matrix' row ", r, " is not 4 numbers");
+      for (int k = 0; k < 4; ++k) {
+        if (!row[size_t(k)].is_number()) throw_error(path, ": ", el, " 'transform_matrix' [", r, "][", k, "] is not a number");
+        m(r, k) = row[size_t(k)].get<double>();
+      }
+    }
+    Mat3d c2w = m.block<3, 3>(0, 0);
+    c2w.col(1) = -c2w.col(1);  // OpenGL (y up, z back) to OpenCV (y down, z forward)
+    c2w.col(2) = -c2w.col(2);
+    c.R = c2w.transpose();
+    c.t = -c.R * m.block<3, 1>(0, 3);
+    if (f.contains("time")) c.time = json_number(f, path, el, "time");
+    check_finite_camera(path, el, c);
+    cams.push_back(c);
+  }
+  return cams;
+}
+
+// ---------------------------------------------------------------- 3DGS cameras.json
+
+std::vector<Camera> read_gaussian_json(const std::string& path) {
+  const json root = parse_json_file(path);
+  if (!root.is_array()) throw_error(path, ": 3DGS cameras.json must be a list");
+  std::vector<Camera> cams;
+  for (size_t i = 0; i < root.size(); ++i) {
+    const json& e = root[i];
+    const std::string el = "camera " + std::to_string(i);
+    Camera c;
+    c.name = e.contains("img_name") ? e["img_name"].get<std::string>() : "cam" + std::to_string(i);
+    c.image_path = c.name;
+    c.width = int(json_number(e, path, el, "width"));
+    c.height = int(json_number(e, path, el, "height"));
+    c.fx = json_number(e, path, el, "fx");
+    c.fy = json_number(e, path, el, "fy");
+    c.cx = c.width / 2.0;
+    c.cy = c.height / 2.0;
+    if (!e.contains("position") || e["position"].size() != 3 || !e.contains("rotation") || e["rotation"].size() != 3)
+      throw_error(path, ": ", el, " needs 'position' (3) and 'rotation' (3x3)");
+    Vec3d pos;
+    Mat3d rot;
+    for (int r = 0; r < 3; ++r) {
+      pos[r] = e["position"][size_t(r)].get<double>();
+      for (int k = 0; k < 3; ++k) rot(r, k) = e["rotation"][size_t(r)][size_t(k)].get<double>();
+    }
+    c.R = rot.transpose();
+    c.t = -c.R * pos;
+    check_finite_camera(path, el, c);
+    cams.push_back(c);
+  }
+  return cams;
+}
+
+// ---------------------------------------------------------------- Technicolor
+
+std::vector<Camera> read_technicolor(const std::string& path, const CameraReadOptions& opt) {
+  std::istringstream in(read_file(path));
+  std::string line;
+  std::getline(in, line);  // header
+  std::vector<Camera> cams;
+  int line_no = 1;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    std::istringstream ls(line);
+    double v[12];
+    for (int k = 0; k < 12; ++k)
+      if (!(ls >> v[k])) throw_error(path, ": line ", line_no, ": expected 12 numbers, found ", k);
+    Camera c;
+    char name[32];
+    std::snprintf(name, sizeof name, "cam%02zu", cams.size());
+    c.name = name;
+    c.width = opt.width > 0 ? opt.width : 2048;
+    c.height = opt.height > 0 ? opt.height : 1088;
+    c.fx = c.fy = v[0];
+    c.cx = v[1];
+    c.cy = v[2];
+    c.R = quat_wxyz_to_matrix(v[5], v[6], v[7], v[8]);
+    c.t = Vec3d(v[9], v[10], v[11]);
+    check_finite_camera(path, "line " + std::to_string(line_no), c);
+    cams.push_back(c);
+  }
+  if (cams.empty()) throw_error(path, ": no camera rows after the header line");
+  return cams;
+}
+
+}  // namespace
+
+CameraFormat detect_camera_format(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw_error(path, ": no such file or directory");
+  if (fs::is_directory(path, ec)) return CameraFormat::Colmap;
+  const fs::path p(path);
+  const std::string name = p.filename().string(), ext = p.extension().string();
+  if (name == "cameras.txt" || name == "images.txt" || name == "cameras.bin" || name == "images.bin") return CameraFormat::Colmap;
+  if (ext == ".npy") return CameraFormat::Llff;
+  if (ext == ".json") {
+    std::ifstream in(path);
+    char ch = 0;
+    while (in.get(ch) && std::isspace(static_cast<unsigned char>(ch))) {}
+    return ch == '[' ? CameraFormat::GaussianJson : CameraFormat::Transforms;
+  }
+  if (ext == ".txt") return CameraFormat::Technicolor;
+  throw_error(path, ": cannot tell the camera format from the name; pass --camera-format");
+}
+
+std::vector<Camera> read_cameras(const std::string& path, const CameraReadOptions& opt) {
+  const CameraFormat f = opt.format == CameraFormat::Auto ? detect_camera_format(path) : opt.format;
+  std::vector<Camera> cams;
+  switch (f) {
+    case CameraFormat::Colmap: cams = read_colmap(path); break;
+    case CameraFormat::Llff: cams = read_llff(path, opt); break;
+    case CameraFormat::Transforms: cams = read_transforms(path, opt); break;
+    case CameraFormat::GaussianJson: cams = read_gaussian_json(path); break;
+    case CameraFormat::Technicolor: cams = read_technicolor(path, opt); break;
+    case CameraFormat::Auto: break;
+  }
+  if (cams.empty()) throw_error(path, ": no cameras");
+  // Names must be unique (they become file names): disambiguate repeats by index.
+  std::map<std::string, int> seen;
+  for (Camera& c : cams) {
+    if (c.name.find("..") != std::string::npos || (!c.name.empty() && c.name[0] == '/'))
+      throw_error(path, ": camera name '", c.name, "' escapes the output folder");
+    const int n = seen[c.name]++;
+    if (n > 0) c.name += "_" + std::to_string(n);
+  }
+  return cams;
+}
+
+void write_transforms_json(const std::string& path, const std::vector<Camera>& cams) {
+  json root;
+  root["frames"] = json::array();
+  for (const Camera& c : cams) {
+    Mat3d c2w = c.R.transpose();
+    c2w.col(1) = -c2w.col(1);
+    c2w.col(2) = -c2w.col(2);
+    const Vec3d C = c.centre();
+    json m = json::array();
+    for (int r = 0; r < 4; ++r) {
+      json row = json::array();
+      for (int k = 0; k < 4; ++k) row.push_back(r < 3 ? (k < 3 ? c2w(r, k) : C[r]) : (k == 3 ? 1.0 : 0.0));
+      m.push_back(row);
+    }
+    json f;
+    f["file_path"] = c.image_path.empty() ? c.name : c.image_path;
+    f["fl_x"] = c.fx;
+    f["fl_y"] = c.fy;
+    f["cx"] = c.cx;
+    f["cy"] = c.cy;
+    f["w"] = c.width;
+    f["h"] = c.height;
+    if (c.has_time()) f["time"] = c.time;
+    f["transform_matrix"] = m;
+    root["frames"].push_back(f);
+  }
+  write_file_atomically(path, root.dump(2) + "\n");
+}
+
+void write_colmap_text(const std::string& dir, const std::vector<Camera>& cams) {
+  make_directories(dir);
+  std::ostringstream cs, is;
+  cs.precision(17);
+  is.precision(17);
+  cs << "# Camera list with one line of data per camera:\n#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n";
+  is << "# Image list with two lines of data per image:\n#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
+        "#   POINTS2D[] as (X, Y, POINT3D_ID)\n";
+  for (size_t i = 0; i < cams.size(); ++i) {
+    const Camera& c = cams[i];
+    cs << i + 1 << " PINHOLE " << c.width << " " << c.height << " " << c.fx << " " << c.fy << " " << c.cx << " " << c.cy << "\n";
+    const Vec4d q = matrix_to_quat(c.R);
+    std::string name = c.image_path.empty() ? c.name + ".png" : c.image_path;
+    if (name.rfind("./", 0) == 0) name = name.substr(2);
+    is << i + 1 << " " << q[0] << " " << q[1] << " " << q[2] << " " << q[3] << " " << c.t[0] << " " << c.t[1] << " "
+       << c.t[2] << " " << i + 1 << " " << name << "\n\n";
+  }
+  write_file_atomically(join_path(dir, "cameras.txt"), cs.str());
+  write_file_atomically(join_path(dir, "images.txt"), is.str());
+  write_file_atomically(join_path(dir, "points3D.txt"), "# 3D point list (empty)\n");
+}
+
+}  // namespace fillgs

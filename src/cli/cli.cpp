@@ -1,0 +1,357 @@
+#include "fillgs/cli.hpp"
+
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "fillgs/error.hpp"
+#include "fillgs/fs_util.hpp"
+#include "fillgs/image_io.hpp"
+#include "fillgs/raster.hpp"
+#include "fillgs/scene_io.hpp"
+#include "fillgs/synth.hpp"
+#include "progress_bar.hpp"
+
+namespace fillgs::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// `--key value` / `--key=value` options and bare flags, checked against what a command knows.
+class Args {
+ public:
+  Args(const std::string& command, const std::vector<std::string>& args, size_t first, const std::set<std::string>& options,
+       const std::set<std::string>& flags)
+      : command_(command) {
+    for (size_t i = first; i < args.size(); ++i) {
+      const std::string& a = args[i];
+      if (a.rfind("--", 0) != 0) {
+        positional.push_back(a);
+        continue;
+      }
+      std::string key = a.substr(2), value;
+      const size_t eq = key.find('=');
+      const bool inline_value = eq != std::string::npos;
+      if (inline_value) {
+        value = key.substr(eq + 1);
+        key = key.substr(0, eq);
+      }
+      if (flags.count(key)) {
+        flags_.insert(key);
+        continue;
+      }
+      if (!options.count(key)) throw_error("fillgs ", command, ": unknown option --", key, " (see 'fillgs help')");
+      if (!inline_value) {
+        if (i + 1 >= args.size()) throw_error("fillgs ", command, ": option --", key, " needs a value");
+        value = args[++i];
+      }
+      values_[key] = value;
+    }
+  }
+  bool flag(const std::string& k) const { return flags_.count(k) > 0; }
+  bool has(const std::string& k) const { return values_.count(k) > 0; }
+  std::string get(const std::string& k, const std::string& def = "") const {
+    auto it = values_.find(k);
+    return it == values_.end() ? def : it->second;
+  }
+  std::string require(const std::string& k) const {
+    if (!has(k)) throw_error("fillgs ", command_, ": missing --", k);
+    return get(k);
+  }
+  double number(const std::string& k, double def) const {
+    if (!has(k)) return def;
+    const std::string v = get(k);
+    char* end = nullptr;
+    const double x = std::strtod(v.c_str(), &end);
+    if (end == v.c_str() || *end != '\0' || !std::isfinite(x)) throw_error("fillgs ", command_, ": --", k, " expects a number, got '", v, "'");
+    return x;
+  }
+  int integer(const std::string& k, int def) const {
+    const double x = number(k, def);
+    if (x != std::floor(x) || std::fabs(x) > 1e9) throw_error("fillgs ", command_, ": --", k, " expects an integer");
+    return int(x);
+  }
+  std::vector<std::string> positional;
+
+ private:
+  std::string command_;
+  std::map<std::string, std::string> values_;
+  std::set<std::string> flags_;
+};
+
+const std::set<std::string> kSceneOptions = {"scene-format", "duration", "stg-duration", "stg-color", "static-threshold"};
+const std::set<std::string> kCameraOptions = {"camera-format", "width", "height", "llff-downscale"};
+
+std::set<std::string> merge(std::set<std::string> a, const std::set<std::string>& b) {
+  a.insert(b.begin(), b.end());
+  return a;
+}
+
+SceneReadOptions scene_options(const Args& a) {
+  SceneReadOptions o;
+  o.format = parse_scene_format(a.get("scene-format", "auto"));
+  o.ex4dgs_duration = a.integer("duration", 0);
+  o.stg_duration = a.integer("stg-duration", 50);
+  o.stg_color_activation = a.get("stg-color", "auto");
+  o.partition.static_speed_threshold = float(a.number("static-threshold", o.partition.static_speed_threshold));
+  return o;
+}
+
+CameraReadOptions camera_options(const Args& a) {
+  CameraReadOptions o;
+  o.format = parse_camera_format(a.get("camera-format", "auto"));
+  o.width = a.integer("width", 0);
+  o.height = a.integer("height", 0);
+  o.llff_downscale = a.number("llff-downscale", 1.0);
+  return o;
+}
+
+bool progress_enabled(const Args& a) { return !a.flag("quiet") && ::isatty(2); }
+
+// ------------------------------------------------------------------ info
+
+nlohmann::json scene_summary(const GaussianCloud& c) {
+  nlohmann::json j;
+  j["gaussians"] = c.size();
+  j["sh_degree"] = c.sh_degree;
+  j["motion_model"] = to_string(c.motion);
+  j["static"] = c.static_count();
+  j["dynamic"] = c.dynamic_count();
+  const auto [lo, hi] = bounding_box(c);
+  if (c.size()) {
+    j["bbox_min"] = {lo.x(), lo.y(), lo.z()};
+    j["bbox_max"] = {hi.x(), hi.y(), hi.z()};
+  }
+  if (c.motion == MotionModel::Keyframed) j["keyframes"] = c.keyframed.key_count;
+  j["notes"] = c.notes;
+  return j;
+}
+
+int cmd_info(const std::vector<std::string>& args, std::ostream& out, std::ostream&) {
+  Args a("info", args, 1, kSceneOptions, {"json"});
+  if (a.positional.size() != 1) throw_error("fillgs info: give exactly one scene path");
+  const GaussianCloud c = read_scene(a.positional[0], scene_options(a));
+  const nlohmann::json j = scene_summary(c);
+  if (a.flag("json")) {
+    out << j.dump(2) << "\n";
+    return 0;
+  }
+  out << "scene        " << a.positional[0] << "\n"
+      << "gaussians    " << c.size() << "\n"
+      << "sh degree    " << c.sh_degree << "\n"
+      << "motion model " << to_string(c.motion) << "\n"
+      << "static       " << c.static_count() << "\n"
+      << "dynamic      " << c.dynamic_count() << "\n";
+  if (c.size()) {
+    const auto [lo, hi] = bounding_box(c);
+    out << "bbox min     " << lo.x() << " " << lo.y() << " " << lo.z() << "\n"
+        << "bbox max     " << hi.x() << " " << hi.y() << " " << hi.z() << "\n";
+  }
+  for (const std::string& n : c.notes) out << "note         " << n << "\n";
+  return 0;
+}
+
+// ------------------------------------------------------------------ render
+
+int cmd_render(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  Args a("render", args, 1,
+         merge(merge({"scene", "cameras", "time", "channel", "format", "out", "threads", "background"}, kSceneOptions), kCameraOptions),
+         {"quiet"});
+  const auto t0 = Clock::now();
+  const std::string out_dir = a.require("out");
+  const std::string channel = a.get("channel", "rgb");
+  if (channel != "rgb" && channel != "depth" && channel != "alpha")
+    throw_error("fillgs render: --channel must be rgb, depth or alpha (got '", channel, "')");
+  const std::string format = a.get("format", "png");
+  if (format != "png" && format != "exr") throw_error("fillgs render: --format must be png or exr (got '", format, "')");
+  const bool fixed_time = a.has("time");
+  const double time = a.number("time", 0.0);
+  if (fixed_time && (time < 0 || time > 1)) throw_error("fillgs render: --time must lie in [0, 1] (got ", time, ")");
+  RenderOptions ro;
+  ro.threads = a.integer("threads", 0);
+  ro.rgb = channel == "rgb";
+  ro.depth = channel == "depth";
+  if (a.has("background")) {
+    std::istringstream bs(a.get("background"));
+    char comma;
+    float r, g, b;
+    if (!(bs >> r >> comma >> g >> comma >> b)) throw_error("fillgs render: --background expects r,g,b");
+    ro.background = Vec3f(r, g, b);
+  }
+  const GaussianCloud cloud = read_scene(a.require("scene"), scene_options(a));
+  const std::vector<Camera> cams = read_cameras(a.require("cameras"), camera_options(a));
+  const double load_s = seconds_since(t0);
+
+  FrameEvaluator ev(cloud);
+  TerminalProgress progress(err, progress_enabled(a));
+  progress.start("rendering", cams.size());
+  double render_s = 0;
+  size_t rendered = 0;
+  nlohmann::json views = nlohmann::json::array();
+  for (const Camera& cam : cams) {
+    const double t = fixed_time ? time : (cam.has_time() ? cam.time : 0.0);
+    const auto tr = Clock::now();
+    const RenderOutput r = render(ev.evaluate(t), cam, ro);
+    render_s += seconds_since(tr);
+    rendered += r.rendered;
+    Image img(cam.width, cam.height, channel == "rgb" ? 3 : 1);
+    double depth_scale = 1.0;
+    if (channel == "rgb") img.pixels = r.rgb;
+    else if (channel == "alpha") img.pixels = r.alpha;
+    else {
+      float max_depth = 0.0f;
+      for (size_t p = 0; p < r.alpha.size(); ++p) {
+        img.pixels[p] = r.alpha[p] > 1e-6f ? r.depth[p] / r.alpha[p] : 0.0f;
+        max_depth = std::max(max_depth, img.pixels[p]);
+      }
+      // 8-bit output holds [0, 1]: depth is divided by its maximum (recorded in summary.json).
+      if (format == "png" && max_depth > 0) {
+        depth_scale = max_depth;
+        for (float& v : img.pixels) v /= max_depth;
+      }
+    }
+    write_image(join_path(out_dir, cam.name + "." + format), img);
+    views.push_back({{"camera", cam.name}, {"time", t}, {"gaussians_rendered", r.rendered}, {"depth_scale", depth_scale}});
+    progress.advance();
+  }
+  progress.finish();
+  nlohmann::json s;
+  s["command"] = "render";
+  s["scene"] = scene_summary(cloud);
+  s["cameras"] = cams.size();
+  s["channel"] = channel;
+  s["seconds"] = {{"load", load_s}, {"render", render_s}, {"total", seconds_since(t0)}};
+  s["ms_per_view"] = cams.empty() ? 0.0 : 1000.0 * render_s / cams.size();
+  s["views"] = views;
+  write_file_atomically(join_path(out_dir, "summary.json"), s.dump(2) + "\n");
+  out << "rendered " << cams.size() << " views (" << channel << ") into " << out_dir << ": "
+      << (cams.empty() ? 0.0 : 1000.0 * render_s / cams.size()) << " ms per view, " << rendered / std::max<size_t>(1, cams.size())
+      << " Gaussians per view\n";
+  return 0;
+}
+
+// ------------------------------------------------------------------ synth
+
+SynthOptions synth_options(const Args& a) {
+  SynthOptions o;
+  o.frames = a.integer("frames", o.frames);
+  o.width = a.integer("width", o.width);
+  o.height = a.integer("height", o.height);
+  o.seed = uint64_t(a.integer("seed", int(o.seed)));
+  o.spacing = a.number("spacing", o.spacing);
+  return o;
+}
+
+int cmd_synth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  Args a("synth", args, 1, {"out", "frames", "width", "height", "seed", "spacing", "threads"}, {"quiet"});
+  const auto t0 = Clock::now();
+  const std::string dir = a.require("out");
+  const SynthScene s = make_synthetic_scene(synth_options(a));
+  TerminalProgress progress(err, progress_enabled(a));
+  write_synthetic_scene(s, dir, progress, a.integer("threads", 0));
+  out << "synthetic scene: " << s.scene.size() << " Gaussians (" << s.scene.dynamic_count() << " moving), "
+      << s.train.size() << " training cameras, " << s.options.frames << " frames, " << s.options.width << "x" << s.options.height
+      << ", written to " << dir << " in " << seconds_since(t0) << " s\n";
+  return 0;
+}
+
+// ------------------------------------------------------------------ convert / cameras
+
+int cmd_convert(const std::vector<std::string>& args, std::ostream& out, std::ostream&) {
+  Args a("convert", args, 1, merge({"scene", "out", "to", "time", "frames"}, kSceneOptions), {});
+  const GaussianCloud c = read_scene(a.require("scene"), scene_options(a));
+  const std::string to = a.get("to", "3dgs"), path = a.require("out");
+  if (to == "3dgs") write_3dgs_ply(path, c, a.number("time", 0.0));
+  else if (to == "fillgs") write_fillgs_ply(path, c, a.integer("frames", 0));
+  else throw_error("fillgs convert: --to must be 3dgs or fillgs (got '", to, "')");
+  out << "wrote " << path << " (" << to << ", " << c.size() << " Gaussians)\n";
+  return 0;
+}
+
+int cmd_cameras(const std::vector<std::string>& args, std::ostream& out, std::ostream&) {
+  Args a("cameras", args, 1, merge({"cameras", "out", "to"}, kCameraOptions), {});
+  const std::vector<Camera> cams = read_cameras(a.require("cameras"), camera_options(a));
+  const std::string to = a.get("to", "transforms"), path = a.require("out");
+  if (to == "transforms") write_transforms_json(path, cams);
+  else if (to == "colmap") write_colmap_text(path, cams);
+  else throw_error("fillgs cameras: --to must be transforms or colmap (got '", to, "')");
+  out << "wrote " << cams.size() << " cameras to " << path << " (" << to << ")\n";
+  return 0;
+}
+
+// ------------------------------------------------------------------ run
+
+int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  Args a("run", args, 1, {"out", "threads"}, {"quiet"});
+  const std::string dir = a.get("out", "fillgs_run");
+  const auto t0 = Clock::now();
+  SynthOptions so;
+  const SynthScene s = make_synthetic_scene(so);
+  TerminalProgress progress(err, progress_enabled(a));
+  write_synthetic_scene(s, join_path(dir, "scene"), progress, a.integer("threads", 0));
+  out << "fillgs run: built-in scene written to " << join_path(dir, "scene") << " (" << s.scene.size() << " Gaussians, "
+      << s.scene.dynamic_count() << " moving, " << s.train.size() << " cameras x " << so.frames << " frames) in "
+      << seconds_since(t0) << " s\n"
+      << "fillgs run: stages implemented so far: synth, render. Not yet implemented: observe, select, refine,\n"
+      << "            finetune, eval (tracked as open issues); this command grows with them.\n";
+  return 0;
+}
+
+void print_help(std::ostream& out) {
+  out << "fillgs: fill observation gaps in 4D Gaussian Splatting\n\n"
+         "usage: fillgs <command> [options]\n\n"
+         "  info SCENE [--json]                       Gaussian count, SH degree, motion, static/dynamic, bbox\n"
+         "  render --scene S --cameras C --out DIR    render every camera to DIR/<camera>.png\n"
+         "         [--time t] [--channel rgb|depth|alpha] [--format png|exr] [--threads n] [--background r,g,b]\n"
+         "  synth --out DIR [--frames F] [--width W] [--height H] [--seed n] [--spacing m]\n"
+         "                                            the chair/shelf analysis scene with ground-truth images\n"
+         "  convert --scene S --out F.ply [--to 3dgs|fillgs] [--time t] [--frames F]\n"
+         "  cameras --cameras C --out PATH [--to transforms|colmap]\n"
+         "  run [--out DIR]                           the pipeline on the built-in scene\n\n"
+         "scene options:  --scene-format auto|3dgs|stg|ex4dgs|fillgs --duration F (Ex4DGS) --stg-duration F\n"
+         "                --stg-color auto|sigmoid|clamp|none --static-threshold v\n"
+         "camera options: --camera-format auto|colmap|llff|transforms|3dgs|technicolor --width W --height H\n"
+         "                --llff-downscale s\n"
+         "common:         --quiet (no progress bar)\n";
+}
+
+}  // namespace
+
+int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  try {
+    if (args.empty() || args[0] == "help" || args[0] == "--help" || args[0] == "-h") {
+      print_help(out);
+      return args.empty() ? 2 : 0;
+    }
+    const std::string& cmd = args[0];
+    if (cmd == "info") return cmd_info(args, out, err);
+    if (cmd == "render") return cmd_render(args, out, err);
+    if (cmd == "synth") return cmd_synth(args, out, err);
+    if (cmd == "convert") return cmd_convert(args, out, err);
+    if (cmd == "cameras") return cmd_cameras(args, out, err);
+    if (cmd == "run") return cmd_run(args, out, err);
+    if (cmd == "--version") {
+      out << "fillgs 0.1.0\n";
+      return 0;
+    }
+    throw_error("fillgs: unknown command '", cmd, "' (see 'fillgs help')");
+  } catch (const Error& e) {
+    err << "error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::bad_alloc&) {
+    err << "error: out of memory\n";
+    return 1;
+  } catch (const std::exception& e) {
+    err << "error: " << e.what() << "\n";
+    return 1;
+  }
+}
+
+}  // namespace fillgs::cli

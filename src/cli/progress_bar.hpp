@@ -1,0 +1,26 @@
+#pragma once
+#include <chrono>
+#include <ostream>
+
+#include "fillgs/progress.hpp"
+
+namespace fillgs::cli {
+
+/// A one-line terminal bar on stderr; silent when stderr is not a terminal or when quiet.
+class TerminalProgress : public Progress {
+ public:
+  TerminalProgress(std::ostream& err, bool enabled);
+  void start(const std::string& label, size_t total) override;
+  void advance(size_t steps = 1) override;
+  void finish() override;
+
+ private:
+  void draw(bool final);
+  std::ostream& err_;
+  bool enabled_;
+  std::string label_;
+  size_t total_ = 0, done_ = 0;
+  std::chrono::steady_clock::time_point start_, last_draw_;
+};
+
+}  // namespace fillgs::cli
