@@ -103,7 +103,7 @@ void shelf(Builder& b, double h) {
     return Vec3f(0.55f, 0.38f, 0.2f) * (0.8f + 0.2f * grain);
   };
   const ColorFn back = [](const Vec3d& p) -> Vec3f { return Vec3f(0.85f, 0.8f, 0.7f) * (0.85f + 0.15f * hash_noise(p, 0.1)); };
-  const double W = 0.75, D = 0.175, H = 1.6;
+  const double W = 1.0, D = 0.175, H = 1.6;
   b.box(Vec3d(-W, 0, H / 2), Vec3d(0.02, D, H / 2), h, wood);
   b.box(Vec3d(W, 0, H / 2), Vec3d(0.02, D, H / 2), h, wood);
   for (int k = 0; k < 5; ++k) b.box(Vec3d(0, 0, 0.02 + k * (H - 0.04) / 4), Vec3d(W, D, 0.015), h, wood);
@@ -174,7 +174,7 @@ SynthScene make_synthetic_scene(const SynthOptions& o) {
   for (size_t i = 0; i < nm; ++i) put(moving, i, ns + i);
 
   // Chair path: behind the shelf's back panel (y < 0), sliding along x and turning.
-  const Vec3d from(-0.6, -0.8, 0), to(0.55, -0.7, 0);
+  const Vec3d from(-0.55, -0.65, 0), to(0.5, -0.6, 0);
   const double yaw_total = kPi / 2;
   const int F = o.frames;
   KeyframedMotion& k = c.keyframed;

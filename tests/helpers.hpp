@@ -1,0 +1,63 @@
+#pragma once
+// Shared test helpers: locating ../shared/data, scratch folders outside the source tree,
+// and small hand-made scenes.
+#include <catch2/catch.hpp>
+
+#include <cstdlib>
+#include <unistd.h>
+#include <filesystem>
+#include <string>
+
+#include "fillgs/camera.hpp"
+#include "fillgs/gaussians.hpp"
+#include "fillgs/sh.hpp"
+
+namespace fillgs::test {
+
+/// ../shared/data (or $FILLGS_SHARED_DATA). Tests that need it fail loudly when it is missing.
+inline std::string shared_data() {
+  std::string dir = std::getenv("FILLGS_SHARED_DATA") ? std::getenv("FILLGS_SHARED_DATA") : FILLGS_DEFAULT_SHARED_DATA;
+  INFO("shared data folder: " << dir << " (set FILLGS_SHARED_DATA)");
+  REQUIRE(std::filesystem::is_directory(dir));
+  return dir;
+}
+
+/// A fresh, empty scratch folder under the system temp directory.
+inline std::string scratch(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() / ("fillgs_test_" + std::to_string(::getpid())) / name;
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir.string();
+}
+
+/// Camera at the origin looking down +z (OpenCV axes), W x H, focal f, centred principal point.
+inline Camera axis_camera(int w, int h, double f) {
+  Camera c;
+  c.name = "axis";
+  c.width = w;
+  c.height = h;
+  c.fx = c.fy = f;
+  c.cx = w / 2.0;
+  c.cy = h / 2.0;
+  return c;
+}
+
+/// Adds one static, isotropic Gaussian with a flat colour (degree-0 SH).
+inline void add_gaussian(GaussianCloud& c, const Vec3f& mean, float scale, float opacity_logit, const Vec3f& rgb) {
+  const size_t g = c.size();
+  c.resize(g + 1);
+  c.means[g] = mean;
+  c.log_scales[g] = Vec3f::Constant(std::log(scale));
+  c.rotations[g] = Vec4f(1, 0, 0, 0);
+  c.opacity_logits[g] = opacity_logit;
+  const int K = c.sh_count();
+  for (int ch = 0; ch < 3; ++ch) c.sh[size_t(g) * K * 3 + ch] = rgb_to_sh_dc(rgb[ch]);
+}
+
+inline bool all_finite(const std::vector<float>& v) {
+  for (float x : v)
+    if (!std::isfinite(x)) return false;
+  return true;
+}
+
+}  // namespace fillgs::test
