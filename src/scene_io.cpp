@@ -69,14 +69,20 @@ std::string read_header(const std::string& path) {
   return header;
 }
 
+int sh_degree_of(const PlyElement& v, const std::string& rest_prefix) {
+  const size_t n = v.indexed_properties(rest_prefix).size();
+  if (n % 3 != 0) throw_error(v.source, ": ", n, " '", rest_prefix, "*' properties is not a multiple of 3");
+  const int coeffs = int(n / 3) + 1;
+  const int degree = int(std::lround(std::sqrt(double(coeffs)))) - 1;
+  if ((degree + 1) * (degree + 1) != coeffs || degree > 3)
+    throw_error(v.source, ": ", n, " '", rest_prefix, "*' properties do not make an SH degree 0..3");
+  return degree;
+}
+
 void read_sh(const PlyElement& v, const std::string& dc_prefix, const std::string& rest_prefix, GaussianCloud& c,
              const std::vector<uint32_t>& target_ids) {
   const std::vector<std::string> rest = v.indexed_properties(rest_prefix);
-  if (rest.size() % 3 != 0) throw_error(v.source, ": ", rest.size(), " '", rest_prefix, "*' properties is not a multiple of 3");
-  const int coeffs = int(rest.size() / 3) + 1;
-  const int degree = int(std::lround(std::sqrt(double(coeffs)))) - 1;
-  if ((degree + 1) * (degree + 1) != coeffs || degree > 3)
-    throw_error(v.source, ": ", rest.size(), " '", rest_prefix, "*' properties do not make an SH degree 0..3");
+  const int degree = sh_degree_of(v, rest_prefix);
   if (degree != c.sh_degree) throw_error(v.source, ": SH degree ", degree, " differs from the other file's ", c.sh_degree);
   const int K = c.sh_count();
   for (int ch = 0; ch < 3; ++ch) {
@@ -89,16 +95,6 @@ void read_sh(const PlyElement& v, const std::string& dc_prefix, const std::strin
       const auto& col = v.finite_column(rest[size_t(ch * (K - 1) + (k - 1))]);
       for (size_t r = 0; r < v.count; ++r) c.sh[(size_t(target_ids[r]) * K + k) * 3 + ch] = col[r];
     }
-}
-
-int sh_degree_of(const PlyElement& v, const std::string& rest_prefix) {
-  const size_t n = v.indexed_properties(rest_prefix).size();
-  if (n % 3 != 0) throw_error(v.source, ": ", n, " '", rest_prefix, "*' properties is not a multiple of 3");
-  const int coeffs = int(n / 3) + 1;
-  const int degree = int(std::lround(std::sqrt(double(coeffs)))) - 1;
-  if ((degree + 1) * (degree + 1) != coeffs || degree > 3)
-    throw_error(v.source, ": ", n, " '", rest_prefix, "*' properties do not make an SH degree 0..3");
-  return degree;
 }
 
 /// Reads the geometric base properties (position, scale, rotation, opacity) into ids.
@@ -141,9 +137,8 @@ std::vector<uint32_t> iota_ids(size_t n, uint32_t first = 0) {
   return ids;
 }
 
-GaussianCloud read_3dgs(const std::string& path) {
-  const PlyData ply = read_ply(path);
-  const PlyElement& v = ply.element("vertex");
+/// A static cloud from a vertex element with the standard 3DGS properties.
+GaussianCloud read_standard_vertex(const PlyElement& v) {
   GaussianCloud c;
   c.sh_degree = sh_degree_of(v, "f_rest_");
   c.resize(v.count);
@@ -152,6 +147,8 @@ GaussianCloud read_3dgs(const std::string& path) {
   read_sh(v, "f_dc_", "f_rest_", c, ids);
   return c;
 }
+
+GaussianCloud read_3dgs(const std::string& path) { return read_standard_vertex(read_ply(path).element("vertex")); }
 
 // ---- Spacetime Gaussians ----
 
@@ -358,12 +355,7 @@ std::map<std::string, std::string> parse_key_values(const std::string& s) {
 GaussianCloud read_fillgs(const std::string& path) {
   const PlyData ply = read_ply(path);
   const PlyElement& v = ply.element("vertex");
-  GaussianCloud c;
-  c.sh_degree = sh_degree_of(v, "f_rest_");
-  c.resize(v.count);
-  const auto ids = iota_ids(v.count);
-  read_base(v, c, ids);
-  read_sh(v, "f_dc_", "f_rest_", c, ids);
+  GaussianCloud c = read_standard_vertex(v);
   const PlyElement* tr = ply.find("track");
   if (!tr || tr->count == 0) return c;
   std::map<std::string, std::string> keys;
