@@ -23,7 +23,6 @@ std::string shared_data() {
 }
 
 std::vector<Camera> orbit(const GaussianCloud& c, int n, int w, int h) {
-  const auto [lo, hi] = bounding_box(c);
   // Robust centre and radius: median of the means, 90th percentile distance.
   std::vector<float> xs, ys, zs;
   for (const Vec3f& p : c.means) {
@@ -49,8 +48,6 @@ std::vector<Camera> orbit(const GaussianCloud& c, int n, int w, int h) {
     cam.look_at(centre + radius * Vec3d(std::cos(a), 0.3, std::sin(a)), centre, Vec3d(0, -1, 0));
     cams.push_back(cam);
   }
-  (void)lo;
-  (void)hi;
   return cams;
 }
 
