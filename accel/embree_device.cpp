@@ -40,7 +40,6 @@ AccelInfo accel_info() {
   AccelInfo info;
   const ssize_t v = rtcGetDeviceProperty(device.get(), RTC_DEVICE_PROPERTY_VERSION);
   info.embree_version = std::to_string(v / 10000) + "." + std::to_string((v / 100) % 100) + "." + std::to_string(v % 100);
-  info.embree_ray_mask_supported = int(rtcGetDeviceProperty(device.get(), RTC_DEVICE_PROPERTY_RAY_MASK_SUPPORTED));
   device.check("Embree device query");
   info.openvdb_version = openvdb_version_string();
   return info;

@@ -425,7 +425,7 @@ SceneFormat detect_scene_format(const std::string& path) {
   const std::string header = read_header(path);
   if (header.compare(0, 3, "ply") != 0) throw_error(path, ": not a PLY file (missing 'ply' magic line)");
   if (header.find(kFillgsMagic) != std::string::npos) return SceneFormat::Fillgs4D;
-  if (header.find("property float trbf_center") != std::string::npos) return SceneFormat::Spacetime;
+  if (header.find(" trbf_center\n") != std::string::npos) return SceneFormat::Spacetime;
   return SceneFormat::Gaussian3D;
 }
 
@@ -531,6 +531,8 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
   km.positions.resize(M * K * 3);
   km.rotations.resize(M * K * 4);
   km.opacity_logits.resize(M * K);
+  const bool keyed_scales = cloud.motion == MotionModel::Keyframed && !cloud.keyframed.log_scales.empty();
+  if (keyed_scales) km.log_scales.resize(M * K * 3);
   FrameEvaluator ev(cloud);
   bool opacity_varies = false;
   for (size_t k = 0; k < K; ++k) {
@@ -539,19 +541,13 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
       const uint32_t g = cloud.dynamic_ids[j];
       for (int a = 0; a < 3; ++a) km.positions[(j * K + k) * 3 + a] = f.means[g][a];
       for (int a = 0; a < 4; ++a) km.rotations[(j * K + k) * 4 + a] = f.rotations[g][a];
+      if (keyed_scales)
+        for (int a = 0; a < 3; ++a) km.log_scales[(j * K + k) * 3 + a] = std::log(f.scales[g][a]);
       km.opacity_logits[j * K + k] = logit(f.opacities[g]);
       if (std::fabs(f.opacities[g] - sigmoid(cloud.opacity_logits[g])) > 1e-6f) opacity_varies = true;
     }
   }
   if (!opacity_varies) km.opacity_logits.clear();
-  if (cloud.motion == MotionModel::Keyframed && !cloud.keyframed.log_scales.empty()) {
-    km.log_scales.resize(M * K * 3);
-    for (size_t k = 0; k < K; ++k) {
-      const FrameGaussians& f = ev.evaluate(double(k) / (frames - 1));
-      for (size_t j = 0; j < M; ++j)
-        for (int a = 0; a < 3; ++a) km.log_scales[(j * K + k) * 3 + a] = std::log(f.scales[cloud.dynamic_ids[j]][a]);
-    }
-  }
   out.motion = MotionModel::Keyframed;
   for (size_t j = 0; j < M; ++j) {
     const uint32_t g = cloud.dynamic_ids[j];

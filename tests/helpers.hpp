@@ -11,6 +11,7 @@
 #include "fillgs/camera.hpp"
 #include "fillgs/gaussians.hpp"
 #include "fillgs/sh.hpp"
+#include "fillgs/synth.hpp"
 
 namespace fillgs::test {
 
@@ -52,6 +53,16 @@ inline void add_gaussian(GaussianCloud& c, const Vec3f& mean, float scale, float
   c.opacity_logits[g] = opacity_logit;
   const int K = c.sh_count();
   for (int ch = 0; ch < 3; ++ch) c.sh[size_t(g) * K * 3 + ch] = rgb_to_sh_dc(rgb[ch]);
+}
+
+/// The synthetic scene at a test-sized resolution (spacing in metres; coarser = fewer Gaussians).
+inline SynthScene small_synth(int frames, int width, int height, double spacing = 0.02) {
+  SynthOptions o;
+  o.frames = frames;
+  o.width = width;
+  o.height = height;
+  o.spacing = spacing;
+  return make_synthetic_scene(o);
 }
 
 inline bool all_finite(const std::vector<float>& v) {

@@ -82,10 +82,7 @@ TEST_CASE("an empty scene renders the background", "[extremes]") {
 }
 
 TEST_CASE("t = 0 and t = 1 evaluate the end keys; times outside [0, 1] clamp", "[extremes][motion]") {
-  SynthOptions o;
-  o.frames = 5;
-  o.spacing = 0.05;
-  const SynthScene s = make_synthetic_scene(o);
+  const SynthScene s = small_synth(5, 64, 48, 0.05);
   const GaussianCloud& c = s.scene;
   const size_t K = 5;
   const FrameGaussians a = evaluate(c, 0.0), b = evaluate(c, 1.0);

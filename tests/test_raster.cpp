@@ -53,7 +53,7 @@ TEST_CASE("single Gaussian: centre, 1 sigma and 2 sigma match the analytic footp
   CHECK(pixel(r, 35, 31) == Approx(analytic(4, 0)).epsilon(1e-4));  // 1σ: ≈ 0.8 e^-0.5
   CHECK(pixel(r, 39, 31) == Approx(analytic(8, 0)).epsilon(1e-4));  // 2σ: ≈ 0.8 e^-2
   CHECK(pixel(r, 27, 31) == Approx(analytic(4, 0)).epsilon(1e-4));
-  CHECK(analytic(4, 0) == Approx(0.8 * std::exp(-0.5)).epsilon(2e-3));
+  REQUIRE(analytic(4, 0) == Approx(0.8 * std::exp(-0.5)).epsilon(2e-3));  // premise: 4 px is 1σ
   // White Gaussian on black: the three channels agree, alpha equals the value.
   CHECK(pixel(r, 35, 31, 1) == pixel(r, 35, 31, 0));
   CHECK(r.alpha[31 * 64 + 35] == Approx(pixel(r, 35, 31)).epsilon(1e-6));
@@ -88,7 +88,7 @@ TEST_CASE("the 0.3 dilation sets the footprint of a vanishing Gaussian", "[raste
   const RenderOutput r = render(evaluate(cloud, 0), cam);
   CHECK(pixel(r, 15, 15) == Approx(0.9).epsilon(1e-5));
   CHECK(pixel(r, 16, 15) == Approx(0.9 * std::exp(-0.5 / 0.3)).epsilon(1e-4));
-  CHECK(0.9 * std::exp(-0.5 * 4 / 0.3) < 1.0 / 255);
+  REQUIRE(0.9 * std::exp(-0.5 * 4 / 0.3) < 1.0 / 255);  // premise of the next check
   CHECK(pixel(r, 17, 15) == 0.0f);  // 0.9 e^{-6.67} ≈ 0.0011 < 1/255: skipped
 }
 
@@ -146,13 +146,7 @@ TEST_CASE("depth, alpha and feature channels blend like colour", "[raster]") {
 }
 
 TEST_CASE("multi-threaded render equals single-threaded render bit for bit", "[raster]") {
-  const SynthScene s = make_synthetic_scene([] {
-    SynthOptions o;
-    o.frames = 5;
-    o.width = 200;
-    o.height = 150;
-    return o;
-  }());
+  const SynthScene s = small_synth(5, 200, 150);
   FrameEvaluator ev(s.scene);
   for (int cam : {0, 5, 8}) {
     RenderOptions one, many;
@@ -197,13 +191,7 @@ TEST_CASE("SH degree 2 on the real playbot scene renders view-dependent colour, 
 }
 
 TEST_CASE("per-pixel contributor lists reproduce the rendered colour", "[raster]") {
-  const SynthScene s = make_synthetic_scene([] {
-    SynthOptions o;
-    o.frames = 3;
-    o.width = 96;
-    o.height = 72;
-    return o;
-  }());
+  const SynthScene s = small_synth(3, 96, 72);
   const FrameGaussians g = evaluate(s.scene, 0.5);
   RenderOptions o;
   o.contributors = true;

@@ -248,10 +248,7 @@ TEST_CASE("Ex4DGS pair: Catmull-Rom keyframes, slerp, temporal opacity, moving s
 }
 
 TEST_CASE("fillgs 4D PLY round-trips the synthetic scene exactly", "[io][motion]") {
-  SynthOptions so;
-  so.frames = 7;
-  so.spacing = 0.05;
-  const SynthScene s = make_synthetic_scene(so);
+  const SynthScene s = small_synth(7, 64, 48, 0.05);
   const std::string path = scratch("fillgs4d") + "/scene.ply";
   write_fillgs_ply(path, s.scene);
   REQUIRE(detect_scene_format(path) == SceneFormat::Fillgs4D);

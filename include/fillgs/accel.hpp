@@ -9,7 +9,6 @@ namespace fillgs::accel {
 struct AccelInfo {
   std::string embree_version;   ///< as reported by a live Embree device
   std::string openvdb_version;  ///< as compiled and initialised
-  int embree_ray_mask_supported = 0;
 };
 
 /// Creates an Embree device (with its error callback) and initialises OpenVDB; throws

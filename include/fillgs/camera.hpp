@@ -5,6 +5,7 @@
 // y down, z forward). Pixel (0,0) is the top-left corner of the image, so pixel centres
 // sit at (i + 0.5, j + 0.5), and (cx, cy) is measured in the same frame (COLMAP's).
 // Times are normalised to [0, 1] (see gaussians.hpp); a camera without one has NaN.
+#include <cmath>
 #include <limits>
 #include <string>
 #include <vector>
@@ -23,7 +24,7 @@ struct Camera {
   std::string image_path;       ///< image file as the rig names it (may be empty)
 
   Vec3d centre() const { return -R.transpose() * t; }
-  bool has_time() const { return time == time; }
+  bool has_time() const { return !std::isnan(time); }
   /// Camera-to-world 4x4 in OpenCV axes.
   Mat4d camera_to_world() const;
   /// Projects a world point to pixel coordinates (corner convention); z is the view depth.

@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -143,17 +144,18 @@ int cmd_info(const std::vector<std::string>& args, std::ostream& out, std::ostre
     out << j.dump(2) << "\n";
     return 0;
   }
-  out << "scene        " << a.positional[0] << "\n"
-      << "gaussians    " << c.size() << "\n"
-      << "sh degree    " << c.sh_degree << "\n"
-      << "motion model " << to_string(c.motion) << "\n"
-      << "static       " << c.static_count() << "\n"
-      << "dynamic      " << c.dynamic_count() << "\n";
-  if (c.size()) {
-    const auto [lo, hi] = bounding_box(c);
-    out << "bbox min     " << lo.x() << " " << lo.y() << " " << lo.z() << "\n"
-        << "bbox max     " << hi.x() << " " << hi.y() << " " << hi.z() << "\n";
-  }
+  out << "scene        " << a.positional[0] << "\n";
+  for (const char* key : {"gaussians", "sh_degree", "motion_model", "static", "dynamic", "keyframes", "bbox_min", "bbox_max"})
+    if (j.contains(key)) {
+      std::string label = key;
+      std::replace(label.begin(), label.end(), '_', ' ');
+      std::string value;
+      if (j[key].is_string()) value = j[key].get<std::string>();
+      else if (j[key].is_array())
+        for (const auto& x : j[key]) value += (value.empty() ? "" : " ") + x.dump();
+      else value = j[key].dump();
+      out << label << std::string(label.size() < 13 ? 13 - label.size() : 1, ' ') << value << "\n";
+    }
   for (const std::string& n : c.notes) out << "note         " << n << "\n";
   return 0;
 }

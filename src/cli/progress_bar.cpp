@@ -3,17 +3,6 @@
 #include <cstdio>
 
 namespace fillgs {
-
-Progress& null_progress() {
-  struct Null : Progress {
-    void start(const std::string&, size_t) override {}
-    void advance(size_t) override {}
-    void finish() override {}
-  };
-  static Null n;
-  return n;
-}
-
 namespace cli {
 
 TerminalProgress::TerminalProgress(std::ostream& err, bool enabled) : err_(err), enabled_(enabled) {}
