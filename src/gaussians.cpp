@@ -421,6 +421,28 @@ size_t partition_static_dynamic(GaussianCloud& c, const PartitionOptions& opt) {
   return moved;
 }
 
+KeyframedMotion per_frame_tracks(size_t gaussians, int frames) {
+  FILLGS_CHECK(frames >= 2);
+  KeyframedMotion k;
+  k.key_count = frames;
+  k.first_key_time = 0.0;
+  k.key_spacing = 1.0 / (frames - 1);
+  k.positions.assign(gaussians * size_t(frames) * 3, 0.0f);
+  k.rotations.assign(gaussians * size_t(frames) * 4, 0.0f);
+  return k;
+}
+
+void canonical_from_first_key(GaussianCloud& c) {
+  FILLGS_CHECK(c.motion == MotionModel::Keyframed);
+  const KeyframedMotion& k = c.keyframed;
+  const size_t K = size_t(k.key_count);
+  for (size_t j = 0; j < c.dynamic_ids.size(); ++j) {
+    const uint32_t g = c.dynamic_ids[j];
+    c.means[g] = Eigen::Map<const Vec3f>(&k.positions[j * K * 3]);
+    if (!k.rotations.empty()) c.rotations[g] = Eigen::Map<const Vec4f>(&k.rotations[j * K * 4]);
+  }
+}
+
 std::pair<Vec3f, Vec3f> bounding_box(const GaussianCloud& cloud) {
   Vec3f lo = Vec3f::Constant(std::numeric_limits<float>::infinity());
   Vec3f hi = -lo;

@@ -524,12 +524,8 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
     return out;
   }
   const size_t M = cloud.dynamic_ids.size(), K = size_t(frames);
+  out.keyframed = per_frame_tracks(M, frames);
   KeyframedMotion& km = out.keyframed;
-  km.key_count = frames;
-  km.first_key_time = 0.0;
-  km.key_spacing = 1.0 / (frames - 1);
-  km.positions.resize(M * K * 3);
-  km.rotations.resize(M * K * 4);
   km.opacity_logits.resize(M * K);
   const bool keyed_scales = cloud.motion == MotionModel::Keyframed && !cloud.keyframed.log_scales.empty();
   if (keyed_scales) km.log_scales.resize(M * K * 3);
@@ -549,11 +545,7 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
   }
   if (!opacity_varies) km.opacity_logits.clear();
   out.motion = MotionModel::Keyframed;
-  for (size_t j = 0; j < M; ++j) {
-    const uint32_t g = cloud.dynamic_ids[j];
-    out.means[g] = Eigen::Map<const Vec3f>(&km.positions[j * K * 3]);
-    out.rotations[g] = Eigen::Map<const Vec4f>(&km.rotations[j * K * 4]);
-  }
+  canonical_from_first_key(out);
   return out;
 }
 

@@ -177,12 +177,8 @@ SynthScene make_synthetic_scene(const SynthOptions& o) {
   const Vec3d from(-0.55, -0.65, 0), to(0.5, -0.6, 0);
   const double yaw_total = kPi / 2;
   const int F = o.frames;
+  c.keyframed = per_frame_tracks(nm, F);
   KeyframedMotion& k = c.keyframed;
-  k.key_count = F;
-  k.first_key_time = 0;
-  k.key_spacing = 1.0 / (F - 1);
-  k.positions.resize(nm * F * 3);
-  k.rotations.resize(nm * F * 4);
   for (int f = 0; f < F; ++f) {
     const double t = double(f) / (F - 1);
     const double s = smoothstep01((t - o.move_start) / (o.move_end - o.move_start));
@@ -201,9 +197,8 @@ SynthScene make_synthetic_scene(const SynthOptions& o) {
   for (size_t i = 0; i < nm; ++i) {
     c.dynamic_ids.push_back(uint32_t(ns + i));
     out.chair_ids.push_back(uint32_t(ns + i));
-    c.means[ns + i] = Eigen::Map<const Vec3f>(&k.positions[i * F * 3]);
-    c.rotations[ns + i] = Eigen::Map<const Vec4f>(&k.rotations[i * F * 4]);
   }
+  canonical_from_first_key(c);
   c.validate("synthetic scene");
 
   // Cameras.

@@ -122,6 +122,14 @@ struct PartitionOptions {
 /// freezing them at their time-averaged position. Returns how many were moved.
 size_t partition_static_dynamic(GaussianCloud& cloud, const PartitionOptions& options = {});
 
+/// Keyframed motion with one key per frame (key f at t = f / (frames - 1)), fillgs
+/// conventions, positions and rotations sized for `gaussians` tracks (zero-filled).
+KeyframedMotion per_frame_tracks(size_t gaussians, int frames);
+
+/// Sets every dynamic Gaussian's canonical mean and rotation to its first key, so that
+/// tools that read only the canonical values (splat viewers, bounds) see time 0.
+void canonical_from_first_key(GaussianCloud& cloud);
+
 /// Axis-aligned bounds of the canonical means (min, max).
 std::pair<Vec3f, Vec3f> bounding_box(const GaussianCloud& cloud);
 
