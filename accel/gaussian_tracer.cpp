@@ -1,0 +1,437 @@
+// Embree Gaussian proxies: user-geometry ellipsoids, a k-buffer inside the intersect
+// callback, a static BVH built once and a dynamic one refit per time step.
+#include "fillgs/gaussian_tracer.hpp"
+
+#include <embree3/rtcore.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "embree_device.hpp"
+#include "fillgs/error.hpp"
+#include "fillgs/math.hpp"
+
+namespace fillgs {
+
+namespace {
+
+// Scales are clamped into this range before inversion so that the canonical transform
+// and the bound stay finite in float for degenerate (log-scale -inf) and huge Gaussians.
+constexpr double kMinScale = 1e-30;
+constexpr double kMaxExtent = 1e30;
+
+/// One Gaussian as the callbacks need it.
+struct Proxy {
+  float axes[9];   ///< row j: the Gaussian's j-th axis in world space (column j of R)
+  float scale[3];  ///< standard deviations along the axes, clamped to [1e-30, 1e30]
+  float mean[3];
+  float opacity;
+  float k2;        ///< squared bound in sigmas; <= 0: α never reaches α_min
+  float half_extent[3];  ///< world AABB half size at k sigmas (dilation padding included)
+};
+
+struct ProxySet {
+  std::vector<Proxy> proxies;
+  std::vector<uint32_t> ids;  ///< Gaussian id of each primitive
+  float min_alpha = kMinAlpha;
+  float padding = 0;          ///< bound padding (world sigma) for match dilation
+  float slack = 0;            ///< largest proxy box half-diagonal (depth-order pruning)
+};
+
+Proxy make_proxy(const Vec3f& mean, const Vec3f& scale, const Vec4f& rotation, float opacity, float min_alpha, float padding) {
+  Proxy p;
+  const Mat3d R = quat_to_matrix<double>(rotation.cast<double>());
+  Vec3d s;
+  for (int j = 0; j < 3; ++j) s[j] = std::clamp(double(scale[j]), kMinScale, kMaxExtent);
+  for (int j = 0; j < 3; ++j) {
+    for (int i = 0; i < 3; ++i) p.axes[3 * j + i] = float(R(i, j));
+    p.scale[j] = float(s[j]);
+    p.mean[j] = mean[j];
+  }
+  p.opacity = std::min(opacity, kMaxAlpha);
+  // α = min(0.99, o·exp(-m²/2)) >= α_min  <=>  m² <= 2 ln(o / α_min); the 0.99 clamp only
+  // lowers α where o·exp(-m²/2) > 0.99, never at the boundary, so the bound uses o itself.
+  p.k2 = opacity > min_alpha ? float(2.0 * std::log(double(opacity) / double(min_alpha))) : -1.0f;
+  const double k = p.k2 > 0 ? std::sqrt(double(p.k2)) : 0.0;
+  const double pad2 = double(padding) * double(padding);
+  for (int i = 0; i < 3; ++i) {
+    double e2 = pad2;  // rows of R are unit: Σ_j R_ij² (s_j² + pad²) = Σ_j R_ij² s_j² + pad²
+    for (int j = 0; j < 3; ++j) e2 += (R(i, j) * s[j]) * (R(i, j) * s[j]);
+    p.half_extent[i] = float(std::min(k * std::sqrt(e2), kMaxExtent));
+  }
+  return p;
+}
+
+/// Maximum response of a proxy along origin + t·direction, t >= 0. Returns false when the
+/// ray misses the α_min ellipsoid; otherwise the distance of the maximum, α there and the
+/// order key (that distance, or with a RasterMatch the mean's view depth).
+/// With a RasterMatch every axis gets the variance c·z² (z: the mean's depth along the
+/// camera axis), which is what the rasterizer's +0.3 px² does to a Gaussian at depth z,
+/// and Gaussians with z <= the near plane are not drawn.
+inline bool respond(const Proxy& p, const float org[3], const float dir[3], const RasterMatch* fp, float min_alpha,
+                    float* distance, float* alpha, float* key) {
+  if (p.k2 <= 0.0f) return false;
+  const double rel[3] = {double(org[0]) - p.mean[0], double(org[1]) - p.mean[1], double(org[2]) - p.mean[2]};
+  double extra = 0.0, z = 0.0;
+  if (fp) {
+    z = -(rel[0] * fp->axis[0] + rel[1] * fp->axis[1] + rel[2] * fp->axis[2]);
+    if (!(z > double(fp->near_depth))) return false;
+    extra = double(fp->variance_per_depth2) * z * z;
+  }
+  double o[3], d[3];
+  for (int j = 0; j < 3; ++j) {
+    const float* a = p.axes + 3 * j;
+    const double s = double(p.scale[j]);
+    const double inv = extra > 0.0 ? 1.0 / std::sqrt(s * s + extra) : 1.0 / s;
+    o[j] = inv * (a[0] * rel[0] + a[1] * rel[1] + a[2] * rel[2]);
+    d[j] = inv * (a[0] * double(dir[0]) + a[1] * double(dir[1]) + a[2] * double(dir[2]));
+  }
+  const double dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  if (!(dd > 0.0) || !std::isfinite(dd)) return false;
+  const double t = std::max(0.0, -(o[0] * d[0] + o[1] * d[1] + o[2] * d[2]) / dd);
+  // Closest point, not |o|² - (o·d)²/|d|²: no cancellation for rays far from the Gaussian.
+  const double c[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+  const double m2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+  if (!(m2 <= double(p.k2))) return false;
+  const float a = std::min(kMaxAlpha, float(double(p.opacity) * std::exp(-0.5 * m2)));
+  if (a < min_alpha) return false;
+  *distance = float(t);
+  *alpha = a;
+  *key = fp ? float(z) : float(t);
+  return true;
+}
+
+/// The k nearest hits beyond the last accepted one, kept sorted by (distance, id).
+/// Keys are ray distances, or view depths under a RasterMatch.
+struct KBuffer {
+  static constexpr int kCapacity = 16;
+  struct Entry {
+    float distance;  ///< the order key
+    uint32_t id;
+    float alpha;
+    float ray_distance;
+  };
+  Entry entries[kCapacity];
+  int count = 0;
+  bool has_floor = false;  ///< false on the first pass
+  float floor_distance = 0;
+  uint32_t floor_id = 0;
+
+  static bool before(float da, uint32_t ia, float db, uint32_t ib) { return da < db || (da == db && ia < ib); }
+
+  /// Offers a hit; returns the distance beyond which nothing can enter any more (+inf while not full).
+  float offer(float distance, uint32_t id, float alpha, float ray_distance) {
+    if (has_floor && !before(floor_distance, floor_id, distance, id)) return limit();
+    if (count == kCapacity && !before(distance, id, entries[count - 1].distance, entries[count - 1].id)) return limit();
+    int i = count < kCapacity ? count++ : kCapacity - 1;
+    while (i > 0 && before(distance, id, entries[i - 1].distance, entries[i - 1].id)) {
+      entries[i] = entries[i - 1];
+      --i;
+    }
+    entries[i] = {distance, id, alpha, ray_distance};
+    return limit();
+  }
+  float limit() const { return count == kCapacity ? entries[count - 1].distance : std::numeric_limits<float>::infinity(); }
+};
+
+/// Embree passes our context pointer through to the callbacks unchanged (also inside instances).
+struct TraceContext {
+  RTCIntersectContext base;
+  KBuffer* buffer;
+  const RasterMatch* match;
+  // Depth keys: a proxy whose key is z has its box within z ± slack in depth, and ray
+  // distance = depth / depth_per_distance; the BVH may skip what lies beyond.
+  float slack = 0;
+  float depth_per_distance = 1;
+  float max_key = 0;  // occlusion queries: only hits with a key up to this count
+};
+
+void proxy_bounds(const RTCBoundsFunctionArguments* args) {
+  const auto* set = static_cast<const ProxySet*>(args->geometryUserPtr);
+  const Proxy& p = set->proxies[args->primID];
+  RTCBounds* b = args->bounds_o;
+  if (p.k2 <= 0.0f) {
+    // An empty (inverted) box: Embree leaves the primitive out of the BVH.
+    b->lower_x = b->lower_y = b->lower_z = std::numeric_limits<float>::infinity();
+    b->upper_x = b->upper_y = b->upper_z = -std::numeric_limits<float>::infinity();
+    return;
+  }
+  b->lower_x = p.mean[0] - p.half_extent[0];
+  b->lower_y = p.mean[1] - p.half_extent[1];
+  b->lower_z = p.mean[2] - p.half_extent[2];
+  b->upper_x = p.mean[0] + p.half_extent[0];
+  b->upper_y = p.mean[1] + p.half_extent[1];
+  b->upper_z = p.mean[2] + p.half_extent[2];
+}
+
+// No exception can be thrown below: plain arithmetic on preallocated arrays.
+void proxy_intersect(const RTCIntersectFunctionNArguments* args) {
+  const auto* set = static_cast<const ProxySet*>(args->geometryUserPtr);
+  const TraceContext* context = reinterpret_cast<const TraceContext*>(args->context);
+  KBuffer* buffer = context->buffer;
+  RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, args->N);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (!args->valid[i]) continue;
+    const float org[3] = {RTCRayN_org_x(ray, args->N, i), RTCRayN_org_y(ray, args->N, i), RTCRayN_org_z(ray, args->N, i)};
+    const float dir[3] = {RTCRayN_dir_x(ray, args->N, i), RTCRayN_dir_y(ray, args->N, i), RTCRayN_dir_z(ray, args->N, i)};
+    float distance, alpha, key;
+    if (!respond(set->proxies[args->primID], org, dir, context->match, set->min_alpha, &distance, &alpha, &key)) continue;
+    // Never commit the hit: Embree keeps looking; shrinking tfar once the buffer is full
+    // lets the BVH skip everything that cannot come before its k-th key.
+    const float limit = buffer->offer(key, set->ids[args->primID], alpha, distance);
+    if (limit < std::numeric_limits<float>::infinity())
+      RTCRayN_tfar(ray, args->N, i) = context->match ? (limit + context->slack) / context->depth_per_distance : limit;
+  }
+}
+
+void proxy_occluded(const RTCOccludedFunctionNArguments* args) {
+  const auto* set = static_cast<const ProxySet*>(args->geometryUserPtr);
+  const TraceContext* context = reinterpret_cast<const TraceContext*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (!args->valid[i]) continue;
+    RTCRayN* ray = args->ray;
+    const float org[3] = {RTCRayN_org_x(ray, args->N, i), RTCRayN_org_y(ray, args->N, i), RTCRayN_org_z(ray, args->N, i)};
+    const float dir[3] = {RTCRayN_dir_x(ray, args->N, i), RTCRayN_dir_y(ray, args->N, i), RTCRayN_dir_z(ray, args->N, i)};
+    float distance, alpha, key;
+    if (!respond(set->proxies[args->primID], org, dir, context->match, set->min_alpha, &distance, &alpha, &key)) continue;
+    if (key > context->max_key) continue;
+    RTCRayN_tfar(ray, args->N, i) = -std::numeric_limits<float>::infinity();
+  }
+}
+
+/// RAII owners for scenes and geometries (Embree handles are reference counted).
+struct SceneHandle {
+  RTCScene scene = nullptr;
+  ~SceneHandle() {
+    if (scene) rtcReleaseScene(scene);
+  }
+};
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+
+struct GaussianTracer::Impl {
+  TracerOptions options;
+  accel::EmbreeDevice device;
+  ProxySet static_set, dynamic_set;
+  SceneHandle static_scene, dynamic_scene, top;
+  RTCGeometry dynamic_geometry = nullptr;  // owned by dynamic_scene
+  RTCGeometry dynamic_instance = nullptr;  // owned by top
+  double build_seconds = 0, refit_seconds = 0;
+
+  void fill(ProxySet& set, const FrameGaussians& frame) {
+    tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, set.ids.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i < r.end(); ++i) {
+          const uint32_t g = set.ids[i];
+          set.proxies[i] = make_proxy(frame.means[g], frame.scales[g], frame.rotations[g], frame.opacities[g], set.min_alpha, set.padding);
+        }
+      });
+    });
+    float slack = 0;
+    for (const Proxy& p : set.proxies)
+      if (p.k2 > 0.0f)
+        slack = std::max(slack, std::sqrt(p.half_extent[0] * p.half_extent[0] + p.half_extent[1] * p.half_extent[1] +
+                                          p.half_extent[2] * p.half_extent[2]));
+    set.slack = slack;
+  }
+
+  RTCGeometry add_user_geometry(RTCScene scene, ProxySet& set, RTCBuildQuality quality) {
+    RTCGeometry g = rtcNewGeometry(device.get(), RTC_GEOMETRY_TYPE_USER);
+    rtcSetGeometryUserPrimitiveCount(g, unsigned(set.proxies.size()));
+    rtcSetGeometryUserData(g, &set);
+    rtcSetGeometryBoundsFunction(g, proxy_bounds, &set);
+    rtcSetGeometryIntersectFunction(g, proxy_intersect);
+    rtcSetGeometryOccludedFunction(g, proxy_occluded);
+    rtcSetGeometryBuildQuality(g, quality);
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scene, g);
+    rtcReleaseGeometry(g);  // the scene holds it
+    return g;
+  }
+
+  RTCGeometry add_instance(RTCScene child) {
+    RTCGeometry inst = rtcNewGeometry(device.get(), RTC_GEOMETRY_TYPE_INSTANCE);
+    rtcSetGeometryInstancedScene(inst, child);
+    const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+    rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+    rtcCommitGeometry(inst);
+    rtcAttachGeometry(top.scene, inst);
+    rtcReleaseGeometry(inst);
+    return inst;
+  }
+};
+
+GaussianTracer::GaussianTracer(const FrameGaussians& frame, const std::vector<uint32_t>& dynamic_ids, const TracerOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  const auto start = std::chrono::steady_clock::now();
+  Impl& m = *impl_;
+  m.options = options;
+  FILLGS_CHECK(options.min_alpha > 0.0f && options.min_alpha < 1.0f);
+  FILLGS_CHECK(frame.size() < size_t(std::numeric_limits<uint32_t>::max()));
+  FILLGS_CHECK(options.dilation_padding >= 0.0f && std::isfinite(options.dilation_padding));
+  FILLGS_CHECK(options.dilation_padding >= 0.0f && std::isfinite(options.dilation_padding));
+  m.static_set.min_alpha = m.dynamic_set.min_alpha = options.min_alpha;
+  m.static_set.padding = m.dynamic_set.padding = options.dilation_padding;
+  m.static_set.padding = m.dynamic_set.padding = options.dilation_padding;
+  m.dynamic_set.ids = dynamic_ids;
+  std::vector<char> moving(frame.size(), 0);
+  for (uint32_t g : dynamic_ids) {
+    FILLGS_CHECK_LT(size_t(g), frame.size());
+    moving[g] = 1;
+  }
+  m.static_set.ids.reserve(frame.size() - dynamic_ids.size());
+  for (size_t g = 0; g < frame.size(); ++g)
+    if (!moving[g]) m.static_set.ids.push_back(uint32_t(g));
+  m.static_set.proxies.resize(m.static_set.ids.size());
+  m.dynamic_set.proxies.resize(m.dynamic_set.ids.size());
+  m.fill(m.static_set, frame);
+  m.fill(m.dynamic_set, frame);
+
+  RTCDevice dev = m.device.get();
+  m.static_scene.scene = rtcNewScene(dev);
+  rtcSetSceneBuildQuality(m.static_scene.scene, RTC_BUILD_QUALITY_MEDIUM);
+  if (!m.static_set.proxies.empty()) m.add_user_geometry(m.static_scene.scene, m.static_set, RTC_BUILD_QUALITY_MEDIUM);
+  rtcCommitScene(m.static_scene.scene);
+
+  m.dynamic_scene.scene = rtcNewScene(dev);
+  rtcSetSceneFlags(m.dynamic_scene.scene, RTC_SCENE_FLAG_DYNAMIC);
+  rtcSetSceneBuildQuality(m.dynamic_scene.scene, RTC_BUILD_QUALITY_LOW);
+  if (!m.dynamic_set.proxies.empty())
+    m.dynamic_geometry = m.add_user_geometry(m.dynamic_scene.scene, m.dynamic_set, RTC_BUILD_QUALITY_REFIT);
+  rtcCommitScene(m.dynamic_scene.scene);
+
+  m.top.scene = rtcNewScene(dev);
+  if (!m.static_set.proxies.empty()) m.add_instance(m.static_scene.scene);
+  if (!m.dynamic_set.proxies.empty()) m.dynamic_instance = m.add_instance(m.dynamic_scene.scene);
+  rtcCommitScene(m.top.scene);
+  m.device.check("building Gaussian proxies");
+  m.build_seconds = seconds_since(start);
+}
+
+GaussianTracer::~GaussianTracer() = default;
+
+void GaussianTracer::refit_dynamic(const FrameGaussians& frame) {
+  const auto start = std::chrono::steady_clock::now();
+  Impl& m = *impl_;
+  if (m.dynamic_set.proxies.empty()) return;
+  FILLGS_CHECK_LT(size_t(m.dynamic_set.ids.back()), frame.size());
+  m.fill(m.dynamic_set, frame);
+  rtcCommitGeometry(m.dynamic_geometry);
+  rtcCommitScene(m.dynamic_scene.scene);
+  rtcCommitGeometry(m.dynamic_instance);
+  rtcCommitScene(m.top.scene);
+  m.device.check("refitting dynamic Gaussian proxies");
+  m.refit_seconds = seconds_since(start);
+}
+
+RayOutcome GaussianTracer::trace(const Vec3f& origin, const Vec3f& direction, TraceLayers layers,
+                                 std::vector<TracedHit>& hits, const RasterMatch* match) const {
+  const Impl& m = *impl_;
+  RTCScene scene = layers == TraceLayers::All ? m.top.scene : m.static_scene.scene;
+  KBuffer buffer;
+  TraceContext context;
+  rtcInitIntersectContext(&context.base);
+  context.buffer = &buffer;
+  context.match = match;
+  float floor_slack = 0;
+  if (match) {
+    context.depth_per_distance = direction.x() * match->axis[0] + direction.y() * match->axis[1] + direction.z() * match->axis[2];
+    FILLGS_DCHECK(context.depth_per_distance > 0.0f);
+    context.slack = layers == TraceLayers::All ? std::max(m.static_set.slack, m.dynamic_set.slack) : m.static_set.slack;
+    floor_slack = context.slack;
+  }
+  RayOutcome out;
+  float T = 1.0f;
+  for (;;) {
+    buffer.count = 0;
+    RTCRayHit rh;
+    rh.ray.org_x = origin.x();
+    rh.ray.org_y = origin.y();
+    rh.ray.org_z = origin.z();
+    rh.ray.dir_x = direction.x();
+    rh.ray.dir_y = direction.y();
+    rh.ray.dir_z = direction.z();
+    rh.ray.tnear = !buffer.has_floor ? 0.0f
+                   : match ? std::max(0.0f, (buffer.floor_distance - floor_slack) / context.depth_per_distance)
+                           : buffer.floor_distance;
+    rh.ray.tfar = std::numeric_limits<float>::infinity();
+    rh.ray.time = 0.0f;
+    rh.ray.mask = 0xFFFFFFFFu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene, &context.base, &rh);
+    ++out.passes;
+    for (int i = 0; i < buffer.count; ++i) {
+      const KBuffer::Entry& e = buffer.entries[i];
+      const float next_T = T * (1.0f - e.alpha);
+      if (next_T < m.options.min_transmittance) {
+        out.transmittance = T;
+        out.end_key = e.distance;
+        return out;
+      }
+      hits.push_back({e.id, e.ray_distance, e.alpha, e.alpha * T});
+      T = next_T;
+    }
+    if (buffer.count < KBuffer::kCapacity) break;
+    buffer.has_floor = true;
+    buffer.floor_distance = buffer.entries[KBuffer::kCapacity - 1].distance;
+    buffer.floor_id = buffer.entries[KBuffer::kCapacity - 1].id;
+  }
+  out.transmittance = T;
+  return out;
+}
+
+bool GaussianTracer::meets_dynamic(const Vec3f& origin, const Vec3f& direction, float max_key,
+                                   const RasterMatch* match) const {
+  const Impl& m = *impl_;
+  if (m.dynamic_set.proxies.empty() || !(max_key >= 0.0f)) return false;
+  TraceContext context;
+  rtcInitIntersectContext(&context.base);
+  context.buffer = nullptr;
+  context.match = match;
+  context.max_key = max_key;
+  float max_distance = max_key;
+  if (match) {
+    context.depth_per_distance = direction.x() * match->axis[0] + direction.y() * match->axis[1] + direction.z() * match->axis[2];
+    max_distance = (max_key + m.dynamic_set.slack) / context.depth_per_distance;
+  }
+  RTCRay ray;
+  ray.org_x = origin.x();
+  ray.org_y = origin.y();
+  ray.org_z = origin.z();
+  ray.dir_x = direction.x();
+  ray.dir_y = direction.y();
+  ray.dir_z = direction.z();
+  ray.tnear = 0.0f;
+  ray.tfar = max_distance;
+  ray.time = 0.0f;
+  ray.mask = 0xFFFFFFFFu;
+  ray.id = 0;
+  ray.flags = 0;
+  rtcOccluded1(m.dynamic_scene.scene, &context.base, &ray);
+  return ray.tfar < 0.0f;
+}
+
+size_t GaussianTracer::static_count() const { return impl_->static_set.ids.size(); }
+size_t GaussianTracer::dynamic_count() const { return impl_->dynamic_set.ids.size(); }
+float GaussianTracer::dilation_padding() const { return impl_->static_set.padding; }
+double GaussianTracer::build_seconds() const { return impl_->build_seconds; }
+double GaussianTracer::last_refit_seconds() const { return impl_->refit_seconds; }
+size_t GaussianTracer::memory_bytes() const {
+  const size_t n = impl_->static_set.ids.size() + impl_->dynamic_set.ids.size();
+  return n * (sizeof(Proxy) + sizeof(uint32_t));
+}
+
+}  // namespace fillgs

@@ -1,0 +1,106 @@
+#pragma once
+// Ray tracing through Gaussians: the narrow interface in front of the Embree proxies
+// (implemented in accel/gaussian_tracer.cpp, the only place that sees Embree).
+//
+// Each Gaussian is an Embree user-geometry ellipsoid bounded at k = sqrt(2 ln(o / α_min))
+// standard deviations (3DGRT's opacity-adaptive bound): beyond k sigmas its α is below
+// α_min, so a Gaussian with o <= α_min has an empty bound and is never hit. A ray meets
+// a Gaussian at the point of maximum response along the ray (t* = -o'·d' / d'·d' in the
+// Gaussian's canonical frame, clamped to t >= 0), with α = min(0.99, o·exp(-½ m²)) where
+// m is the Mahalanobis distance of that point. Hits are gathered in order of that
+// distance (ties broken by id) with a 16-entry k-buffer kept inside the intersect
+// callback, blended front to back, and the ray stops before T would drop under T_min
+// (the rasterizer's rule).
+//
+// Two levels: static Gaussians in a BVH built once, dynamic Gaussians in a DYNAMIC scene
+// refit per time step, both instanced into one top-level scene.
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include "fillgs/gaussians.hpp"
+#include "fillgs/raster.hpp"
+
+namespace fillgs {
+
+struct TracerOptions {
+  float min_alpha = kMinAlpha;                  ///< α_min: a hit below it is not a hit
+  float min_transmittance = kMinTransmittance;  ///< stop before T would fall under this
+  /// World-space standard deviation added (in quadrature) to every proxy's bound, so that
+  /// rays with a RasterMatch up to that size still find the dilated Gaussians.
+  float dilation_padding = 0.0f;
+  int threads = 0;                              ///< for building proxies (0: all)
+};
+
+/// Makes a camera's rays draw what the rasterizer draws (for rays leaving the camera centre):
+///  * the screen-space dilation (+0.3 px² on every 2D covariance): a Gaussian whose mean
+///    lies at depth z along `axis` gets the variance `variance_per_depth2 · z²` added to
+///    each of its axes (0.3 / (fx·fy) for focal lengths fx, fy in pixels);
+///  * hits ordered by the view depth of the mean (the rasterizer's per-tile sort), not by
+///    the distance of the maximum response;
+///  * Gaussians whose mean is not beyond the near plane are not drawn.
+/// Ordering by depth lets the BVH prune only to within the largest proxy's extent, so
+/// huge Gaussians make such rays slower (never wrong).
+struct RasterMatch {
+  float axis[3] = {0, 0, 1};  ///< the camera's optical axis (unit, world space)
+  float variance_per_depth2 = 0.0f;
+  float near_depth = kNearPlane;
+};
+
+/// One blended hit: the Gaussian, where along the ray, its α and its weight α·T.
+struct TracedHit {
+  uint32_t id;
+  float distance;
+  float alpha;
+  float weight;
+};
+
+/// What a traced ray ended with.
+struct RayOutcome {
+  float transmittance = 1.0f;  ///< T after the last blended hit
+  /// Order key (distance, or view depth under a RasterMatch) of the hit that would have
+  /// taken T under T_min: the ray ends there. +inf when the ray ran out of hits first.
+  float end_key = std::numeric_limits<float>::infinity();
+  uint32_t passes = 0;         ///< k-buffer passes
+};
+
+enum class TraceLayers { All, StaticOnly };
+
+class GaussianTracer {
+ public:
+  /// Builds proxies for `frame`: Gaussians listed in `dynamic_ids` (ascending) go to the
+  /// refittable scene, all others to the static one.
+  GaussianTracer(const FrameGaussians& frame, const std::vector<uint32_t>& dynamic_ids, const TracerOptions& options = {});
+  ~GaussianTracer();
+  GaussianTracer(const GaussianTracer&) = delete;
+  GaussianTracer& operator=(const GaussianTracer&) = delete;
+
+  /// Rewrites the dynamic proxies from `frame` (same Gaussian count) and refits their BVH.
+  void refit_dynamic(const FrameGaussians& frame);
+
+  /// Traces one ray (direction need not be unit; distances are in units of it), appending
+  /// every blended hit front to back to `hits`. Thread-safe.
+  /// With a RasterMatch the hits are those the rasterizer would blend (see there).
+  RayOutcome trace(const Vec3f& origin, const Vec3f& direction, TraceLayers layers, std::vector<TracedHit>& hits,
+                   const RasterMatch* match = nullptr) const;
+
+  /// True if the ray meets a dynamic proxy (a point where α >= α_min) whose order key is at
+  /// most `max_key` (pass a RayOutcome::end_key to ask "can moving Gaussians change this
+  /// ray's answer"). Thread-safe.
+  bool meets_dynamic(const Vec3f& origin, const Vec3f& direction, float max_key,
+                     const RasterMatch* match = nullptr) const;
+
+  size_t static_count() const;
+  size_t dynamic_count() const;
+  float dilation_padding() const;
+  double build_seconds() const;       ///< proxies + static BVH + first dynamic build
+  double last_refit_seconds() const;  ///< proxies + refit of the last refit_dynamic
+  size_t memory_bytes() const;        ///< proxy arrays (Embree's own BVH memory not included)
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace fillgs

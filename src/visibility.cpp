@@ -1,0 +1,722 @@
+#include "fillgs/visibility.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <map>
+
+#include "fillgs/error.hpp"
+#include "fillgs/gaussian_tracer.hpp"
+
+namespace fillgs {
+
+const char* to_string(VisibilityMode mode) {
+  switch (mode) {
+    case VisibilityMode::Frustum: return "frustum";
+    case VisibilityMode::Raytraced: return "raytraced";
+    case VisibilityMode::Exact: return "exact";
+  }
+  return "?";
+}
+
+VisibilityMode parse_visibility_mode(const std::string& name) {
+  if (name == "frustum") return VisibilityMode::Frustum;
+  if (name == "raytraced") return VisibilityMode::Raytraced;
+  if (name == "exact") return VisibilityMode::Exact;
+  throw_error("unknown visibility mode '", name, "' (expected frustum, raytraced or exact)");
+}
+
+double ViewMaps::score() const {
+  if (deficiency.empty()) return 0.0;
+  double s = 0;
+  for (float v : deficiency) s += v;
+  return s / double(deficiency.size());
+}
+
+std::vector<double> frame_times(int frames) {
+  FILLGS_CHECK(frames >= 1);
+  std::vector<double> t(size_t(frames), 0.0);
+  for (int f = 0; f < frames && frames > 1; ++f) t[size_t(f)] = double(f) / double(frames - 1);
+  return t;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+RasterMatch camera_raster_match(const Camera& cam) {
+  RasterMatch f;
+  for (int i = 0; i < 3; ++i) f.axis[i] = float(cam.R(2, i));
+  f.variance_per_depth2 = float(double(kDilation) / (cam.fx * cam.fy));
+  return f;
+}
+
+/// Bound padding a camera needs so that its dilated matchs fit: the dilation's
+/// standard deviation at the farthest corner of `box`.
+float padding_for(const Camera& cam, const std::pair<Vec3f, Vec3f>& box) {
+  const Vec3d c = cam.centre();
+  double z = 0;
+  for (int k = 0; k < 8; ++k) {
+    const Vec3d corner((k & 1 ? box.second : box.first).x(), (k & 2 ? box.second : box.first).y(), (k & 4 ? box.second : box.first).z());
+    z = std::max(z, (cam.R.row(2) * (corner - c))(0));
+  }
+  return float(std::sqrt(double(kDilation) / (cam.fx * cam.fy)) * z);
+}
+
+/// Bounds of every mean the scene takes (dynamic ones sampled over time).
+std::pair<Vec3f, Vec3f> scene_extent(const GaussianCloud& cloud) {
+  Vec3f lo = Vec3f::Constant(std::numeric_limits<float>::infinity()), hi = -lo;
+  for (size_t g = 0; g < cloud.size(); ++g) {
+    lo = lo.cwiseMin(cloud.means[g]);
+    hi = hi.cwiseMax(cloud.means[g]);
+  }
+  std::vector<Vec3f> p;
+  for (int k = 0; k <= 8 && cloud.dynamic_count() > 0; ++k) {
+    dynamic_means_at(cloud, k / 8.0, p);
+    for (const Vec3f& x : p) {
+      lo = lo.cwiseMin(x);
+      hi = hi.cwiseMax(x);
+    }
+  }
+  if (cloud.size() == 0) lo = hi = Vec3f::Zero();
+  return {lo, hi};
+}
+
+/// Rays of one camera on a pixel grid of `stride`: ray (i, j) goes through the centre of
+/// pixel (off + i·stride, off + j·stride), off = stride / 2; directions have unit view
+/// depth, so distances along a ray are view-space z.
+struct RayGrid {
+  int width = 0, height = 0, stride = 1, offset = 0;
+  Vec3f origin;
+  Mat3d to_world;  // Rᵀ
+  const Camera* camera = nullptr;
+  RasterMatch match_storage;
+  const RasterMatch* match = nullptr;  // null: Gaussians are not dilated
+
+  RayGrid(const Camera& cam, int s, bool dilate) : stride(s), camera(&cam) {
+    if (dilate) {
+      match_storage = camera_raster_match(cam);
+      match = &match_storage;
+    }
+    FILLGS_CHECK(s >= 1);
+    offset = std::min(s / 2, std::max(0, std::min(cam.width, cam.height) - 1));
+    width = cam.width > offset ? (cam.width - offset + s - 1) / s : 0;
+    height = cam.height > offset ? (cam.height - offset + s - 1) / s : 0;
+    origin = cam.centre().cast<float>();
+    to_world = cam.R.transpose();
+  }
+  size_t count() const { return size_t(width) * size_t(height); }
+  Vec3f direction(int i, int j) const {
+    const double px = offset + i * stride + 0.5, py = offset + j * stride + 0.5;
+    const Vec3d d((px - camera->cx) / camera->fx, (py - camera->cy) / camera->fy, 1.0);
+    return (to_world * d).cast<float>();
+  }
+};
+
+/// Appends the ids of hits whose weight reaches τ.
+void observed_ids(const std::vector<TracedHit>& hits, float tau, std::vector<uint32_t>& out) {
+  for (const TracedHit& h : hits)
+    if (h.weight >= tau) out.push_back(h.id);
+}
+
+void sort_unique(std::vector<uint32_t>& v) {
+  std::sort(v.begin(), v.end());
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+}
+
+/// Per-thread scratch for ray work.
+struct RayScratch {
+  std::vector<TracedHit> hits;
+  std::vector<uint32_t> ids;
+  uint64_t rays = 0, probes = 0, hits_count = 0;
+};
+
+/// Gathers per-thread id lists into one ascending, duplicate-free list.
+std::vector<uint32_t> merge_ids(tbb::enumerable_thread_specific<RayScratch>& scratch, TraceCounters* counters) {
+  std::vector<uint32_t> all;
+  for (RayScratch& s : scratch) {
+    sort_unique(s.ids);
+    all.insert(all.end(), s.ids.begin(), s.ids.end());
+    s.ids.clear();
+    if (counters) {
+      counters->rays += s.rays;
+      counters->probes += s.probes;
+      counters->hits += s.hits_count;
+    }
+    s.rays = s.probes = s.hits_count = 0;
+  }
+  sort_unique(all);
+  return all;
+}
+
+/// Frustum rule for the listed Gaussians (all when ids is null), ascending.
+std::vector<uint32_t> frustum_visible(const FrameGaussians& frame, const Camera& cam, const std::vector<uint32_t>* ids) {
+  const size_t n = ids ? ids->size() : frame.size();
+  tbb::enumerable_thread_specific<std::vector<uint32_t>> found;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    auto& out = found.local();
+    ProjectedGaussian p;
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const uint32_t g = ids ? (*ids)[i] : uint32_t(i);
+      if (project_gaussian(frame.means[g], frame.scales[g], frame.rotations[g], cam, &p)) out.push_back(g);
+    }
+  });
+  std::vector<uint32_t> all;
+  for (auto& v : found) all.insert(all.end(), v.begin(), v.end());
+  std::sort(all.begin(), all.end());
+  return all;
+}
+
+std::vector<uint32_t> exact_visible(const FrameGaussians& frame, const Camera& cam, float tau, int threads) {
+  RenderOptions ro;
+  ro.rgb = false;
+  ro.max_weights = true;
+  ro.threads = threads;
+  const RenderOutput out = render(frame, cam, ro);
+  std::vector<uint32_t> ids;
+  for (size_t g = 0; g < out.max_weight.size(); ++g)
+    if (out.max_weight[g] >= tau) ids.push_back(uint32_t(g));
+  return ids;
+}
+
+/// Every ray of the grid through all layers; the union of observed ids.
+std::vector<uint32_t> raytraced_visible(const GaussianTracer& tracer, const RayGrid& grid, float tau, TraceCounters* counters) {
+  tbb::enumerable_thread_specific<RayScratch> scratch;
+  tbb::parallel_for(tbb::blocked_range<int>(0, grid.height, 1), [&](const tbb::blocked_range<int>& r) {
+    RayScratch& s = scratch.local();
+    for (int j = r.begin(); j < r.end(); ++j)
+      for (int i = 0; i < grid.width; ++i) {
+        s.hits.clear();
+        tracer.trace(grid.origin, grid.direction(i, j), TraceLayers::All, s.hits, grid.match);
+        ++s.rays;
+        s.hits_count += s.hits.size();
+        observed_ids(s.hits, tau, s.ids);
+      }
+  });
+  return merge_ids(scratch, counters);
+}
+
+}  // namespace
+
+
+// ---------------------------------------------------------------------------------
+// VisibilityEngine
+
+struct VisibilityEngine::Impl {
+  const GaussianCloud& cloud;
+  VisibilityOptions options;
+  FrameEvaluator evaluator;
+  const FrameGaussians* frame = nullptr;
+  std::unique_ptr<GaussianTracer> tracer;
+  TraceCounters counters;
+  tbb::task_arena arena;
+  std::pair<Vec3f, Vec3f> extent;
+
+  Impl(const GaussianCloud& c, const VisibilityOptions& o)
+      : cloud(c), options(o), evaluator(c), arena(o.threads > 0 ? o.threads : tbb::task_arena::automatic) {}
+
+  /// The proxies, (re)built when a camera's dilated matchs need more bound padding
+  /// than they have (with 25% headroom, so a rig of similar cameras builds once).
+  GaussianTracer& proxies(const Camera* camera) {
+    const float need = camera && options.dilate ? padding_for(*camera, extent) : 0.0f;
+    if (!tracer || need > tracer->dilation_padding()) {
+      TracerOptions to;
+      to.min_alpha = kMinAlpha;
+      to.min_transmittance = options.min_transmittance;
+      to.dilation_padding = std::max(tracer ? tracer->dilation_padding() : 0.0f, 1.25f * need);
+      to.threads = options.threads;
+      tracer.reset();
+      tracer = std::make_unique<GaussianTracer>(*frame, cloud.dynamic_ids, to);
+    }
+    return *tracer;
+  }
+};
+
+VisibilityEngine::VisibilityEngine(const GaussianCloud& cloud, const VisibilityOptions& options)
+    : impl_(std::make_unique<Impl>(cloud, options)) {
+  FILLGS_CHECK(options.stride >= 1);
+  FILLGS_CHECK(options.min_weight > 0.0f);
+  impl_->frame = &impl_->evaluator.evaluate(0.0);
+  impl_->arena.execute([&] { impl_->extent = scene_extent(cloud); });
+}
+
+VisibilityEngine::~VisibilityEngine() = default;
+
+void VisibilityEngine::set_time(double t) {
+  Impl& m = *impl_;
+  m.arena.execute([&] {
+    m.frame = &m.evaluator.evaluate(t);
+    if (m.tracer) m.tracer->refit_dynamic(*m.frame);
+  });
+}
+
+double VisibilityEngine::time() const { return impl_->frame->time; }
+const FrameGaussians& VisibilityEngine::frame() const { return *impl_->frame; }
+const VisibilityOptions& VisibilityEngine::options() const { return impl_->options; }
+const TraceCounters& VisibilityEngine::counters() const { return impl_->counters; }
+double VisibilityEngine::build_seconds() const { return impl_->tracer ? impl_->tracer->build_seconds() : 0.0; }
+double VisibilityEngine::last_refit_seconds() const { return impl_->tracer ? impl_->tracer->last_refit_seconds() : 0.0; }
+
+std::vector<uint32_t> VisibilityEngine::visible_set(const Camera& camera) {
+  Impl& m = *impl_;
+  std::vector<uint32_t> ids;
+  m.arena.execute([&] {
+    switch (m.options.mode) {
+      case VisibilityMode::Frustum: ids = frustum_visible(*m.frame, camera, nullptr); break;
+      case VisibilityMode::Exact: ids = exact_visible(*m.frame, camera, m.options.min_weight, m.options.threads); break;
+      case VisibilityMode::Raytraced:
+        ids = raytraced_visible(m.proxies(&camera), RayGrid(camera, m.options.stride, m.options.dilate), m.options.min_weight, &m.counters);
+        break;
+    }
+  });
+  return ids;
+}
+
+ViewMaps VisibilityEngine::render_maps(const Camera& camera, const float* deficiency, const float* count, int stride) {
+  Impl& m = *impl_;
+  ViewMaps maps;
+  m.arena.execute([&] {
+    const GaussianTracer& tracer = m.proxies(&camera);
+    const RayGrid grid(camera, stride, m.options.dilate);
+    maps.width = grid.width;
+    maps.height = grid.height;
+    maps.stride = stride;
+    const size_t n = grid.count();
+    if (deficiency) maps.deficiency.assign(n, 0.0f);
+    if (count) maps.count.assign(n, 0.0f);
+    maps.depth.assign(n, 0.0f);
+    maps.alpha.assign(n, 0.0f);
+    tbb::enumerable_thread_specific<RayScratch> scratch;
+    tbb::parallel_for(tbb::blocked_range<int>(0, grid.height, 1), [&](const tbb::blocked_range<int>& r) {
+      RayScratch& s = scratch.local();
+      for (int j = r.begin(); j < r.end(); ++j)
+        for (int i = 0; i < grid.width; ++i) {
+          s.hits.clear();
+          const RayOutcome o = tracer.trace(grid.origin, grid.direction(i, j), TraceLayers::All, s.hits, grid.match);
+          ++s.rays;
+          s.hits_count += s.hits.size();
+          double d = 0, c = 0, z = 0;
+          for (const TracedHit& h : s.hits) {
+            if (deficiency) d += double(h.weight) * deficiency[h.id];
+            if (count) c += double(h.weight) * count[h.id];
+            z += double(h.weight) * h.distance;
+          }
+          const size_t p = size_t(j) * size_t(grid.width) + size_t(i);
+          if (deficiency) maps.deficiency[p] = float(d);
+          if (count) maps.count[p] = float(c);
+          maps.depth[p] = float(z);
+          maps.alpha[p] = 1.0f - o.transmittance;
+        }
+    });
+    merge_ids(scratch, &m.counters);
+  });
+  return maps;
+}
+
+// ---------------------------------------------------------------------------------
+// Views, speeds
+
+std::vector<std::vector<uint32_t>> views_per_frame(const std::vector<Camera>& cameras, const std::vector<double>& times,
+                                                   double frame_step) {
+  std::vector<std::vector<uint32_t>> views(times.size());
+  for (size_t c = 0; c < cameras.size(); ++c) {
+    if (!cameras[c].has_time()) {
+      for (auto& v : views) v.push_back(uint32_t(c));
+      continue;
+    }
+    const double t = cameras[c].time;
+    const auto it = std::lower_bound(times.begin(), times.end(), t);
+    size_t best = times.size();
+    double best_gap = std::numeric_limits<double>::infinity();
+    for (auto k : {it - times.begin() - 1, it - times.begin()}) {
+      if (k < 0 || size_t(k) >= times.size()) continue;
+      const double gap = std::fabs(times[size_t(k)] - t);
+      if (gap < best_gap) best_gap = gap, best = size_t(k);
+    }
+    // Half a frame, with room for the rounding of times written as decimals.
+    if (best < times.size() && best_gap <= 0.5 * frame_step * (1.0 + 1e-6) + 1e-9) views[best].push_back(uint32_t(c));
+  }
+  return views;
+}
+
+void dynamic_speeds(const GaussianCloud& cloud, double t, double frame_step, std::vector<float>& out) {
+  out.assign(cloud.dynamic_count(), 0.0f);
+  if (out.empty() || !(frame_step > 0.0)) return;
+  const double t0 = std::max(0.0, t - frame_step), t1 = std::min(1.0, t + frame_step);
+  if (!(t1 > t0)) return;
+  std::vector<Vec3f> p0, p1;
+  dynamic_means_at(cloud, t0, p0);
+  dynamic_means_at(cloud, t1, p1);
+  for (size_t j = 0; j < out.size(); ++j) out[j] = float((p1[j] - p0[j]).cast<double>().norm() / (t1 - t0));
+}
+
+// ---------------------------------------------------------------------------------
+// Tables over all frames
+
+namespace {
+
+/// A camera pose's static answer, computed once and reused by every frame it observes.
+struct PoseCache {
+  bool ready = false;
+  std::vector<uint32_t> visible;    ///< ascending static ids observed
+  std::vector<uint32_t> ray_refs;   ///< raytraced: rays observing visible[k]
+  // raytraced: per ray (row-major over the grid) its static observed ids and end distance
+  std::vector<uint64_t> ray_offsets;
+  std::vector<uint32_t> ray_ids;
+  std::vector<float> ray_end;
+};
+
+/// Identifies cameras with the same pose and intrinsics (a fixed rig repeats them per frame).
+std::vector<uint32_t> pose_indices(const std::vector<Camera>& cameras, size_t* distinct) {
+  std::map<std::vector<double>, uint32_t> seen;
+  std::vector<uint32_t> index(cameras.size());
+  for (size_t c = 0; c < cameras.size(); ++c) {
+    const Camera& k = cameras[c];
+    std::vector<double> key = {double(k.width), double(k.height), k.fx, k.fy, k.cx, k.cy};
+    key.insert(key.end(), k.R.data(), k.R.data() + 9);
+    key.insert(key.end(), k.t.data(), k.t.data() + 3);
+    index[c] = seen.emplace(key, uint32_t(seen.size())).first->second;
+  }
+  *distinct = seen.size();
+  return index;
+}
+
+/// Change of one view's visible set at a time against its pose's static answer.
+struct ViewDelta {
+  std::vector<uint32_t> removed;  ///< static ids no longer observed (occluded by moving ones)
+  std::vector<uint32_t> added;    ///< ids observed that the static answer lacks
+};
+
+class ObservationRun {
+ public:
+  ObservationRun(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const ObservationOptions& options)
+      : cloud_(cloud), cameras_(cameras), opt_(options), vis_(options.visibility) {
+    pose_of_camera_ = pose_indices(cameras, &pose_count_);
+    poses_.resize(pose_count_);
+    marks_.assign(cloud.size(), 0);
+  }
+
+  ObservationSummary summary;
+
+  void static_answer(const FrameGaussians& frame, const GaussianTracer* tracer, uint32_t camera) {
+    PoseCache& pc = poses_[pose_of_camera_[camera]];
+    if (pc.ready) return;
+    const auto start = Clock::now();
+    const Camera& cam = cameras_[camera];
+    if (vis_.mode == VisibilityMode::Frustum) {
+      const std::vector<uint32_t> statics = cloud_.static_ids();
+      pc.visible = frustum_visible(frame, cam, &statics);
+    } else {
+      const RayGrid grid(cam, vis_.stride, vis_.dilate);
+      const size_t n = grid.count();
+      // Rows are traced in parallel into per-row lists, then packed.
+      std::vector<std::vector<uint32_t>> row_ids(size_t(grid.height)), row_counts(size_t(grid.height));
+      pc.ray_end.assign(n, 0.0f);
+      tbb::enumerable_thread_specific<RayScratch> scratch;
+      tbb::parallel_for(tbb::blocked_range<int>(0, grid.height, 1), [&](const tbb::blocked_range<int>& r) {
+        RayScratch& s = scratch.local();
+        for (int j = r.begin(); j < r.end(); ++j) {
+          auto& ids = row_ids[size_t(j)];
+          auto& counts = row_counts[size_t(j)];
+          counts.resize(size_t(grid.width));
+          for (int i = 0; i < grid.width; ++i) {
+            s.hits.clear();
+            const RayOutcome o = tracer->trace(grid.origin, grid.direction(i, j), TraceLayers::StaticOnly, s.hits, grid.match);
+            ++s.rays;
+            s.hits_count += s.hits.size();
+            const size_t before = ids.size();
+            observed_ids(s.hits, vis_.min_weight, ids);
+            counts[size_t(i)] = uint32_t(ids.size() - before);
+            pc.ray_end[size_t(j) * size_t(grid.width) + size_t(i)] = o.end_key;
+          }
+        }
+      });
+      merge_ids(scratch, &summary.counters);
+      pc.ray_offsets.assign(n + 1, 0);
+      for (int j = 0; j < grid.height; ++j)
+        for (int i = 0; i < grid.width; ++i) {
+          const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
+          pc.ray_offsets[ray + 1] = pc.ray_offsets[ray] + row_counts[size_t(j)][size_t(i)];
+        }
+      pc.ray_ids.reserve(pc.ray_offsets[n]);
+      for (auto& v : row_ids) {
+        pc.ray_ids.insert(pc.ray_ids.end(), v.begin(), v.end());
+        std::vector<uint32_t>().swap(v);
+      }
+      // visible set with the number of rays that observe each Gaussian
+      std::vector<uint32_t> sorted = pc.ray_ids;
+      std::sort(sorted.begin(), sorted.end());
+      for (size_t k = 0; k < sorted.size();) {
+        size_t e = k;
+        while (e < sorted.size() && sorted[e] == sorted[k]) ++e;
+        pc.visible.push_back(sorted[k]);
+        pc.ray_refs.push_back(uint32_t(e - k));
+        k = e;
+      }
+    }
+    pc.ready = true;
+    summary.seconds_static += seconds_since(start);
+  }
+
+  const PoseCache& pose(uint32_t camera) const { return poses_[pose_of_camera_[camera]]; }
+  uint32_t pose_index(uint32_t camera) const { return pose_of_camera_[camera]; }
+  size_t pose_count() const { return pose_count_; }
+
+  /// Frustum: the dynamic Gaussians in the frustum are the whole change.
+  ViewDelta frustum_delta(const FrameGaussians& frame, uint32_t camera) {
+    ViewDelta d;
+    d.added = frustum_visible(frame, cameras_[camera], &cloud_.dynamic_ids);
+    return d;
+  }
+
+  /// Raytraced: re-trace only the rays whose path (up to where the static ray ended) meets
+  /// a dynamic proxy; static Gaussians those rays no longer observe may leave the set.
+  ViewDelta raytraced_delta(const GaussianTracer& tracer, uint32_t camera) {
+    const PoseCache& pc = pose(camera);
+    const RayGrid grid(cameras_[camera], vis_.stride, vis_.dilate);
+    struct Local {
+      RayScratch rs;
+      std::vector<uint32_t> rays;  // re-traced ray indices
+    };
+    tbb::enumerable_thread_specific<Local> local;
+    tbb::parallel_for(tbb::blocked_range<int>(0, grid.height, 1), [&](const tbb::blocked_range<int>& r) {
+      Local& l = local.local();
+      for (int j = r.begin(); j < r.end(); ++j)
+        for (int i = 0; i < grid.width; ++i) {
+          const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
+          const Vec3f dir = grid.direction(i, j);
+          ++l.rs.probes;
+          if (!tracer.meets_dynamic(grid.origin, dir, pc.ray_end[ray], grid.match)) continue;
+          l.rays.push_back(uint32_t(ray));
+          l.rs.hits.clear();
+          tracer.trace(grid.origin, dir, TraceLayers::All, l.rs.hits, grid.match);
+          ++l.rs.rays;
+          l.rs.hits_count += l.rs.hits.size();
+          observed_ids(l.rs.hits, vis_.min_weight, l.rs.ids);
+        }
+    });
+    std::vector<uint32_t> retraced;
+    tbb::enumerable_thread_specific<RayScratch> ids_only;
+    for (Local& l : local) {
+      retraced.insert(retraced.end(), l.rays.begin(), l.rays.end());
+      summary.counters.probes += l.rs.probes;
+      summary.counters.rays += l.rs.rays;
+      summary.counters.hits += l.rs.hits_count;
+      sort_unique(l.rs.ids);
+      ids_only.local().ids.insert(ids_only.local().ids.end(), l.rs.ids.begin(), l.rs.ids.end());
+    }
+    summary.retraced_rays += retraced.size();
+    std::vector<uint32_t> now = merge_ids(ids_only, nullptr);  // observed by re-traced rays
+
+    ViewDelta d;
+    // Rays lost per static Gaussian; it leaves the set when it loses all its rays and no
+    // re-traced ray observes it again.
+    std::vector<uint32_t> touched;
+    for (uint32_t ray : retraced)
+      for (uint64_t k = pc.ray_offsets[ray]; k < pc.ray_offsets[ray + 1]; ++k) {
+        const uint32_t g = pc.ray_ids[k];
+        if (marks_[g]++ == 0) touched.push_back(g);
+      }
+    for (uint32_t g : now) marks_[g] |= kObservedAgain;
+    for (uint32_t g : touched) {
+      const size_t k = size_t(std::lower_bound(pc.visible.begin(), pc.visible.end(), g) - pc.visible.begin());
+      DCHECK_visible(pc, k, g);
+      if (!(marks_[g] & kObservedAgain) && (marks_[g] & ~kObservedAgain) == pc.ray_refs[k]) d.removed.push_back(g);
+    }
+    for (uint32_t g : now)
+      if (!std::binary_search(pc.visible.begin(), pc.visible.end(), g)) d.added.push_back(g);
+    for (uint32_t g : touched) marks_[g] = 0;
+    for (uint32_t g : now) marks_[g] = 0;
+    std::sort(d.removed.begin(), d.removed.end());
+    return d;
+  }
+
+ private:
+  static constexpr uint32_t kObservedAgain = 0x80000000u;
+  static void DCHECK_visible(const PoseCache& pc, size_t k, uint32_t g) {
+    FILLGS_DCHECK(k < pc.visible.size() && pc.visible[k] == g);
+    (void)pc, (void)k, (void)g;
+  }
+
+  const GaussianCloud& cloud_;
+  const std::vector<Camera>& cameras_;
+  ObservationOptions opt_;
+  VisibilityOptions vis_;
+  std::vector<uint32_t> pose_of_camera_;
+  size_t pose_count_ = 0;
+  std::vector<PoseCache> poses_;
+  std::vector<uint32_t> marks_;  // per Gaussian: rays lost (low bits) | kObservedAgain
+};
+
+}  // namespace
+
+ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const std::vector<double>& times,
+                           double frame_step, const ObservationOptions& options,
+                           const std::function<void(const FrameObservation&)>& sink, Progress& progress) {
+  const auto start_total = Clock::now();
+  const VisibilityOptions& vis = options.visibility;
+  FILLGS_CHECK(vis.stride >= 1);
+  FILLGS_CHECK(!times.empty());
+  for (size_t f = 0; f < times.size(); ++f) {
+    if (!(times[f] >= 0.0 && times[f] <= 1.0)) throw_error("observe: time ", times[f], " is outside [0, 1]");
+    if (f > 0 && !(times[f] > times[f - 1])) throw_error("observe: times must be strictly ascending (", times[f - 1], ", ", times[f], ")");
+  }
+  const size_t N = cloud.size();
+  const auto views = views_per_frame(cameras, times, frame_step);
+  size_t max_views = 0;
+  for (const auto& v : views) max_views = std::max(max_views, v.size());
+  if (max_views > 65535) throw_error("observe: ", max_views, " views at one time; counts are stored in 16 bits");
+
+  ObservationRun run(cloud, cameras, options);
+  ObservationSummary& summary = run.summary;
+  summary.gaussians = N;
+  summary.static_count = cloud.static_count();
+  summary.dynamic_count = cloud.dynamic_count();
+  summary.frames = int(times.size());
+  summary.camera_poses = run.pose_count();
+  summary.max_views_per_frame = uint16_t(max_views);
+
+  tbb::task_arena arena(vis.threads > 0 ? vis.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    FrameEvaluator evaluator(cloud);
+    const FrameGaussians* frame = &evaluator.evaluate(times[0]);
+    std::unique_ptr<GaussianTracer> tracer;
+    if (vis.mode == VisibilityMode::Raytraced) {
+      TracerOptions to;
+      to.min_transmittance = vis.min_transmittance;
+      to.threads = vis.threads;
+      if (vis.dilate) {
+        const auto extent = scene_extent(cloud);
+        for (const Camera& c : cameras) to.dilation_padding = std::max(to.dilation_padding, padding_for(c, extent));
+      }
+      tracer = std::make_unique<GaussianTracer>(*frame, cloud.dynamic_ids, to);
+      summary.seconds_build = tracer->build_seconds();
+    }
+    const bool incremental = options.incremental && vis.mode != VisibilityMode::Exact;
+
+    std::vector<uint16_t> counts(N, 0), base(N, 0);
+    std::vector<uint32_t> base_poses;  // sorted pose indices the base was summed for
+    bool have_base = false;
+    std::vector<float> speed, deficiency;
+    progress.start("observe", times.size());
+    for (size_t f = 0; f < times.size(); ++f) {
+      if (f > 0) {
+        frame = &evaluator.evaluate(times[f]);
+        if (tracer) {
+          tracer->refit_dynamic(*frame);
+          summary.seconds_refit += tracer->last_refit_seconds();
+        }
+      }
+      const auto start_frame = Clock::now();
+      FrameObservation fo;
+      fo.frame = int(f);
+      fo.time = times[f];
+      fo.views = views[f];
+      if (incremental) {
+        for (uint32_t c : views[f]) run.static_answer(*frame, tracer.get(), c);
+        std::vector<uint32_t> poses;
+        for (uint32_t c : views[f]) poses.push_back(run.pose_index(c));
+        std::sort(poses.begin(), poses.end());
+        if (!have_base || poses != base_poses) {
+          std::fill(base.begin(), base.end(), uint16_t(0));
+          for (uint32_t c : views[f])
+            for (uint32_t g : run.pose(c).visible) ++base[g];
+          base_poses = poses;
+          have_base = true;
+        }
+        counts = base;
+        for (uint32_t c : views[f]) {
+          const ViewDelta d = tracer ? run.raytraced_delta(*tracer, c) : run.frustum_delta(*frame, c);
+          for (uint32_t g : d.removed) --counts[g];
+          for (uint32_t g : d.added) ++counts[g];
+          fo.visible_per_view.push_back(uint32_t(run.pose(c).visible.size() - d.removed.size() + d.added.size()));
+        }
+      } else {
+        std::fill(counts.begin(), counts.end(), uint16_t(0));
+        for (uint32_t c : views[f]) {
+          std::vector<uint32_t> ids;
+          switch (vis.mode) {
+            case VisibilityMode::Frustum: ids = frustum_visible(*frame, cameras[c], nullptr); break;
+            case VisibilityMode::Exact: ids = exact_visible(*frame, cameras[c], vis.min_weight, vis.threads); break;
+            case VisibilityMode::Raytraced:
+              ids = raytraced_visible(*tracer, RayGrid(cameras[c], vis.stride, vis.dilate), vis.min_weight, &summary.counters);
+              break;
+          }
+          for (uint32_t g : ids) ++counts[g];
+          fo.visible_per_view.push_back(uint32_t(ids.size()));
+        }
+      }
+      summary.views += views[f].size();
+      summary.seconds_frames += seconds_since(start_frame);
+
+      const auto start_speed = Clock::now();
+      dynamic_speeds(cloud, times[f], frame_step, speed);
+      deficiency.resize(speed.size());
+      for (size_t j = 0; j < speed.size(); ++j) deficiency[j] = speed[j] / (1.0f + float(counts[cloud.dynamic_ids[j]]));
+      summary.seconds_speed += seconds_since(start_speed);
+
+      const auto start_sink = Clock::now();
+      fo.counts = counts.data();
+      fo.dynamic_speed = speed.data();
+      fo.dynamic_deficiency = deficiency.data();
+      sink(fo);
+      summary.seconds_sink += seconds_since(start_sink);
+      progress.advance();
+    }
+    progress.finish();
+  });
+  summary.seconds_total = seconds_since(start_total);
+  return summary;
+}
+
+ObservationTables observation_tables(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const std::vector<double>& times,
+                                     double frame_step, const ObservationOptions& options, ObservationSummary* summary,
+                                     Progress& progress) {
+  ObservationTables tables;
+  tables.times = times;
+  tables.gaussians = cloud.size();
+  tables.dynamic_ids = cloud.dynamic_ids;
+  const size_t N = cloud.size(), M = cloud.dynamic_count();
+  tables.counts.reserve(times.size() * N);
+  tables.dynamic_speed.reserve(times.size() * M);
+  tables.dynamic_deficiency.reserve(times.size() * M);
+  const ObservationSummary s = observe(
+      cloud, cameras, times, frame_step, options,
+      [&](const FrameObservation& fo) {
+        tables.counts.insert(tables.counts.end(), fo.counts, fo.counts + N);
+        tables.dynamic_speed.insert(tables.dynamic_speed.end(), fo.dynamic_speed, fo.dynamic_speed + M);
+        tables.dynamic_deficiency.insert(tables.dynamic_deficiency.end(), fo.dynamic_deficiency, fo.dynamic_deficiency + M);
+        tables.visible_per_view.push_back(fo.visible_per_view);
+      },
+      progress);
+  if (summary) *summary = s;
+  return tables;
+}
+
+std::vector<float> ObservationTables::deficiency_row(int f) const {
+  FILLGS_CHECK(f >= 0 && f < frames());
+  std::vector<float> row(gaussians, 0.0f);
+  const size_t M = dynamic_ids.size();
+  for (size_t j = 0; j < M; ++j) row[dynamic_ids[j]] = dynamic_deficiency[size_t(f) * M + j];
+  return row;
+}
+
+float ObservationTables::deficiency_scale(double quantile) const {
+  std::vector<float> positive;
+  for (float d : dynamic_deficiency)
+    if (d > 0.0f) positive.push_back(d);
+  if (positive.empty()) return 1.0f;
+  const size_t k = std::min(positive.size() - 1, size_t(std::clamp(quantile, 0.0, 1.0) * double(positive.size() - 1) + 0.5));
+  std::nth_element(positive.begin(), positive.begin() + std::ptrdiff_t(k), positive.end());
+  return positive[k] > 0.0f ? positive[k] : 1.0f;
+}
+
+}  // namespace fillgs

@@ -1,0 +1,274 @@
+// Visibility engine: analytic cases, agreement between modes, incremental = from scratch,
+// speeds and deficiency, extremes.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+#include "fillgs/gaussian_tracer.hpp"
+#include "fillgs/raster.hpp"
+#include "fillgs/scene_io.hpp"
+#include "fillgs/visibility.hpp"
+#include "helpers.hpp"
+
+using namespace fillgs;
+using namespace fillgs::test;
+
+namespace {
+
+const VisibilityMode kModes[] = {VisibilityMode::Frustum, VisibilityMode::Raytraced, VisibilityMode::Exact};
+
+VisibilityOptions mode_options(VisibilityMode mode, int stride = 1) {
+  VisibilityOptions o;
+  o.mode = mode;
+  o.stride = stride;
+  return o;
+}
+
+bool contains(const std::vector<uint32_t>& ids, uint32_t g) { return std::binary_search(ids.begin(), ids.end(), g); }
+
+size_t intersection_size(const std::vector<uint32_t>& a, const std::vector<uint32_t>& b) {
+  std::vector<uint32_t> both;
+  std::set_intersection(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both));
+  return both.size();
+}
+
+/// The 3DGS preprocess culling rule written out from the CUDA source, independently of
+/// project_gaussian: in_frustum (p_view.z <= 0.2), computeCov2D with the 1.3 tan clamp and
+/// +0.3, det == 0, radius = ceil(3 sqrt(max(λ1, λ2))) with λ from max(0.1, mid² − det),
+/// getRect over 16-pixel tiles, and (rect_max − rect_min) area == 0.
+bool reference_3dgs_visible(const Vec3f& mean, const Vec3f& scale, const Vec4f& q, const Camera& cam) {
+  const double x = mean.x(), y = mean.y(), z = mean.z();
+  const Eigen::Vector3d pv = cam.R * Eigen::Vector3d(x, y, z) + cam.t;
+  if (pv.z() <= 0.2) return false;
+  const double r = q[0], qx = q[1], qy = q[2], qz = q[3];
+  const double nq = std::sqrt(r * r + qx * qx + qy * qy + qz * qz);
+  const double w = r / nq, a = qx / nq, b = qy / nq, c = qz / nq;
+  Eigen::Matrix3d Rq;
+  Rq << 1 - 2 * (b * b + c * c), 2 * (a * b - w * c), 2 * (a * c + w * b),  //
+      2 * (a * b + w * c), 1 - 2 * (a * a + c * c), 2 * (b * c - w * a),    //
+      2 * (a * c - w * b), 2 * (b * c + w * a), 1 - 2 * (a * a + b * b);
+  Eigen::Matrix3d S = Eigen::Vector3d(scale.x(), scale.y(), scale.z()).asDiagonal();
+  const Eigen::Matrix3d M = Rq * S;
+  const Eigen::Matrix3d cov3 = M * M.transpose();
+  const double tanx = 0.5 * cam.width / cam.fx, tany = 0.5 * cam.height / cam.fy;
+  const double txtz = std::min(1.3 * tanx, std::max(-1.3 * tanx, pv.x() / pv.z()));
+  const double tytz = std::min(1.3 * tany, std::max(-1.3 * tany, pv.y() / pv.z()));
+  const double tx = txtz * pv.z(), ty = tytz * pv.z();
+  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
+  J(0, 0) = cam.fx / pv.z();
+  J(0, 2) = -cam.fx * tx / (pv.z() * pv.z());
+  J(1, 1) = cam.fy / pv.z();
+  J(1, 2) = -cam.fy * ty / (pv.z() * pv.z());
+  const Eigen::Matrix3d T = J * cam.R;
+  const Eigen::Matrix3d cov = T * cov3 * T.transpose();
+  const double c00 = cov(0, 0) + 0.3, c01 = cov(0, 1), c11 = cov(1, 1) + 0.3;
+  const double det = c00 * c11 - c01 * c01;
+  if (det == 0.0 || !(det > 0)) return false;
+  const double mid = 0.5 * (c00 + c11);
+  const double l1 = mid + std::sqrt(std::max(0.1, mid * mid - det)), l2 = mid - std::sqrt(std::max(0.1, mid * mid - det));
+  const double radius = std::ceil(3.0 * std::sqrt(std::max(l1, l2)));
+  const double px = cam.fx * pv.x() / pv.z() + cam.cx - 0.5, py = cam.fy * pv.y() / pv.z() + cam.cy - 0.5;
+  const int gx = (cam.width + 15) / 16, gy = (cam.height + 15) / 16;
+  auto clampi = [](int v, int hi) { return std::min(hi, std::max(0, v)); };
+  const int minx = clampi(int((px - radius) / 16), gx), miny = clampi(int((py - radius) / 16), gy);
+  const int maxx = clampi(int((px + radius + 15) / 16), gx), maxy = clampi(int((py + radius + 15) / 16), gy);
+  return (maxx - minx) * (maxy - miny) != 0;
+}
+
+std::vector<Camera> orbit(const std::pair<Vec3f, Vec3f>& box, int count, int w, int h) {
+  const Vec3d centre = ((box.first + box.second) * 0.5f).cast<double>();
+  const double radius = 0.9 * (box.second - box.first).cast<double>().norm();
+  std::vector<Camera> cams;
+  for (int i = 0; i < count; ++i) {
+    const double a = 2 * kPi * i / count;
+    Camera c;
+    c.set_fov_x(60.0 * kPi / 180.0, w, h);
+    c.look_at(centre + Vec3d(radius * std::cos(a), 0.3 * radius, radius * std::sin(a)), centre, Vec3d(0, -1, 0));
+    c.name = "orbit" + std::to_string(i);
+    cams.push_back(c);
+  }
+  return cams;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------
+// Analytic cases
+
+TEST_CASE("one Gaussian in front of a camera is visible in every mode", "[visibility]") {
+  GaussianCloud cloud;
+  add_gaussian(cloud, Vec3f(0.1f, -0.05f, 3.0f), 0.05f, 2.0f, Vec3f(1, 0, 0));
+  const Camera cam = axis_camera(64, 48, 60);
+  for (VisibilityMode mode : kModes) {
+    VisibilityEngine engine(cloud, mode_options(mode));
+    INFO(to_string(mode));
+    CHECK(engine.visible_set(cam) == std::vector<uint32_t>{0});
+  }
+}
+
+TEST_CASE("a Gaussian behind three opaque ones: visible to frustum only", "[visibility]") {
+  GaussianCloud cloud;
+  add_gaussian(cloud, Vec3f(0, 0, 5.0f), 0.05f, 4.0f, Vec3f(1, 0, 0));  // the hidden one
+  for (float z : {2.0f, 2.5f, 3.0f}) add_gaussian(cloud, Vec3f(0, 0, z), 1.0f, 10.0f, Vec3f(0, 1, 0));
+  const Camera cam = axis_camera(64, 48, 60);
+  // Three layers of α = 0.99 leave T = 1e-6 < 1e-4: the ray ends before the hidden one.
+  VisibilityEngine frustum(cloud, mode_options(VisibilityMode::Frustum));
+  CHECK(contains(frustum.visible_set(cam), 0));
+  for (VisibilityMode mode : {VisibilityMode::Raytraced, VisibilityMode::Exact}) {
+    INFO(to_string(mode));
+    VisibilityEngine engine(cloud, mode_options(mode));
+    const auto ids = engine.visible_set(cam);
+    CHECK_FALSE(contains(ids, 0));
+    CHECK(contains(ids, 1));
+    CHECK(contains(ids, 2));
+  }
+}
+
+TEST_CASE("Gaussians outside the frustum are invisible in every mode", "[visibility]") {
+  GaussianCloud cloud;
+  add_gaussian(cloud, Vec3f(0, 0, -3.0f), 0.05f, 4.0f, Vec3f(1, 0, 0));  // behind the camera
+  add_gaussian(cloud, Vec3f(20, 0, 3.0f), 0.05f, 4.0f, Vec3f(1, 0, 0));  // far to the right
+  add_gaussian(cloud, Vec3f(0, -9, 2.0f), 0.05f, 4.0f, Vec3f(1, 0, 0));  // far above
+  const Camera cam = axis_camera(64, 48, 60);
+  for (VisibilityMode mode : kModes) {
+    INFO(to_string(mode));
+    VisibilityEngine engine(cloud, mode_options(mode));
+    CHECK(engine.visible_set(cam).empty());
+  }
+}
+
+TEST_CASE("transmittance through two known Gaussians equals the closed form", "[visibility][tracer]") {
+  FrameGaussians frame;
+  const float o1 = 0.5f, o2 = 0.6f, s1 = 0.3f, s2 = 0.2f;
+  frame.means = {Vec3f(0, 0, 2), Vec3f(0, 0, 4)};
+  frame.scales = {Vec3f::Constant(s1), Vec3f::Constant(s2)};
+  frame.rotations = {Vec4f(1, 0, 0, 0), Vec4f(1, 0, 0, 0)};
+  frame.opacities = {o1, o2};
+  GaussianTracer tracer(frame, {});
+  for (float x0 : {0.0f, 0.1f, 0.25f}) {
+    INFO("ray offset " << x0);
+    std::vector<TracedHit> hits;
+    const RayOutcome out = tracer.trace(Vec3f(x0, 0, 0), Vec3f(0, 0, 1), TraceLayers::All, hits);
+    const double a1 = o1 * std::exp(-0.5 * x0 * x0 / (s1 * s1)), a2 = o2 * std::exp(-0.5 * x0 * x0 / (s2 * s2));
+    REQUIRE(hits.size() == 2);
+    CHECK(hits[0].id == 0);
+    CHECK(hits[0].distance == Approx(2.0).epsilon(1e-5));
+    CHECK(hits[0].weight == Approx(a1).epsilon(1e-5));
+    CHECK(hits[1].id == 1);
+    CHECK(hits[1].weight == Approx(a2 * (1 - a1)).epsilon(1e-5));
+    CHECK(out.transmittance == Approx((1 - a1) * (1 - a2)).epsilon(1e-5));
+    CHECK(std::isinf(out.end_key));
+  }
+}
+
+TEST_CASE("a rotated anisotropic Gaussian is met at its maximum response along the ray", "[visibility][tracer]") {
+  FrameGaussians frame;
+  const Vec4f q = normalize_quat(Vec4f(0.9f, 0.3f, -0.2f, 0.25f));
+  const Vec3f scale(0.4f, 0.1f, 0.2f), mean(0.2f, -0.1f, 3.0f);
+  frame.means = {mean};
+  frame.scales = {scale};
+  frame.rotations = {q};
+  frame.opacities = {0.8f};
+  GaussianTracer tracer(frame, {});
+  const Eigen::Matrix3d R = quat_to_matrix<double>(q.cast<double>());
+  const Eigen::Matrix3d cov = R * scale.cast<double>().array().square().matrix().asDiagonal() * R.transpose();
+  const Eigen::Matrix3d P = cov.inverse();
+  const Eigen::Vector3d o(0.05, 0.02, 0.0);
+  for (const Eigen::Vector3d& d : {Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0.05, -0.03, 1), Eigen::Vector3d(0.1, 0.02, 1)}) {
+    // m²(t) = (o + t d − μ)ᵀ P (o + t d − μ) is a parabola in t: minimum at t* = −dᵀP(o−μ) / dᵀPd.
+    const Eigen::Vector3d rel = o - mean.cast<double>();
+    const double t_star = -d.dot(P * rel) / d.dot(P * d);
+    const Eigen::Vector3d at = rel + t_star * d;
+    const double alpha = 0.8 * std::exp(-0.5 * at.dot(P * at));
+    std::vector<TracedHit> hits;
+    tracer.trace(o.cast<float>(), d.cast<float>(), TraceLayers::All, hits);
+    if (alpha < kMinAlpha) {
+      CHECK(hits.empty());
+      continue;
+    }
+    REQUIRE(hits.size() == 1);
+    CHECK(hits[0].distance == Approx(t_star).epsilon(1e-4));
+    CHECK(hits[0].alpha == Approx(alpha).epsilon(1e-4));
+  }
+}
+
+TEST_CASE("more than 16 hits on a ray come out in depth order across k-buffer passes", "[visibility][tracer]") {
+  FrameGaussians frame;
+  // 40 faint Gaussians on the axis, in shuffled id order, so several passes are needed.
+  const int n = 40;
+  for (int i = 0; i < n; ++i) {
+    const int slot = (i * 17) % n;
+    frame.means.push_back(Vec3f(0, 0, 1.0f + 0.1f * slot));
+    frame.scales.push_back(Vec3f::Constant(0.02f));
+    frame.rotations.push_back(Vec4f(1, 0, 0, 0));
+    frame.opacities.push_back(0.1f);
+  }
+  // Two Gaussians at exactly the same depth: the tie is broken by id, each taken once.
+  frame.means.push_back(Vec3f(0, 0, 1.0f + 0.1f * 16));
+  frame.scales.push_back(Vec3f::Constant(0.02f));
+  frame.rotations.push_back(Vec4f(1, 0, 0, 0));
+  frame.opacities.push_back(0.1f);
+  GaussianTracer tracer(frame, {});
+  std::vector<TracedHit> hits;
+  const RayOutcome out = tracer.trace(Vec3f(0, 0, 0), Vec3f(0, 0, 1), TraceLayers::All, hits);
+  REQUIRE(hits.size() == size_t(n + 1));
+  CHECK(out.passes == 3);
+  std::vector<uint32_t> ids;
+  double T = 1;
+  for (size_t k = 0; k < hits.size(); ++k) {
+    if (k > 0) CHECK((hits[k - 1].distance < hits[k].distance || (hits[k - 1].distance == hits[k].distance && hits[k - 1].id < hits[k].id)));
+    CHECK(hits[k].weight == Approx(0.1 * T).epsilon(1e-5));
+    T *= 0.9;
+    ids.push_back(hits[k].id);
+  }
+  std::sort(ids.begin(), ids.end());
+  CHECK(std::unique(ids.begin(), ids.end()) == ids.end());
+  CHECK(out.transmittance == Approx(T).epsilon(1e-4));
+}
+
+// ---------------------------------------------------------------------------------
+// Agreement between modes
+
+TEST_CASE("raytraced at stride 1 agrees with exact on the synthetic scene", "[visibility][synth]") {
+  const SynthScene s = small_synth(9, 160, 120);
+  VisibilityEngine rt(s.scene, mode_options(VisibilityMode::Raytraced, 1));
+  VisibilityEngine ex(s.scene, mode_options(VisibilityMode::Exact));
+  double worst_precision = 1, worst_recall = 1;
+  for (double t : {0.0, 0.5}) {
+    rt.set_time(t);
+    ex.set_time(t);
+    for (const Camera& cam : s.train) {
+      const auto r = rt.visible_set(cam), e = ex.visible_set(cam);
+      REQUIRE(!e.empty());
+      const double both = double(intersection_size(r, e));
+      const double precision = both / double(r.size()), recall = both / double(e.size());
+      INFO(cam.name << " t=" << t << " raytraced " << r.size() << " exact " << e.size() << " precision " << precision
+                    << " recall " << recall);
+      CHECK(precision >= 0.99);
+      CHECK(recall >= 0.99);
+      worst_precision = std::min(worst_precision, precision);
+      worst_recall = std::min(worst_recall, recall);
+    }
+  }
+  WARN("raytraced stride 1 vs exact, worst view: precision " << worst_precision << ", recall " << worst_recall);
+}
+
+TEST_CASE("frustum agrees exactly with the 3DGS rule on the real scenes", "[visibility][shared]") {
+  const std::string data = shared_data();
+  for (const char* name : {"scenes/guitar.ply", "scenes/donut.ply", "scenes/playbot_3k.ply"}) {
+    const GaussianCloud cloud = read_scene(data + "/" + name);
+    const auto cams = orbit(bounding_box(cloud), 6, 400, 300);
+    VisibilityEngine engine(cloud, mode_options(VisibilityMode::Frustum));
+    const FrameGaussians& frame = engine.frame();
+    for (const Camera& cam : cams) {
+      std::vector<uint32_t> expected;
+      for (size_t g = 0; g < cloud.size(); ++g)
+        if (reference_3dgs_visible(frame.means[g], frame.scales[g], cloud.rotations[g], cam)) expected.push_back(uint32_t(g));
+      const auto got = engine.visible_set(cam);
+      INFO(name << " " << cam.name << ": engine " << got.size() << ", reference " << expected.size());
+      CHECK(!expected.empty());
+      CHECK(got == expected);
+    }
+  }
+}
