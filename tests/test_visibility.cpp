@@ -272,3 +272,310 @@ TEST_CASE("frustum agrees exactly with the 3DGS rule on the real scenes", "[visi
     }
   }
 }
+
+// ---------------------------------------------------------------------------------
+// Tables over time
+
+TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame", "[visibility][synth]") {
+  const SynthScene s = small_synth(7, 64, 48);
+  const auto times = frame_times(7);
+  for (VisibilityMode mode : {VisibilityMode::Frustum, VisibilityMode::Raytraced}) {
+    INFO(to_string(mode));
+    ObservationOptions inc, full;
+    inc.visibility = full.visibility = mode_options(mode, 2);
+    full.incremental = false;
+    ObservationSummary si, sf;
+    // The rig as per-frame cameras with times (as transforms_train.json has it).
+    const auto cams = cameras_over_time(s.train, 7);
+    const ObservationTables a = observation_tables(s.scene, cams, times, 1.0 / 6, inc, &si);
+    const ObservationTables b = observation_tables(s.scene, cams, times, 1.0 / 6, full, &sf);
+    CHECK(a.counts == b.counts);
+    CHECK(a.dynamic_deficiency == b.dynamic_deficiency);
+    CHECK(a.visible_per_view == b.visible_per_view);
+    CHECK(si.camera_poses == 16);
+    CHECK(si.views == 16 * 7);
+    if (mode == VisibilityMode::Raytraced) {
+      // Incremental: static rays once per pose, then only rays that meet the chair.
+      CHECK(si.retraced_rays > 0);
+      CHECK(si.counters.rays < sf.counters.rays / 3);
+    }
+    // The shelf hides the chair from cam00, cam01, cam14, cam15 at every frame (synth
+    // test): occlusion-aware counts stay at most 12; the frustum rule counts all 16.
+    uint16_t most = 0;
+    for (int f = 0; f < 7; ++f)
+      for (uint32_t g : s.chair_ids) most = std::max(most, a.counts[size_t(f) * a.gaussians + g]);
+    CHECK(most == (mode == VisibilityMode::Raytraced ? most : 16));
+    if (mode == VisibilityMode::Raytraced) CHECK(most <= 12);
+  }
+}
+
+TEST_CASE("counts equal the sum of per-view visible sets", "[visibility][synth]") {
+  const SynthScene s = small_synth(5, 64, 48);
+  const auto times = frame_times(5);
+  ObservationOptions o;
+  o.visibility = mode_options(VisibilityMode::Raytraced, 3);
+  const ObservationTables tables = observation_tables(s.scene, s.train, times, 0.25, o);
+  VisibilityEngine engine(s.scene, o.visibility);
+  for (int f : {0, 2}) {
+    engine.set_time(times[size_t(f)]);
+    std::vector<uint16_t> expected(s.scene.size(), 0);
+    for (const Camera& cam : s.train)
+      for (uint32_t g : engine.visible_set(cam)) ++expected[g];
+    INFO("frame " << f);
+    CHECK(std::equal(expected.begin(), expected.end(), tables.counts.begin() + std::ptrdiff_t(size_t(f) * s.scene.size())));
+  }
+}
+
+namespace {
+
+/// One Gaussian moving along x on per-frame keys with linear interpolation: x(t) = path(t).
+GaussianCloud moving_gaussian(int frames, double (*path)(double)) {
+  GaussianCloud cloud;
+  add_gaussian(cloud, Vec3f(0, 0, 4), 0.1f, 3.0f, Vec3f(1, 1, 1));
+  cloud.motion = MotionModel::Keyframed;
+  cloud.dynamic_ids = {0};
+  cloud.keyframed = per_frame_tracks(1, frames);
+  cloud.keyframed.position_interp = KeyInterp::Linear;
+  for (int f = 0; f < frames; ++f) {
+    const double t = double(f) / (frames - 1);
+    cloud.keyframed.positions[size_t(f) * 3 + 0] = float(path(t));
+    cloud.keyframed.positions[size_t(f) * 3 + 2] = 4.0f;
+    cloud.keyframed.rotations[size_t(f) * 4] = 1.0f;
+  }
+  return cloud;
+}
+
+}  // namespace
+
+TEST_CASE("speeds of known trajectories, including t = 0 and t = 1", "[visibility][motion]") {
+  const int F = 11;
+  const double dt = 1.0 / (F - 1);
+  const auto times = frame_times(F);
+  SECTION("linear: |v| everywhere") {
+    const GaussianCloud cloud = moving_gaussian(F, [](double t) { return 0.5 * t; });
+    std::vector<float> s;
+    for (double t : times) {
+      dynamic_speeds(cloud, t, dt, s);
+      REQUIRE(s.size() == 1);
+      CHECK(s[0] == Approx(0.5).epsilon(1e-5));
+    }
+  }
+  SECTION("quadratic: central differences 2at inside, one-sided at the ends") {
+    const GaussianCloud cloud = moving_gaussian(F, [](double t) { return 0.8 * t * t; });
+    // D = s / (1 + C): one camera that sees it, one that looks away.
+    Camera sees = axis_camera(64, 48, 60), away = axis_camera(64, 48, 60);
+    away.look_at(Vec3d(0, 0, 0), Vec3d(0, 0, -1), Vec3d(0, -1, 0));
+    ObservationOptions o;
+    o.visibility = mode_options(VisibilityMode::Frustum);
+    const ObservationTables tables = observation_tables(cloud, {sees, away}, times, dt, o);
+    for (int f = 0; f < F; ++f) {
+      const double t = times[size_t(f)];
+      const double expected = f == 0 ? 0.8 * dt : f == F - 1 ? 0.8 * (2 - dt) : 1.6 * t;
+      INFO("t = " << t);
+      CHECK(tables.dynamic_speed[size_t(f)] == Approx(expected).epsilon(1e-4).margin(1e-6));
+      CHECK(tables.counts[size_t(f)] == 1);
+      CHECK(tables.dynamic_deficiency[size_t(f)] == Approx(expected / 2).epsilon(1e-4).margin(1e-6));
+    }
+  }
+}
+
+TEST_CASE("a scene with no motion has D = 0 everywhere and no NaN", "[visibility][motion]") {
+  SynthScene s = small_synth(5, 64, 48, 0.04);
+  // Freeze the chair: every key equal to the first.
+  KeyframedMotion& k = s.scene.keyframed;
+  const size_t K = size_t(k.key_count);
+  for (size_t j = 0; j < s.scene.dynamic_count(); ++j)
+    for (size_t key = 1; key < K; ++key) {
+      std::copy_n(&k.positions[(j * K) * 3], 3, &k.positions[(j * K + key) * 3]);
+      std::copy_n(&k.rotations[(j * K) * 4], 4, &k.rotations[(j * K + key) * 4]);
+    }
+  GaussianCloud frozen = s.scene;
+  CHECK(partition_static_dynamic(frozen) == s.scene.dynamic_count());
+  for (const GaussianCloud* cloud : {&s.scene, &frozen}) {
+    ObservationOptions o;
+    o.visibility = mode_options(VisibilityMode::Raytraced, 4);
+    const ObservationTables t = observation_tables(*cloud, s.train, frame_times(5), 0.25, o);
+    CHECK(all_finite(t.dynamic_speed));
+    CHECK(all_finite(t.dynamic_deficiency));
+    for (int f = 0; f < 5; ++f) {
+      const auto row = t.deficiency_row(f);
+      CHECK(all_finite(row));
+      CHECK(std::all_of(row.begin(), row.end(), [](float d) { return d == 0.0f; }));
+    }
+    CHECK(t.deficiency_scale() == 1.0f);
+  }
+}
+
+TEST_CASE("a single moving camera (monocular) observes one view per frame", "[visibility][motion]") {
+  const SynthScene s = small_synth(6, 64, 48, 0.04);
+  // A camera that walks around the rig, one pose per frame, with times.
+  std::vector<Camera> mono;
+  for (int f = 0; f < 6; ++f) {
+    Camera c = s.train[size_t(f * 3)];
+    c.time = f / 5.0;
+    mono.push_back(c);
+  }
+  for (VisibilityMode mode : kModes) {
+    INFO(to_string(mode));
+    ObservationOptions o;
+    o.visibility = mode_options(mode, 2);
+    const ObservationTables t = observation_tables(s.scene, mono, frame_times(6), 0.2, o);
+    VisibilityEngine engine(s.scene, o.visibility);
+    for (int f = 0; f < 6; ++f) {
+      REQUIRE(t.visible_per_view[size_t(f)].size() == 1);
+      engine.set_time(f / 5.0);
+      const auto ids = engine.visible_set(mono[size_t(f)]);
+      CHECK(t.visible_per_view[size_t(f)][0] == ids.size());
+      size_t seen = 0;
+      for (size_t g = 0; g < s.scene.size(); ++g) {
+        const uint16_t c = t.counts[size_t(f) * s.scene.size() + g];
+        CHECK(c <= 1);
+        seen += c;
+      }
+      CHECK(seen == ids.size());
+    }
+  }
+}
+
+TEST_CASE("views per frame: rig cameras see every frame, timed ones their nearest", "[visibility]") {
+  std::vector<Camera> cams(4);
+  cams[1].time = 0.0;
+  cams[2].time = 0.49;   // nearest frame 0.5
+  cams[3].time = 0.3;    // 0.2 from any frame of {0, 0.5, 1}: more than half a frame (0.25)? no: 0.2 <= 0.25
+  const auto v = views_per_frame(cams, {0.0, 0.5, 1.0}, 0.5);
+  CHECK(v[0] == std::vector<uint32_t>{0, 1});
+  CHECK(v[1] == std::vector<uint32_t>{0, 2, 3});
+  CHECK(v[2] == std::vector<uint32_t>{0});
+  cams[3].time = 0.3;
+  const auto w = views_per_frame(cams, {0.0, 0.5, 1.0}, 0.1);  // half a frame = 0.05: camera 3 fits nowhere
+  CHECK(w[1] == std::vector<uint32_t>{0, 2});
+}
+
+// ---------------------------------------------------------------------------------
+// Maps
+
+TEST_CASE("traced deficiency maps agree with the rasterizer's feature maps", "[visibility][maps]") {
+  const SynthScene s = small_synth(5, 160, 120);
+  VisibilityEngine engine(s.scene, mode_options(VisibilityMode::Raytraced, 1));
+  engine.set_time(0.5);
+  // A per-Gaussian value: 1 on the chair, 0.25 elsewhere.
+  std::vector<float> value(s.scene.size(), 0.25f);
+  for (uint32_t g : s.chair_ids) value[g] = 1.0f;
+  for (const Camera& cam : {s.train[4], s.train[8]}) {
+    const ViewMaps maps = engine.render_maps(cam, value.data(), nullptr, 1);
+    REQUIRE(maps.width == cam.width);
+    REQUIRE(maps.height == cam.height);
+    RenderOptions ro;
+    ro.rgb = false;
+    ro.features = value.data();
+    ro.feature_channels = 1;
+    const RenderOutput ref = render(engine.frame(), cam, ro);
+    double traced = maps.score(), raster = 0, traced_alpha = 0, raster_alpha = 0;
+    for (size_t p = 0; p < ref.features.size(); ++p) {
+      raster += ref.features[p];
+      traced_alpha += maps.alpha[p];
+      raster_alpha += ref.alpha[p];
+    }
+    raster /= double(ref.features.size());
+    INFO(cam.name << " traced score " << traced << " rasterized " << raster);
+    CHECK(traced == Approx(raster).epsilon(0.02));
+    CHECK(traced_alpha == Approx(raster_alpha).epsilon(0.01));
+  }
+}
+
+TEST_CASE("one Gaussian's map: the deficiency map is D times the alpha map", "[visibility][maps]") {
+  GaussianCloud cloud;
+  add_gaussian(cloud, Vec3f(0, 0, 3), 0.2f, 1.0f, Vec3f(1, 1, 1));
+  VisibilityEngine engine(cloud, mode_options(VisibilityMode::Raytraced, 1));
+  const std::vector<float> d = {0.7f}, c = {3.0f};
+  const ViewMaps m = engine.render_maps(axis_camera(32, 24, 30), d.data(), c.data(), 2);
+  CHECK(m.width == 16);
+  CHECK(m.height == 12);
+  double peak = 0;
+  for (size_t p = 0; p < m.alpha.size(); ++p) {
+    CHECK(m.deficiency[p] == Approx(0.7 * m.alpha[p]).margin(1e-6));
+    CHECK(m.count[p] == Approx(3.0 * m.alpha[p]).margin(1e-6));
+    if (m.alpha[p] > 0) CHECK(m.depth[p] / m.alpha[p] == Approx(3.0).epsilon(0.05));
+    peak = std::max(peak, double(m.alpha[p]));
+  }
+  CHECK(peak > 0.5);
+}
+
+// ---------------------------------------------------------------------------------
+// Extremes
+
+TEST_CASE("degenerate, huge, opaque and transparent Gaussians: finite results in every mode", "[visibility][extremes]") {
+  GaussianCloud cloud;
+  add_gaussian(cloud, Vec3f(0.1f, 0, 3), 1e-18f, 2.0f, Vec3f(1, 0, 0));   // 0: degenerate (log-scale ≈ -41)
+  add_gaussian(cloud, Vec3f(0, 0, 50), 1e4f, 2.0f, Vec3f(0, 1, 0));       // 1: huge
+  add_gaussian(cloud, Vec3f(-0.3f, 0, 3), 0.1f, 40.0f, Vec3f(0, 0, 1));   // 2: opacity 1
+  add_gaussian(cloud, Vec3f(0.3f, 0, 3), 0.1f, -10.0f, Vec3f(1, 1, 0));   // 3: o = 4.5e-5 < α_min
+  cloud.log_scales[1] = Vec3f(std::log(1e4f), std::log(1e-6f), std::log(1e4f));  // and flat
+  const Camera cam = axis_camera(48, 36, 40);
+  for (VisibilityMode mode : kModes) {
+    INFO(to_string(mode));
+    VisibilityEngine engine(cloud, mode_options(mode, 1));
+    const auto ids = engine.visible_set(cam);
+    CHECK(contains(ids, 2));
+    if (mode != VisibilityMode::Frustum) CHECK_FALSE(contains(ids, 3));
+    else CHECK(contains(ids, 3));
+    const std::vector<float> d = {1, 1, 1, 1};
+    const ViewMaps m = engine.render_maps(cam, d.data(), d.data(), 1);
+    CHECK(all_finite(m.deficiency));
+    CHECK(all_finite(m.depth));
+    CHECK(all_finite(m.alpha));
+  }
+}
+
+TEST_CASE("a camera inside a Gaussian", "[visibility][extremes]") {
+  GaussianCloud cloud;
+  add_gaussian(cloud, Vec3f(0, 0, 0.05f), 1.0f, 3.0f, Vec3f(1, 1, 1));  // the camera sits inside, mean at z 0.05
+  add_gaussian(cloud, Vec3f(0, 0, 3), 0.2f, 3.0f, Vec3f(1, 0, 0));
+  const Camera cam = axis_camera(32, 24, 30);
+  // The rasterizer culls a mean at z <= 0.2; the raytraced mode follows it (RasterMatch).
+  for (VisibilityMode mode : kModes) {
+    INFO(to_string(mode));
+    VisibilityEngine engine(cloud, mode_options(mode, 1));
+    CHECK(engine.visible_set(cam) == std::vector<uint32_t>{1});
+  }
+  // Plain 3D Gaussians (no rasterizer matching): the ray starts inside the first one and
+  // meets it at distance 0 with α = o·exp(-½ m²) of the camera's own position.
+  VisibilityOptions plain = mode_options(VisibilityMode::Raytraced, 1);
+  plain.dilate = false;
+  VisibilityEngine engine(cloud, plain);
+  CHECK(engine.visible_set(cam) == std::vector<uint32_t>{0, 1});
+  const std::vector<float> d = {1, 1};
+  const ViewMaps m = engine.render_maps(cam, d.data(), d.data(), 1);
+  CHECK(all_finite(m.alpha));
+  CHECK(all_finite(m.depth));
+}
+
+TEST_CASE("rays grazing the α_min ellipsoid", "[visibility][tracer][extremes]") {
+  FrameGaussians frame;
+  const float o = 0.9f;
+  frame.means = {Vec3f(0, 0, 5)};
+  frame.scales = {Vec3f(1.0f, 0.5f, 2.0f)};
+  frame.rotations = {Vec4f(1, 0, 0, 0)};
+  frame.opacities = {o};
+  GaussianTracer tracer(frame, {});
+  const double k = std::sqrt(2.0 * std::log(o / kMinAlpha));  // the bound, in sigmas
+  for (double rel : {1e-3, -1e-3}) {
+    const double x = k * (1.0 + rel);  // along the Gaussian's x axis (σ = 1)
+    std::vector<TracedHit> hits;
+    const RayOutcome out = tracer.trace(Vec3f(float(x), 0, 0), Vec3f(0, 0, 1), TraceLayers::All, hits);
+    INFO("offset " << x << " against the bound " << k);
+    CHECK(std::isfinite(out.transmittance));
+    if (rel < 0) {
+      REQUIRE(hits.size() == 1);
+      CHECK(hits[0].alpha >= kMinAlpha);
+      CHECK(hits[0].alpha == Approx(o * std::exp(-0.5 * x * x)).epsilon(1e-4));
+    } else {
+      CHECK(hits.empty());
+    }
+  }
+  // Tangent to the bounding box corner, in a diagonal direction: no NaN, no hit.
+  std::vector<TracedHit> hits;
+  tracer.trace(Vec3f(float(k), float(0.5 * k), 0), Vec3f(0, 0, 1), TraceLayers::All, hits);
+  CHECK(hits.empty());
+  CHECK_FALSE(tracer.meets_dynamic(Vec3f(0, 0, 0), Vec3f(0, 0, 1), 100.0f));
+}
