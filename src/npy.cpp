@@ -1,6 +1,9 @@
 #include "fillgs/npy.hpp"
 
+#include <cerrno>
+#include <cstdio>
 #include <cstring>
+#include <unistd.h>
 #include <regex>
 #include <sstream>
 
@@ -99,15 +102,10 @@ std::vector<double> NpyArray::to_doubles(const std::string& source) const {
   return out;
 }
 
-template <typename T>
-void write_npy(const std::string& path, const T* data, const std::vector<size_t>& shape) {
+std::string npy_header(const std::string& descr, const std::vector<size_t>& shape) {
   std::ostringstream h;
-  h << "{'descr': '" << npy_descr<T>() << "', 'fortran_order': False, 'shape': (";
-  size_t n = 1;
-  for (size_t i = 0; i < shape.size(); ++i) {
-    h << shape[i] << (shape.size() == 1 ? "," : (i + 1 < shape.size() ? ", " : ""));
-    n *= shape[i];
-  }
+  h << "{'descr': '" << descr << "', 'fortran_order': False, 'shape': (";
+  for (size_t i = 0; i < shape.size(); ++i) h << shape[i] << (shape.size() == 1 ? "," : (i + 1 < shape.size() ? ", " : ""));
   h << "), }";
   std::string header = h.str();
   const size_t total = 10 + header.size() + 1;
@@ -119,8 +117,56 @@ void write_npy(const std::string& path, const T* data, const std::vector<size_t>
   out += char(header.size() & 0xff);
   out += char((header.size() >> 8) & 0xff);
   out += header;
+  return out;
+}
+
+template <typename T>
+void write_npy(const std::string& path, const T* data, const std::vector<size_t>& shape) {
+  size_t n = 1;
+  for (size_t d : shape) n *= d;
+  std::string out = npy_header(npy_descr<T>(), shape);
   out.append(reinterpret_cast<const char*>(data), n * sizeof(T));
   write_file_atomically(path, out);
+}
+
+NpyStreamWriter::NpyStreamWriter(const std::string& path, const std::string& descr, size_t item_bytes, const std::vector<size_t>& shape)
+    : path_(path), tmp_(path + ".tmp" + std::to_string(::getpid())) {
+  expected_ = item_bytes;
+  for (size_t d : shape) expected_ *= d;
+  const size_t slash = path.find_last_of('/');
+  if (slash != std::string::npos && slash > 0) make_directories(path.substr(0, slash));
+  FILE* f = std::fopen(tmp_.c_str(), "wb");
+  if (!f) throw_error(path, ": cannot open for writing (", std::strerror(errno), ")");
+  file_ = f;
+  const std::string header = npy_header(descr, shape);
+  if (std::fwrite(header.data(), 1, header.size(), f) != header.size()) throw_error(path, ": write failed");
+}
+
+NpyStreamWriter::~NpyStreamWriter() {
+  if (file_) {
+    std::fclose(static_cast<FILE*>(file_));
+    std::remove(tmp_.c_str());
+  }
+}
+
+void NpyStreamWriter::write(const void* data, size_t bytes) {
+  FILLGS_CHECK(file_ != nullptr);
+  if (written_ + bytes > expected_) throw_error(path_, ": more data than the shape holds");
+  if (bytes && std::fwrite(data, 1, bytes, static_cast<FILE*>(file_)) != bytes) throw_error(path_, ": write failed (", std::strerror(errno), ")");
+  written_ += bytes;
+}
+
+void NpyStreamWriter::finish() {
+  FILLGS_CHECK(file_ != nullptr);
+  if (written_ != expected_) throw_error(path_, ": ", written_, " bytes written, the shape needs ", expected_);
+  FILE* f = static_cast<FILE*>(file_);
+  file_ = nullptr;
+  const bool ok = std::fflush(f) == 0;
+  std::fclose(f);
+  if (!ok || std::rename(tmp_.c_str(), path_.c_str()) != 0) {
+    std::remove(tmp_.c_str());
+    throw_error(path_, ": cannot finish writing (", std::strerror(errno), ")");
+  }
 }
 
 template void write_npy<float>(const std::string&, const float*, const std::vector<size_t>&);

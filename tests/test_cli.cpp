@@ -8,6 +8,8 @@
 
 #include "fillgs/cli.hpp"
 #include "fillgs/image_io.hpp"
+#include "fillgs/npy.hpp"
+#include "fillgs/visibility.hpp"
 #include "fillgs/ply.hpp"
 #include "fillgs/raster.hpp"
 #include "fillgs/scene_io.hpp"
@@ -165,4 +167,78 @@ TEST_CASE("inputs are never modified and outputs are replaced atomically", "[cli
   for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file();
   CHECK(files == 1);
   CHECK(read_scene(dir + "/copy.ply").size() == 3000);
+}
+
+TEST_CASE("fillgs observe writes [T, N] tables that numpy reads, summary.json and pictures", "[cli][observe]") {
+  const std::string dir = scratch("cli_observe");
+  const int F = 4;
+  const SynthScene s = small_synth(F, 64, 48, 0.04);
+  write_fillgs_ply(dir + "/scene.ply", s.scene);
+  write_transforms_json(dir + "/train.json", cameras_over_time(s.train, F));
+  const Result r = run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/obs",
+                            "--mode", "raytraced", "--stride", "4", "--quiet"});
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  const size_t N = s.scene.size(), M = s.scene.dynamic_count();
+  const NpyArray count = read_npy(dir + "/obs/count.npy");
+  CHECK(count.descr == "|u1");
+  CHECK(count.shape == std::vector<size_t>{size_t(F), N});
+  const NpyArray speed = read_npy(dir + "/obs/speed.npy"), deficiency = read_npy(dir + "/obs/deficiency.npy");
+  CHECK(speed.descr == "<f4");
+  CHECK(speed.shape == std::vector<size_t>{size_t(F), N});
+  CHECK(deficiency.shape == std::vector<size_t>{size_t(F), N});
+  CHECK(read_npy(dir + "/obs/dynamic_ids.npy").shape == std::vector<size_t>{M});
+  CHECK(read_npy(dir + "/obs/times.npy").to_doubles("times") == std::vector<double>{0.0, 1.0 / 3, 2.0 / 3, 1.0});
+  // The scene file round trip (fillgs 4D PLY) and the per-frame cameras give the same
+  // tables as the library on the scene in memory.
+  ObservationOptions o;
+  o.visibility.mode = VisibilityMode::Raytraced;
+  o.visibility.stride = 4;
+  const ObservationTables t = observation_tables(s.scene, cameras_over_time(s.train, F), frame_times(F), 1.0 / 3, o);
+  const auto c = count.to_doubles("count"), d = deficiency.to_doubles("deficiency"), sp = speed.to_doubles("speed");
+  size_t same = 0;
+  for (size_t k = 0; k < c.size(); ++k) same += c[k] == t.counts[k];
+  CHECK(same == c.size());
+  for (int f = 0; f < F; ++f) {
+    const auto row = t.deficiency_row(f);
+    for (size_t j = 0; j < M; ++j) {
+      const uint32_t g = s.scene.dynamic_ids[j];
+      REQUIRE(d[size_t(f) * N + g] == Approx(row[g]).margin(1e-6));
+      REQUIRE(sp[size_t(f) * N + g] == Approx(t.dynamic_speed[size_t(f) * M + j]).margin(1e-6));
+      // D = s / (1 + C), read back from the three files
+      REQUIRE(d[size_t(f) * N + g] == Approx(sp[size_t(f) * N + g] / (1.0 + c[size_t(f) * N + g])).margin(1e-6));
+    }
+  }
+  const auto j = nlohmann::json::parse(std::ifstream(dir + "/obs/summary.json"));
+  CHECK(j["mode"] == "raytraced");
+  CHECK(j["views"] == 16 * F);
+  CHECK(j["camera_poses"] == 16);
+  CHECK(j["rays_traced"].get<uint64_t>() > 0);
+  for (const char* png : {"deficiency_heatmap.png", "visible_fraction.png"}) {
+    int w = 0, h = 0;
+    CHECK(image_size(dir + "/obs/" + png, &w, &h));
+    CHECK(w > 300);
+  }
+
+  SECTION("dynamic-only motion tables") {
+    REQUIRE(run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/dyn",
+                     "--motion-tables", "dynamic", "--no-plots", "--quiet"}).code == 0);
+    CHECK(read_npy(dir + "/dyn/speed_dynamic.npy").shape == std::vector<size_t>{size_t(F), M});
+    CHECK(read_npy(dir + "/dyn/deficiency_dynamic.npy").shape == std::vector<size_t>{size_t(F), M});
+    CHECK_FALSE(fs::exists(dir + "/dyn/speed.npy"));
+    CHECK_FALSE(fs::exists(dir + "/dyn/deficiency_heatmap.png"));
+  }
+  SECTION("bad options: one line, nothing written") {
+    expect_one_line_error(run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/bad",
+                                   "--mode", "magic"}),
+                          {"unknown visibility mode", "magic"});
+    expect_one_line_error(run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/bad",
+                                   "--times", "0.5,1.5"}),
+                          {"--times", "1.5"});
+    std::ofstream(dir + "/static.ply") << kHeader << "0 0 0 1 0 0 2 -1 -1 -1 1 0 0 0\n0.3 0.2 0.1 0 1 0 1 -2 -2 -2 1 0 0 0\n";
+    write_transforms_json(dir + "/rig.json", s.train);  // no times, static scene: the frame count is unknown
+    expect_one_line_error(run_cli({"observe", "--scene", dir + "/static.ply", "--cameras", dir + "/rig.json", "--out", dir + "/bad"}),
+                          {"--frames"});
+    CHECK_FALSE(fs::exists(dir + "/bad"));
+  }
 }

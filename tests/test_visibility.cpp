@@ -277,12 +277,12 @@ TEST_CASE("frustum agrees exactly with the 3DGS rule on the real scenes", "[visi
 // Tables over time
 
 TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame", "[visibility][synth]") {
-  const SynthScene s = small_synth(7, 64, 48);
+  const SynthScene s = small_synth(7, 160, 120);
   const auto times = frame_times(7);
   for (VisibilityMode mode : {VisibilityMode::Frustum, VisibilityMode::Raytraced}) {
     INFO(to_string(mode));
     ObservationOptions inc, full;
-    inc.visibility = full.visibility = mode_options(mode, 2);
+    inc.visibility = full.visibility = mode_options(mode, 4);
     full.incremental = false;
     ObservationSummary si, sf;
     // The rig as per-frame cameras with times (as transforms_train.json has it).
@@ -310,10 +310,10 @@ TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame"
 }
 
 TEST_CASE("counts equal the sum of per-view visible sets", "[visibility][synth]") {
-  const SynthScene s = small_synth(5, 64, 48);
+  const SynthScene s = small_synth(5, 160, 120);
   const auto times = frame_times(5);
   ObservationOptions o;
-  o.visibility = mode_options(VisibilityMode::Raytraced, 3);
+  o.visibility = mode_options(VisibilityMode::Raytraced, 6);
   const ObservationTables tables = observation_tables(s.scene, s.train, times, 0.25, o);
   VisibilityEngine engine(s.scene, o.visibility);
   for (int f : {0, 2}) {

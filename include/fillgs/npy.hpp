@@ -22,6 +22,28 @@ NpyArray read_npy(const std::string& path);
 template <typename T>
 void write_npy(const std::string& path, const T* data, const std::vector<size_t>& shape);
 
+/// Writes a C-order array row by row, for tables too large to hold: the header is written
+/// first (the shape is known), rows are appended, and finish() checks the byte count and
+/// renames the temporary file over `path`. Destroyed unfinished, it removes the temporary.
+class NpyStreamWriter {
+ public:
+  NpyStreamWriter(const std::string& path, const std::string& descr, size_t item_bytes, const std::vector<size_t>& shape);
+  ~NpyStreamWriter();
+  NpyStreamWriter(const NpyStreamWriter&) = delete;
+  NpyStreamWriter& operator=(const NpyStreamWriter&) = delete;
+  void write(const void* data, size_t bytes);
+  void finish();
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_, tmp_;
+  void* file_ = nullptr;
+  size_t expected_ = 0, written_ = 0;
+};
+
+/// The .npy header (magic, version 1.0, padded dict) for a C-order array.
+std::string npy_header(const std::string& descr, const std::vector<size_t>& shape);
+
 /// numpy descr string of T ("<f4", "|u1", ...).
 template <typename T>
 const char* npy_descr();

@@ -13,9 +13,11 @@
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/image_io.hpp"
+#include "fillgs/observe_io.hpp"
 #include "fillgs/raster.hpp"
 #include "fillgs/scene_io.hpp"
 #include "fillgs/synth.hpp"
+#include "fillgs/visibility.hpp"
 #include "progress_bar.hpp"
 
 namespace fillgs::cli {
@@ -288,20 +290,109 @@ int cmd_cameras(const std::vector<std::string>& args, std::ostream& out, std::os
   return 0;
 }
 
+// ------------------------------------------------------------------ observe
+
+/// The time grid: --times list, or --frames F, or what the scene or the cameras imply.
+std::vector<double> observe_times(const Args& a, const GaussianCloud& cloud, const std::vector<Camera>& cams, double* frame_step) {
+  int frames = a.integer("frames", 0);
+  if (a.has("frames") && frames < 2) throw_error("fillgs observe: --frames must be at least 2 (got ", frames, ")");
+  if (!frames && cloud.motion == MotionModel::Keyframed && cloud.keyframed.first_key_time == 0.0 && cloud.keyframed.key_count >= 2 &&
+      std::fabs(cloud.keyframed.key_spacing * (cloud.keyframed.key_count - 1) - 1.0) < 1e-6)
+    frames = cloud.keyframed.key_count;  // one key per frame
+  if (!frames) {
+    std::set<long long> distinct;
+    for (const Camera& c : cams)
+      if (c.has_time()) distinct.insert(std::llround(c.time * 1e6));
+    if (distinct.size() >= 2) frames = int(distinct.size());
+  }
+  if (a.has("times")) {
+    std::vector<double> times;
+    std::istringstream in(a.get("times"));
+    std::string tok;
+    while (std::getline(in, tok, ',')) {
+      char* end = nullptr;
+      const double t = std::strtod(tok.c_str(), &end);
+      if (end == tok.c_str() || *end != '\0' || !(t >= 0.0 && t <= 1.0))
+        throw_error("fillgs observe: --times expects comma-separated times in [0, 1], got '", tok, "'");
+      times.push_back(t);
+    }
+    std::sort(times.begin(), times.end());
+    times.erase(std::unique(times.begin(), times.end()), times.end());
+    if (times.empty()) throw_error("fillgs observe: --times is empty");
+    if (!frames) throw_error("fillgs observe: give --frames F with --times (the speed's Δt is one frame, 1/(F-1))");
+    *frame_step = 1.0 / (frames - 1);
+    return times;
+  }
+  if (!frames)
+    throw_error("fillgs observe: cannot tell the frame count from the scene or the cameras; give --frames F");
+  *frame_step = 1.0 / (frames - 1);
+  return frame_times(frames);
+}
+
+int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  Args a("observe", args, 1,
+         merge(merge({"scene", "cameras", "frames", "times", "mode", "stride", "threads", "out", "tau", "motion-tables"}, kSceneOptions),
+               kCameraOptions),
+         {"quiet", "from-scratch", "no-raster-match", "no-plots"});
+  const auto t0 = Clock::now();
+  const std::string out_dir = a.require("out");
+  ObservationOptions o;
+  o.visibility.mode = parse_visibility_mode(a.get("mode", "frustum"));
+  o.visibility.stride = a.integer("stride", o.visibility.stride);
+  if (o.visibility.stride < 1) throw_error("fillgs observe: --stride must be at least 1");
+  o.visibility.min_weight = float(a.number("tau", o.visibility.min_weight));
+  if (!(o.visibility.min_weight > 0.0f && o.visibility.min_weight < 1.0f)) throw_error("fillgs observe: --tau must lie in (0, 1)");
+  o.visibility.threads = a.integer("threads", 0);
+  o.visibility.dilate = !a.flag("no-raster-match");
+  o.incremental = !a.flag("from-scratch");
+  ObserveOutputOptions oo;
+  const std::string tables = a.get("motion-tables", "dense");
+  if (tables != "dense" && tables != "dynamic") throw_error("fillgs observe: --motion-tables must be dense or dynamic (got '", tables, "')");
+  oo.dense_motion_tables = tables == "dense";
+  oo.plots = !a.flag("no-plots");
+  const GaussianCloud cloud = read_scene(a.require("scene"), scene_options(a));
+  const std::vector<Camera> cams = read_cameras(a.require("cameras"), camera_options(a));
+  if (cams.empty()) throw_error(a.get("cameras"), ": no cameras");
+  double frame_step = 0;
+  const std::vector<double> times = observe_times(a, cloud, cams, &frame_step);
+  TerminalProgress progress(err, progress_enabled(a));
+  const ObserveReport r = observe_to_directory(cloud, cams, times, frame_step, o, out_dir, oo, progress);
+  const ObservationSummary& s = r.summary;
+  out << "observed " << s.gaussians << " Gaussians (" << s.dynamic_count << " dynamic) over " << s.frames << " frames and " << s.views
+      << " views (" << to_string(o.visibility.mode);
+  if (o.visibility.mode == VisibilityMode::Raytraced) out << ", stride " << o.visibility.stride;
+  out << ") in " << seconds_since(t0) << " s";
+  if (s.counters.rays) out << ", " << s.counters.rays << " rays";
+  out << ", peak memory " << (r.peak_memory_bytes >> 20) << " MB -> " << out_dir << "\n";
+  return 0;
+}
+
 // ------------------------------------------------------------------ run
 
 int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("run", args, 1, {"out", "threads"}, {"quiet"});
   const std::string dir = a.get("out", "fillgs_run");
+  const int threads = a.integer("threads", 0);
   const auto t0 = Clock::now();
   SynthOptions so;
   const SynthScene s = make_synthetic_scene(so);
   TerminalProgress progress(err, progress_enabled(a));
-  write_synthetic_scene(s, join_path(dir, "scene"), progress, a.integer("threads", 0));
+  write_synthetic_scene(s, join_path(dir, "scene"), progress, threads);
   out << "fillgs run: built-in scene written to " << join_path(dir, "scene") << " (" << s.scene.size() << " Gaussians, "
       << s.scene.dynamic_count() << " moving, " << s.train.size() << " cameras x " << so.frames << " frames) in "
-      << seconds_since(t0) << " s\n"
-      << "fillgs run: stages implemented so far: synth, render. Not yet implemented: observe, select, refine,\n"
+      << seconds_since(t0) << " s\n";
+
+  const auto t1 = Clock::now();
+  ObservationOptions o;
+  o.visibility.mode = VisibilityMode::Raytraced;
+  o.visibility.stride = 4;
+  o.visibility.threads = threads;
+  const ObserveReport r = observe_to_directory(s.scene, cameras_over_time(s.train, so.frames), frame_times(so.frames),
+                                               1.0 / (so.frames - 1), o, join_path(dir, "observe"), {}, progress);
+  out << "fillgs run: observation tables (raytraced, stride 4) written to " << join_path(dir, "observe") << " in " << seconds_since(t1)
+      << " s; deficiency peaks at frame "
+      << std::max_element(r.deficiency_per_frame.begin(), r.deficiency_per_frame.end()) - r.deficiency_per_frame.begin() << "\n"
+      << "fillgs run: stages implemented so far: synth, render, observe. Not yet implemented: select, refine,\n"
       << "            finetune, eval (tracked as open issues); this command grows with them.\n";
   return 0;
 }
@@ -316,6 +407,9 @@ void print_help(std::ostream& out) {
          "                                            the chair/shelf analysis scene with ground-truth images\n"
          "  convert --scene S --out F.ply [--to 3dgs|fillgs] [--time t] [--frames F]\n"
          "  cameras --cameras C --out PATH [--to transforms|colmap]\n"
+         "  observe --scene S --cameras C --out DIR   observation counts C[t][g], speeds s, deficiency D = s/(1+C)\n"
+         "         [--frames F | --times t1,t2,..] [--mode frustum|raytraced|exact] [--stride s] [--tau w]\n"
+         "         [--threads n] [--motion-tables dense|dynamic] [--from-scratch] [--no-raster-match] [--no-plots]\n"
          "  run [--out DIR]                           the pipeline on the built-in scene\n\n"
          "scene options:  --scene-format auto|3dgs|stg|ex4dgs|fillgs --duration F (Ex4DGS) --stg-duration F\n"
          "                --stg-color auto|sigmoid|clamp|none --static-threshold v\n"
@@ -338,6 +432,7 @@ int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     if (cmd == "synth") return cmd_synth(args, out, err);
     if (cmd == "convert") return cmd_convert(args, out, err);
     if (cmd == "cameras") return cmd_cameras(args, out, err);
+    if (cmd == "observe") return cmd_observe(args, out, err);
     if (cmd == "run") return cmd_run(args, out, err);
     if (cmd == "--version") {
       out << "fillgs 0.1.0\n";

@@ -1,0 +1,31 @@
+#pragma once
+// Small PNG plots (OpenCV) for results people would rather look at than read: heatmaps,
+// bar charts, scatter plots. Files are written atomically.
+#include <string>
+#include <vector>
+
+namespace fillgs {
+
+struct PlotLabels {
+  std::string title, x, y;
+};
+
+/// A rows × cols heatmap (row 0 at the top), inferno colours from 0 to the maximum, with a
+/// colour bar. `row_totals`, when given (size rows), is drawn as a bar profile on the right.
+void write_heatmap_png(const std::string& path, const std::vector<float>& values, int rows, int cols, const PlotLabels& labels,
+                       const std::vector<double>* row_totals = nullptr);
+
+/// One bar per value, labelled underneath (labels thinned when they would overlap).
+void write_bar_chart_png(const std::string& path, const std::vector<std::string>& names, const std::vector<double>& values,
+                         const PlotLabels& labels);
+
+struct ScatterSeries {
+  std::string name;
+  std::vector<double> x, y;
+  std::vector<std::string> point_labels;  ///< optional, one per point
+};
+
+/// Scatter plot of several series (one colour each, legend top-left); log10 x when asked.
+void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>& series, const PlotLabels& labels, bool log_x);
+
+}  // namespace fillgs

@@ -1,0 +1,177 @@
+#include "fillgs/plot.hpp"
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+#include "fillgs/error.hpp"
+#include "fillgs/fs_util.hpp"
+
+namespace fillgs {
+
+namespace {
+
+const cv::Scalar kInk(40, 40, 40), kGrid(225, 225, 225), kWhite(255, 255, 255);
+constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
+
+void text(cv::Mat& img, const std::string& s, cv::Point at, double scale = 0.45, const cv::Scalar& colour = kInk) {
+  cv::putText(img, s, at, kFont, scale, colour, 1, cv::LINE_AA);
+}
+
+void text_vertical(cv::Mat& img, const std::string& s, cv::Point centre) {
+  int base = 0;
+  const cv::Size size = cv::getTextSize(s, kFont, 0.45, 1, &base);
+  cv::Mat strip(size.height + base + 4, size.width + 4, CV_8UC3, kWhite);
+  text(strip, s, cv::Point(2, size.height + 2));
+  cv::Mat rotated;
+  cv::rotate(strip, rotated, cv::ROTATE_90_COUNTERCLOCKWISE);
+  const int x = std::max(0, centre.x - rotated.cols / 2), y = std::max(0, centre.y - rotated.rows / 2);
+  if (x + rotated.cols <= img.cols && y + rotated.rows <= img.rows) rotated.copyTo(img(cv::Rect(x, y, rotated.cols, rotated.rows)));
+}
+
+std::string short_number(double v) {
+  char b[32];
+  if (v != 0 && (std::fabs(v) >= 1e4 || std::fabs(v) < 1e-2)) std::snprintf(b, sizeof b, "%.2g", v);
+  else std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
+
+void save(const std::string& path, const cv::Mat& img) {
+  write_atomically(path, [&](const std::string& tmp) {
+    if (!cv::imwrite(tmp, img)) throw_error(path, ": cannot write the plot");
+  });
+}
+
+void frame_and_titles(cv::Mat& img, const cv::Rect& area, const PlotLabels& labels) {
+  cv::rectangle(img, area, kInk, 1);
+  text(img, labels.title, cv::Point(area.x, 22), 0.55);
+  int base = 0;
+  const int w = cv::getTextSize(labels.x, kFont, 0.45, 1, &base).width;
+  text(img, labels.x, cv::Point(area.x + area.width / 2 - w / 2, img.rows - 8));
+  text_vertical(img, labels.y, cv::Point(12, area.y + area.height / 2));
+}
+
+}  // namespace
+
+void write_heatmap_png(const std::string& path, const std::vector<float>& values, int rows, int cols, const PlotLabels& labels,
+                       const std::vector<double>* row_totals) {
+  FILLGS_CHECK(rows > 0 && cols > 0);
+  FILLGS_CHECK_EQ(values.size(), size_t(rows) * size_t(cols));
+  float vmax = 0;
+  for (float v : values)
+    if (std::isfinite(v)) vmax = std::max(vmax, v);
+  const int cell_w = std::max(1, 720 / cols), cell_h = std::max(1, 360 / rows);
+  const int W = cols * cell_w, H = rows * cell_h;
+  const int left = 60, top = 48, profile = row_totals ? 110 : 0, bar = 70;
+  cv::Mat img(top + H + 50, left + W + profile + bar + 20, CV_8UC3, kWhite);
+  cv::Mat grey(rows, cols, CV_8UC1);
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < cols; ++c) {
+      const float v = values[size_t(r) * size_t(cols) + size_t(c)];
+      grey.at<uint8_t>(r, c) = uint8_t(vmax > 0 && std::isfinite(v) ? std::clamp(v / vmax, 0.0f, 1.0f) * 255.0f + 0.5f : 0);
+    }
+  cv::Mat colour, big;
+  cv::applyColorMap(grey, colour, cv::COLORMAP_INFERNO);
+  cv::resize(colour, big, cv::Size(W, H), 0, 0, cv::INTER_NEAREST);
+  big.copyTo(img(cv::Rect(left, top, W, H)));
+  frame_and_titles(img, cv::Rect(left, top, W, H), labels);
+  text(img, "0", cv::Point(left - 14, top + 12));
+  text(img, std::to_string(rows - 1), cv::Point(left - 30, top + H));
+  if (row_totals) {
+    FILLGS_CHECK_EQ(row_totals->size(), size_t(rows));
+    double tmax = 0;
+    for (double t : *row_totals) tmax = std::max(tmax, t);
+    const int x0 = left + W + 10;
+    for (int r = 0; r < rows; ++r) {
+      const int len = tmax > 0 ? int(std::lround((*row_totals)[size_t(r)] / tmax * (profile - 20))) : 0;
+      cv::rectangle(img, cv::Rect(x0, top + r * cell_h, std::max(len, 0), std::max(cell_h - (cell_h > 3), 1)), cv::Scalar(180, 120, 60), cv::FILLED);
+    }
+    text(img, "row sum", cv::Point(x0, top - 6), 0.4);
+    text(img, short_number(tmax), cv::Point(x0 + profile - 50, top + H + 16), 0.4);
+  }
+  // colour bar
+  const int bx = left + W + profile + 20;
+  for (int y = 0; y < H; ++y) {
+    cv::Mat one(1, 1, CV_8UC1, cv::Scalar(255.0 * (H - 1 - y) / std::max(1, H - 1)));
+    cv::Mat c;
+    cv::applyColorMap(one, c, cv::COLORMAP_INFERNO);
+    cv::line(img, cv::Point(bx, top + y), cv::Point(bx + 14, top + y), cv::Scalar(c.at<cv::Vec3b>(0, 0)), 1);
+  }
+  text(img, short_number(vmax), cv::Point(bx + 16, top + 10), 0.4);
+  text(img, "0", cv::Point(bx + 16, top + H), 0.4);
+  save(path, img);
+}
+
+void write_bar_chart_png(const std::string& path, const std::vector<std::string>& names, const std::vector<double>& values,
+                         const PlotLabels& labels) {
+  FILLGS_CHECK_EQ(names.size(), values.size());
+  const int n = int(values.size());
+  const int left = 70, top = 36, W = std::max(300, std::min(1200, n * 40)), H = 300;
+  cv::Mat img(top + H + 70, left + W + 20, CV_8UC3, kWhite);
+  double vmax = 0;
+  for (double v : values) vmax = std::max(vmax, v);
+  if (vmax <= 0) vmax = 1;
+  for (int k = 1; k <= 4; ++k) {
+    const int y = top + H - H * k / 4;
+    cv::line(img, cv::Point(left, y), cv::Point(left + W, y), kGrid, 1);
+    text(img, short_number(vmax * k / 4), cv::Point(6 + 14, y + 4), 0.4);
+  }
+  const double slot = double(W) / std::max(1, n);
+  const int every = std::max(1, int(std::ceil(40.0 / slot)));
+  for (int i = 0; i < n; ++i) {
+    const int x0 = left + int(i * slot + 0.15 * slot), x1 = left + int((i + 1) * slot - 0.15 * slot);
+    const int h = int(std::lround(std::max(0.0, values[size_t(i)]) / vmax * H));
+    cv::rectangle(img, cv::Point(x0, top + H - h), cv::Point(std::max(x0, x1), top + H), cv::Scalar(180, 120, 60), cv::FILLED);
+    if (i % every == 0) text(img, names[size_t(i)], cv::Point(x0, top + H + 16 + 14 * ((i / every) % 2)), 0.35);
+  }
+  frame_and_titles(img, cv::Rect(left, top, W, H), labels);
+  save(path, img);
+}
+
+void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>& series, const PlotLabels& labels, bool log_x) {
+  const int left = 70, top = 36, W = 720, H = 420;
+  cv::Mat img(top + H + 50, left + W + 30, CV_8UC3, kWhite);
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+  auto fx = [&](double x) { return log_x ? std::log10(std::max(x, 1e-12)) : x; };
+  for (const auto& s : series)
+    for (size_t i = 0; i < s.x.size(); ++i) {
+      x0 = std::min(x0, fx(s.x[i]));
+      x1 = std::max(x1, fx(s.x[i]));
+      y0 = std::min(y0, s.y[i]);
+      y1 = std::max(y1, s.y[i]);
+    }
+  if (!(x1 > x0)) x0 -= 0.5, x1 += 0.5;
+  if (!(y1 > y0)) y0 -= 0.5, y1 += 0.5;
+  const double px = 0.05 * (x1 - x0), py = 0.05 * (y1 - y0);
+  x0 -= px, x1 += px, y0 -= py, y1 += py;
+  auto to_px = [&](double x, double y) {
+    return cv::Point(left + int((fx(x) - x0) / (x1 - x0) * W), top + H - int((y - y0) / (y1 - y0) * H));
+  };
+  for (int k = 0; k <= 4; ++k) {
+    const double yv = y0 + (y1 - y0) * k / 4, xv = x0 + (x1 - x0) * k / 4;
+    const int y = top + H - H * k / 4, x = left + W * k / 4;
+    cv::line(img, cv::Point(left, y), cv::Point(left + W, y), kGrid, 1);
+    cv::line(img, cv::Point(x, top), cv::Point(x, top + H), kGrid, 1);
+    text(img, short_number(yv), cv::Point(18, y + 4), 0.4);
+    text(img, short_number(log_x ? std::pow(10.0, xv) : xv), cv::Point(x - 14, top + H + 16), 0.4);
+  }
+  const cv::Scalar palette[] = {{180, 120, 60}, {60, 60, 220}, {60, 170, 60}, {200, 60, 180}, {40, 160, 220}, {120, 120, 120}};
+  for (size_t k = 0; k < series.size(); ++k) {
+    const cv::Scalar c = palette[k % 6];
+    const auto& s = series[k];
+    for (size_t i = 0; i < s.x.size(); ++i) {
+      const cv::Point p = to_px(s.x[i], s.y[i]);
+      cv::circle(img, p, 5, c, cv::FILLED, cv::LINE_AA);
+      if (i < s.point_labels.size()) text(img, s.point_labels[i], p + cv::Point(6, -4), 0.33, c);
+    }
+    cv::circle(img, cv::Point(left + 12, top + 16 + 18 * int(k)), 5, c, cv::FILLED, cv::LINE_AA);
+    text(img, s.name, cv::Point(left + 22, top + 20 + 18 * int(k)), 0.42);
+  }
+  frame_and_titles(img, cv::Rect(left, top, W, H), labels);
+  save(path, img);
+}
+
+}  // namespace fillgs
