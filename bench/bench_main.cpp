@@ -8,16 +8,19 @@
 #include "fillgs/error.hpp"
 
 int bench_render(const std::vector<std::string>& args);
+int bench_visibility(const std::vector<std::string>& args);
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::cerr << "usage: fillgs_bench render [--smoke] [--scene PLY] [--frames N]\n";
+    std::cerr << "usage: fillgs_bench render [--smoke] [--scene PLY] [--frames N]\n"
+                 "       fillgs_bench visibility [--smoke] [--out DIR] [--only synthetic|guitar|million]\n";
     return 2;
   }
   const std::string name = argv[1];
   std::vector<std::string> args(argv + 2, argv + argc);
   try {
     if (name == "render") return bench_render(args);
+    if (name == "visibility") return bench_visibility(args);
     std::cerr << "error: unknown benchmark '" << name << "'\n";
     return 2;
   } catch (const fillgs::Error& e) {

@@ -1,0 +1,406 @@
+// Visibility: the speed/accuracy trade of mode × stride × static/dynamic threshold,
+// measured against the `exact` mode in the same run.
+//  (a) the synthetic scene (30 frames, 16 cameras, 320×240);
+//  (b) guitar.ply (static, 90k Gaussians), orbit cameras at 1352×1014;
+//  (c) guitar replicated and animated to about 1M Gaussians, 10% moving at speeds spread
+//      over five decades, 20 orbit cameras at 1352×1014: BVH build and refit, full tables
+//      in frustum mode, raytraced stride 4 per frame (incremental against from scratch),
+//      and the static/dynamic threshold.
+// Prints tables (markdown) and writes a Pareto plot (time against recall) into --out.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "bench_common.hpp"
+#include "fillgs/error.hpp"
+#include "fillgs/gaussian_tracer.hpp"
+#include "fillgs/observe_io.hpp"
+#include "fillgs/plot.hpp"
+#include "fillgs/scene_io.hpp"
+#include "fillgs/synth.hpp"
+#include "fillgs/visibility.hpp"
+
+using namespace fillgs;
+using namespace fillgs::bench;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+struct Setting {
+  std::string name;
+  VisibilityOptions vis;
+};
+
+std::vector<Setting> settings(bool smoke) {
+  std::vector<Setting> s;
+  VisibilityOptions v;
+  v.mode = VisibilityMode::Frustum;
+  s.push_back({"frustum", v});
+  for (int stride : smoke ? std::vector<int>{4} : std::vector<int>{1, 2, 4, 8}) {
+    v.mode = VisibilityMode::Raytraced;
+    v.stride = stride;
+    v.dilate = true;
+    s.push_back({"raytraced s" + std::to_string(stride), v});
+  }
+  v.stride = 4;
+  v.dilate = false;
+  s.push_back({"raytraced s4 plain 3D", v});
+  return s;
+}
+
+/// Spearman rank correlation (average ranks for ties).
+double spearman(const std::vector<double>& a, const std::vector<double>& b) {
+  auto ranks = [](const std::vector<double>& v) {
+    std::vector<size_t> idx(v.size());
+    std::iota(idx.begin(), idx.end(), 0);
+    std::sort(idx.begin(), idx.end(), [&](size_t i, size_t j) { return v[i] < v[j]; });
+    std::vector<double> r(v.size());
+    for (size_t i = 0; i < idx.size();) {
+      size_t j = i;
+      while (j + 1 < idx.size() && v[idx[j + 1]] == v[idx[i]]) ++j;
+      for (size_t k = i; k <= j; ++k) r[idx[k]] = 0.5 * double(i + j);
+      i = j + 1;
+    }
+    return r;
+  };
+  const auto ra = ranks(a), rb = ranks(b);
+  const double n = double(a.size());
+  const double ma = std::accumulate(ra.begin(), ra.end(), 0.0) / n, mb = std::accumulate(rb.begin(), rb.end(), 0.0) / n;
+  double sab = 0, saa = 0, sbb = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    sab += (ra[i] - ma) * (rb[i] - mb);
+    saa += (ra[i] - ma) * (ra[i] - ma);
+    sbb += (rb[i] - mb) * (rb[i] - mb);
+  }
+  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 1.0;
+}
+
+struct SetAccuracy {
+  double recall = 1, precision = 1, worst_recall = 1, worst_precision = 1;
+};
+
+/// Visible sets of `vis` against exact over (camera, time) pairs.
+SetAccuracy set_accuracy(const GaussianCloud& cloud, const std::vector<Camera>& cams, const std::vector<double>& times,
+                         const VisibilityOptions& vis, std::map<std::pair<size_t, size_t>, std::vector<uint32_t>>& exact_cache) {
+  VisibilityEngine engine(cloud, vis);
+  VisibilityOptions ex_opt = vis;
+  ex_opt.mode = VisibilityMode::Exact;
+  VisibilityEngine exact(cloud, ex_opt);
+  double both = 0, got = 0, want = 0;
+  SetAccuracy a;
+  for (size_t f = 0; f < times.size(); ++f) {
+    engine.set_time(times[f]);
+    exact.set_time(times[f]);
+    for (size_t c = 0; c < cams.size(); ++c) {
+      auto key = std::make_pair(f, c);
+      if (!exact_cache.count(key)) exact_cache[key] = exact.visible_set(cams[c]);
+      const auto& e = exact_cache[key];
+      const auto r = engine.visible_set(cams[c]);
+      std::vector<uint32_t> common;
+      std::set_intersection(r.begin(), r.end(), e.begin(), e.end(), std::back_inserter(common));
+      both += double(common.size());
+      got += double(r.size());
+      want += double(e.size());
+      if (!e.empty()) a.worst_recall = std::min(a.worst_recall, double(common.size()) / double(e.size()));
+      if (!r.empty()) a.worst_precision = std::min(a.worst_precision, double(common.size()) / double(r.size()));
+    }
+  }
+  a.recall = want > 0 ? both / want : 1.0;
+  a.precision = got > 0 ? both / got : 1.0;
+  return a;
+}
+
+/// Candidate scores (mean normalised-D map) of a fixed candidate set, for a table.
+std::vector<double> candidate_scores(const GaussianCloud& cloud, const ObservationTables& t, const std::vector<Camera>& candidates,
+                                     int frame, int stride) {
+  VisibilityOptions v;
+  v.mode = VisibilityMode::Raytraced;
+  VisibilityEngine engine(cloud, v);
+  engine.set_time(t.times[size_t(frame)]);
+  std::vector<float> d = t.deficiency_row(frame);
+  const float scale = t.deficiency_scale();
+  for (float& x : d) x = std::min(1.0f, x / scale);
+  std::vector<double> s;
+  for (const Camera& c : candidates) s.push_back(engine.render_maps(c, d.data(), nullptr, stride).score());
+  return s;
+}
+
+double mean_abs_count_difference(const ObservationTables& a, const ObservationTables& b) {
+  double s = 0;
+  for (size_t k = 0; k < a.counts.size(); ++k) s += std::abs(int(a.counts[k]) - int(b.counts[k]));
+  return a.counts.empty() ? 0.0 : s / double(a.counts.size());
+}
+
+// ------------------------------------------------------------------ (a) synthetic
+
+void synthetic_sweep(bool smoke, std::vector<ScatterSeries>& pareto) {
+  SynthOptions so;
+  if (smoke) {
+    so.frames = 5;
+    so.width = 96;
+    so.height = 72;
+    so.spacing = 0.04;
+  }
+  const SynthScene s = make_synthetic_scene(so);
+  const auto times = frame_times(so.frames);
+  const double dt = 1.0 / (so.frames - 1);
+  std::vector<Camera> candidates = s.interpolation;
+  candidates.insert(candidates.end(), s.extrapolation.begin(), s.extrapolation.end());
+  const int candidate_frame = so.frames / 2;
+  std::vector<double> acc_times;
+  for (int f : {0, so.frames / 3, so.frames / 2, 2 * so.frames / 3, so.frames - 1}) acc_times.push_back(times[size_t(f)]);
+  acc_times.erase(std::unique(acc_times.begin(), acc_times.end()), acc_times.end());
+
+  std::printf("\n(a) synthetic scene: %zu Gaussians (%zu moving), %zu cameras x %d frames at %dx%d; candidates: %zu views at frame %d\n",
+              s.scene.size(), s.scene.dynamic_count(), s.train.size(), so.frames, so.width, so.height, candidates.size(), candidate_frame);
+  ObservationOptions ref_opt;
+  ref_opt.visibility.mode = VisibilityMode::Exact;
+  auto t0 = Clock::now();
+  const ObservationTables ref = observation_tables(s.scene, s.train, times, dt, ref_opt);
+  const double ref_seconds = since(t0);
+  const auto ref_scores = candidate_scores(s.scene, ref, candidates, candidate_frame, 4);
+  std::printf("| setting | table time (s) | vs exact | rays/s | recall | precision | worst-view recall | worst-view precision | mean abs dC | candidate rank corr. |\n");
+  std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
+  std::printf("| exact (reference) | %.2f | 1.00 | - | 1 | 1 | 1 | 1 | 0 | 1 |\n", ref_seconds);
+  std::map<std::pair<size_t, size_t>, std::vector<uint32_t>> exact_cache;
+  ScatterSeries series{"synthetic 320x240", {}, {}, {}};
+  for (const Setting& st : settings(smoke)) {
+    ObservationOptions o;
+    o.visibility = st.vis;
+    ObservationSummary sum;
+    t0 = Clock::now();
+    const ObservationTables t = observation_tables(s.scene, s.train, times, dt, o, &sum);
+    const double seconds = since(t0);
+    const SetAccuracy a = set_accuracy(s.scene, s.train, acc_times, st.vis, exact_cache);
+    const double rho = spearman(ref_scores, candidate_scores(s.scene, t, candidates, candidate_frame, 4));
+    const double rays_per_s = sum.counters.rays ? double(sum.counters.rays) / sum.seconds_frames : 0.0;
+    std::printf("| %s | %.2f | %.3f | %s | %.4f | %.4f | %.4f | %.4f | %.4f | %.3f |\n", st.name.c_str(), seconds, seconds / ref_seconds,
+                rays_per_s ? (std::to_string(int(rays_per_s / 1000)) + "k").c_str() : "-", a.recall, a.precision, a.worst_recall,
+                a.worst_precision, mean_abs_count_difference(t, ref), rho);
+    std::fflush(stdout);
+    series.x.push_back(seconds);
+    series.y.push_back(a.recall);
+    series.point_labels.push_back(st.name);
+  }
+  series.x.push_back(ref_seconds);
+  series.y.push_back(1.0);
+  series.point_labels.push_back("exact");
+  pareto.push_back(series);
+}
+
+// ------------------------------------------------------------------ (b) guitar
+
+void guitar_sweep(bool smoke, std::vector<ScatterSeries>& pareto) {
+  const std::string path = shared_data() + "/scenes/guitar.ply";
+  if (!std::filesystem::exists(path)) throw_error(path, ": missing (set FILLGS_SHARED_DATA to the shared data folder)");
+  const GaussianCloud cloud = read_scene(path);
+  const int w = smoke ? 338 : 1352, h = smoke ? 254 : 1014, n = smoke ? 2 : 8;
+  const auto cams = orbit(cloud, n, w, h);
+  std::printf("\n(b) guitar.ply: %zu Gaussians (static), %d orbit cameras at %dx%d, one frame\n", cloud.size(), n, w, h);
+  std::printf("| setting | time (s) | vs exact | rays/s | recall | precision | worst-view recall | worst-view precision |\n|---|---|---|---|---|---|---|---|\n");
+  std::map<std::pair<size_t, size_t>, std::vector<uint32_t>> exact_cache;
+  VisibilityOptions ex;
+  ex.mode = VisibilityMode::Exact;
+  auto t0 = Clock::now();
+  {
+    VisibilityEngine e(cloud, ex);
+    for (size_t c = 0; c < cams.size(); ++c) exact_cache[{0, c}] = e.visible_set(cams[c]);
+  }
+  const double ref_seconds = since(t0);
+  std::printf("| exact (reference) | %.2f | 1.00 | - | 1 | 1 | 1 | 1 |\n", ref_seconds);
+  ScatterSeries series{"guitar 1352x1014", {}, {}, {}};
+  for (const Setting& st : settings(smoke)) {
+    if (st.vis.mode == VisibilityMode::Raytraced && st.vis.stride == 1 && !smoke) continue;  // 1.4M rays per view: see README
+    VisibilityEngine e(cloud, st.vis);
+    t0 = Clock::now();
+    for (const Camera& c : cams) e.visible_set(c);
+    const double seconds = since(t0) + e.build_seconds();
+    const SetAccuracy a = set_accuracy(cloud, cams, {0.0}, st.vis, exact_cache);
+    const double rps = e.counters().rays ? double(e.counters().rays) / (seconds - e.build_seconds()) : 0.0;
+    std::printf("| %s | %.2f | %.3f | %s | %.4f | %.4f | %.4f | %.4f |\n", st.name.c_str(), seconds, seconds / ref_seconds,
+                rps ? (std::to_string(int(rps / 1000)) + "k").c_str() : "-", a.recall, a.precision, a.worst_recall, a.worst_precision);
+    std::fflush(stdout);
+    series.x.push_back(seconds);
+    series.y.push_back(a.recall);
+    series.point_labels.push_back(st.name);
+  }
+  series.x.push_back(ref_seconds);
+  series.y.push_back(1.0);
+  series.point_labels.push_back("exact");
+  pareto.push_back(series);
+}
+
+// ------------------------------------------------------------------ (c) ~1M Gaussians
+
+/// `copies` of a cloud on a grid; every Gaussian of the first `moving` copies moves on a
+/// straight line (polynomial motion) at a speed log-uniform over [1e-5, 1] × the copy's size.
+GaussianCloud replicate(const GaussianCloud& base, int copies, double moving_fraction, uint64_t seed) {
+  GaussianCloud c;
+  c.sh_degree = base.sh_degree;
+  const size_t n = base.size();
+  c.resize(n * size_t(copies));
+  const auto [lo, hi] = bounding_box(base);
+  const Vec3f size = hi - lo;
+  const int side = int(std::ceil(std::cbrt(double(copies))));
+  for (int k = 0; k < copies; ++k) {
+    const Vec3f offset(1.3f * size.x() * float(k % side), 1.3f * size.y() * float((k / side) % side), 1.3f * size.z() * float(k / (side * side)));
+    for (size_t g = 0; g < n; ++g) {
+      const size_t d = size_t(k) * n + g;
+      c.means[d] = base.means[g] + offset;
+      c.log_scales[d] = base.log_scales[g];
+      c.rotations[d] = base.rotations[g];
+      c.opacity_logits[d] = base.opacity_logits[g];
+      std::copy_n(&base.sh[g * size_t(base.sh_count()) * 3], base.sh_count() * 3, &c.sh[d * size_t(c.sh_count()) * 3]);
+    }
+  }
+  const size_t m = size_t(moving_fraction * double(c.size()));
+  c.motion = MotionModel::Polynomial;
+  c.dynamic_ids.resize(m);
+  std::iota(c.dynamic_ids.begin(), c.dynamic_ids.end(), 0u);
+  PolynomialMotion& p = c.polynomial;
+  p.coeffs.assign(m * 9, 0.0f);
+  p.omega.assign(m * 4, 0.0f);
+  p.trbf_center.assign(m, 0.5f);
+  p.trbf_log_scale.assign(m, std::log(1e4f));
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  const double extent = size.norm();
+  for (size_t j = 0; j < m; ++j) {
+    const double speed = extent * std::pow(10.0, -5.0 + 5.0 * u(rng));
+    Vec3d dir(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+    dir.normalize();
+    for (int a = 0; a < 3; ++a) p.coeffs[9 * j + size_t(a)] = float(speed * dir[a]);
+  }
+  return c;
+}
+
+void million_scene(bool smoke) {
+  const std::string path = shared_data() + "/scenes/guitar.ply";
+  const GaussianCloud base = read_scene(path);
+  const int copies = smoke ? 2 : 11, cameras = smoke ? 4 : 20, frames = smoke ? 4 : 300, traced_frames = smoke ? 2 : 8;
+  const int w = smoke ? 338 : 1352, h = smoke ? 254 : 1014;
+  const GaussianCloud cloud = replicate(base, copies, 0.10, 7);
+  const auto cams = orbit(cloud, cameras, w, h);
+  const double extent = (bounding_box(base).second - bounding_box(base).first).norm();
+  std::printf("\n(c) guitar x %d = %zu Gaussians, %zu moving (speeds 1e-5..1 x %.2f per unit time), %d cameras at %dx%d\n", copies,
+              cloud.size(), cloud.dynamic_count(), extent, cameras, w, h);
+
+  {  // BVH build and refit
+    FrameEvaluator ev(cloud);
+    const FrameGaussians& f0 = ev.evaluate(0.0);
+    GaussianTracer tracer(f0, cloud.dynamic_ids);
+    double refit = 0;
+    for (int k = 1; k <= 5; ++k) {
+      tracer.refit_dynamic(ev.evaluate(k / 5.0));
+      refit += tracer.last_refit_seconds();
+    }
+    std::printf("BVH: build %.3f s (all %zu proxies, static + dynamic), refit %.1f ms per frame (%zu dynamic, mean of 5); proxy memory %.0f MB\n",
+                tracer.build_seconds(), cloud.size(), 1000 * refit / 5, cloud.dynamic_count(), tracer.memory_bytes() / 1048576.0);
+  }
+  const auto times = frame_times(frames);
+  const double dt = 1.0 / (frames - 1);
+  const std::string tmp = (std::filesystem::temp_directory_path() / "fillgs_bench_visibility").string();
+  {  // frustum: the full table, streamed to disk
+    ObservationOptions o;
+    o.visibility.mode = VisibilityMode::Frustum;
+    ObserveOutputOptions oo;
+    oo.plots = false;
+    const auto t0 = Clock::now();
+    const ObserveReport r = observe_to_directory(cloud, cams, times, dt, o, tmp, oo);
+    std::printf("frustum, full table %zu x %d cameras x %d frames: %.1f s (static answers %.1f s, frames %.1f s, speeds %.1f s, write %.1f s); peak memory %.0f MB\n",
+                cloud.size(), cameras, frames, since(t0), r.summary.seconds_static, r.summary.seconds_frames, r.summary.seconds_speed,
+                r.summary.seconds_sink, r.peak_memory_bytes / 1048576.0);
+  }
+  {  // raytraced stride 4: incremental against from scratch, on the first frames
+    const std::vector<double> few(times.begin(), times.begin() + traced_frames);
+    ObservationOptions inc, full;
+    inc.visibility.mode = full.visibility.mode = VisibilityMode::Raytraced;
+    inc.visibility.stride = full.visibility.stride = 4;
+    full.incremental = false;
+    ObservationSummary si, sf;
+    auto t0 = Clock::now();
+    const ObservationTables a = observation_tables(cloud, cams, few, dt, inc, &si);
+    const double inc_s = since(t0);
+    const std::vector<double> fewer(times.begin(), times.begin() + 2);
+    t0 = Clock::now();
+    const ObservationTables b = observation_tables(cloud, cams, fewer, dt, full, &sf);
+    const double full_s = since(t0);
+    bool same = std::equal(b.counts.begin(), b.counts.end(), a.counts.begin());
+    const double per_frame_inc = (si.seconds_frames - si.seconds_static) / traced_frames + si.seconds_refit / traced_frames;
+    const double per_frame_full = sf.seconds_frames / 2.0 + sf.seconds_refit / 2.0;
+    std::printf("raytraced s4, %d frames incremental: %.1f s (build %.2f s, static answers %.1f s, then %.2f s per frame; %.1f%% of rays re-traced); "
+                "from scratch: %.2f s per frame; incremental frame / scratch frame = %.3f; counts identical on the shared frames: %s\n",
+                traced_frames, inc_s, si.seconds_build, si.seconds_static, per_frame_inc,
+                100.0 * double(si.retraced_rays) / double(std::max<uint64_t>(1, si.counters.probes)), per_frame_full,
+                per_frame_inc / per_frame_full, same ? "yes" : "NO");
+    std::printf("raytraced s4, projected full table (%d frames): %.1f s = build + static answers + %d x per-frame (measured on %d frames); the 2-frame from-scratch run took %.1f s\n",
+                frames, si.seconds_build + si.seconds_static + frames * per_frame_inc, frames, traced_frames, full_s);
+  }
+  {  // static/dynamic threshold: Gaussians slower than it are frozen at their mean position
+    const std::vector<double> few = {times[0], times[size_t(frames / 2)], times.back()};
+    ObservationOptions ex;
+    ex.visibility.mode = VisibilityMode::Exact;
+    const std::vector<Camera> some(cams.begin(), cams.begin() + std::min<size_t>(4, cams.size()));
+    const ObservationTables ref = observation_tables(cloud, some, few, dt, ex);
+    std::printf("| static threshold (x scene size / unit time) | dynamic Gaussians | frustum table time (s) | raytraced s4 time (s) | mean abs dC vs exact (raytraced) | mean abs dD vs unfrozen |\n|---|---|---|---|---|---|\n");
+    ObservationTables unfrozen;
+    for (double th : {0.0, 1e-4, 1e-3, 1e-2}) {
+      GaussianCloud c = cloud;
+      PartitionOptions po;
+      po.static_speed_threshold = float(th * extent);
+      if (th > 0) partition_static_dynamic(c, po);
+      ObservationOptions fr, rt;
+      fr.visibility.mode = VisibilityMode::Frustum;
+      rt.visibility.mode = VisibilityMode::Raytraced;
+      rt.visibility.stride = 4;
+      auto t0 = Clock::now();
+      observation_tables(c, some, few, dt, fr);
+      const double fs = since(t0);
+      t0 = Clock::now();
+      const ObservationTables t = observation_tables(c, some, few, dt, rt);
+      const double rs = since(t0);
+      if (th == 0.0) unfrozen = t;
+      double dd = 0;
+      for (int f = 0; f < int(few.size()); ++f) {
+        const auto x = t.deficiency_row(f), y = unfrozen.deficiency_row(f);
+        for (size_t g = 0; g < x.size(); ++g) dd += std::fabs(x[g] - y[g]);
+      }
+      dd /= double(few.size() * c.size());
+      std::printf("| %g | %zu | %.2f | %.2f | %.4f | %.3g |\n", th, c.dynamic_count(), fs, rs, mean_abs_count_difference(t, ref), dd);
+      std::fflush(stdout);
+    }
+  }
+  std::filesystem::remove_all(tmp);
+}
+
+}  // namespace
+
+int bench_visibility(const std::vector<std::string>& args) {
+  bool smoke = false;
+  std::string out = "bench/results";
+  std::string only;
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--smoke") smoke = true;
+    else if (args[i] == "--out" && i + 1 < args.size()) out = args[++i];
+    else if (args[i] == "--only" && i + 1 < args.size()) only = args[++i];
+    else throw_error("bench visibility: unknown argument '", args[i], "'");
+  }
+  std::vector<ScatterSeries> pareto;
+  if (only.empty() || only == "synthetic") synthetic_sweep(smoke, pareto);
+  if (only.empty() || only == "guitar") guitar_sweep(smoke, pareto);
+  if (only.empty() || only == "million") million_scene(smoke);
+  if (!pareto.empty()) {
+    const std::string png = out + "/visibility_pareto.png";
+    write_scatter_png(png, pareto, {"visibility: time against visible-set recall (vs exact)", "time (s, log scale)", "recall"}, true);
+    std::printf("\nPareto plot: %s\n", png.c_str());
+  }
+  return 0;
+}
