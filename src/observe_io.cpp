@@ -133,29 +133,24 @@ ObserveReport observe_to_directory(const GaussianCloud& cloud, const std::vector
     // one camera; its bar is named after the folder that holds its frames.
     std::vector<std::string> names;
     std::vector<double> fractions;
-    std::map<std::vector<double>, size_t> pose_bar;
-    std::vector<size_t> frames_in_bar;
+    size_t pose_count = 0;
+    const std::vector<uint32_t> pose = camera_pose_groups(cameras, &pose_count);
+    names.resize(pose_count);
+    fractions.assign(pose_count, 0.0);
+    std::vector<size_t> frames_in_bar(pose_count, 0);
     for (size_t c = 0; c < cameras.size(); ++c) {
-      const Camera& k = cameras[c];
-      std::vector<double> key = {k.fx, k.fy, k.cx, k.cy, double(k.width), double(k.height)};
-      key.insert(key.end(), k.R.data(), k.R.data() + 9);
-      key.insert(key.end(), k.t.data(), k.t.data() + 3);
-      auto [it, fresh] = pose_bar.emplace(key, names.size());
-      if (fresh) {
-        std::string n = k.name;
+      if (names[pose[c]].empty()) {
+        std::string n = cameras[c].name;
         const size_t last = n.find_last_of('/');
         if (last != std::string::npos && last > 0) {
           const size_t before = n.find_last_of('/', last - 1);
-          n = n.substr(before == std::string::npos ? 0 : before + 1, last - (before == std::string::npos ? 0 : before + 1));
+          const size_t from = before == std::string::npos ? 0 : before + 1;
+          n = n.substr(from, last - from);
         }
-        names.push_back(n);
-        fractions.push_back(0.0);
-        frames_in_bar.push_back(0);
+        names[pose[c]] = n;
       }
-      if (visible_frames[c]) {
-        fractions[it->second] += visible_sum[c];
-        frames_in_bar[it->second] += visible_frames[c];
-      }
+      fractions[pose[c]] += visible_sum[c];
+      frames_in_bar[pose[c]] += visible_frames[c];
     }
     for (size_t b = 0; b < fractions.size(); ++b) fractions[b] = frames_in_bar[b] ? fractions[b] / double(frames_in_bar[b]) : 0.0;
     write_bar_chart_png(join_path(dir, "visible_fraction.png"), names, fractions,

@@ -187,25 +187,33 @@ std::vector<uint32_t> exact_visible(const FrameGaussians& frame, const Camera& c
   return ids;
 }
 
-/// Every ray of the grid through all layers; the union of observed ids.
-std::vector<uint32_t> raytraced_visible(const GaussianTracer& tracer, const RayGrid& grid, float tau, TraceCounters* counters) {
-  tbb::enumerable_thread_specific<RayScratch> scratch;
+/// Traces every ray of the grid through `layers` in parallel over rows and calls
+/// visit(scratch, ray index, outcome) with the ray's hits in scratch.hits.
+template <typename Visit>
+void trace_grid(const GaussianTracer& tracer, const RayGrid& grid, TraceLayers layers,
+                tbb::enumerable_thread_specific<RayScratch>& scratch, const Visit& visit) {
   tbb::parallel_for(tbb::blocked_range<int>(0, grid.height, 1), [&](const tbb::blocked_range<int>& r) {
     RayScratch& s = scratch.local();
     for (int j = r.begin(); j < r.end(); ++j)
       for (int i = 0; i < grid.width; ++i) {
         s.hits.clear();
-        tracer.trace(grid.origin, grid.direction(i, j), TraceLayers::All, s.hits, grid.match);
+        const RayOutcome o = tracer.trace(grid.origin, grid.direction(i, j), layers, s.hits, grid.match);
         ++s.rays;
         s.hits_count += s.hits.size();
-        observed_ids(s.hits, tau, s.ids);
+        visit(s, size_t(j) * size_t(grid.width) + size_t(i), o);
       }
   });
+}
+
+/// Every ray of the grid through all layers; the union of observed ids.
+std::vector<uint32_t> raytraced_visible(const GaussianTracer& tracer, const RayGrid& grid, float tau, TraceCounters* counters) {
+  tbb::enumerable_thread_specific<RayScratch> scratch;
+  trace_grid(tracer, grid, TraceLayers::All, scratch,
+             [&](RayScratch& s, size_t, const RayOutcome&) { observed_ids(s.hits, tau, s.ids); });
   return merge_ids(scratch, counters);
 }
 
 }  // namespace
-
 
 // ---------------------------------------------------------------------------------
 // VisibilityEngine
@@ -295,26 +303,17 @@ ViewMaps VisibilityEngine::render_maps(const Camera& camera, const float* defici
     maps.depth.assign(n, 0.0f);
     maps.alpha.assign(n, 0.0f);
     tbb::enumerable_thread_specific<RayScratch> scratch;
-    tbb::parallel_for(tbb::blocked_range<int>(0, grid.height, 1), [&](const tbb::blocked_range<int>& r) {
-      RayScratch& s = scratch.local();
-      for (int j = r.begin(); j < r.end(); ++j)
-        for (int i = 0; i < grid.width; ++i) {
-          s.hits.clear();
-          const RayOutcome o = tracer.trace(grid.origin, grid.direction(i, j), TraceLayers::All, s.hits, grid.match);
-          ++s.rays;
-          s.hits_count += s.hits.size();
-          double d = 0, c = 0, z = 0;
-          for (const TracedHit& h : s.hits) {
-            if (deficiency) d += double(h.weight) * deficiency[h.id];
-            if (count) c += double(h.weight) * count[h.id];
-            z += double(h.weight) * h.distance;
-          }
-          const size_t p = size_t(j) * size_t(grid.width) + size_t(i);
-          if (deficiency) maps.deficiency[p] = float(d);
-          if (count) maps.count[p] = float(c);
-          maps.depth[p] = float(z);
-          maps.alpha[p] = 1.0f - o.transmittance;
-        }
+    trace_grid(tracer, grid, TraceLayers::All, scratch, [&](RayScratch& s, size_t p, const RayOutcome& o) {
+      double d = 0, c = 0, z = 0;
+      for (const TracedHit& h : s.hits) {
+        if (deficiency) d += double(h.weight) * deficiency[h.id];
+        if (count) c += double(h.weight) * count[h.id];
+        z += double(h.weight) * h.distance;
+      }
+      if (deficiency) maps.deficiency[p] = float(d);
+      if (count) maps.count[p] = float(c);
+      maps.depth[p] = float(z);
+      maps.alpha[p] = 1.0f - o.transmittance;
     });
     merge_ids(scratch, &m.counters);
   });
@@ -374,8 +373,9 @@ struct PoseCache {
   std::vector<float> ray_end;
 };
 
-/// Identifies cameras with the same pose and intrinsics (a fixed rig repeats them per frame).
-std::vector<uint32_t> pose_indices(const std::vector<Camera>& cameras, size_t* distinct) {
+}  // namespace
+
+std::vector<uint32_t> camera_pose_groups(const std::vector<Camera>& cameras, size_t* distinct) {
   std::map<std::vector<double>, uint32_t> seen;
   std::vector<uint32_t> index(cameras.size());
   for (size_t c = 0; c < cameras.size(); ++c) {
@@ -389,6 +389,8 @@ std::vector<uint32_t> pose_indices(const std::vector<Camera>& cameras, size_t* d
   return index;
 }
 
+namespace {
+
 /// Change of one view's visible set at a time against its pose's static answer.
 struct ViewDelta {
   std::vector<uint32_t> removed;  ///< static ids no longer observed (occluded by moving ones)
@@ -399,7 +401,7 @@ class ObservationRun {
  public:
   ObservationRun(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const ObservationOptions& options)
       : cloud_(cloud), cameras_(cameras), opt_(options), vis_(options.visibility) {
-    pose_of_camera_ = pose_indices(cameras, &pose_count_);
+    pose_of_camera_ = camera_pose_groups(cameras, &pose_count_);
     poses_.resize(pose_count_);
     marks_.assign(cloud.size(), 0);
   }

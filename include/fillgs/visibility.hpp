@@ -98,6 +98,10 @@ class VisibilityEngine {
 std::vector<std::vector<uint32_t>> views_per_frame(const std::vector<Camera>& cameras, const std::vector<double>& times,
                                                    double frame_step);
 
+/// Groups cameras with identical pose and intrinsics (a fixed rig written once per frame):
+/// the group index of every camera, groups numbered in order of first appearance.
+std::vector<uint32_t> camera_pose_groups(const std::vector<Camera>& cameras, size_t* distinct);
+
 /// Speeds of the dynamic Gaussians at time t (dynamic_ids order), world units per unit
 /// normalised time: |p(t+Δt) − p(t−Δt)| / 2Δt, one-sided where t ± Δt leaves [0, 1].
 void dynamic_speeds(const GaussianCloud& cloud, double t, double frame_step, std::vector<float>& out);
