@@ -105,12 +105,12 @@ inline bool respond(const Proxy& p, const float org[3], const float dir[3], cons
   return true;
 }
 
-/// The k nearest hits beyond the last accepted one, kept sorted by (distance, id).
+/// The k first hits beyond the last accepted one, kept sorted by (key, id).
 /// Keys are ray distances, or view depths under a RasterMatch.
 struct KBuffer {
   static constexpr int kCapacity = 16;
   struct Entry {
-    float distance;  ///< the order key
+    float key;
     uint32_t id;
     float alpha;
     float ray_distance;
@@ -118,24 +118,24 @@ struct KBuffer {
   Entry entries[kCapacity];
   int count = 0;
   bool has_floor = false;  ///< false on the first pass
-  float floor_distance = 0;
+  float floor_key = 0;
   uint32_t floor_id = 0;
 
   static bool before(float da, uint32_t ia, float db, uint32_t ib) { return da < db || (da == db && ia < ib); }
 
-  /// Offers a hit; returns the distance beyond which nothing can enter any more (+inf while not full).
-  float offer(float distance, uint32_t id, float alpha, float ray_distance) {
-    if (has_floor && !before(floor_distance, floor_id, distance, id)) return limit();
-    if (count == kCapacity && !before(distance, id, entries[count - 1].distance, entries[count - 1].id)) return limit();
+  /// Offers a hit; returns the key beyond which nothing can enter any more (+inf while not full).
+  float offer(float key, uint32_t id, float alpha, float ray_distance) {
+    if (has_floor && !before(floor_key, floor_id, key, id)) return limit();
+    if (count == kCapacity && !before(key, id, entries[count - 1].key, entries[count - 1].id)) return limit();
     int i = count < kCapacity ? count++ : kCapacity - 1;
-    while (i > 0 && before(distance, id, entries[i - 1].distance, entries[i - 1].id)) {
+    while (i > 0 && before(key, id, entries[i - 1].key, entries[i - 1].id)) {
       entries[i] = entries[i - 1];
       --i;
     }
-    entries[i] = {distance, id, alpha, ray_distance};
+    entries[i] = {key, id, alpha, ray_distance};
     return limit();
   }
-  float limit() const { return count == kCapacity ? entries[count - 1].distance : std::numeric_limits<float>::infinity(); }
+  float limit() const { return count == kCapacity ? entries[count - 1].key : std::numeric_limits<float>::infinity(); }
 };
 
 /// Embree passes our context pointer through to the callbacks unchanged (also inside instances).
@@ -201,6 +201,13 @@ void proxy_occluded(const RTCOccludedFunctionNArguments* args) {
     if (key > context->max_key) continue;
     RTCRayN_tfar(ray, args->N, i) = -std::numeric_limits<float>::infinity();
   }
+}
+
+/// View depth gained per unit of ray distance (rays leave the camera centre forwards).
+float depth_per_distance(const Vec3f& direction, const RasterMatch& match) {
+  const float d = direction.x() * match.axis[0] + direction.y() * match.axis[1] + direction.z() * match.axis[2];
+  FILLGS_DCHECK(d > 0.0f);
+  return d;
 }
 
 /// RAII owners for scenes and geometries (Embree handles are reference counted).
@@ -343,12 +350,9 @@ RayOutcome GaussianTracer::trace(const Vec3f& origin, const Vec3f& direction, Tr
   rtcInitIntersectContext(&context.base);
   context.buffer = &buffer;
   context.match = match;
-  float floor_slack = 0;
   if (match) {
-    context.depth_per_distance = direction.x() * match->axis[0] + direction.y() * match->axis[1] + direction.z() * match->axis[2];
-    FILLGS_DCHECK(context.depth_per_distance > 0.0f);
+    context.depth_per_distance = depth_per_distance(direction, *match);
     context.slack = layers == TraceLayers::All ? std::max(m.static_set.slack, m.dynamic_set.slack) : m.static_set.slack;
-    floor_slack = context.slack;
   }
   RayOutcome out;
   float T = 1.0f;
@@ -362,8 +366,8 @@ RayOutcome GaussianTracer::trace(const Vec3f& origin, const Vec3f& direction, Tr
     rh.ray.dir_y = direction.y();
     rh.ray.dir_z = direction.z();
     rh.ray.tnear = !buffer.has_floor ? 0.0f
-                   : match ? std::max(0.0f, (buffer.floor_distance - floor_slack) / context.depth_per_distance)
-                           : buffer.floor_distance;
+                   : match ? std::max(0.0f, (buffer.floor_key - context.slack) / context.depth_per_distance)
+                           : buffer.floor_key;
     rh.ray.tfar = std::numeric_limits<float>::infinity();
     rh.ray.time = 0.0f;
     rh.ray.mask = 0xFFFFFFFFu;
@@ -378,7 +382,7 @@ RayOutcome GaussianTracer::trace(const Vec3f& origin, const Vec3f& direction, Tr
       const float next_T = T * (1.0f - e.alpha);
       if (next_T < m.options.min_transmittance) {
         out.transmittance = T;
-        out.end_key = e.distance;
+        out.end_key = e.key;
         return out;
       }
       hits.push_back({e.id, e.ray_distance, e.alpha, e.alpha * T});
@@ -386,7 +390,7 @@ RayOutcome GaussianTracer::trace(const Vec3f& origin, const Vec3f& direction, Tr
     }
     if (buffer.count < KBuffer::kCapacity) break;
     buffer.has_floor = true;
-    buffer.floor_distance = buffer.entries[KBuffer::kCapacity - 1].distance;
+    buffer.floor_key = buffer.entries[KBuffer::kCapacity - 1].key;
     buffer.floor_id = buffer.entries[KBuffer::kCapacity - 1].id;
   }
   out.transmittance = T;
@@ -404,7 +408,7 @@ bool GaussianTracer::meets_dynamic(const Vec3f& origin, const Vec3f& direction, 
   context.max_key = max_key;
   float max_distance = max_key;
   if (match) {
-    context.depth_per_distance = direction.x() * match->axis[0] + direction.y() * match->axis[1] + direction.z() * match->axis[2];
+    context.depth_per_distance = depth_per_distance(direction, *match);
     max_distance = (max_key + m.dynamic_set.slack) / context.depth_per_distance;
   }
   RTCRay ray;

@@ -6,10 +6,8 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <map>
 
 #include "fillgs/error.hpp"
@@ -227,6 +225,7 @@ struct VisibilityEngine::Impl {
   TraceCounters counters;
   tbb::task_arena arena;
   std::pair<Vec3f, Vec3f> extent;
+  bool have_extent = false;
 
   Impl(const GaussianCloud& c, const VisibilityOptions& o)
       : cloud(c), options(o), evaluator(c), arena(o.threads > 0 ? o.threads : tbb::task_arena::automatic) {}
@@ -234,10 +233,13 @@ struct VisibilityEngine::Impl {
   /// The proxies, (re)built when a camera's dilated matchs need more bound padding
   /// than they have (with 25% headroom, so a rig of similar cameras builds once).
   GaussianTracer& proxies(const Camera* camera) {
+    if (camera && options.dilate && !have_extent) {
+      extent = scene_extent(cloud);  // only matched rays need it
+      have_extent = true;
+    }
     const float need = camera && options.dilate ? padding_for(*camera, extent) : 0.0f;
     if (!tracer || need > tracer->dilation_padding()) {
       TracerOptions to;
-      to.min_alpha = kMinAlpha;
       to.min_transmittance = options.min_transmittance;
       to.dilation_padding = std::max(tracer ? tracer->dilation_padding() : 0.0f, 1.25f * need);
       to.threads = options.threads;
@@ -253,7 +255,6 @@ VisibilityEngine::VisibilityEngine(const GaussianCloud& cloud, const VisibilityO
   FILLGS_CHECK(options.stride >= 1);
   FILLGS_CHECK(options.min_weight > 0.0f);
   impl_->frame = &impl_->evaluator.evaluate(0.0);
-  impl_->arena.execute([&] { impl_->extent = scene_extent(cloud); });
 }
 
 VisibilityEngine::~VisibilityEngine() = default;
@@ -400,7 +401,7 @@ struct ViewDelta {
 class ObservationRun {
  public:
   ObservationRun(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const ObservationOptions& options)
-      : cloud_(cloud), cameras_(cameras), opt_(options), vis_(options.visibility) {
+      : cloud_(cloud), cameras_(cameras), vis_(options.visibility) {
     pose_of_camera_ = camera_pose_groups(cameras, &pose_count_);
     poses_.resize(pose_count_);
     marks_.assign(cloud.size(), 0);
@@ -530,7 +531,7 @@ class ObservationRun {
     for (uint32_t g : now) marks_[g] |= kObservedAgain;
     for (uint32_t g : touched) {
       const size_t k = size_t(std::lower_bound(pc.visible.begin(), pc.visible.end(), g) - pc.visible.begin());
-      DCHECK_visible(pc, k, g);
+      FILLGS_DCHECK(k < pc.visible.size() && pc.visible[k] == g);
       if (!(marks_[g] & kObservedAgain) && (marks_[g] & ~kObservedAgain) == pc.ray_refs[k]) d.removed.push_back(g);
     }
     for (uint32_t g : now)
@@ -543,14 +544,9 @@ class ObservationRun {
 
  private:
   static constexpr uint32_t kObservedAgain = 0x80000000u;
-  static void DCHECK_visible(const PoseCache& pc, size_t k, uint32_t g) {
-    FILLGS_DCHECK(k < pc.visible.size() && pc.visible[k] == g);
-    (void)pc, (void)k, (void)g;
-  }
 
   const GaussianCloud& cloud_;
   const std::vector<Camera>& cameras_;
-  ObservationOptions opt_;
   VisibilityOptions vis_;
   std::vector<uint32_t> pose_of_camera_;
   size_t pose_count_ = 0;
