@@ -10,6 +10,7 @@
 
 #include "fillgs/error.hpp"
 #include "fillgs/sh.hpp"
+#include "raster_internal.hpp"
 
 namespace fillgs {
 
@@ -22,45 +23,79 @@ bool project_gaussian(const Vec3f& mean, const Vec3f& scale, const Vec4f& rotati
   out->radius = 0;
   // The preprocess runs in double: it is per Gaussian (cheap) and keeps huge and tiny
   // Gaussians finite where float would overflow or cancel.
-  const Vec3d p = cam.R * mean.cast<double>() + cam.t;
-  if (!(p.z() > double(kNearPlane))) return false;
-  const Mat3d Rg = quat_to_matrix<double>(rotation.cast<double>());
-  const Vec3d s2 = scale.cast<double>().array().square();
-  const Mat3d cov3 = Rg * s2.asDiagonal() * Rg.transpose();
+  const double m[3] = {mean[0], mean[1], mean[2]}, s[3] = {scale[0], scale[1], scale[2]},
+               q[4] = {rotation[0], rotation[1], rotation[2], rotation[3]};
+  return internal::splat_footprint(project_splat<double>(m, s, q, cam), cam, out);
+}
 
-  const double tan_fovx = cam.width / (2.0 * cam.fx), tan_fovy = cam.height / (2.0 * cam.fy);
-  const double limx = 1.3 * tan_fovx, limy = 1.3 * tan_fovy;
-  const double tx = std::clamp(p.x() / p.z(), -limx, limx) * p.z();
-  const double ty = std::clamp(p.y() / p.z(), -limy, limy) * p.z();
-  Eigen::Matrix<double, 2, 3> J;
-  J << cam.fx / p.z(), 0.0, -(cam.fx * tx) / (p.z() * p.z()), 0.0, cam.fy / p.z(), -(cam.fy * ty) / (p.z() * p.z());
-  const Eigen::Matrix<double, 2, 3> T = J * cam.R;
-  const Eigen::Matrix2d cov = T * cov3 * T.transpose();
-  const double a = cov(0, 0) + kDilation, b = cov(0, 1), c = cov(1, 1) + kDilation;
-  const double det = a * c - b * b;
-  if (!(det > 0.0) || !std::isfinite(det)) return false;
+namespace internal {
+
+bool splat_footprint(const SplatProjection<double>& p, const Camera& cam, ProjectedGaussian* out) {
+  out->radius = 0;
+  if (!p.valid) return false;
+  const double a = p.cov[0], c = p.cov[2];
+  const double det = a * c - p.cov[1] * p.cov[1];
   const double mid = 0.5 * (a + c);
   const double disc = std::sqrt(std::max(0.1, mid * mid - det));
   const double lambda = std::max(mid + disc, mid - disc);
   const double r = std::ceil(3.0 * std::sqrt(lambda));
-  const double u = cam.fx * p.x() / p.z() + cam.cx - 0.5;
-  const double v = cam.fy * p.y() / p.z() + cam.cy - 0.5;
-  if (!std::isfinite(u) || !std::isfinite(v) || !std::isfinite(r)) return false;
+  if (!std::isfinite(r)) return false;
   const int radius = int(std::min(r, kHugeCoordinate));
   const int gx = (cam.width + kTileSize - 1) / kTileSize, gy = (cam.height + kTileSize - 1) / kTileSize;
   auto tile = [](double x, int limit) { return std::min(limit, std::max(0, int(std::clamp(x, -kHugeCoordinate, kHugeCoordinate) / kTileSize))); };
-  out->rect_min[0] = tile(u - radius, gx);
-  out->rect_min[1] = tile(v - radius, gy);
-  out->rect_max[0] = tile(u + radius + kTileSize - 1, gx);
-  out->rect_max[1] = tile(v + radius + kTileSize - 1, gy);
+  out->rect_min[0] = tile(p.u - radius, gx);
+  out->rect_min[1] = tile(p.v - radius, gy);
+  out->rect_max[0] = tile(p.u + radius + kTileSize - 1, gx);
+  out->rect_max[1] = tile(p.v + radius + kTileSize - 1, gy);
   if ((out->rect_max[0] - out->rect_min[0]) * (out->rect_max[1] - out->rect_min[1]) == 0) return false;
-  out->mean = Vec2f(float(u), float(v));
-  out->cov2d = Vec3f(float(a), float(b), float(c));
-  out->conic = Vec3f(float(c / det), float(-b / det), float(a / det));
-  out->depth = float(p.z());
+  out->mean = Vec2f(float(p.u), float(p.v));
+  out->cov2d = Vec3f(float(p.cov[0]), float(p.cov[1]), float(p.cov[2]));
+  out->conic = Vec3f(float(p.conic[0]), float(p.conic[1]), float(p.conic[2]));
+  out->depth = float(p.depth);
   out->radius = radius;
   return true;
 }
+
+TileBins bin_tiles(const std::vector<ProjectedGaussian>& proj, const std::vector<uint32_t>& visible, int W, int H) {
+  TileBins b;
+  b.grid_x = (W + kTileSize - 1) / kTileSize;
+  b.grid_y = (H + kTileSize - 1) / kTileSize;
+  const int gx = b.grid_x;
+  const size_t tiles = size_t(b.grid_x) * b.grid_y;
+  const size_t V = visible.size();
+  // Serial scatter keeps the order deterministic.
+  b.start.assign(tiles + 1, 0);
+  for (size_t i = 0; i < V; ++i) {
+    const ProjectedGaussian& p = proj[visible[i]];
+    for (int ty = p.rect_min[1]; ty < p.rect_max[1]; ++ty)
+      for (int tx = p.rect_min[0]; tx < p.rect_max[0]; ++tx) ++b.start[size_t(ty) * gx + tx + 1];
+  }
+  std::partial_sum(b.start.begin(), b.start.end(), b.start.begin());
+  struct Key {
+    float depth;
+    uint32_t index;
+  };
+  std::vector<Key> keys(b.start[tiles]);
+  {
+    std::vector<uint64_t> fill(b.start.begin(), b.start.end() - 1);
+    for (size_t i = 0; i < V; ++i) {
+      const ProjectedGaussian& p = proj[visible[i]];
+      for (int ty = p.rect_min[1]; ty < p.rect_max[1]; ++ty)
+        for (int tx = p.rect_min[0]; tx < p.rect_max[0]; ++tx) keys[fill[size_t(ty) * gx + tx]++] = {p.depth, uint32_t(i)};
+    }
+  }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t t = r.begin(); t < r.end(); ++t)
+      std::sort(keys.begin() + b.start[t], keys.begin() + b.start[t + 1], [](const Key& x, const Key& y) {
+        return x.depth < y.depth || (x.depth == y.depth && x.index < y.index);
+      });
+  });
+  b.entries.resize(keys.size());
+  for (size_t e = 0; e < keys.size(); ++e) b.entries[e] = keys[e].index;
+  return b;
+}
+
+}  // namespace internal
 
 namespace {
 
@@ -70,11 +105,6 @@ struct Splat {
   float opacity;
   float half_w, half_h;  // pixel half-extent of the region where α can reach 1/255
   float depth;
-};
-
-struct TileKey {
-  float depth;
-  uint32_t index;  // index into the visible array
 };
 
 }  // namespace
@@ -123,9 +153,7 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
         s.opacity = G.opacities[g];
         s.depth = p.depth;
         // α ≥ 1/255 needs dᵀΣ⁻¹d ≤ 2 ln(255 o); bound that ellipse, plus a pixel of margin.
-        const float r2 = 2.0f * std::log(std::max(s.opacity, kMinAlpha) / kMinAlpha);
-        s.half_w = std::sqrt(r2 * p.cov2d[0]) + 1.0f;
-        s.half_h = std::sqrt(r2 * p.cov2d[2]) + 1.0f;
+        internal::alpha_extent(s.opacity, p.cov2d[0], p.cov2d[2], &s.half_w, &s.half_h);
         float* ch = &chan[i * size_t(C)];
         if (opt.rgb) {
           Vec3f dir = G.means[g] - campos;
@@ -141,32 +169,12 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
       }
     });
 
-    // ---- bin into tiles (serial scatter keeps the order deterministic) ----
-    const int gx = (W + kTileSize - 1) / kTileSize, gy = (H + kTileSize - 1) / kTileSize;
-    const size_t tiles = size_t(gx) * gy;
-    std::vector<uint64_t> tile_start(tiles + 1, 0);
-    for (size_t i = 0; i < V; ++i) {
-      const ProjectedGaussian& p = proj[visible[i]];
-      for (int ty = p.rect_min[1]; ty < p.rect_max[1]; ++ty)
-        for (int tx = p.rect_min[0]; tx < p.rect_max[0]; ++tx) ++tile_start[size_t(ty) * gx + tx + 1];
-    }
-    std::partial_sum(tile_start.begin(), tile_start.end(), tile_start.begin());
-    std::vector<TileKey> keys(tile_start[tiles]);
-    {
-      std::vector<uint64_t> fill(tile_start.begin(), tile_start.end() - 1);
-      for (size_t i = 0; i < V; ++i) {
-        const ProjectedGaussian& p = proj[visible[i]];
-        for (int ty = p.rect_min[1]; ty < p.rect_max[1]; ++ty)
-          for (int tx = p.rect_min[0]; tx < p.rect_max[0]; ++tx) keys[fill[size_t(ty) * gx + tx]++] = {p.depth, uint32_t(i)};
-      }
-    }
-    out.tile_entries = keys.size();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t t = r.begin(); t < r.end(); ++t)
-        std::sort(keys.begin() + tile_start[t], keys.begin() + tile_start[t + 1], [](const TileKey& a, const TileKey& b) {
-          return a.depth < b.depth || (a.depth == b.depth && a.index < b.index);
-        });
-    });
+    // ---- bin into tiles, front to back per tile ----
+    const internal::TileBins bins = internal::bin_tiles(proj, visible, W, H);
+    const int gx = bins.grid_x;
+    const size_t tiles = size_t(bins.grid_x) * bins.grid_y;
+    const std::vector<uint64_t>& tile_start = bins.start;
+    out.tile_entries = bins.entries.size();
 
     // ---- blend ----
     if (opt.rgb) out.rgb.assign(size_t(W) * H * 3, 0.0f);
@@ -174,7 +182,7 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
     if (F) out.features.assign(size_t(W) * H * F, 0.0f);
     out.alpha.assign(size_t(W) * H, 0.0f);
     std::vector<float> entry_max;  // per tile entry: max α·T, reduced per Gaussian below
-    if (opt.max_weights) entry_max.assign(keys.size(), 0.0f);
+    if (opt.max_weights) entry_max.assign(bins.entries.size(), 0.0f);
     // Contributors are gathered per tile, then laid out in pixel order.
     std::vector<std::vector<uint32_t>> tile_ids(opt.contributors ? tiles : 0);
     std::vector<std::vector<float>> tile_w(opt.contributors ? tiles : 0);
@@ -194,7 +202,7 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
         std::fill(acc.begin(), acc.end(), 0.0f);
         int n_done = 0;
         for (uint64_t e = tile_start[t]; e < tile_start[t + 1] && n_done < npix; ++e) {
-          const uint32_t i = keys[e].index;
+          const uint32_t i = bins.entries[e];
           const Splat& s = splats[i];
           const float* ch = &chan[size_t(i) * C];
           const int px0 = std::max(x0, int(std::floor(s.mean.x() - s.half_w)));
@@ -247,8 +255,8 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
 
     if (opt.max_weights) {
       out.max_weight.assign(N, 0.0f);
-      for (size_t e = 0; e < keys.size(); ++e) {
-        const uint32_t g = visible[keys[e].index];
+      for (size_t e = 0; e < bins.entries.size(); ++e) {
+        const uint32_t g = visible[bins.entries[e]];
         out.max_weight[g] = std::max(out.max_weight[g], entry_max[e]);
       }
     }

@@ -1,0 +1,64 @@
+#pragma once
+// The trainable 4D model: the parameters the optimiser updates, their evaluation at a time
+// (into a DiffFrame the differentiable rasterizer reads) and the backward of that
+// evaluation (frame gradients → parameter gradients, motion parameters included).
+//
+// Motion: static Gaussians have no motion parameters. Moving ones carry keyframed
+// positions and rotations (keys k at t = first_key_time + k·key_spacing, Catmull-Rom
+// positions with repeated end keys, shortest-arc slerp of normalised key quaternions —
+// fillgs' KeyframedMotion convention, so a model converts to and from GaussianCloud
+// without change), and optionally keyed log-scales and opacity logits (linear).
+// The same struct holds gradients and Adam moments (same layout).
+#include <cstdint>
+#include <vector>
+
+#include "fillgs/gaussians.hpp"
+#include "fillgs/raster_grad.hpp"
+
+namespace fillgs {
+
+template <typename Real>
+struct ModelParams {
+  int sh_degree = 0;
+  std::vector<Real> means;           ///< [N][3]; unused for moving Gaussians (keys rule)
+  std::vector<Real> log_scales;      ///< [N][3]
+  std::vector<Real> rotations;       ///< [N][4] raw quaternions; unused for moving ones
+  std::vector<Real> opacity_logits;  ///< [N]
+  std::vector<Real> sh;              ///< [N][(degree+1)²][3]
+  std::vector<uint32_t> dynamic_ids; ///< ascending
+  int key_count = 0;
+  double first_key_time = 0.0, key_spacing = 1.0;
+  std::vector<Real> key_positions;       ///< [M][K][3]
+  std::vector<Real> key_rotations;       ///< [M][K][4]
+  std::vector<Real> key_log_scales;      ///< [M][K][3] or empty (the Gaussian's own)
+  std::vector<Real> key_opacity_logits;  ///< [M][K] or empty
+
+  size_t size() const { return opacity_logits.size(); }
+  size_t dynamic_count() const { return dynamic_ids.size(); }
+  int sh_count() const { return (sh_degree + 1) * (sh_degree + 1); }
+  /// Same shapes, every value zero (for gradients and Adam moments).
+  ModelParams zeros_like() const;
+  /// Every value array, in a fixed order, with its width per row (for generic loops).
+  std::vector<std::vector<Real>*> arrays();
+  std::vector<const std::vector<Real>*> arrays() const;
+};
+
+/// Converts a cloud into trainable parameters. Static and fillgs-convention keyframed
+/// clouds convert exactly; any other motion (polynomial, Ex4DGS edges or temporal
+/// opacity) is first baked to `bake_frames` keys with bake_tracks (an Error if 0).
+template <typename Real>
+ModelParams<Real> params_from_cloud(const GaussianCloud& cloud, int bake_frames = 0);
+
+/// The cloud of float parameters (canonical mean/rotation of moving ones = first key).
+GaussianCloud cloud_from_params(const ModelParams<float>& params);
+
+/// Gaussians at time t (clamped to [0, 1]). `frame.sh` points into params.sh.
+template <typename Real>
+void evaluate_params(const ModelParams<Real>& params, double t, DiffFrame<Real>* frame);
+
+/// Adds dL/dparams for a loss whose gradient with respect to evaluate_params(t) is `grad`.
+template <typename Real>
+void evaluate_params_backward(const ModelParams<Real>& params, double t, const DiffFrameGrad<Real>& grad,
+                              ModelParams<Real>* dparams);
+
+}  // namespace fillgs

@@ -1,0 +1,172 @@
+#include "fillgs/loss.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace fillgs {
+
+namespace {
+
+constexpr int kWindow = 11;
+constexpr double kSigma = 1.5;
+constexpr double kC1 = 0.01 * 0.01, kC2 = 0.03 * 0.03;
+
+template <typename Real>
+struct Window {
+  Real w[kWindow];
+  Window() {
+    double sum = 0;
+    double v[kWindow];
+    for (int i = 0; i < kWindow; ++i) v[i] = std::exp(-double((i - 5) * (i - 5)) / (2 * kSigma * kSigma)), sum += v[i];
+    for (int i = 0; i < kWindow; ++i) w[i] = Real(v[i] / sum);
+  }
+};
+
+/// Separable 11×11 Gaussian filter with zero padding, one plane.
+template <typename Real>
+void blur(const std::vector<Real>& in, int W, int H, std::vector<Real>& out) {
+  static const Window<Real> win;
+  std::vector<Real> tmp(in.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, H, 16), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y)
+      for (int x = 0; x < W; ++x) {
+        Real s = 0;
+        for (int k = 0; k < kWindow; ++k) {
+          const int xx = x + k - 5;
+          if (xx >= 0 && xx < W) s += win.w[k] * in[size_t(y) * W + xx];
+        }
+        tmp[size_t(y) * W + x] = s;
+      }
+  });
+  out.resize(in.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, H, 16), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y)
+      for (int x = 0; x < W; ++x) {
+        Real s = 0;
+        for (int k = 0; k < kWindow; ++k) {
+          const int yy = y + k - 5;
+          if (yy >= 0 && yy < H) s += win.w[k] * tmp[size_t(yy) * W + x];
+        }
+        out[size_t(y) * W + x] = s;
+      }
+  });
+}
+
+/// SSIM map of one channel plane and, when `grad` is given, d(Σ_p c_p·SSIM_p)/dx for the
+/// per-pixel coefficients c (the weights times the loss's scale).
+template <typename Real>
+double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W, int H, const std::vector<Real>* coef,
+                  std::vector<Real>* grad) {
+  const size_t n = x.size();
+  std::vector<Real> xx(n), yy(n), xy(n);
+  for (size_t i = 0; i < n; ++i) xx[i] = x[i] * x[i], yy[i] = y[i] * y[i], xy[i] = x[i] * y[i];
+  std::vector<Real> mx, my, sxx, syy, sxy;
+  blur(x, W, H, mx);
+  blur(y, W, H, my);
+  blur(xx, W, H, sxx);
+  blur(yy, W, H, syy);
+  blur(xy, W, H, sxy);
+  double total = 0;
+  std::vector<Real> dmu, dvar, dcov;
+  if (grad) dmu.resize(n), dvar.resize(n), dcov.resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    const Real vx = sxx[i] - mx[i] * mx[i], vy = syy[i] - my[i] * my[i], cxy = sxy[i] - mx[i] * my[i];
+    const Real a1 = Real(2) * mx[i] * my[i] + Real(kC1), a2 = Real(2) * cxy + Real(kC2);
+    const Real b1 = mx[i] * mx[i] + my[i] * my[i] + Real(kC1), b2 = vx + vy + Real(kC2);
+    const Real s = a1 * a2 / (b1 * b2);
+    total += double(coef ? (*coef)[i] * s : s);
+    if (grad) {
+      const Real c = (*coef)[i];
+      dmu[i] = c * (Real(2) * my[i] * a2 / (b1 * b2) - s * Real(2) * mx[i] / b1);
+      dvar[i] = c * (-s / b2);
+      dcov[i] = c * (Real(2) * a1 / (b1 * b2));
+    }
+  }
+  if (grad) {
+    // x enters μx, σx² = G*(x²) − μx², σxy = G*(xy) − μxμy; G is symmetric.
+    std::vector<Real> t1(n), t2(n);
+    for (size_t i = 0; i < n; ++i) {
+      t1[i] = dmu[i] - Real(2) * dvar[i] * mx[i] - dcov[i] * my[i];
+    }
+    std::vector<Real> g1, g2, g3;
+    blur(t1, W, H, g1);
+    blur(dvar, W, H, g2);
+    blur(dcov, W, H, g3);
+    grad->resize(n);
+    for (size_t i = 0; i < n; ++i) (*grad)[i] = g1[i] + Real(2) * x[i] * g2[i] + y[i] * g3[i];
+  }
+  return total;
+}
+
+}  // namespace
+
+template <typename Real>
+LossValue photometric_loss(const Real* render, const float* target, int W, int H, const Real* weights,
+                           double lambda, Real* grad) {
+  const size_t P = size_t(W) * H, n = P * 3;
+  LossValue lv;
+  double l1 = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const Real d = render[i] - Real(target[i]);
+    const Real w = weights ? weights[i / 3] : Real(1);
+    l1 += double(w * std::abs(d));
+    if (grad) grad[i] = Real((1.0 - lambda) / double(n)) * w * (d > Real(0) ? Real(1) : d < Real(0) ? Real(-1) : Real(0));
+  }
+  lv.l1 = l1 / double(n);
+  double s = 0;
+  std::vector<Real> x(P), y(P), coef(P), g;
+  for (size_t i = 0; i < P; ++i) coef[i] = weights ? weights[i] : Real(1);
+  for (int c = 0; c < 3; ++c) {
+    for (size_t i = 0; i < P; ++i) x[i] = render[i * 3 + c], y[i] = Real(target[i * 3 + c]);
+    s += ssim_plane(x, y, W, H, &coef, grad ? &g : nullptr);
+    if (grad)
+      for (size_t i = 0; i < P; ++i) grad[i * 3 + c] -= Real(lambda / double(n)) * g[i];
+  }
+  lv.ssim = s / double(n);
+  // Weighted 1 − SSIM: mean of w·(1 − S) = mean(w) − mean(w·S).
+  double wmean = 1.0;
+  if (weights) {
+    wmean = 0;
+    for (size_t i = 0; i < P; ++i) wmean += double(weights[i]);
+    wmean /= double(P);
+  }
+  lv.total = (1.0 - lambda) * lv.l1 + lambda * (wmean - lv.ssim);
+  return lv;
+}
+
+template LossValue photometric_loss<float>(const float*, const float*, int, int, const float*, double, float*);
+template LossValue photometric_loss<double>(const double*, const float*, int, int, const double*, double, double*);
+
+double psnr(const float* a, const float* b, int W, int H, int C, const unsigned char* mask) {
+  double se = 0;
+  size_t count = 0;
+  for (size_t p = 0; p < size_t(W) * H; ++p) {
+    if (mask && !mask[p]) continue;
+    for (int c = 0; c < C; ++c) {
+      const double d = std::clamp(double(a[p * C + c]), 0.0, 1.0) - std::clamp(double(b[p * C + c]), 0.0, 1.0);
+      se += d * d;
+      ++count;
+    }
+  }
+  if (count == 0) return std::numeric_limits<double>::quiet_NaN();
+  const double mse = se / double(count);
+  return mse > 0 ? -10.0 * std::log10(mse) : std::numeric_limits<double>::infinity();
+}
+
+double ssim(const float* a, const float* b, int W, int H, int C) {
+  const size_t P = size_t(W) * H;
+  std::vector<double> x(P), y(P);
+  double s = 0;
+  for (int c = 0; c < C; ++c) {
+    for (size_t i = 0; i < P; ++i)
+      x[i] = std::clamp(double(a[i * C + c]), 0.0, 1.0), y[i] = std::clamp(double(b[i * C + c]), 0.0, 1.0);
+    s += ssim_plane<double>(x, y, W, H, nullptr, nullptr);
+  }
+  return s / double(P * C);
+}
+
+}  // namespace fillgs

@@ -1,0 +1,586 @@
+#include "fillgs/raster_grad.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "fillgs/error.hpp"
+#include "fillgs/sh.hpp"
+#include "raster_internal.hpp"
+
+namespace fillgs {
+
+// ---------------------------------------------------------------------------------
+// Projection (the 3DGS preprocess) and its backward
+
+template <typename Real>
+SplatProjection<Real> project_splat(const Real* mean, const Real* scale, const Real* rotation, const Camera& cam) {
+  using V3 = Eigen::Matrix<Real, 3, 1>;
+  using M3 = Eigen::Matrix<Real, 3, 3>;
+  SplatProjection<Real> out;
+  const M3 W = cam.R.cast<Real>();
+  const V3 p = W * V3(mean[0], mean[1], mean[2]) + cam.t.cast<Real>();
+  if (!(p.z() > Real(kNearPlane))) return out;
+  const M3 Rg = quat_to_matrix<Real>(Eigen::Matrix<Real, 4, 1>(rotation[0], rotation[1], rotation[2], rotation[3]));
+  const V3 s2 = V3(scale[0], scale[1], scale[2]).array().square();
+  const M3 cov3 = Rg * s2.asDiagonal() * Rg.transpose();
+  const Real fx = Real(cam.fx), fy = Real(cam.fy);
+  const Real limx = Real(1.3) * Real(cam.width / (2.0 * cam.fx)), limy = Real(1.3) * Real(cam.height / (2.0 * cam.fy));
+  const Real tx = std::clamp(p.x() / p.z(), -limx, limx) * p.z();
+  const Real ty = std::clamp(p.y() / p.z(), -limy, limy) * p.z();
+  Eigen::Matrix<Real, 2, 3> J;
+  J << fx / p.z(), Real(0), -(fx * tx) / (p.z() * p.z()), Real(0), fy / p.z(), -(fy * ty) / (p.z() * p.z());
+  const Eigen::Matrix<Real, 2, 3> T = J * W;
+  const Eigen::Matrix<Real, 2, 2> cov = T * cov3 * T.transpose();
+  const Real a = cov(0, 0) + Real(kDilation), b = cov(0, 1), c = cov(1, 1) + Real(kDilation);
+  const Real det = a * c - b * b;
+  if (!(det > Real(0)) || !std::isfinite(det)) return out;
+  out.u = fx * p.x() / p.z() + Real(cam.cx) - Real(0.5);
+  out.v = fy * p.y() / p.z() + Real(cam.cy) - Real(0.5);
+  if (!std::isfinite(out.u) || !std::isfinite(out.v)) return out;
+  out.cov[0] = a;
+  out.cov[1] = b;
+  out.cov[2] = c;
+  out.conic[0] = c / det;
+  out.conic[1] = -b / det;
+  out.conic[2] = a / det;
+  out.depth = p.z();
+  out.valid = true;
+  return out;
+}
+
+template <typename Real>
+void project_splat_backward(const Real* mean, const Real* scale, const Real* rotation, const Camera& cam, Real dL_du,
+                            Real dL_dv, const Real dL_dconic[3], Real* dL_dmean, Real* dL_dscale, Real* dL_drot) {
+  using V3 = Eigen::Matrix<Real, 3, 1>;
+  using M3 = Eigen::Matrix<Real, 3, 3>;
+  const M3 W = cam.R.cast<Real>();
+  const V3 p = W * V3(mean[0], mean[1], mean[2]) + cam.t.cast<Real>();
+  if (!(p.z() > Real(kNearPlane))) return;
+  const Real w = rotation[0], x = rotation[1], y = rotation[2], z = rotation[3];
+  const M3 Rg = quat_to_matrix<Real>(Eigen::Matrix<Real, 4, 1>(w, x, y, z));
+  const V3 s(scale[0], scale[1], scale[2]);
+  const M3 M = Rg * s.asDiagonal();
+  const M3 cov3 = M * M.transpose();
+  const Real fx = Real(cam.fx), fy = Real(cam.fy), pz = p.z();
+  const Real limx = Real(1.3) * Real(cam.width / (2.0 * cam.fx)), limy = Real(1.3) * Real(cam.height / (2.0 * cam.fy));
+  const Real rx = p.x() / pz, ry = p.y() / pz;
+  const bool clamp_x = rx < -limx || rx > limx, clamp_y = ry < -limy || ry > limy;
+  const Real tx = std::clamp(rx, -limx, limx) * pz, ty = std::clamp(ry, -limy, limy) * pz;
+  Eigen::Matrix<Real, 2, 3> J;
+  J << fx / pz, Real(0), -(fx * tx) / (pz * pz), Real(0), fy / pz, -(fy * ty) / (pz * pz);
+  const Eigen::Matrix<Real, 2, 3> T = J * W;
+  const Eigen::Matrix<Real, 2, 2> cov = T * cov3 * T.transpose();
+  const Real a = cov(0, 0) + Real(kDilation), b = cov(0, 1), c = cov(1, 1) + Real(kDilation);
+  const Real det = a * c - b * b;
+  if (!(det > Real(0))) return;
+
+  // conic (A, B, C) = (c, −b, a) / det  →  dilated covariance (a, b, c)
+  const Real d2 = det * det;
+  const Real gA = dL_dconic[0], gB = dL_dconic[1], gC = dL_dconic[2];
+  const Real ga = gA * (-c * c / d2) + gB * (b * c / d2) + gC * (-b * b / d2);
+  const Real gb = gA * (Real(2) * b * c / d2) + gB * (Real(-1) / det - Real(2) * b * b / d2) + gC * (Real(2) * a * b / d2);
+  const Real gc = gA * (-b * b / d2) + gB * (a * b / d2) + gC * (-a * a / d2);
+  // Σ2 = T Σ3 Tᵀ with the symmetric gradient G2 (b appears once in the conic, twice in Σ2).
+  Eigen::Matrix<Real, 2, 2> G2;
+  G2 << ga, Real(0.5) * gb, Real(0.5) * gb, gc;
+  const M3 G3 = T.transpose() * G2 * T;
+  const Eigen::Matrix<Real, 2, 3> GT = Real(2) * G2 * T * cov3;
+  const Eigen::Matrix<Real, 2, 3> GJ = GT * W.transpose();
+
+  // J(p): J00 = fx/z, J11 = fy/z, J02 = −fx·tx/z², J12 = −fy·ty/z²; a clamped tx is rx_c·z.
+  V3 gp = V3::Zero();
+  gp.z() += -fx / (pz * pz) * GJ(0, 0) - fy / (pz * pz) * GJ(1, 1);
+  if (clamp_x) {
+    gp.z() += fx * (tx / pz) / (pz * pz) * GJ(0, 2);
+  } else {
+    gp.x() += -fx / (pz * pz) * GJ(0, 2);
+    gp.z() += Real(2) * fx * p.x() / (pz * pz * pz) * GJ(0, 2);
+  }
+  if (clamp_y) {
+    gp.z() += fy * (ty / pz) / (pz * pz) * GJ(1, 2);
+  } else {
+    gp.y() += -fy / (pz * pz) * GJ(1, 2);
+    gp.z() += Real(2) * fy * p.y() / (pz * pz * pz) * GJ(1, 2);
+  }
+  // Mean's pixel position.
+  gp.x() += fx / pz * dL_du;
+  gp.y() += fy / pz * dL_dv;
+  gp.z() += -fx * p.x() / (pz * pz) * dL_du - fy * p.y() / (pz * pz) * dL_dv;
+  const V3 gm = W.transpose() * gp;
+  for (int k = 0; k < 3; ++k) dL_dmean[k] += gm[k];
+
+  // Σ3 = M Mᵀ, M = R S.
+  const M3 GM = Real(2) * G3 * M;
+  for (int k = 0; k < 3; ++k) dL_dscale[k] += Rg.col(k).dot(GM.col(k));
+  const M3 G = GM * s.asDiagonal();  // dL/dR
+  dL_drot[0] += Real(2) * (-z * G(0, 1) + y * G(0, 2) + z * G(1, 0) - x * G(1, 2) - y * G(2, 0) + x * G(2, 1));
+  dL_drot[1] += Real(2) * (y * G(0, 1) + z * G(0, 2) + y * G(1, 0) - Real(2) * x * G(1, 1) - w * G(1, 2) + z * G(2, 0) +
+                           w * G(2, 1) - Real(2) * x * G(2, 2));
+  dL_drot[2] += Real(2) * (Real(-2) * y * G(0, 0) + x * G(0, 1) + w * G(0, 2) + x * G(1, 0) + z * G(1, 2) - w * G(2, 0) +
+                           z * G(2, 1) - Real(2) * y * G(2, 2));
+  dL_drot[3] += Real(2) * (Real(-2) * z * G(0, 0) - w * G(0, 1) + x * G(0, 2) + w * G(1, 0) - Real(2) * z * G(1, 1) +
+                           y * G(1, 2) + x * G(2, 0) + y * G(2, 1));
+}
+
+namespace {
+
+/// A number with its derivatives along x, y, z: differentiates the SH basis exactly.
+template <typename Real>
+struct Dual3 {
+  Real v = 0, d[3] = {0, 0, 0};
+  Dual3() = default;
+  explicit Dual3(double c) : v(Real(c)) {}
+  friend Dual3 operator+(const Dual3& a, const Dual3& b) {
+    Dual3 r;
+    r.v = a.v + b.v;
+    for (int k = 0; k < 3; ++k) r.d[k] = a.d[k] + b.d[k];
+    return r;
+  }
+  friend Dual3 operator-(const Dual3& a, const Dual3& b) {
+    Dual3 r;
+    r.v = a.v - b.v;
+    for (int k = 0; k < 3; ++k) r.d[k] = a.d[k] - b.d[k];
+    return r;
+  }
+  friend Dual3 operator*(const Dual3& a, const Dual3& b) {
+    Dual3 r;
+    r.v = a.v * b.v;
+    for (int k = 0; k < 3; ++k) r.d[k] = a.d[k] * b.v + a.v * b.d[k];
+    return r;
+  }
+};
+
+/// Direction from the camera centre to a mean, unit; the forward's rule for a zero vector.
+template <typename Real>
+void view_direction(const Real* mean, const Real* centre, Real dir[3], Real* length) {
+  for (int k = 0; k < 3; ++k) dir[k] = mean[k] - centre[k];
+  const Real len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+  *length = len;
+  if (len > Real(0)) {
+    for (int k = 0; k < 3; ++k) dir[k] /= len;
+  } else {
+    dir[0] = dir[1] = Real(0);
+    dir[2] = Real(1);
+  }
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------
+// Forward
+
+template <typename Real>
+void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, const DiffRenderOptions& opt) {
+  FILLGS_CHECK(cam.width > 0 && cam.height > 0);
+  FILLGS_CHECK(opt.feature_channels == 0 || opt.features != nullptr);
+  frame_ = &G;
+  camera_ = cam;
+  options_ = opt;
+  const int W = cam.width, H = cam.height;
+  width_ = W;
+  height_ = H;
+  const size_t N = G.size();
+  const int F = opt.feature_channels;
+  const int C = 3 + F;
+  channels_ = C;
+  const int K = (G.sh_degree + 1) * (G.sh_degree + 1);
+  radii_.assign(N, 0);
+
+  tbb::task_arena arena(opt.threads > 0 ? opt.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    std::vector<ProjectedGaussian> proj(N);
+    std::vector<SplatProjection<double>> exact(N);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 1024), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t g = r.begin(); g < r.end(); ++g) {
+        double m[3], s[3], q[4];
+        for (int k = 0; k < 3; ++k) m[k] = double(G.means[3 * g + k]), s[k] = double(G.scales[3 * g + k]);
+        for (int k = 0; k < 4; ++k) q[k] = double(G.rotations[4 * g + k]);
+        exact[g] = project_splat<double>(m, s, q, cam);
+        if (internal::splat_footprint(exact[g], cam, &proj[g])) radii_[g] = proj[g].radius;
+      }
+    });
+    visible_.clear();
+    for (uint32_t g = 0; g < N; ++g)
+      if (radii_[g] > 0 && G.opacities[g] >= Real(kMinAlpha)) visible_.push_back(g);
+    const size_t V = visible_.size();
+
+    splat_data_.assign(V * 6, Real(0));
+    colour_.assign(V * size_t(C), Real(0));
+    colour_clamped_.assign(V, 0);
+    half_extent_.assign(V * 2, 0.0f);
+    const Vec3d centre = cam.centre();
+    const Real campos[3] = {Real(centre.x()), Real(centre.y()), Real(centre.z())};
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 1024), [&](const tbb::blocked_range<size_t>& r) {
+      Real Y[16];
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        const uint32_t g = visible_[i];
+        const SplatProjection<double>& p = exact[g];
+        Real* sd = &splat_data_[6 * i];
+        // Real = float rounds exactly as the forward renderer stores its splats.
+        sd[0] = Real(p.u);
+        sd[1] = Real(p.v);
+        for (int k = 0; k < 3; ++k) sd[2 + k] = Real(p.conic[k]);
+        sd[5] = G.opacities[g];
+        internal::alpha_extent(float(G.opacities[g]), float(p.cov[0]), float(p.cov[2]), &half_extent_[2 * i],
+                               &half_extent_[2 * i + 1]);
+        Real dir[3], len;
+        view_direction(&G.means[3 * g], campos, dir, &len);
+        sh_basis_generic<Real>(G.sh_degree, dir[0], dir[1], dir[2], Y);
+        const Real* coeffs = G.sh + size_t(g) * K * 3;
+        Real* ch = &colour_[i * size_t(C)];
+        for (int c = 0; c < 3; ++c) {
+          Real v = Real(0.5);
+          for (int k = 0; k < K; ++k) v += Y[k] * coeffs[3 * k + c];
+          if (v < Real(0)) {
+            v = Real(0);
+            colour_clamped_[i] |= uint8_t(1u << c);
+          }
+          ch[c] = v;
+        }
+        for (int f = 0; f < F; ++f) ch[3 + f] = Real(opt.features[size_t(g) * F + f]);
+      }
+    });
+
+    internal::TileBins bins = internal::bin_tiles(proj, visible_, W, H);
+    grid_x_ = bins.grid_x;
+    tile_start_ = std::move(bins.start);
+    keys_ = std::move(bins.entries);
+    const size_t tiles = size_t(bins.grid_x) * bins.grid_y;
+
+    image_.assign(size_t(W) * H * 3, Real(0));
+    features_.assign(size_t(W) * H * F, Real(0));
+    alpha_.assign(size_t(W) * H, Real(0));
+    final_T_.assign(size_t(W) * H, Real(1));
+    last_entry_.assign(size_t(W) * H, 0);
+
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
+      constexpr int P = kTileSize * kTileSize;
+      Real T[P];
+      bool done[P];
+      uint32_t last[P];
+      std::vector<Real> acc(size_t(P) * C);
+      for (size_t t = r.begin(); t < r.end(); ++t) {
+        const int x0 = int(t % grid_x_) * kTileSize, y0 = int(t / grid_x_) * kTileSize;
+        const int x1 = std::min(x0 + kTileSize, W), y1 = std::min(y0 + kTileSize, H);
+        const int npix = (x1 - x0) * (y1 - y0);
+        std::fill(T, T + P, Real(1));
+        std::fill(done, done + P, false);
+        std::fill(last, last + P, 0u);
+        std::fill(acc.begin(), acc.end(), Real(0));
+        int n_done = 0;
+        for (uint64_t e = tile_start_[t]; e < tile_start_[t + 1] && n_done < npix; ++e) {
+          const uint32_t i = keys_[e];
+          const Real* sd = &splat_data_[6 * i];
+          const Real* ch = &colour_[size_t(i) * C];
+          const float hw = half_extent_[2 * i], hh = half_extent_[2 * i + 1];
+          const float mx = float(sd[0]), my = float(sd[1]);
+          const int px0 = std::max(x0, int(std::floor(mx - hw))), px1 = std::min(x1 - 1, int(std::ceil(mx + hw)));
+          const int py0 = std::max(y0, int(std::floor(my - hh))), py1 = std::min(y1 - 1, int(std::ceil(my + hh)));
+          for (int py = py0; py <= py1; ++py)
+            for (int px = px0; px <= px1; ++px) {
+              const int l = (py - y0) * kTileSize + (px - x0);
+              if (done[l]) continue;
+              const Real dx = sd[0] - Real(px), dy = sd[1] - Real(py);
+              const Real power = Real(-0.5) * (sd[2] * dx * dx + sd[4] * dy * dy) - sd[3] * dx * dy;
+              if (power > Real(0)) continue;
+              const Real alpha = std::min(Real(kMaxAlpha), sd[5] * std::exp(power));
+              if (alpha < Real(kMinAlpha)) continue;
+              const Real test_T = T[l] * (Real(1) - alpha);
+              if (test_T < Real(kMinTransmittance)) {
+                done[l] = true;
+                ++n_done;
+                continue;
+              }
+              const Real w = alpha * T[l];
+              Real* a = &acc[size_t(l) * C];
+              for (int k = 0; k < C; ++k) a[k] += ch[k] * w;
+              T[l] = test_T;
+              last[l] = uint32_t(e - tile_start_[t] + 1);
+            }
+        }
+        for (int py = y0; py < y1; ++py)
+          for (int px = x0; px < x1; ++px) {
+            const int l = (py - y0) * kTileSize + (px - x0);
+            const size_t o = size_t(py) * W + px;
+            const Real* a = &acc[size_t(l) * C];
+            for (int k = 0; k < 3; ++k) image_[o * 3 + k] = a[k] + T[l] * Real(opt.background[k]);
+            for (int f = 0; f < F; ++f) features_[o * F + f] = a[3 + f];
+            alpha_[o] = Real(1) - T[l];
+            final_T_[o] = T[l];
+            last_entry_[o] = last[l];
+          }
+      }
+    });
+  });
+}
+
+// ---------------------------------------------------------------------------------
+// Backward: tiles back to front, recovering T by division like the CUDA backward.
+
+namespace {
+
+/// One accepted (Gaussian, pixel) pair met back to front, with what both passes need.
+template <typename Real>
+struct Pair {
+  Real dx, dy;        // mean minus pixel
+  Real gauss;         // exp(power)
+  Real alpha;
+  bool clamped;       // α hit 0.99: no gradient through o or G
+  Real T;             // transmittance in front of this Gaussian
+  const Real* behind; // per channel: colour blended behind it, relative to T·(1−α)
+  Real bg_term;       // −T_final / (1 − α), times the background in the caller
+};
+
+}  // namespace
+
+template <typename Real>
+template <typename MakeVisitor>
+void DiffRasterizer<Real>::backward_tiles(MakeVisitor&& make_visitor) const {
+  const int W = width_, H = height_, C = channels_;
+  const size_t tiles = tile_start_.empty() ? 0 : tile_start_.size() - 1;
+  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
+      constexpr int P = kTileSize * kTileSize;
+      Real T[P];
+      std::vector<Real> behind(size_t(P) * C);
+      auto visitor = make_visitor();
+      for (size_t t = r.begin(); t < r.end(); ++t) {
+        const int x0 = int(t % grid_x_) * kTileSize, y0 = int(t / grid_x_) * kTileSize;
+        const int x1 = std::min(x0 + kTileSize, W), y1 = std::min(y0 + kTileSize, H);
+        for (int py = y0; py < y1; ++py)
+          for (int px = x0; px < x1; ++px) T[(py - y0) * kTileSize + (px - x0)] = final_T_[size_t(py) * W + px];
+        std::fill(behind.begin(), behind.end(), Real(0));
+        for (uint64_t e = tile_start_[t + 1]; e-- > tile_start_[t];) {
+          const uint32_t i = keys_[e];
+          const uint32_t local = uint32_t(e - tile_start_[t]);
+          const Real* sd = &splat_data_[6 * i];
+          const Real* ch = &colour_[size_t(i) * C];
+          const float hw = half_extent_[2 * i], hh = half_extent_[2 * i + 1];
+          const float mx = float(sd[0]), my = float(sd[1]);
+          const int px0 = std::max(x0, int(std::floor(mx - hw))), px1 = std::min(x1 - 1, int(std::ceil(mx + hw)));
+          const int py0 = std::max(y0, int(std::floor(my - hh))), py1 = std::min(y1 - 1, int(std::ceil(my + hh)));
+          visitor.begin(e, i);
+          for (int py = py0; py <= py1; ++py)
+            for (int px = px0; px <= px1; ++px) {
+              const size_t o = size_t(py) * W + px;
+              if (local >= last_entry_[o]) continue;  // the forward stopped this pixel before it
+              const int l = (py - y0) * kTileSize + (px - x0);
+              Pair<Real> pr;
+              pr.dx = sd[0] - Real(px);
+              pr.dy = sd[1] - Real(py);
+              const Real power = Real(-0.5) * (sd[2] * pr.dx * pr.dx + sd[4] * pr.dy * pr.dy) - sd[3] * pr.dx * pr.dy;
+              if (power > Real(0)) continue;
+              pr.gauss = std::exp(power);
+              const Real oG = sd[5] * pr.gauss;
+              pr.alpha = std::min(Real(kMaxAlpha), oG);
+              if (pr.alpha < Real(kMinAlpha)) continue;
+              pr.clamped = oG > Real(kMaxAlpha);
+              pr.T = T[l] / (Real(1) - pr.alpha);
+              T[l] = pr.T;
+              Real* b = &behind[size_t(l) * C];
+              pr.behind = b;
+              pr.bg_term = -final_T_[o] / (Real(1) - pr.alpha);
+              visitor.pair(o, pr, ch);
+              for (int k = 0; k < C; ++k) b[k] = pr.alpha * ch[k] + (Real(1) - pr.alpha) * b[k];
+            }
+          visitor.end(e);
+        }
+      }
+    });
+  });
+}
+
+template <typename Real>
+void DiffRasterizer<Real>::backward(const Real* dL_dimage, const Real* dL_dfeatures, const Real* pixel_weights,
+                                   DiffFrameGrad<Real>* grad) const {
+  FILLGS_CHECK(frame_ != nullptr);
+  const DiffFrame<Real>& G = *frame_;
+  const int C = channels_, F = C - 3;
+  const int K = (G.sh_degree + 1) * (G.sh_degree + 1);
+  const size_t V = visible_.size();
+  // One record per Gaussian-tile pair: du, dv, dA, dB, dC, dopacity, dchannel[C].
+  const int R = 6 + C;
+  std::vector<Real> records(keys_.size() * size_t(R), Real(0));
+  const Vec3f bgf = options_.background;
+  const Real bg[3] = {Real(bgf[0]), Real(bgf[1]), Real(bgf[2])};
+
+  struct Visitor {
+    const DiffRasterizer* self;
+    const Real *dimg, *dfeat, *weights;
+    Real* records;
+    const Real* bg;
+    int C, F, R;
+    Real acc[6 + 64];
+    const Real* sd = nullptr;
+    size_t entry = 0;
+    void begin(size_t e, uint32_t i) {
+      entry = e;
+      sd = &self->splat_data_[6 * i];
+      std::fill(acc, acc + R, Real(0));
+    }
+    void pair(size_t o, const Pair<Real>& pr, const Real* ch) {
+      const Real wpx = weights ? weights[o] : Real(1);
+      Real dpix[64];
+      for (int c = 0; c < 3; ++c) dpix[c] = dimg[o * 3 + c] * wpx;
+      for (int f = 0; f < F; ++f) dpix[3 + f] = dfeat ? dfeat[o * F + f] * wpx : Real(0);
+      const Real w = pr.alpha * pr.T;
+      Real dL_dalpha = 0;
+      for (int k = 0; k < C; ++k) {
+        acc[6 + k] += w * dpix[k];
+        dL_dalpha += (ch[k] - pr.behind[k]) * dpix[k];
+      }
+      dL_dalpha *= pr.T;
+      dL_dalpha += pr.bg_term * (bg[0] * dpix[0] + bg[1] * dpix[1] + bg[2] * dpix[2]);
+      if (pr.clamped) return;
+      acc[5] += pr.gauss * dL_dalpha;
+      const Real dp = pr.alpha * dL_dalpha;  // dL/dpower
+      acc[0] += -dp * (sd[2] * pr.dx + sd[3] * pr.dy);
+      acc[1] += -dp * (sd[4] * pr.dy + sd[3] * pr.dx);
+      acc[2] += Real(-0.5) * dp * pr.dx * pr.dx;
+      acc[3] += -dp * pr.dx * pr.dy;
+      acc[4] += Real(-0.5) * dp * pr.dy * pr.dy;
+    }
+    void end(size_t e) { std::copy(acc, acc + R, records + e * R); }
+  };
+  FILLGS_CHECK(C <= 64);
+  backward_tiles([&] { return Visitor{this, dL_dimage, dL_dfeatures, pixel_weights, records.data(), bg, C, F, R, {}}; });
+
+  // Reduce per Gaussian in tile order (deterministic for any thread count).
+  std::vector<Real> sums(V * size_t(R), Real(0));
+  for (size_t e = 0; e < keys_.size(); ++e) {
+    Real* s = &sums[size_t(keys_[e]) * R];
+    const Real* rec = &records[e * R];
+    for (int k = 0; k < R; ++k) s[k] += rec[k];
+  }
+
+  grad->reset(G.size(), K, F);
+  const Vec3d centre = camera_.centre();
+  const Real campos[3] = {Real(centre.x()), Real(centre.y()), Real(centre.z())};
+  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 512), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        const uint32_t g = visible_[i];
+        const Real* s = &sums[i * R];
+        grad->screen[2 * g] = s[0];
+        grad->screen[2 * g + 1] = s[1];
+        double m[3], sc[3], q[4], gm[3] = {0, 0, 0}, gs[3] = {0, 0, 0}, gq[4] = {0, 0, 0, 0};
+        for (int k = 0; k < 3; ++k) m[k] = double(G.means[3 * g + k]), sc[k] = double(G.scales[3 * g + k]);
+        for (int k = 0; k < 4; ++k) q[k] = double(G.rotations[4 * g + k]);
+        const double gconic[3] = {double(s[2]), double(s[3]), double(s[4])};
+        project_splat_backward<double>(m, sc, q, camera_, double(s[0]), double(s[1]), gconic, gm, gs, gq);
+        for (int k = 0; k < 3; ++k) grad->means[3 * g + k] += Real(gm[k]), grad->scales[3 * g + k] += Real(gs[k]);
+        for (int k = 0; k < 4; ++k) grad->rotations[4 * g + k] += Real(gq[k]);
+        grad->opacities[g] += s[5];
+        for (int f = 0; f < F; ++f) grad->features[size_t(g) * F + f] = s[9 + f];
+        // Colour from SH: coefficients, and the mean through the view direction.
+        const Real gcol[3] = {colour_clamped_[i] & 1 ? Real(0) : s[6], colour_clamped_[i] & 2 ? Real(0) : s[7],
+                              colour_clamped_[i] & 4 ? Real(0) : s[8]};
+        Real dir[3], len;
+        view_direction(&G.means[3 * g], campos, dir, &len);
+        Dual3<Real> dx(0), dy(0), dz(0), Y[16];
+        dx.v = dir[0], dy.v = dir[1], dz.v = dir[2];
+        dx.d[0] = dy.d[1] = dz.d[2] = Real(1);
+        sh_basis_generic<Dual3<Real>>(G.sh_degree, dx, dy, dz, Y);
+        const Real* coeffs = G.sh + size_t(g) * K * 3;
+        Real* gsh = &grad->sh[size_t(g) * K * 3];
+        Real gdir[3] = {0, 0, 0};
+        for (int k = 0; k < K; ++k)
+          for (int c = 0; c < 3; ++c) {
+            gsh[3 * k + c] = Y[k].v * gcol[c];
+            for (int a = 0; a < 3; ++a) gdir[a] += Y[k].d[a] * coeffs[3 * k + c] * gcol[c];
+          }
+        if (K > 1 && len > Real(0)) {
+          const Real dot = gdir[0] * dir[0] + gdir[1] * dir[1] + gdir[2] * dir[2];
+          for (int a = 0; a < 3; ++a) grad->means[3 * g + a] += (gdir[a] - dot * dir[a]) / len;
+        }
+      }
+    });
+  });
+}
+
+template <typename Real>
+void DiffRasterizer<Real>::accumulate_fisher(FisherDiagonal* fisher) const {
+  FILLGS_CHECK(frame_ != nullptr);
+  const DiffFrame<Real>& G = *frame_;
+  const size_t V = visible_.size();
+  constexpr int P = FisherDiagonal::kParams;
+  if (fisher->values.size() != G.size() * P) fisher->values.assign(G.size() * P, 0.0);
+  // Per visible Gaussian: Jacobian of (u, v, A, B, C) w.r.t. (mean, log-scale, rotation).
+  std::vector<double> jac(V * 50, 0.0);
+  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 512), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        const uint32_t g = visible_[i];
+        double m[3], sc[3], q[4];
+        for (int k = 0; k < 3; ++k) m[k] = double(G.means[3 * g + k]), sc[k] = double(G.scales[3 * g + k]);
+        for (int k = 0; k < 4; ++k) q[k] = double(G.rotations[4 * g + k]);
+        for (int row = 0; row < 5; ++row) {
+          double up[5] = {0, 0, 0, 0, 0};
+          up[row] = 1.0;
+          double* J = &jac[i * 50 + row * 10];
+          project_splat_backward<double>(m, sc, q, camera_, up[0], up[1], up + 2, J, J + 3, J + 6);
+          for (int k = 0; k < 3; ++k) J[3 + k] *= sc[k];  // d/dlog-scale
+        }
+      }
+    });
+  });
+  std::vector<double> records(keys_.size() * size_t(P), 0.0);
+  const Vec3f bg = options_.background;
+  struct Visitor {
+    const DiffRasterizer* self;
+    const double* jac;
+    double* records;
+    Vec3f bg;
+    double acc[P];
+    const Real* sd = nullptr;
+    uint32_t vis = 0;
+    void begin(size_t, uint32_t i) {
+      vis = i;
+      sd = &self->splat_data_[6 * i];
+      std::fill(acc, acc + P, 0.0);
+    }
+    void pair(size_t, const Pair<Real>& pr, const Real* ch) {
+      const double o = double(sd[5]);
+      const double* J = &jac[size_t(vis) * 50];
+      for (int c = 0; c < 3; ++c) {
+        const double dI_dalpha = double(pr.T) * double(ch[c] - pr.behind[c]) + double(pr.bg_term) * bg[c];
+        double g[P] = {0};
+        if (!pr.clamped) {
+          const double dp = double(pr.alpha) * dI_dalpha;
+          const double d2[5] = {-dp * double(sd[2] * pr.dx + sd[3] * pr.dy), -dp * double(sd[4] * pr.dy + sd[3] * pr.dx),
+                                -0.5 * dp * double(pr.dx * pr.dx), -dp * double(pr.dx * pr.dy),
+                                -0.5 * dp * double(pr.dy * pr.dy)};
+          for (int row = 0; row < 5; ++row)
+            for (int k = 0; k < 10; ++k) g[k] += J[row * 10 + k] * d2[row];
+          g[10] = double(pr.gauss) * dI_dalpha * o * (1.0 - o);
+        }
+        if (!(self->colour_clamped_[vis] & (1u << c))) g[11 + c] = 0.28209479177387814 * double(pr.alpha * pr.T);
+        for (int k = 0; k < P; ++k) acc[k] += g[k] * g[k];
+      }
+    }
+    void end(size_t e) { std::copy(acc, acc + P, records + e * P); }
+  };
+  backward_tiles([&] { return Visitor{this, jac.data(), records.data(), bg, {}}; });
+  for (size_t e = 0; e < keys_.size(); ++e) {
+    double* f = &fisher->values[size_t(visible_[keys_[e]]) * P];
+    for (int k = 0; k < P; ++k) f[k] += records[e * P + k];
+  }
+}
+
+template class DiffRasterizer<float>;
+template class DiffRasterizer<double>;
+template SplatProjection<float> project_splat<float>(const float*, const float*, const float*, const Camera&);
+template SplatProjection<double> project_splat<double>(const double*, const double*, const double*, const Camera&);
+template void project_splat_backward<float>(const float*, const float*, const float*, const Camera&, float, float,
+                                            const float[3], float*, float*, float*);
+template void project_splat_backward<double>(const double*, const double*, const double*, const Camera&, double,
+                                             double, const double[3], double*, double*, double*);
+
+}  // namespace fillgs

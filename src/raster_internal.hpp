@@ -1,0 +1,33 @@
+#pragma once
+// Pieces of the rasterizer shared by the forward renderer (raster.cpp) and the
+// differentiable one (raster_grad.cpp), so that both cull, bin and order identically.
+#include <cstdint>
+#include <vector>
+
+#include "fillgs/raster.hpp"
+#include "fillgs/raster_grad.hpp"
+
+namespace fillgs::internal {
+
+/// Radius and touched tiles of a projected splat (3DGS: ceil(3·sqrt(λmax)), tile rect);
+/// false when 3DGS culls it. Fills every field of `out`.
+bool splat_footprint(const SplatProjection<double>& p, const Camera& cam, ProjectedGaussian* out);
+
+/// Gaussian-tile pairs: tile t owns entries [start[t], start[t+1]) of `entries`, each an
+/// index into `visible`, ordered front to back by view depth (ties by index).
+struct TileBins {
+  int grid_x = 0, grid_y = 0;
+  std::vector<uint64_t> start;
+  std::vector<uint32_t> entries;
+};
+TileBins bin_tiles(const std::vector<ProjectedGaussian>& projected, const std::vector<uint32_t>& visible, int width,
+                   int height);
+
+/// Pixel half-extent of the region where a splat's α can reach 1/255, plus a pixel of margin.
+inline void alpha_extent(float opacity, float cov_a, float cov_c, float* half_w, float* half_h) {
+  const float r2 = 2.0f * std::log(std::max(opacity, kMinAlpha) / kMinAlpha);
+  *half_w = std::sqrt(r2 * cov_a) + 1.0f;
+  *half_h = std::sqrt(r2 * cov_c) + 1.0f;
+}
+
+}  // namespace fillgs::internal

@@ -1,0 +1,347 @@
+#include "fillgs/train_model.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "fillgs/error.hpp"
+#include "fillgs/scene_io.hpp"
+
+namespace fillgs {
+
+template <typename Real>
+ModelParams<Real> ModelParams<Real>::zeros_like() const {
+  ModelParams z = *this;
+  for (std::vector<Real>* a : z.arrays()) std::fill(a->begin(), a->end(), Real(0));
+  return z;
+}
+
+template <typename Real>
+std::vector<std::vector<Real>*> ModelParams<Real>::arrays() {
+  return {&means, &log_scales, &rotations, &opacity_logits, &sh, &key_positions, &key_rotations, &key_log_scales,
+          &key_opacity_logits};
+}
+
+template <typename Real>
+std::vector<const std::vector<Real>*> ModelParams<Real>::arrays() const {
+  return {&means, &log_scales, &rotations, &opacity_logits, &sh, &key_positions, &key_rotations, &key_log_scales,
+          &key_opacity_logits};
+}
+
+namespace {
+
+template <typename Real>
+Real sigmoid_t(Real x) {
+  if (x >= Real(0)) return Real(1) / (Real(1) + std::exp(-x));
+  const Real e = std::exp(x);
+  return e / (Real(1) + e);
+}
+
+/// y = x / |x| (identity quaternion for a zero vector, as normalize_quat).
+template <typename Real>
+void normalize4(const Real* x, Real* y) {
+  const Real n = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]);
+  if (!(n > Real(1e-30)) || !std::isfinite(n)) {
+    y[0] = Real(1), y[1] = y[2] = y[3] = Real(0);
+    return;
+  }
+  for (int k = 0; k < 4; ++k) y[k] = x[k] / n;
+}
+
+/// dL/dx of y = x/|x| given dL/dy, added into gx.
+template <typename Real>
+void normalize4_backward(const Real* x, const Real* gy, Real* gx) {
+  const Real n = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]);
+  if (!(n > Real(1e-30)) || !std::isfinite(n)) return;
+  Real y[4], dot = 0;
+  for (int k = 0; k < 4; ++k) y[k] = x[k] / n, dot += gy[k] * y[k];
+  for (int k = 0; k < 4; ++k) gx[k] += (gy[k] - dot * y[k]) / n;
+}
+
+/// Where t falls among the keys: interval start i and position s in it (fillgs convention).
+struct KeySpot {
+  int i = 0;
+  double s = 0.0;
+};
+
+template <typename Real>
+KeySpot key_spot(const ModelParams<Real>& p, double t) {
+  const int K = p.key_count;
+  if (K <= 1) return {};
+  const double u = std::clamp((t - p.first_key_time) / p.key_spacing, 0.0, double(K - 1));
+  const int i = std::min(int(std::floor(u)), K - 2);
+  return {i, u - i};
+}
+
+/// Catmull-Rom weights of keys i−1, i, i+1, i+2 (end keys repeated) at position s.
+template <typename Real>
+void catmull_rom_weights(Real s, Real w[4]) {
+  const Real s2 = s * s, s3 = s2 * s;
+  const Real h00 = Real(2) * s3 - Real(3) * s2 + Real(1), h10 = s3 - Real(2) * s2 + s;
+  const Real h01 = Real(-2) * s3 + Real(3) * s2, h11 = s3 - s2;
+  w[0] = Real(-0.5) * h10;
+  w[1] = h00 - Real(0.5) * h11;
+  w[2] = h01 + Real(0.5) * h10;
+  w[3] = Real(0.5) * h11;
+}
+
+/// Shortest-arc slerp of normalised keys, exactly slerp_shortest's rule (normalised lerp
+/// above a dot of 0.9995), with its backward.
+template <typename Real>
+struct Slerp {
+  Real q0[4], q1[4];  // normalised keys; q1 sign-flipped onto q0's hemisphere
+  bool flipped = false, linear = false;
+  Real s = 0, w = 0, raw[4];
+  void forward(const Real* k0, const Real* k1, Real s_in, Real* out) {
+    s = s_in;
+    normalize4(k0, q0);
+    normalize4(k1, q1);
+    Real d = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3];
+    if (d < Real(0)) {
+      for (Real& c : q1) c = -c;
+      d = -d;
+      flipped = true;
+    }
+    if (d > Real(0.9995)) {
+      linear = true;
+      for (int k = 0; k < 4; ++k) raw[k] = q0[k] + s * (q1[k] - q0[k]);
+    } else {
+      w = std::acos(std::min(d, Real(1)));
+      const Real sw = std::sin(w);
+      const Real a = std::sin((Real(1) - s) * w) / sw, b = std::sin(s * w) / sw;
+      for (int k = 0; k < 4; ++k) raw[k] = a * q0[k] + b * q1[k];
+    }
+    normalize4(raw, out);
+  }
+  /// Adds dL/dk0, dL/dk1 (raw keys) for dL/dout.
+  void backward(const Real* k0, const Real* k1, const Real* g_out, Real* g_k0, Real* g_k1) const {
+    Real g_raw[4] = {0, 0, 0, 0}, g0[4] = {0, 0, 0, 0}, g1[4] = {0, 0, 0, 0};
+    normalize4_backward(raw, g_out, g_raw);
+    if (linear) {
+      for (int k = 0; k < 4; ++k) g0[k] = (Real(1) - s) * g_raw[k], g1[k] = s * g_raw[k];
+    } else {
+      const Real sw = std::sin(w), cw = std::cos(w);
+      const Real sa = std::sin((Real(1) - s) * w), sb = std::sin(s * w);
+      const Real a = sa / sw, b = sb / sw;
+      const Real da = ((Real(1) - s) * std::cos((Real(1) - s) * w) * sw - sa * cw) / (sw * sw);
+      const Real db = (s * std::cos(s * w) * sw - sb * cw) / (sw * sw);
+      Real gw = 0;
+      for (int k = 0; k < 4; ++k) gw += g_raw[k] * (da * q0[k] + db * q1[k]);
+      const Real gd = gw * (Real(-1) / sw);  // w = acos(d)
+      for (int k = 0; k < 4; ++k) {
+        g0[k] = a * g_raw[k] + gd * q1[k];
+        g1[k] = b * g_raw[k] + gd * q0[k];
+      }
+    }
+    if (flipped)
+      for (Real& c : g1) c = -c;
+    normalize4_backward(k0, g0, g_k0);
+    normalize4_backward(k1, g1, g_k1);
+  }
+};
+
+}  // namespace
+
+template <typename Real>
+ModelParams<Real> params_from_cloud(const GaussianCloud& cloud_in, int bake_frames) {
+  const GaussianCloud* cloud = &cloud_in;
+  GaussianCloud baked;
+  const KeyframedMotion& km = cloud_in.keyframed;
+  const bool trainable_as_is =
+      cloud_in.motion == MotionModel::Static ||
+      (cloud_in.motion == MotionModel::Keyframed && !km.ex4dgs_edges && km.position_interp == KeyInterp::CatmullRom &&
+       km.temporal_opacity.empty() && !km.rotations.empty());
+  if (!trainable_as_is) {
+    if (bake_frames < 2)
+      throw_error("model with ", to_string(cloud_in.motion),
+                  " motion cannot be trained as it is; give the number of frames to bake its tracks into keys");
+    baked = bake_tracks(cloud_in, bake_frames);
+    cloud = &baked;
+  }
+  const GaussianCloud& c = *cloud;
+  ModelParams<Real> p;
+  const size_t N = c.size(), K = c.motion == MotionModel::Keyframed ? size_t(c.keyframed.key_count) : 0;
+  p.sh_degree = c.sh_degree;
+  auto copy = [](const float* src, size_t n, std::vector<Real>& dst) { dst.assign(src, src + n); };
+  copy(N ? c.means[0].data() : nullptr, 3 * N, p.means);
+  copy(N ? c.log_scales[0].data() : nullptr, 3 * N, p.log_scales);
+  copy(N ? c.rotations[0].data() : nullptr, 4 * N, p.rotations);
+  copy(c.opacity_logits.data(), N, p.opacity_logits);
+  copy(c.sh.data(), c.sh.size(), p.sh);
+  p.dynamic_ids = c.dynamic_ids;
+  if (K) {
+    const KeyframedMotion& k = c.keyframed;
+    p.key_count = int(K);
+    p.first_key_time = k.first_key_time;
+    p.key_spacing = k.key_spacing;
+    copy(k.positions.data(), k.positions.size(), p.key_positions);
+    copy(k.rotations.data(), k.rotations.size(), p.key_rotations);
+    copy(k.log_scales.data(), k.log_scales.size(), p.key_log_scales);
+    copy(k.opacity_logits.data(), k.opacity_logits.size(), p.key_opacity_logits);
+  }
+  return p;
+}
+
+GaussianCloud cloud_from_params(const ModelParams<float>& p) {
+  GaussianCloud c;
+  c.sh_degree = p.sh_degree;
+  const size_t N = p.size();
+  c.resize(N);
+  for (size_t g = 0; g < N; ++g) {
+    c.means[g] = Vec3f(p.means[3 * g], p.means[3 * g + 1], p.means[3 * g + 2]);
+    c.log_scales[g] = Vec3f(p.log_scales[3 * g], p.log_scales[3 * g + 1], p.log_scales[3 * g + 2]);
+    c.rotations[g] = Vec4f(p.rotations[4 * g], p.rotations[4 * g + 1], p.rotations[4 * g + 2], p.rotations[4 * g + 3]);
+    c.opacity_logits[g] = p.opacity_logits[g];
+  }
+  c.sh = p.sh;
+  if (!p.dynamic_ids.empty()) {
+    c.motion = MotionModel::Keyframed;
+    c.dynamic_ids = p.dynamic_ids;
+    KeyframedMotion& k = c.keyframed;
+    k.key_count = p.key_count;
+    k.first_key_time = p.first_key_time;
+    k.key_spacing = p.key_spacing;
+    k.positions = p.key_positions;
+    k.rotations = p.key_rotations;
+    k.log_scales = p.key_log_scales;
+    k.opacity_logits = p.key_opacity_logits;
+    canonical_from_first_key(c);
+  }
+  return c;
+}
+
+template <typename Real>
+void evaluate_params(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
+  t = std::clamp(t, 0.0, 1.0);
+  const size_t N = p.size(), M = p.dynamic_count();
+  const int K = p.key_count;
+  if (f->size() != N) f->resize(N);
+  f->sh_degree = p.sh_degree;
+  f->sh = p.sh.data();
+  // Every Gaussian's own values first; moving ones are overwritten below.
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t g = r.begin(); g < r.end(); ++g) {
+      for (int k = 0; k < 3; ++k) f->means[3 * g + k] = p.means[3 * g + k], f->scales[3 * g + k] = std::exp(p.log_scales[3 * g + k]);
+      normalize4(&p.rotations[4 * g], &f->rotations[4 * g]);
+      f->opacities[g] = sigmoid_t(p.opacity_logits[g]);
+    }
+  });
+  if (M == 0) return;
+  const KeySpot ks = key_spot(p, t);
+  Real w[4];
+  catmull_rom_weights(Real(ks.s), w);
+  const int i1 = std::min(ks.i + 1, K - 1);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, M, 2048), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t j = r.begin(); j < r.end(); ++j) {
+      const uint32_t g = p.dynamic_ids[j];
+      const Real* P = &p.key_positions[j * K * 3];
+      for (int a = 0; a < 3; ++a) {
+        Real x = 0;
+        if (K == 1) {
+          x = P[a];
+        } else {
+          for (int n = 0; n < 4; ++n) x += w[n] * P[3 * std::clamp(ks.i - 1 + n, 0, K - 1) + a];
+        }
+        f->means[3 * g + a] = x;
+      }
+      const Real* Q = &p.key_rotations[j * K * 4];
+      Slerp<Real> sl;
+      sl.forward(Q + 4 * ks.i, Q + 4 * i1, Real(ks.s), &f->rotations[4 * g]);
+      if (!p.key_log_scales.empty()) {
+        const Real* S = &p.key_log_scales[j * K * 3];
+        for (int a = 0; a < 3; ++a)
+          f->scales[3 * g + a] = std::exp(S[3 * ks.i + a] + Real(ks.s) * (S[3 * i1 + a] - S[3 * ks.i + a]));
+      }
+      if (!p.key_opacity_logits.empty()) {
+        const Real* O = &p.key_opacity_logits[j * K];
+        f->opacities[g] = sigmoid_t(O[ks.i] + Real(ks.s) * (O[i1] - O[ks.i]));
+      }
+    }
+  });
+}
+
+template <typename Real>
+void evaluate_params_backward(const ModelParams<Real>& p, double t, const DiffFrameGrad<Real>& gf, ModelParams<Real>* d) {
+  t = std::clamp(t, 0.0, 1.0);
+  const size_t N = p.size(), M = p.dynamic_count();
+  const int K = p.key_count;
+  for (size_t i = 0; i < gf.sh.size(); ++i) d->sh[i] += gf.sh[i];
+  // Own values (static Gaussians; for moving ones only what keys do not replace).
+  std::vector<uint8_t> keyed(N, 0);
+  for (uint32_t g : p.dynamic_ids) keyed[g] = 1;
+  const bool keyed_scale = !p.key_log_scales.empty(), keyed_opacity = !p.key_opacity_logits.empty();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t g = r.begin(); g < r.end(); ++g) {
+      if (!keyed[g]) {
+        for (int k = 0; k < 3; ++k) d->means[3 * g + k] += gf.means[3 * g + k];
+        normalize4_backward(&p.rotations[4 * g], &gf.rotations[4 * g], &d->rotations[4 * g]);
+      }
+      if (!keyed[g] || !keyed_scale)
+        for (int k = 0; k < 3; ++k) d->log_scales[3 * g + k] += gf.scales[3 * g + k] * std::exp(p.log_scales[3 * g + k]);
+      if (!keyed[g] || !keyed_opacity) {
+        const Real o = sigmoid_t(p.opacity_logits[g]);
+        d->opacity_logits[g] += gf.opacities[g] * o * (Real(1) - o);
+      }
+    }
+  });
+  if (M == 0) return;
+  const KeySpot ks = key_spot(p, t);
+  Real w[4];
+  catmull_rom_weights(Real(ks.s), w);
+  const int i1 = std::min(ks.i + 1, K - 1);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, M, 2048), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t j = r.begin(); j < r.end(); ++j) {
+      const uint32_t g = p.dynamic_ids[j];
+      Real* dP = &d->key_positions[j * K * 3];
+      for (int a = 0; a < 3; ++a) {
+        if (K == 1) {
+          dP[a] += gf.means[3 * g + a];
+        } else {
+          for (int n = 0; n < 4; ++n) dP[3 * std::clamp(ks.i - 1 + n, 0, K - 1) + a] += w[n] * gf.means[3 * g + a];
+        }
+      }
+      const Real* Q = &p.key_rotations[j * K * 4];
+      Real* dQ = &d->key_rotations[j * K * 4];
+      Slerp<Real> sl;
+      Real out[4];
+      sl.forward(Q + 4 * ks.i, Q + 4 * i1, Real(ks.s), out);
+      Real g0[4] = {0, 0, 0, 0}, g1[4] = {0, 0, 0, 0};
+      sl.backward(Q + 4 * ks.i, Q + 4 * i1, &gf.rotations[4 * g], g0, g1);
+      for (int k = 0; k < 4; ++k) dQ[4 * ks.i + k] += g0[k], dQ[4 * i1 + k] += g1[k];
+      const Real s = Real(ks.s);
+      if (keyed_scale) {
+        const Real* S = &p.key_log_scales[j * K * 3];
+        Real* dS = &d->key_log_scales[j * K * 3];
+        for (int a = 0; a < 3; ++a) {
+          const Real x = S[3 * ks.i + a] + s * (S[3 * i1 + a] - S[3 * ks.i + a]);
+          const Real gx = gf.scales[3 * g + a] * std::exp(x);
+          dS[3 * ks.i + a] += (Real(1) - s) * gx;
+          dS[3 * i1 + a] += s * gx;
+        }
+      }
+      if (keyed_opacity) {
+        const Real* O = &p.key_opacity_logits[j * K];
+        Real* dO = &d->key_opacity_logits[j * K];
+        const Real o = sigmoid_t(O[ks.i] + s * (O[i1] - O[ks.i]));
+        const Real gx = gf.opacities[g] * o * (Real(1) - o);
+        dO[ks.i] += (Real(1) - s) * gx;
+        dO[i1] += s * gx;
+      }
+    }
+  });
+}
+
+template struct ModelParams<float>;
+template struct ModelParams<double>;
+template ModelParams<float> params_from_cloud<float>(const GaussianCloud&, int);
+template ModelParams<double> params_from_cloud<double>(const GaussianCloud&, int);
+template void evaluate_params<float>(const ModelParams<float>&, double, DiffFrame<float>*);
+template void evaluate_params<double>(const ModelParams<double>&, double, DiffFrame<double>*);
+template void evaluate_params_backward<float>(const ModelParams<float>&, double, const DiffFrameGrad<float>&,
+                                              ModelParams<float>*);
+template void evaluate_params_backward<double>(const ModelParams<double>&, double, const DiffFrameGrad<double>&,
+                                               ModelParams<double>*);
+
+}  // namespace fillgs
