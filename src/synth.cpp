@@ -1,4 +1,5 @@
 #include "fillgs/synth.hpp"
+#include "fillgs/train.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -242,6 +243,8 @@ void write_synthetic_scene(const SynthScene& s, const std::string& dir, Progress
   make_directories(dir);
   const int F = s.options.frames;
   write_fillgs_ply(join_path(dir, "scene.ply"), s.scene);
+  // Stand-in for SfM points: a quarter of the frame-0 means, 1 cm noise.
+  write_points_ply(join_path(dir, "points.ply"), pseudo_sfm_points(s.scene, 0.0, 0.25, 0.01, s.options.seed));
   const std::pair<const char*, const std::vector<Camera>*> splits[] = {
       {"train", &s.train}, {"interpolation", &s.interpolation}, {"extrapolation", &s.extrapolation}};
   size_t total = 0;
@@ -277,6 +280,7 @@ void write_synthetic_scene(const SynthScene& s, const std::string& dir, Progress
   meta["gaussians"] = s.scene.size();
   meta["moving_gaussians"] = s.chair_ids.size();
   meta["move_interval"] = {s.options.move_start, s.options.move_end};
+  meta["points"] = "points.ply: 25% of the frame-0 Gaussian means with 1 cm noise, standing in for SfM points";
   meta["time_convention"] = "t = frame / (frames - 1)";
   write_file_atomically(join_path(dir, "synth.json"), meta.dump(2) + "\n");
 }

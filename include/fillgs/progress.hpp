@@ -11,6 +11,8 @@ class Progress {
   virtual void start(const std::string& label, size_t total) = 0;
   virtual void advance(size_t steps = 1) = 0;
   virtual void finish() = 0;
+  /// A short line about the current state (loss, counts), shown next to the bar.
+  virtual void status(const std::string& line) {}
 };
 
 /// A reporter that does nothing.

@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <map>
+#include <memory>
 #include <set>
 #include <sstream>
 
@@ -17,6 +19,8 @@
 #include "fillgs/raster.hpp"
 #include "fillgs/scene_io.hpp"
 #include "fillgs/synth.hpp"
+#include "fillgs/train.hpp"
+#include "fillgs/plot.hpp"
 #include "fillgs/visibility.hpp"
 #include "progress_bar.hpp"
 
@@ -367,6 +371,110 @@ int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::os
   return 0;
 }
 
+// ------------------------------------------------------------------ train
+
+std::vector<std::string> split_commas(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  Args a("train", args, 1,
+         {"images", "cameras", "points", "iterations", "out", "train-cameras", "resume", "checkpoint-every", "seed", "threads",
+          "key-interval", "max-gaussians", "sh-degree", "test-images", "test-cameras", "background"},
+         {"quiet", "static-only"});
+  const auto t0 = Clock::now();
+  const std::string out_dir = a.require("out");
+  const std::string cameras = a.require("cameras");
+  DatasetOptions dopt;
+  dopt.cameras = split_commas(a.get("train-cameras"));
+  const Dataset data = Dataset::load(a.require("images"), cameras, dopt);
+  const int iterations = a.integer("iterations", 3000);
+  if (iterations < 1) throw_error("fillgs train: --iterations must be at least 1");
+  TrainOptions o = TrainOptions::scaled(iterations);
+  o.seed = uint64_t(a.integer("seed", 1));
+  o.threads = a.integer("threads", 0);
+  o.key_interval_frames = a.integer("key-interval", o.key_interval_frames);
+  if (o.key_interval_frames < 1) throw_error("fillgs train: --key-interval must be at least 1 frame");
+  o.max_gaussians = size_t(a.integer("max-gaussians", int(o.max_gaussians)));
+  o.max_sh_degree = a.integer("sh-degree", o.max_sh_degree);
+  if (o.max_sh_degree < 0 || o.max_sh_degree > 3) throw_error("fillgs train: --sh-degree must be 0..3");
+  o.allow_dynamic = !a.flag("static-only");
+  o.checkpoint_interval = a.integer("checkpoint-every", std::max(1, iterations / 5));
+  if (a.has("background")) {
+    const std::vector<std::string> c = split_commas(a.get("background"));
+    if (c.size() != 3) throw_error("fillgs train: --background needs r,g,b");
+    for (int k = 0; k < 3; ++k) o.background[k] = std::stof(c[size_t(k)]);
+  }
+  // Test split (optional): loaded before anything is written, so bad input writes nothing.
+  std::unique_ptr<Dataset> test;
+  if (a.has("test-cameras")) test = std::make_unique<Dataset>(Dataset::load(a.get("test-images", a.get("images")), a.get("test-cameras")));
+
+  std::unique_ptr<Trainer> trainer;
+  if (a.has("resume")) {
+    trainer = std::make_unique<Trainer>(Trainer::resume(data, a.get("resume"), o));
+  } else {
+    std::string points = a.get("points");
+    if (points.empty()) {
+      const std::string beside = join_path(std::filesystem::path(cameras).parent_path().string(), "points.ply");
+      if (!std::filesystem::exists(beside)) throw_error("fillgs train: missing --points (no points.ply beside ", cameras, ")");
+      points = beside;
+    }
+    trainer = std::make_unique<Trainer>(data, init_from_points(read_points(points)), o);
+  }
+  make_directories(join_path(out_dir, "checkpoints"));
+  out << "training on " << data.views().size() << " views (" << data.rigs().size() << " cameras x " << data.frames() << " frames), "
+      << trainer->params().size() << " initial Gaussians, " << iterations << " iterations\n";
+  TerminalProgress progress(err, progress_enabled(a));
+  while (trainer->iteration() < iterations) {
+    const int next = std::min(iterations, (trainer->iteration() / o.checkpoint_interval + 1) * o.checkpoint_interval);
+    trainer->run(next, progress);
+    const TrainStatus st = trainer->status();
+    char line[200];
+    std::snprintf(line, sizeof line, "iteration %d: loss %.4f, PSNR %.2f dB, %zu Gaussians (%zu moving), %.1f it/s\n", st.iteration,
+                  st.loss, st.psnr, st.gaussians, st.dynamic, st.iterations_per_second);
+    out << line << std::flush;
+    trainer->save_checkpoint(join_path(out_dir, "checkpoints/latest.ckpt"));
+  }
+  const double train_seconds = seconds_since(t0);
+  const GaussianCloud model = trainer->model();
+  write_fillgs_ply(join_path(out_dir, "model.ply"), model, data.frames());
+  write_3dgs_ply(join_path(out_dir, "frame0_3dgs.ply"), model, 0.0);
+  nlohmann::json j;
+  j["iterations"] = trainer->iteration();
+  j["seconds"] = train_seconds;
+  j["views"] = data.views().size();
+  j["cameras"] = data.rigs();
+  j["frames"] = data.frames();
+  j["gaussians"] = model.size();
+  j["moving_gaussians"] = model.dynamic_count();
+  j["final_loss_ema"] = trainer->status().loss;
+  const EvalResult tr = evaluate_views(model, data, std::max<int>(1, int(data.views().size() / 32)), o.background, o.threads);
+  j["train_psnr"] = tr.psnr;
+  j["train_ssim"] = tr.ssim;
+  out << "trained " << model.size() << " Gaussians (" << model.dynamic_count() << " moving) in " << train_seconds << " s; train PSNR "
+      << tr.psnr << " dB";
+  if (test) {
+    const EvalResult te = evaluate_views(model, *test, 1, o.background, o.threads);
+    j["test_psnr"] = te.psnr;
+    j["test_ssim"] = te.ssim;
+    j["test_views"] = te.views;
+    out << ", test PSNR " << te.psnr << " dB over " << te.views << " views";
+  }
+  out << " -> " << out_dir << "\n";
+  ScatterSeries loss{"loss", {}, {}, {}};
+  const std::vector<float>& h = trainer->loss_history();
+  const size_t every = std::max<size_t>(1, h.size() / 400);
+  for (size_t i = 0; i < h.size(); i += every) loss.x.push_back(double(i + 1)), loss.y.push_back(h[i]);
+  write_scatter_png(join_path(out_dir, "loss.png"), {loss}, {"training loss (L1 + 0.2 D-SSIM)", "iteration", "loss"}, false);
+  write_file_atomically(join_path(out_dir, "summary.json"), j.dump(2) + "\n");
+  return 0;
+}
+
 // ------------------------------------------------------------------ run
 
 int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -410,6 +518,10 @@ void print_help(std::ostream& out) {
          "  observe --scene S --cameras C --out DIR   observation counts C[t][g], speeds s, deficiency D = s/(1+C)\n"
          "         [--frames F | --times t1,t2,..] [--mode frustum|raytraced|exact] [--stride s] [--tau w]\n"
          "         [--threads n] [--motion-tables dense|dynamic] [--from-scratch] [--no-raster-match] [--no-plots]\n"
+         "  train --images DIR --cameras C --out DIR [--points P] [--iterations N] [--train-cameras a,b]\n"
+         "         [--resume CKPT] [--checkpoint-every N] [--seed n] [--key-interval F] [--max-gaussians N]\n"
+         "         [--sh-degree D] [--test-cameras C --test-images DIR] [--static-only] [--background r,g,b]\n"
+         "                                            train a 4D Gaussian model from multi-view video\n"
          "  run [--out DIR]                           the pipeline on the built-in scene\n\n"
          "scene options:  --scene-format auto|3dgs|stg|ex4dgs|fillgs --duration F (Ex4DGS) --stg-duration F\n"
          "                --stg-color auto|sigmoid|clamp|none --static-threshold v\n"
@@ -434,6 +546,7 @@ int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     if (cmd == "cameras") return cmd_cameras(args, out, err);
     if (cmd == "observe") return cmd_observe(args, out, err);
     if (cmd == "run") return cmd_run(args, out, err);
+    if (cmd == "train") return cmd_train(args, out, err);
     if (cmd == "--version") {
       out << "fillgs 0.1.0\n";
       return 0;

@@ -35,7 +35,9 @@ void TerminalProgress::draw(bool final) {
   const double eta = frac > 0 ? secs * (1 - frac) / frac : 0;
   std::snprintf(buf, sizeof buf, "\r%-28s [%.*s%*s] %zu/%zu %5.1fs eta %5.1fs", label_.c_str(), filled,
                 "##############################", width - filled, "", done_, total_, secs, eta);
-  err_ << buf << (final ? "\n" : "") << std::flush;
+  err_ << buf;
+  if (!status_.empty()) err_ << "  " << status_ << "\033[K";
+  err_ << (final ? "\n" : "") << std::flush;
 }
 
 }  // namespace cli

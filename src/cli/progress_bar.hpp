@@ -13,12 +13,13 @@ class TerminalProgress : public Progress {
   void start(const std::string& label, size_t total) override;
   void advance(size_t steps = 1) override;
   void finish() override;
+  void status(const std::string& line) override { status_ = line; }
 
  private:
   void draw(bool final);
   std::ostream& err_;
   bool enabled_;
-  std::string label_;
+  std::string label_, status_;
   size_t total_ = 0, done_ = 0;
   std::chrono::steady_clock::time_point start_, last_draw_;
 };

@@ -1,0 +1,837 @@
+#include "fillgs/train.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <numeric>
+#include <sstream>
+#include <unordered_map>
+
+#include "fillgs/error.hpp"
+#include "fillgs/fs_util.hpp"
+#include "fillgs/image_io.hpp"
+#include "fillgs/loss.hpp"
+#include "fillgs/ply.hpp"
+#include "fillgs/raster.hpp"
+#include "fillgs/sh.hpp"
+
+namespace fs = std::filesystem;
+
+namespace fillgs {
+
+namespace {
+
+/// SplitMix64: stateless, seeded random numbers so that a resumed run draws what an
+/// uninterrupted one would.
+uint64_t mix(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+double uniform(uint64_t a, uint64_t b, uint64_t c) {
+  return double(mix(mix(mix(a) ^ b) ^ c) >> 11) * (1.0 / 9007199254740992.0);
+}
+double normal(uint64_t a, uint64_t b, uint64_t c) {
+  const double u1 = std::max(uniform(a, b, 2 * c), 1e-300), u2 = uniform(a, b, 2 * c + 1);
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
+}
+
+std::string rig_of(const std::string& name) {
+  const size_t slash = name.find('/');
+  return slash == std::string::npos ? name : name.substr(0, slash);
+}
+
+std::string first_existing(const std::vector<fs::path>& candidates) {
+  for (const fs::path& p : candidates)
+    if (fs::is_regular_file(p)) return p.string();
+  return "";
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------
+// Dataset
+
+Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_path, const DatasetOptions& opt) {
+  if (!fs::is_directory(images_dir)) throw_error(images_dir, ": images folder not found");
+  const std::vector<Camera> cams = read_cameras(cameras_path);
+  if (cams.empty()) throw_error(cameras_path, ": no cameras");
+  Dataset d;
+  const bool timed = std::all_of(cams.begin(), cams.end(), [](const Camera& c) { return c.has_time(); });
+  auto wanted = [&](const std::string& rig) {
+    return opt.cameras.empty() || std::find(opt.cameras.begin(), opt.cameras.end(), rig) != opt.cameras.end();
+  };
+  const fs::path base = fs::path(cameras_path).parent_path();
+  if (timed) {
+    std::vector<double> times;
+    for (const Camera& c : cams) times.push_back(c.time);
+    std::sort(times.begin(), times.end());
+    times.erase(std::unique(times.begin(), times.end()), times.end());
+    d.frames_ = int(times.size());
+    for (const Camera& c : cams) {
+      // "images/cam00/0000" → rig "cam00"
+      std::string rel = c.image_path.empty() ? c.name + ".png" : c.image_path;
+      if (rel.rfind("./", 0) == 0) rel = rel.substr(2);
+      std::string stripped = rel.rfind("images/", 0) == 0 ? rel.substr(7) : rel;
+      const std::string rig = rig_of(stripped);
+      if (!wanted(rig)) continue;
+      TrainView v;
+      v.camera = c;
+      v.rig = rig;
+      v.frame = int(std::lower_bound(times.begin(), times.end(), c.time) - times.begin());
+      std::vector<fs::path> cand = {fs::path(images_dir) / stripped, fs::path(images_dir) / rel, base / rel};
+      if (fs::path(rel).extension().empty())
+        for (auto p : std::vector<fs::path>(cand)) cand.push_back(p.string() + ".png");
+      v.image_path = first_existing(cand);
+      if (v.image_path.empty()) throw_error(cameras_path, ": camera '", c.name, "' has no image (looked for ", cand[0].string(), ")");
+      d.views_.push_back(v);
+    }
+  } else {
+    std::map<std::string, const Camera*> rigs;
+    for (const Camera& c : cams) rigs[rig_of(c.name)] = &c;
+    int frames = -1;
+    for (const auto& [rig, cam] : rigs) {
+      if (!wanted(rig)) continue;
+      const fs::path folder = fs::path(images_dir) / rig;
+      std::vector<std::string> files;
+      if (fs::is_directory(folder))
+        for (const auto& e : fs::directory_iterator(folder)) {
+          const std::string ext = e.path().extension().string();
+          if (e.is_regular_file() && (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".exr")) files.push_back(e.path().string());
+        }
+      if (files.empty()) throw_error(cameras_path, ": camera '", rig, "' has no images in ", folder.string());
+      std::sort(files.begin(), files.end());
+      if (frames >= 0 && int(files.size()) != frames)
+        throw_error(folder.string(), ": ", files.size(), " frames, but other cameras have ", frames);
+      frames = int(files.size());
+      for (int f = 0; f < frames; ++f) {
+        TrainView v;
+        v.camera = *cam;
+        v.camera.time = frames > 1 ? double(f) / (frames - 1) : 0.0;
+        v.camera.name = rig + "/" + fs::path(files[size_t(f)]).stem().string();
+        v.rig = rig;
+        v.frame = f;
+        v.image_path = files[size_t(f)];
+        d.views_.push_back(v);
+      }
+    }
+    d.frames_ = std::max(frames, 1);
+  }
+  for (const std::string& want : opt.cameras) {
+    bool found = false;
+    for (const TrainView& v : d.views_) found = found || v.rig == want;
+    if (!found) throw_error(cameras_path, ": no camera named '", want, "'");
+  }
+  if (d.views_.empty()) throw_error(cameras_path, ": no training views");
+  for (const TrainView& v : d.views_)
+    if (std::find(d.rigs_.begin(), d.rigs_.end(), v.rig) == d.rigs_.end()) d.rigs_.push_back(v.rig);
+  // Load every image once (8-bit), checking sizes.
+  d.pixels_.resize(d.views_.size());
+  for (size_t i = 0; i < d.views_.size(); ++i) {
+    const TrainView& v = d.views_[i];
+    const Image im = read_image(v.image_path);
+    if (im.width != v.camera.width || im.height != v.camera.height)
+      throw_error(v.image_path, ": image is ", im.width, "x", im.height, " but camera '", v.camera.name, "' is ",
+                  v.camera.width, "x", v.camera.height);
+    if (im.channels < 3) throw_error(v.image_path, ": ", im.channels, " channels, RGB needed");
+    std::vector<uint8_t>& px = d.pixels_[i];
+    px.resize(size_t(im.width) * im.height * 3);
+    for (size_t p = 0; p < size_t(im.width) * im.height; ++p)
+      for (int c = 0; c < 3; ++c)
+        px[3 * p + c] = uint8_t(std::lround(std::clamp(im.pixels[p * im.channels + c], 0.0f, 1.0f) * 255.0f));
+  }
+  return d;
+}
+
+std::vector<float> Dataset::image(size_t view) const {
+  const std::vector<uint8_t>& px = pixels_.at(view);
+  std::vector<float> out(px.size());
+  for (size_t i = 0; i < px.size(); ++i) out[i] = float(px[i]) / 255.0f;
+  return out;
+}
+
+std::pair<Vec3f, float> Dataset::camera_extent() const {
+  Vec3d c = Vec3d::Zero();
+  for (const TrainView& v : views_) c += v.camera.centre();
+  c /= double(views_.size());
+  double r = 0;
+  for (const TrainView& v : views_) r = std::max(r, (v.camera.centre() - c).norm());
+  return {c.cast<float>(), float(std::max(r, 1e-6) * 1.1)};
+}
+
+// ---------------------------------------------------------------------------------
+// Points and initialisation
+
+PointSet read_points(const std::string& path) {
+  PointSet ps;
+  const std::string ext = fs::path(path).extension().string();
+  if (!fs::is_regular_file(path)) throw_error(path, ": point file not found");
+  if (ext == ".ply") {
+    const PlyData ply = read_ply(path);
+    const PlyElement& v = ply.element("vertex");
+    const auto &x = v.finite_column("x"), &y = v.finite_column("y"), &z = v.finite_column("z");
+    const bool rgb = v.has("red") && v.has("green") && v.has("blue");
+    float scale = 1.0f;
+    if (rgb)
+      for (const char* n : {"red", "green", "blue"})
+        for (float c : v.column(n)) scale = std::max(scale, c);
+    scale = scale > 1.0f ? 255.0f : 1.0f;
+    for (size_t i = 0; i < v.count; ++i) {
+      ps.positions.emplace_back(x[i], y[i], z[i]);
+      ps.colours.push_back(rgb ? Vec3f(v.column("red")[i], v.column("green")[i], v.column("blue")[i]) / scale
+                               : Vec3f(0.5f, 0.5f, 0.5f));
+    }
+  } else {
+    // COLMAP points3D.txt: POINT3D_ID X Y Z R G B ERROR TRACK[]
+    std::ifstream in(path);
+    std::string line;
+    size_t line_no = 0;
+    while (std::getline(in, line)) {
+      ++line_no;
+      if (line.empty() || line[0] == '#') continue;
+      std::istringstream ls(line);
+      long id;
+      double X, Y, Z;
+      int r, g, b;
+      if (!(ls >> id >> X >> Y >> Z >> r >> g >> b)) throw_error(path, ": line ", line_no, ": expected 'ID X Y Z R G B ...'");
+      if (!std::isfinite(X) || !std::isfinite(Y) || !std::isfinite(Z)) throw_error(path, ": point ", id, " is not finite");
+      ps.positions.emplace_back(float(X), float(Y), float(Z));
+      ps.colours.emplace_back(r / 255.0f, g / 255.0f, b / 255.0f);
+    }
+  }
+  if (ps.positions.empty()) throw_error(path, ": the point cloud is empty");
+  return ps;
+}
+
+void write_points_ply(const std::string& path, const PointSet& pts) {
+  PlyData ply;
+  PlyElement v;
+  v.name = "vertex";
+  v.count = pts.positions.size();
+  v.property_names = {"x", "y", "z", "red", "green", "blue"};
+  v.columns.assign(6, std::vector<float>(v.count));
+  for (size_t i = 0; i < v.count; ++i)
+    for (int a = 0; a < 3; ++a) {
+      v.columns[size_t(a)][i] = pts.positions[i][a];
+      v.columns[size_t(3 + a)][i] = std::round(std::clamp(pts.colours[i][a], 0.0f, 1.0f) * 255.0f);
+    }
+  ply.elements.push_back(v);
+  write_ply(path, ply);
+}
+
+ModelParams<float> init_from_points(const PointSet& pts) {
+  const size_t n = pts.positions.size();
+  if (n == 0) throw_error("initialisation: the point cloud is empty");
+  // Mean squared distance to the 3 nearest neighbours through a uniform grid.
+  Vec3f lo = pts.positions[0], hi = lo;
+  for (const Vec3f& p : pts.positions) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  const float diag = std::max((hi - lo).norm(), 1e-6f);
+  const float cell = std::max(diag / std::cbrt(float(n)), 1e-6f);
+  auto key = [&](int x, int y, int z) { return (uint64_t(uint32_t(x)) << 42) ^ (uint64_t(uint32_t(y)) << 21) ^ uint64_t(uint32_t(z)); };
+  auto cell_of = [&](const Vec3f& p, int* c) {
+    for (int a = 0; a < 3; ++a) c[a] = int(std::floor((p[a] - lo[a]) / cell));
+  };
+  std::unordered_map<uint64_t, std::vector<uint32_t>> grid;
+  for (uint32_t i = 0; i < n; ++i) {
+    int c[3];
+    cell_of(pts.positions[i], c);
+    grid[key(c[0], c[1], c[2])].push_back(i);
+  }
+  std::vector<float> d2mean(n, 0.0f);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      int c[3];
+      cell_of(pts.positions[i], c);
+      float best[3] = {INFINITY, INFINITY, INFINITY};
+      for (int ring = 1; ring <= 64; ++ring) {
+        for (int dx = -ring; dx <= ring; ++dx)
+          for (int dy = -ring; dy <= ring; ++dy)
+            for (int dz = -ring; dz <= ring; ++dz) {
+              if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) != ring && ring > 1) continue;
+              auto it = grid.find(key(c[0] + dx, c[1] + dy, c[2] + dz));
+              if (it == grid.end()) continue;
+              for (uint32_t j : it->second) {
+                if (j == i) continue;
+                const float d = (pts.positions[j] - pts.positions[i]).squaredNorm();
+                if (d < best[2]) {
+                  best[2] = d;
+                  std::sort(best, best + 3);
+                }
+              }
+            }
+        // Every point within `ring` cells has been seen: stop when the third is closer.
+        if (best[2] <= float(ring) * cell * float(ring) * cell) break;
+      }
+      float s = 0;
+      int k = 0;
+      for (float b : best)
+        if (std::isfinite(b)) s += b, ++k;
+      d2mean[i] = k ? s / float(k) : cell * cell;
+    }
+  });
+  ModelParams<float> p;
+  p.sh_degree = 0;
+  p.means.resize(3 * n);
+  p.log_scales.resize(3 * n);
+  p.rotations.assign(4 * n, 0.0f);
+  p.opacity_logits.assign(n, logit(0.1f));
+  p.sh.resize(3 * n);
+  for (size_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      p.means[3 * i + a] = pts.positions[i][a];
+      p.log_scales[3 * i + a] = std::log(std::sqrt(std::max(d2mean[i], 1e-7f)));
+      p.sh[3 * i + a] = rgb_to_sh_dc(pts.colours[i][a]);
+    }
+    p.rotations[4 * i] = 1.0f;
+  }
+  return p;
+}
+
+PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction, double noise, uint64_t seed) {
+  const FrameGaussians f = evaluate(scene, t);
+  PointSet ps;
+  const int K = scene.sh_count();
+  for (size_t g = 0; g < f.size(); ++g) {
+    if (uniform(seed, g, 0) >= fraction) continue;
+    Vec3f p = f.means[g];
+    for (int a = 0; a < 3; ++a) p[a] += float(noise * normal(seed, g, 1 + a));
+    ps.positions.push_back(p);
+    Vec3f col;
+    for (int c = 0; c < 3; ++c) col[c] = std::clamp(scene.sh[g * K * 3 + c] * kSHC0 + 0.5f, 0.0f, 1.0f);
+    ps.colours.push_back(col);
+  }
+  return ps;
+}
+
+// ---------------------------------------------------------------------------------
+// Options
+
+TrainOptions TrainOptions::scaled(int iterations) {
+  TrainOptions o;
+  const double f = iterations / 30000.0;
+  o.iterations = iterations;
+  o.sh_increase_interval = std::max(1, int(std::lround(1000 * f)));
+  o.densify_from = std::max(1, int(std::lround(500 * f)));
+  o.densify_until = int(std::lround(15000 * f));
+  o.densify_interval = std::max(100, int(std::lround(100 * f)));
+  o.opacity_reset_interval = std::max(o.densify_interval * 5, int(std::lround(3000 * f)));
+  return o;
+}
+
+// ---------------------------------------------------------------------------------
+// Trainer
+
+Trainer::Trainer(const Dataset& data, ModelParams<float> initial, const TrainOptions& options)
+    : data_(&data), options_(options), params_(std::move(initial)) {
+  if (params_.size() == 0) throw_error("training: the initial model has no Gaussians");
+  extent_ = data.camera_extent().second;
+  if (params_.key_count == 0) {
+    const int F = data.frames();
+    const int step = std::max(1, options_.key_interval_frames);
+    params_.key_count = F > 1 ? (F - 1 + step - 1) / step + 1 : 1;
+    params_.first_key_time = 0.0;
+    params_.key_spacing = params_.key_count > 1 ? 1.0 / (params_.key_count - 1) : 1.0;
+  }
+  adam_m_ = params_.zeros_like();
+  adam_v_ = params_.zeros_like();
+  reset_stats();
+}
+
+void Trainer::reset_stats() {
+  const size_t n = params_.size();
+  const int B = std::max(1, options_.time_bins);
+  grad_accum_.assign(n, 0.0f);
+  max_radii_.assign(n, 0.0f);
+  denom_.assign(n, 0);
+  bin_grad_.assign(n * B * 3, 0.0f);
+  bin_count_.assign(n * B, 0);
+}
+
+size_t Trainer::pick_view() const {
+  // A fresh permutation of the views every epoch, like 3DGS's shuffled camera stack.
+  const size_t V = data_->views().size();
+  const uint64_t epoch = uint64_t(iteration_) / V, pos = uint64_t(iteration_) % V;
+  std::vector<size_t> perm(V);
+  std::iota(perm.begin(), perm.end(), 0);
+  for (size_t i = V; i-- > 1;) std::swap(perm[i], perm[size_t(uniform(options_.seed, epoch, i) * double(i + 1))]);
+  return perm[pos];
+}
+
+void Trainer::step() {
+  if (iteration_ > 0 && options_.sh_increase_interval > 0 && iteration_ % options_.sh_increase_interval == 0 &&
+      params_.sh_degree < options_.max_sh_degree)
+    raise_sh_degree();
+  const size_t v = pick_view();
+  const TrainView& view = data_->views()[v];
+  const std::vector<float> target = data_->image(v);
+  DiffFrame<float> frame;
+  evaluate_params(params_, view.camera.time, &frame);
+  DiffRenderOptions ro;
+  ro.background = options_.background;
+  ro.threads = options_.threads;
+  DiffRasterizer<float> ras;
+  ras.forward(frame, view.camera, ro);
+  const int W = view.camera.width, H = view.camera.height;
+  std::vector<float> dimg(size_t(W) * H * 3);
+  const LossValue lv = photometric_loss<float>(ras.image().data(), target.data(), W, H, nullptr, options_.lambda_dssim, dimg.data());
+  DiffFrameGrad<float> fg;
+  ras.backward(dimg.data(), nullptr, nullptr, &fg);
+  grad_ = params_.zeros_like();
+  evaluate_params_backward(params_, view.camera.time, fg, &grad_);
+
+  // Densification statistics (3DGS: norm of the NDC-space mean gradient, per view seen).
+  const int B = std::max(1, options_.time_bins);
+  const int bin = std::min(B - 1, int(view.camera.time * B));
+  std::vector<uint8_t> moving(params_.size(), 0);
+  for (uint32_t g : params_.dynamic_ids) moving[g] = 1;
+  for (size_t g = 0; g < params_.size(); ++g) {
+    if (ras.radii()[g] <= 0) continue;
+    const float gx = fg.screen[2 * g] * 0.5f * float(W), gy = fg.screen[2 * g + 1] * 0.5f * float(H);
+    grad_accum_[g] += std::sqrt(gx * gx + gy * gy);
+    denom_[g] += 1;
+    max_radii_[g] = std::max(max_radii_[g], float(ras.radii()[g]));
+    if (!moving[g]) {
+      for (int a = 0; a < 3; ++a) bin_grad_[(g * B + bin) * 3 + a] += fg.means[3 * g + a];
+      bin_count_[g * B + bin] += 1;
+    }
+  }
+  adam_step();
+  ++iteration_;
+
+  const int it = iteration_;
+  if (it < options_.densify_until && it > options_.densify_from && it % options_.densify_interval == 0) {
+    if (options_.allow_dynamic) promote_static();
+    densify_and_prune(opacity_was_reset_);
+  }
+  if (options_.opacity_reset_interval > 0 && it < options_.densify_until && it % options_.opacity_reset_interval == 0)
+    reset_opacity();
+
+  // Running status.
+  double mse = 0;
+  for (size_t i = 0; i < target.size(); ++i) {
+    const double d = std::clamp(double(ras.image()[i]), 0.0, 1.0) - double(target[i]);
+    mse += d * d;
+  }
+  mse /= double(target.size());
+  const double p = mse > 0 ? -10.0 * std::log10(mse) : 99.0;
+  const double a = status_.iteration == 0 ? 1.0 : 0.05;
+  status_.loss = (1 - a) * status_.loss + a * lv.total;
+  status_.psnr = (1 - a) * status_.psnr + a * p;
+  status_.iteration = it;
+  status_.gaussians = params_.size();
+  status_.dynamic = params_.dynamic_count();
+  loss_history_.push_back(float(lv.total));
+}
+
+void Trainer::adam_step() {
+  constexpr double b1 = 0.9, b2 = 0.999, eps = 1e-15;
+  const double t = double(iteration_ + 1);
+  const double c1 = 1.0 - std::pow(b1, t), c2 = 1.0 - std::pow(b2, t);
+  // Position learning rate: exponential decay (3DGS get_expon_lr_func, no delay).
+  const double frac = std::clamp(double(iteration_) / std::max(1, options_.iterations), 0.0, 1.0);
+  const double pos_lr = std::exp(std::log(options_.position_lr_init) * (1 - frac) + std::log(options_.position_lr_final) * frac) *
+                        double(extent_);
+  const int K = params_.sh_count();
+  auto update = [&](std::vector<float>& x, std::vector<float>& g, std::vector<float>& m, std::vector<float>& v, auto lr_of) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, x.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        const double gi = g[i];
+        m[i] = float(b1 * m[i] + (1 - b1) * gi);
+        v[i] = float(b2 * v[i] + (1 - b2) * gi * gi);
+        const double mh = m[i] / c1, vh = v[i] / c2;
+        x[i] = float(x[i] - lr_of(i) * mh / (std::sqrt(vh) + eps));
+      }
+    });
+  };
+  auto constant = [](double lr) { return [lr](size_t) { return lr; }; };
+  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  arena.execute([&] {
+    update(params_.means, grad_.means, adam_m_.means, adam_v_.means, constant(pos_lr));
+    update(params_.key_positions, grad_.key_positions, adam_m_.key_positions, adam_v_.key_positions, constant(pos_lr));
+    update(params_.log_scales, grad_.log_scales, adam_m_.log_scales, adam_v_.log_scales, constant(options_.scaling_lr));
+    update(params_.key_log_scales, grad_.key_log_scales, adam_m_.key_log_scales, adam_v_.key_log_scales, constant(options_.scaling_lr));
+    update(params_.rotations, grad_.rotations, adam_m_.rotations, adam_v_.rotations, constant(options_.rotation_lr));
+    update(params_.key_rotations, grad_.key_rotations, adam_m_.key_rotations, adam_v_.key_rotations, constant(options_.rotation_lr));
+    update(params_.opacity_logits, grad_.opacity_logits, adam_m_.opacity_logits, adam_v_.opacity_logits, constant(options_.opacity_lr));
+    update(params_.key_opacity_logits, grad_.key_opacity_logits, adam_m_.key_opacity_logits, adam_v_.key_opacity_logits,
+           constant(options_.opacity_lr));
+    const double dc = options_.feature_lr, rest = options_.feature_lr / 20.0;
+    update(params_.sh, grad_.sh, adam_m_.sh, adam_v_.sh, [&](size_t i) { return (i / 3) % size_t(K) == 0 ? dc : rest; });
+  });
+}
+
+namespace {
+
+/// Builds a new parameter set from rows of the old one: row r copies Gaussian src[r]
+/// (with its keys when it moves), then `edit` adjusts it. Dynamic ids stay ascending.
+struct Row {
+  uint32_t src;
+  bool fresh;          // a new Gaussian: zero Adam moments
+  bool make_dynamic;   // promote a static Gaussian (keys at its pose)
+  Vec3f offset = Vec3f::Zero();
+  float log_scale_shift = 0.0f;
+};
+
+ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Row>& rows, bool moments) {
+  ModelParams<float> q;
+  q.sh_degree = p.sh_degree;
+  q.key_count = p.key_count;
+  q.first_key_time = p.first_key_time;
+  q.key_spacing = p.key_spacing;
+  const size_t K = size_t(std::max(p.key_count, 1)), S = size_t(p.sh_count()) * 3;
+  std::vector<int64_t> dyn_index(p.size(), -1);
+  for (size_t j = 0; j < p.dynamic_ids.size(); ++j) dyn_index[p.dynamic_ids[j]] = int64_t(j);
+  const bool keyed_scale = !p.key_log_scales.empty(), keyed_opacity = !p.key_opacity_logits.empty();
+  auto put = [](std::vector<float>& dst, const float* src, size_t n, bool zero) {
+    for (size_t i = 0; i < n; ++i) dst.push_back(zero ? 0.0f : src[i]);
+  };
+  for (const Row& r : rows) {
+    const uint32_t s = r.src;
+    const bool zero = moments && r.fresh;
+    const uint32_t id = uint32_t(q.size());
+    Vec3f mean(p.means[3 * s], p.means[3 * s + 1], p.means[3 * s + 2]);
+    if (!moments) mean += r.offset;
+    put(q.means, mean.data(), 3, zero);
+    float ls[3];
+    for (int a = 0; a < 3; ++a) ls[a] = p.log_scales[3 * s + a] + (moments ? 0.0f : r.log_scale_shift);
+    put(q.log_scales, ls, 3, zero);
+    put(q.rotations, &p.rotations[4 * s], 4, zero);
+    put(q.opacity_logits, &p.opacity_logits[s], 1, zero);
+    put(q.sh, &p.sh[s * S], S, zero);
+    const int64_t j = dyn_index[s];
+    if (j >= 0 || r.make_dynamic) {
+      q.dynamic_ids.push_back(id);
+      for (size_t k = 0; k < K; ++k) {
+        if (j >= 0) {
+          float pos[3];
+          for (int a = 0; a < 3; ++a) pos[a] = p.key_positions[(size_t(j) * K + k) * 3 + a] + (moments ? 0.0f : r.offset[a]);
+          put(q.key_positions, pos, 3, zero);
+          put(q.key_rotations, &p.key_rotations[(size_t(j) * K + k) * 4], 4, zero);
+          if (keyed_scale) {
+            float kls[3];
+            for (int a = 0; a < 3; ++a) kls[a] = p.key_log_scales[(size_t(j) * K + k) * 3 + a] + (moments ? 0.0f : r.log_scale_shift);
+            put(q.key_log_scales, kls, 3, zero);
+          }
+          if (keyed_opacity) put(q.key_opacity_logits, &p.key_opacity_logits[size_t(j) * K + k], 1, zero);
+        } else {
+          // Promoted: keys at the current pose (moments start at zero).
+          put(q.key_positions, mean.data(), 3, moments);
+          put(q.key_rotations, &p.rotations[4 * s], 4, moments);
+          if (keyed_scale) put(q.key_log_scales, ls, 3, moments);
+          if (keyed_opacity) put(q.key_opacity_logits, &p.opacity_logits[s], 1, moments);
+        }
+      }
+    }
+  }
+  return q;
+}
+
+}  // namespace
+
+void Trainer::promote_static() {
+  const size_t n = params_.size();
+  const int B = std::max(1, options_.time_bins);
+  std::vector<uint8_t> moving(n, 0);
+  for (uint32_t g : params_.dynamic_ids) moving[g] = 1;
+  std::vector<Row> rows;
+  rows.reserve(n);
+  size_t promoted = 0;
+  for (uint32_t g = 0; g < n; ++g) {
+    Row r{g, false, false};
+    if (!moving[g] && denom_[g] > 0 && grad_accum_[g] / float(denom_[g]) >= options_.densify_grad_threshold) {
+      Vec3f sum = Vec3f::Zero();
+      float norms = 0;
+      int bins = 0;
+      for (int b = 0; b < B; ++b) {
+        const uint32_t c = bin_count_[g * B + b];
+        if (c < uint32_t(options_.promote_min_samples)) continue;  // too few views to tell noise from motion
+        const Vec3f mean = Eigen::Map<const Vec3f>(&bin_grad_[(g * B + b) * 3]) / float(c);
+        sum += mean;
+        norms += mean.norm();
+        ++bins;
+      }
+      if (bins >= 2 && norms > 0 && sum.norm() < options_.promote_agreement * norms) {
+        r.make_dynamic = true;
+        ++promoted;
+      }
+    }
+    rows.push_back(r);
+  }
+  if (promoted == 0) return;
+  params_ = gather_rows(params_, rows, false);
+  adam_m_ = gather_rows(adam_m_, rows, true);
+  adam_v_ = gather_rows(adam_v_, rows, true);
+  // Statistics rows are unchanged (same order, same count).
+}
+
+void Trainer::densify_and_prune(bool prune_big) {
+  const size_t n = params_.size();
+  std::vector<uint8_t> moving(n, 0);
+  for (uint32_t g : params_.dynamic_ids) moving[g] = 1;
+  const size_t K = size_t(std::max(params_.key_count, 1));
+  std::vector<int64_t> dyn_index(n, -1);
+  for (size_t j = 0; j < params_.dynamic_ids.size(); ++j) dyn_index[params_.dynamic_ids[j]] = int64_t(j);
+  auto max_scale = [&](uint32_t g) {
+    return std::exp(std::max({params_.log_scales[3 * g], params_.log_scales[3 * g + 1], params_.log_scales[3 * g + 2]}));
+  };
+  auto opacity = [&](uint32_t g) {
+    float o = sigmoid(params_.opacity_logits[g]);
+    if (dyn_index[g] >= 0 && !params_.key_opacity_logits.empty())
+      for (size_t k = 0; k < K; ++k) o = std::max(o, sigmoid(params_.key_opacity_logits[size_t(dyn_index[g]) * K + k]));
+    return o;
+  };
+  // Candidates by gradient, strongest first, so the cap keeps the most needed.
+  std::vector<uint32_t> hot;
+  for (uint32_t g = 0; g < n; ++g)
+    if (denom_[g] > 0 && grad_accum_[g] / float(denom_[g]) >= options_.densify_grad_threshold) hot.push_back(g);
+  std::stable_sort(hot.begin(), hot.end(), [&](uint32_t a, uint32_t b) {
+    return grad_accum_[a] / float(denom_[a]) > grad_accum_[b] / float(denom_[b]);
+  });
+  std::vector<uint8_t> clone(n, 0), split(n, 0), remove(n, 0);
+  size_t budget = options_.max_gaussians > n ? options_.max_gaussians - n : 0;
+  for (uint32_t g : hot) {
+    if (budget == 0) break;
+    if (max_scale(g) <= options_.percent_dense * extent_) {
+      clone[g] = 1;
+      --budget;
+    } else {
+      split[g] = 1;  // two replace one
+      --budget;
+    }
+  }
+  for (uint32_t g = 0; g < n; ++g) {
+    if (split[g]) continue;
+    bool prune = opacity(g) < options_.min_opacity;
+    if (prune_big) prune = prune || max_radii_[g] > options_.max_screen_size || max_scale(g) > 0.1f * extent_;
+    remove[g] = prune;
+  }
+  std::vector<Row> rows;
+  rows.reserve(n + hot.size() * 2);
+  for (uint32_t g = 0; g < n; ++g)
+    if (!remove[g] && !split[g]) rows.push_back({g, false, false});
+  for (uint32_t g = 0; g < n; ++g)
+    if (clone[g]) rows.push_back({g, true, false});
+  for (uint32_t g = 0; g < n; ++g) {
+    if (!split[g]) continue;
+    const Vec4f q = normalize_quat(Vec4f(params_.rotations[4 * g], params_.rotations[4 * g + 1], params_.rotations[4 * g + 2],
+                                         params_.rotations[4 * g + 3]));
+    const Mat3f R = quat_to_matrix<float>(q);
+    for (int k = 0; k < 2; ++k) {
+      Row r{g, true, false};
+      Vec3f z;
+      for (int a = 0; a < 3; ++a)
+        z[a] = float(normal(options_.seed ^ 0x5b1177ull, uint64_t(iteration_) * 1000003ull + g, uint64_t(2 * k + a * 7))) *
+               std::exp(params_.log_scales[3 * g + a]);
+      r.offset = R * z;
+      r.log_scale_shift = -std::log(0.8f * 2.0f);
+      rows.push_back(r);
+    }
+  }
+  // Dynamic ids must stay ascending: rows are in an order where every row's id is its index.
+  params_ = gather_rows(params_, rows, false);
+  adam_m_ = gather_rows(adam_m_, rows, true);
+  adam_v_ = gather_rows(adam_v_, rows, true);
+  reset_stats();
+}
+
+void Trainer::reset_opacity() {
+  const float cap = logit(0.01f);
+  for (float& l : params_.opacity_logits) l = std::min(l, cap);
+  for (float& l : params_.key_opacity_logits) l = std::min(l, cap);
+  std::fill(adam_m_.opacity_logits.begin(), adam_m_.opacity_logits.end(), 0.0f);
+  std::fill(adam_v_.opacity_logits.begin(), adam_v_.opacity_logits.end(), 0.0f);
+  std::fill(adam_m_.key_opacity_logits.begin(), adam_m_.key_opacity_logits.end(), 0.0f);
+  std::fill(adam_v_.key_opacity_logits.begin(), adam_v_.key_opacity_logits.end(), 0.0f);
+  opacity_was_reset_ = true;
+}
+
+void Trainer::raise_sh_degree() {
+  const int from = params_.sh_count(), to = (params_.sh_degree + 2) * (params_.sh_degree + 2);
+  auto widen = [&](ModelParams<float>& p) {
+    std::vector<float> sh(p.size() * size_t(to) * 3, 0.0f);
+    for (size_t g = 0; g < p.size(); ++g)
+      std::copy(p.sh.begin() + g * from * 3, p.sh.begin() + (g + 1) * from * 3, sh.begin() + g * to * 3);
+    p.sh = std::move(sh);
+    p.sh_degree += 1;
+  };
+  widen(params_);
+  widen(adam_m_);
+  widen(adam_v_);
+}
+
+void Trainer::run(int until, Progress& progress) {
+  progress.start("training", size_t(std::max(0, until - iteration_)));
+  auto t0 = std::chrono::steady_clock::now();
+  const int first = iteration_;
+  while (iteration_ < until) {
+    step();
+    const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    status_.iterations_per_second = secs > 0 ? (iteration_ - first) / secs : 0;
+    std::ostringstream s;
+    s.precision(4);
+    s << "loss " << status_.loss << "  PSNR " << std::fixed;
+    s.precision(2);
+    s << status_.psnr << "  " << status_.gaussians << " Gaussians (" << status_.dynamic << " moving)  " << status_.iterations_per_second
+      << " it/s";
+    progress.status(s.str());
+    progress.advance();
+  }
+  progress.finish();
+}
+
+GaussianCloud Trainer::model() const {
+  GaussianCloud c = cloud_from_params(params_);
+  partition_static_dynamic(c);
+  return c;
+}
+
+// ---------------------------------------------------------------------------------
+// Checkpoints: a small binary file, written atomically.
+
+namespace {
+constexpr char kMagic[8] = {'F', 'I', 'L', 'L', 'G', 'S', 'C', 'K'};
+constexpr uint32_t kVersion = 1;
+
+struct Writer {
+  std::string bytes;
+  template <typename T>
+  void pod(const T& v) {
+    bytes.append(reinterpret_cast<const char*>(&v), sizeof(T));
+  }
+  template <typename T>
+  void vec(const std::vector<T>& v) {
+    pod(uint64_t(v.size()));
+    bytes.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+  }
+};
+struct Reader {
+  const std::string& bytes;
+  std::string path;
+  size_t at = 0;
+  template <typename T>
+  T pod() {
+    if (at + sizeof(T) > bytes.size()) throw_error(path, ": checkpoint is truncated");
+    T v;
+    std::memcpy(&v, bytes.data() + at, sizeof(T));
+    at += sizeof(T);
+    return v;
+  }
+  template <typename T>
+  std::vector<T> vec() {
+    const uint64_t n = pod<uint64_t>();
+    if (n > (bytes.size() - at) / sizeof(T)) throw_error(path, ": checkpoint is truncated");
+    std::vector<T> v(n);
+    std::memcpy(v.data(), bytes.data() + at, n * sizeof(T));
+    at += n * sizeof(T);
+    return v;
+  }
+};
+
+void write_params(Writer& w, const ModelParams<float>& p) {
+  w.pod(int32_t(p.sh_degree));
+  w.pod(int32_t(p.key_count));
+  w.pod(p.first_key_time);
+  w.pod(p.key_spacing);
+  w.vec(p.dynamic_ids);
+  for (const std::vector<float>* a : p.arrays()) w.vec(*a);
+}
+
+ModelParams<float> read_params(Reader& r) {
+  ModelParams<float> p;
+  p.sh_degree = r.pod<int32_t>();
+  p.key_count = r.pod<int32_t>();
+  p.first_key_time = r.pod<double>();
+  p.key_spacing = r.pod<double>();
+  p.dynamic_ids = r.vec<uint32_t>();
+  for (std::vector<float>* a : p.arrays()) *a = r.vec<float>();
+  const size_t n = p.size();
+  if (p.means.size() != 3 * n || p.sh.size() != n * size_t(p.sh_count()) * 3) throw_error(r.path, ": checkpoint arrays disagree");
+  return p;
+}
+}  // namespace
+
+void Trainer::save_checkpoint(const std::string& path) const {
+  Writer w;
+  w.bytes.append(kMagic, 8);
+  w.pod(kVersion);
+  w.pod(int32_t(iteration_));
+  w.pod(uint8_t(opacity_was_reset_));
+  w.pod(uint64_t(data_->views().size()));
+  w.pod(options_.seed);
+  write_params(w, params_);
+  write_params(w, adam_m_);
+  write_params(w, adam_v_);
+  w.vec(grad_accum_);
+  w.vec(max_radii_);
+  w.vec(denom_);
+  w.vec(bin_grad_);
+  w.vec(bin_count_);
+  w.vec(loss_history_);
+  w.pod(status_.loss);
+  w.pod(status_.psnr);
+  write_file_atomically(path, w.bytes);
+}
+
+Trainer Trainer::resume(const Dataset& data, const std::string& path, const TrainOptions& options) {
+  const std::string bytes = read_file(path);
+  Reader r{bytes, path};
+  if (bytes.size() < 8 || std::memcmp(bytes.data(), kMagic, 8) != 0) throw_error(path, ": not a fillgs checkpoint");
+  r.at = 8;
+  if (r.pod<uint32_t>() != kVersion) throw_error(path, ": unsupported checkpoint version");
+  const int it = r.pod<int32_t>();
+  const bool was_reset = r.pod<uint8_t>() != 0;
+  const uint64_t views = r.pod<uint64_t>();
+  if (views != data.views().size())
+    throw_error(path, ": checkpoint was trained on ", views, " views, this dataset has ", data.views().size());
+  if (r.pod<uint64_t>() != options.seed) throw_error(path, ": checkpoint was trained with another --seed");
+  ModelParams<float> p = read_params(r);
+  Trainer t(data, p, options);
+  t.adam_m_ = read_params(r);
+  t.adam_v_ = read_params(r);
+  t.iteration_ = it;
+  t.opacity_was_reset_ = was_reset;
+  t.grad_accum_ = r.vec<float>();
+  t.max_radii_ = r.vec<float>();
+  t.denom_ = r.vec<uint32_t>();
+  t.bin_grad_ = r.vec<float>();
+  t.bin_count_ = r.vec<uint32_t>();
+  t.loss_history_ = r.vec<float>();
+  t.status_.loss = r.pod<double>();
+  t.status_.psnr = r.pod<double>();
+  t.status_.iteration = it;
+  t.status_.gaussians = t.params_.size();
+  t.status_.dynamic = t.params_.dynamic_count();
+  if (t.grad_accum_.size() != t.params_.size()) throw_error(path, ": checkpoint statistics disagree with its model");
+  return t;
+}
+
+// ---------------------------------------------------------------------------------
+
+EvalResult evaluate_views(const GaussianCloud& model, const Dataset& data, int stride, const Vec3f& background, int threads) {
+  EvalResult r;
+  FrameEvaluator ev(model);
+  RenderOptions ro;
+  ro.background = background;
+  ro.threads = threads;
+  for (size_t v = 0; v < data.views().size(); v += size_t(std::max(1, stride))) {
+    const TrainView& view = data.views()[v];
+    const RenderOutput out = render(ev.evaluate(view.camera.time), view.camera, ro);
+    const std::vector<float> target = data.image(v);
+    r.psnr += psnr(out.rgb.data(), target.data(), view.camera.width, view.camera.height, 3);
+    r.ssim += ssim(out.rgb.data(), target.data(), view.camera.width, view.camera.height, 3);
+    ++r.views;
+  }
+  if (r.views) r.psnr /= double(r.views), r.ssim /= double(r.views);
+  return r;
+}
+
+}  // namespace fillgs
