@@ -1,0 +1,175 @@
+// Optimisation throughput and training quality.
+//  * speed: one training iteration's rasterization (forward + L1/D-SSIM loss + backward)
+//    versus Gaussian count and resolution on a real scene, as a ratio to the forward
+//    renderer alone measured in the same run;
+//  * quality: the synthetic scene trained with all 16 cameras and with a 2-camera sparse
+//    split (cam04, cam06), evaluated on interpolation and extrapolation cameras; the
+//    sparse numbers are the baseline the method must beat. Also: how many promoted
+//    (moving) Gaussians sit on the chair's track.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "bench_common.hpp"
+#include "fillgs/error.hpp"
+#include "fillgs/fs_util.hpp"
+#include "fillgs/loss.hpp"
+#include "fillgs/raster.hpp"
+#include "fillgs/raster_grad.hpp"
+#include "fillgs/scene_io.hpp"
+#include "fillgs/synth.hpp"
+#include "fillgs/train.hpp"
+
+using namespace fillgs;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+GaussianCloud subsample(const GaussianCloud& c, size_t n) {
+  GaussianCloud s;
+  s.sh_degree = c.sh_degree;
+  const size_t step = std::max<size_t>(1, c.size() / n);
+  for (size_t g = 0; g < c.size() && s.size() < n; g += step) {
+    const size_t i = s.size();
+    s.resize(i + 1);
+    s.means[i] = c.means[g];
+    s.log_scales[i] = c.log_scales[g];
+    s.rotations[i] = c.rotations[g];
+    s.opacity_logits[i] = c.opacity_logits[g];
+    std::copy(c.sh.begin() + g * c.sh_count() * 3, c.sh.begin() + (g + 1) * c.sh_count() * 3, s.sh.begin() + i * c.sh_count() * 3);
+  }
+  return s;
+}
+
+void speed(bool smoke) {
+  const GaussianCloud full = read_scene(bench::shared_data() + "/scenes/guitar.ply");
+  std::printf("\n## Training iteration speed (guitar.ply subsets, 2 threads): forward render vs forward + loss + backward\n\n");
+  std::printf("| Gaussians | resolution | forward ms | fwd+loss+bwd ms | ratio | iterations/s |\n|---|---|---|---|---|---|\n");
+  const std::vector<size_t> counts = smoke ? std::vector<size_t>{5000} : std::vector<size_t>{10000, 45000, full.size()};
+  const std::vector<std::pair<int, int>> sizes =
+      smoke ? std::vector<std::pair<int, int>>{{160, 120}} : std::vector<std::pair<int, int>>{{338, 253}, {676, 507}, {1352, 1014}};
+  const int reps = smoke ? 1 : 5;
+  for (size_t n : counts) {
+    const GaussianCloud c = subsample(full, n);
+    const FrameGaussians fg = evaluate(c, 0.0);
+    const ModelParams<float> p = params_from_cloud<float>(c);
+    DiffFrame<float> df;
+    evaluate_params(p, 0.0, &df);
+    for (auto [w, h] : sizes) {
+      const std::vector<Camera> cams = bench::orbit(c, reps, w, h);
+      RenderOptions ro;
+      ro.threads = 2;
+      render(fg, cams[0], ro);  // warm-up
+      auto t0 = Clock::now();
+      for (const Camera& cam : cams) render(fg, cam, ro);
+      const double fwd = since(t0) / reps;
+      std::vector<float> target(size_t(w) * h * 3, 0.5f), dimg(target.size());
+      DiffRenderOptions dro;
+      dro.threads = 2;
+      t0 = Clock::now();
+      for (const Camera& cam : cams) {
+        DiffRasterizer<float> r;
+        r.forward(df, cam, dro);
+        photometric_loss<float>(r.image().data(), target.data(), w, h, nullptr, 0.2, dimg.data());
+        DiffFrameGrad<float> g;
+        r.backward(dimg.data(), nullptr, nullptr, &g);
+      }
+      const double both = since(t0) / reps;
+      std::printf("| %zu | %dx%d | %.1f | %.1f | %.2f | %.1f |\n", c.size(), w, h, fwd * 1e3, both * 1e3, both / fwd, 1.0 / both);
+    }
+  }
+}
+
+struct Quality {
+  double interp = 0, arc = 0, extrap = 0, seconds = 0;
+  size_t gaussians = 0, moving = 0, moving_on_chair = 0;
+};
+
+Quality train_and_eval(const std::string& dir, const SynthScene& s, const std::vector<std::string>& cams, int iterations,
+                       const std::vector<std::string>& arc) {
+  DatasetOptions d;
+  d.cameras = cams;
+  const Dataset data = Dataset::load(dir + "/images", dir + "/transforms_train.json", d);
+  TrainOptions o = TrainOptions::scaled(iterations);
+  o.threads = 2;
+  Trainer t(data, init_from_points(read_points(dir + "/points.ply")), o);
+  const auto t0 = Clock::now();
+  t.run(iterations, null_progress());
+  Quality q;
+  q.seconds = since(t0);
+  const GaussianCloud m = t.model();
+  q.gaussians = m.size();
+  q.moving = m.dynamic_count();
+  q.interp = evaluate_views(m, Dataset::load(dir + "/images", dir + "/transforms_interpolation.json")).psnr;
+  q.extrap = evaluate_views(m, Dataset::load(dir + "/images", dir + "/transforms_extrapolation.json")).psnr;
+  DatasetOptions a;
+  a.cameras = arc;
+  q.arc = evaluate_views(m, Dataset::load(dir + "/images", dir + "/transforms_interpolation.json", a)).psnr;
+  // A moving Gaussian is "on the chair" when some frame puts it within 5 cm of a chair Gaussian.
+  const int F = s.options.frames;
+  std::vector<std::vector<Vec3f>> chair(static_cast<size_t>(F));
+  for (int f = 0; f < F; ++f) {
+    const FrameGaussians g = evaluate(s.scene, double(f) / (F - 1));
+    for (uint32_t id : s.chair_ids) chair[size_t(f)].push_back(g.means[id]);
+  }
+  for (size_t j = 0; j < m.dynamic_count(); ++j) {
+    bool on = false;
+    for (int f = 0; f < F && !on; f += 3) {
+      const Vec3f x = evaluate(m, double(f) / (F - 1)).means[m.dynamic_ids[j]];
+      for (const Vec3f& c : chair[size_t(f)])
+        if ((c - x).squaredNorm() < 0.05f * 0.05f) {
+          on = true;
+          break;
+        }
+    }
+    q.moving_on_chair += on;
+  }
+  return q;
+}
+
+void quality(bool smoke, const std::string& out) {
+  SynthOptions so;
+  int iterations = 3000;
+  if (smoke) {
+    so.width = 64, so.height = 48, so.frames = 4, so.spacing = 0.05;
+    iterations = 30;
+  }
+  const std::string dir = out + "/synth";
+  const SynthScene s = make_synthetic_scene(so);
+  write_synthetic_scene(s, dir, null_progress(), 2);
+  std::printf("\n## Training quality on the synthetic scene (%dx%d, %d frames, %d iterations, 2 threads)\n\n", so.width, so.height,
+              so.frames, iterations);
+  std::printf("| training cameras | PSNR interp (all 16) | PSNR interp04-05 (inside the pair's arc) | PSNR extrap | Gaussians | moving | moving on the chair | train s |\n"
+              "|---|---|---|---|---|---|---|---|\n");
+  const std::vector<std::string> arc = {"interp04", "interp05"};
+  std::vector<std::string> all;
+  for (const Camera& c : s.train) all.push_back(c.name);
+  for (const auto& [label, cams] : std::vector<std::pair<std::string, std::vector<std::string>>>{{"all 16", all}, {"2 (cam04, cam06)", {"cam04", "cam06"}}}) {
+    const Quality q = train_and_eval(dir, s, cams, iterations, arc);
+    std::printf("| %s | %.2f | %.2f | %.2f | %zu | %zu | %zu | %.0f |\n", label.c_str(), q.interp, q.arc, q.extrap, q.gaussians, q.moving,
+                q.moving_on_chair, q.seconds);
+    std::fflush(stdout);
+  }
+}
+
+}  // namespace
+
+int bench_train(const std::vector<std::string>& args) {
+  bool smoke = false;
+  std::string out = "bench/results/train", only;
+  for (size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--smoke") smoke = true;
+    else if (args[i] == "--out" && i + 1 < args.size()) out = args[++i];
+    else if (args[i] == "--only" && i + 1 < args.size()) only = args[++i];
+    else throw_error("bench train: unknown argument '", args[i], "'");
+  }
+  make_directories(out);
+  if (only.empty() || only == "speed") speed(smoke);
+  if (only.empty() || only == "quality") quality(smoke, out);
+  return 0;
+}
