@@ -168,6 +168,17 @@ void view_direction(const Real* mean, const Real* centre, Real dir[3], Real* len
   }
 }
 
+/// Pixels of tile [x0, x1) × [y0, y1) where a splat's α can reach 1/255 (inclusive bounds).
+template <typename Real>
+void pixel_box(const Real* splat, const float* half_extent, int x0, int y0, int x1, int y1, int* px0, int* px1, int* py0,
+               int* py1) {
+  const float mx = float(splat[0]), my = float(splat[1]);
+  *px0 = std::max(x0, int(std::floor(mx - half_extent[0])));
+  *px1 = std::min(x1 - 1, int(std::ceil(mx + half_extent[0])));
+  *py0 = std::max(y0, int(std::floor(my - half_extent[1])));
+  *py1 = std::min(y1 - 1, int(std::ceil(my + half_extent[1])));
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------
@@ -276,10 +287,8 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
           const uint32_t i = keys_[e];
           const Real* sd = &splat_data_[6 * i];
           const Real* ch = &colour_[size_t(i) * C];
-          const float hw = half_extent_[2 * i], hh = half_extent_[2 * i + 1];
-          const float mx = float(sd[0]), my = float(sd[1]);
-          const int px0 = std::max(x0, int(std::floor(mx - hw))), px1 = std::min(x1 - 1, int(std::ceil(mx + hw)));
-          const int py0 = std::max(y0, int(std::floor(my - hh))), py1 = std::min(y1 - 1, int(std::ceil(my + hh)));
+          int px0, px1, py0, py1;
+          pixel_box(sd, &half_extent_[2 * i], x0, y0, x1, y1, &px0, &px1, &py0, &py1);
           for (int py = py0; py <= py1; ++py)
             for (int px = px0; px <= px1; ++px) {
               const int l = (py - y0) * kTileSize + (px - x0);
@@ -360,10 +369,8 @@ void DiffRasterizer<Real>::backward_tiles(MakeVisitor&& make_visitor) const {
           const uint32_t local = uint32_t(e - tile_start_[t]);
           const Real* sd = &splat_data_[6 * i];
           const Real* ch = &colour_[size_t(i) * C];
-          const float hw = half_extent_[2 * i], hh = half_extent_[2 * i + 1];
-          const float mx = float(sd[0]), my = float(sd[1]);
-          const int px0 = std::max(x0, int(std::floor(mx - hw))), px1 = std::min(x1 - 1, int(std::ceil(mx + hw)));
-          const int py0 = std::max(y0, int(std::floor(my - hh))), py1 = std::min(y1 - 1, int(std::ceil(my + hh)));
+          int px0, px1, py0, py1;
+          pixel_box(sd, &half_extent_[2 * i], x0, y0, x1, y1, &px0, &px1, &py0, &py1);
           visitor.begin(e, i);
           for (int py = py0; py <= py1; ++py)
             for (int px = px0; px <= px1; ++px) {

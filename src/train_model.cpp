@@ -87,6 +87,17 @@ void catmull_rom_weights(Real s, Real w[4]) {
   w[3] = Real(0.5) * h11;
 }
 
+/// The interval of time t and the Catmull-Rom weights of its four keys.
+template <typename Real>
+struct KeyWeights {
+  KeySpot spot;
+  Real w[4];
+  int next;  // the interval's second key
+  KeyWeights(const ModelParams<Real>& p, double t) : spot(key_spot(p, t)), next(std::min(spot.i + 1, p.key_count - 1)) {
+    catmull_rom_weights(Real(spot.s), w);
+  }
+};
+
 /// Shortest-arc slerp of normalised keys, exactly slerp_shortest's rule (normalised lerp
 /// above a dot of 0.9995), with its backward.
 template <typename Real>
@@ -229,10 +240,10 @@ void evaluate_params(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
     }
   });
   if (M == 0) return;
-  const KeySpot ks = key_spot(p, t);
-  Real w[4];
-  catmull_rom_weights(Real(ks.s), w);
-  const int i1 = std::min(ks.i + 1, K - 1);
+  const KeyWeights<Real> kw(p, t);
+  const KeySpot& ks = kw.spot;
+  const Real* w = kw.w;
+  const int i1 = kw.next;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, M, 2048), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t j = r.begin(); j < r.end(); ++j) {
       const uint32_t g = p.dynamic_ids[j];
@@ -287,10 +298,10 @@ void evaluate_params_backward(const ModelParams<Real>& p, double t, const DiffFr
     }
   });
   if (M == 0) return;
-  const KeySpot ks = key_spot(p, t);
-  Real w[4];
-  catmull_rom_weights(Real(ks.s), w);
-  const int i1 = std::min(ks.i + 1, K - 1);
+  const KeyWeights<Real> kw(p, t);
+  const KeySpot& ks = kw.spot;
+  const Real* w = kw.w;
+  const int i1 = kw.next;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, M, 2048), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t j = r.begin(); j < r.end(); ++j) {
       const uint32_t g = p.dynamic_ids[j];
