@@ -26,34 +26,32 @@ struct Window {
   }
 };
 
+/// One 11-tap pass of the window along x (along_x) or y, zero padding.
+template <typename Real>
+void blur_pass(const std::vector<Real>& in, int W, int H, bool along_x, std::vector<Real>& out) {
+  static const Window<Real> win;
+  out.resize(in.size());
+  const int len = along_x ? W : H;
+  const size_t step = along_x ? 1 : size_t(W);
+  tbb::parallel_for(tbb::blocked_range<int>(0, H, 16), [&](const tbb::blocked_range<int>& r) {
+    for (int y = r.begin(); y < r.end(); ++y)
+      for (int x = 0; x < W; ++x) {
+        const int at = along_x ? x : y;
+        const size_t o = size_t(y) * W + x;
+        Real s = 0;
+        for (int k = std::max(0, 5 - at); k < kWindow && at + k - 5 < len; ++k)
+          s += win.w[k] * in[o + (ptrdiff_t(k) - 5) * ptrdiff_t(step)];
+        out[o] = s;
+      }
+  });
+}
+
 /// Separable 11×11 Gaussian filter with zero padding, one plane.
 template <typename Real>
 void blur(const std::vector<Real>& in, int W, int H, std::vector<Real>& out) {
-  static const Window<Real> win;
-  std::vector<Real> tmp(in.size());
-  tbb::parallel_for(tbb::blocked_range<int>(0, H, 16), [&](const tbb::blocked_range<int>& r) {
-    for (int y = r.begin(); y < r.end(); ++y)
-      for (int x = 0; x < W; ++x) {
-        Real s = 0;
-        for (int k = 0; k < kWindow; ++k) {
-          const int xx = x + k - 5;
-          if (xx >= 0 && xx < W) s += win.w[k] * in[size_t(y) * W + xx];
-        }
-        tmp[size_t(y) * W + x] = s;
-      }
-  });
-  out.resize(in.size());
-  tbb::parallel_for(tbb::blocked_range<int>(0, H, 16), [&](const tbb::blocked_range<int>& r) {
-    for (int y = r.begin(); y < r.end(); ++y)
-      for (int x = 0; x < W; ++x) {
-        Real s = 0;
-        for (int k = 0; k < kWindow; ++k) {
-          const int yy = y + k - 5;
-          if (yy >= 0 && yy < H) s += win.w[k] * tmp[size_t(yy) * W + x];
-        }
-        out[size_t(y) * W + x] = s;
-      }
-  });
+  std::vector<Real> tmp;
+  blur_pass(in, W, H, true, tmp);
+  blur_pass(tmp, W, H, false, out);
 }
 
 /// SSIM map of one channel plane and, when `grad` is given, d(Σ_p c_p·SSIM_p)/dx for the

@@ -205,10 +205,8 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
           const uint32_t i = bins.entries[e];
           const Splat& s = splats[i];
           const float* ch = &chan[size_t(i) * C];
-          const int px0 = std::max(x0, int(std::floor(s.mean.x() - s.half_w)));
-          const int px1 = std::min(x1 - 1, int(std::ceil(s.mean.x() + s.half_w)));
-          const int py0 = std::max(y0, int(std::floor(s.mean.y() - s.half_h)));
-          const int py1 = std::min(y1 - 1, int(std::ceil(s.mean.y() + s.half_h)));
+          int px0, px1, py0, py1;
+          internal::pixel_box(s.mean.x(), s.mean.y(), s.half_w, s.half_h, x0, y0, x1, y1, &px0, &px1, &py0, &py1);
           float emax = 0.0f;
           for (int py = py0; py <= py1; ++py) {
             for (int px = px0; px <= px1; ++px) {

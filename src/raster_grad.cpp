@@ -168,17 +168,6 @@ void view_direction(const Real* mean, const Real* centre, Real dir[3], Real* len
   }
 }
 
-/// Pixels of tile [x0, x1) × [y0, y1) where a splat's α can reach 1/255 (inclusive bounds).
-template <typename Real>
-void pixel_box(const Real* splat, const float* half_extent, int x0, int y0, int x1, int y1, int* px0, int* px1, int* py0,
-               int* py1) {
-  const float mx = float(splat[0]), my = float(splat[1]);
-  *px0 = std::max(x0, int(std::floor(mx - half_extent[0])));
-  *px1 = std::min(x1 - 1, int(std::ceil(mx + half_extent[0])));
-  *py0 = std::max(y0, int(std::floor(my - half_extent[1])));
-  *py1 = std::min(y1 - 1, int(std::ceil(my + half_extent[1])));
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------
@@ -288,7 +277,7 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
           const Real* sd = &splat_data_[6 * i];
           const Real* ch = &colour_[size_t(i) * C];
           int px0, px1, py0, py1;
-          pixel_box(sd, &half_extent_[2 * i], x0, y0, x1, y1, &px0, &px1, &py0, &py1);
+          internal::pixel_box(float(sd[0]), float(sd[1]), half_extent_[2 * i], half_extent_[2 * i + 1], x0, y0, x1, y1, &px0, &px1, &py0, &py1);
           for (int py = py0; py <= py1; ++py)
             for (int px = px0; px <= px1; ++px) {
               const int l = (py - y0) * kTileSize + (px - x0);
@@ -370,7 +359,7 @@ void DiffRasterizer<Real>::backward_tiles(MakeVisitor&& make_visitor) const {
           const Real* sd = &splat_data_[6 * i];
           const Real* ch = &colour_[size_t(i) * C];
           int px0, px1, py0, py1;
-          pixel_box(sd, &half_extent_[2 * i], x0, y0, x1, y1, &px0, &px1, &py0, &py1);
+          internal::pixel_box(float(sd[0]), float(sd[1]), half_extent_[2 * i], half_extent_[2 * i + 1], x0, y0, x1, y1, &px0, &px1, &py0, &py1);
           visitor.begin(e, i);
           for (int py = py0; py <= py1; ++py)
             for (int px = px0; px <= px1; ++px) {
@@ -583,10 +572,7 @@ void DiffRasterizer<Real>::accumulate_fisher(FisherDiagonal* fisher) const {
 
 template class DiffRasterizer<float>;
 template class DiffRasterizer<double>;
-template SplatProjection<float> project_splat<float>(const float*, const float*, const float*, const Camera&);
 template SplatProjection<double> project_splat<double>(const double*, const double*, const double*, const Camera&);
-template void project_splat_backward<float>(const float*, const float*, const float*, const Camera&, float, float,
-                                            const float[3], float*, float*, float*);
 template void project_splat_backward<double>(const double*, const double*, const double*, const Camera&, double,
                                              double, const double[3], double*, double*, double*);
 

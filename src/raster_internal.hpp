@@ -1,6 +1,8 @@
 #pragma once
 // Pieces of the rasterizer shared by the forward renderer (raster.cpp) and the
 // differentiable one (raster_grad.cpp), so that both cull, bin and order identically.
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -28,6 +30,16 @@ inline void alpha_extent(float opacity, float cov_a, float cov_c, float* half_w,
   const float r2 = 2.0f * std::log(std::max(opacity, kMinAlpha) / kMinAlpha);
   *half_w = std::sqrt(r2 * cov_a) + 1.0f;
   *half_h = std::sqrt(r2 * cov_c) + 1.0f;
+}
+
+/// Pixels of the tile [x0, x1) × [y0, y1) where a splat centred at (mx, my) with those
+/// half-extents can reach α = 1/255 (inclusive bounds; empty when px0 > px1).
+inline void pixel_box(float mx, float my, float half_w, float half_h, int x0, int y0, int x1, int y1, int* px0, int* px1,
+                      int* py0, int* py1) {
+  *px0 = std::max(x0, int(std::floor(mx - half_w)));
+  *px1 = std::min(x1 - 1, int(std::ceil(mx + half_w)));
+  *py0 = std::max(y0, int(std::floor(my - half_h)));
+  *py1 = std::min(y1 - 1, int(std::ceil(my + half_h)));
 }
 
 }  // namespace fillgs::internal

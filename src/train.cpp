@@ -385,7 +385,7 @@ void Trainer::step() {
   const LossValue lv = photometric_loss<float>(ras.image().data(), target.data(), W, H, nullptr, options_.lambda_dssim, dimg.data());
   DiffFrameGrad<float> fg;
   ras.backward(dimg.data(), nullptr, nullptr, &fg);
-  grad_ = params_.zeros_like();
+  grad_.set_zeros_like(params_);
   evaluate_params_backward(params_, view.camera.time, fg, &grad_);
 
   // Densification statistics (3DGS: norm of the NDC-space mean gradient, per view seen).
@@ -416,13 +416,7 @@ void Trainer::step() {
     reset_opacity();
 
   // Running status.
-  double mse = 0;
-  for (size_t i = 0; i < target.size(); ++i) {
-    const double d = std::clamp(double(ras.image()[i]), 0.0, 1.0) - double(target[i]);
-    mse += d * d;
-  }
-  mse /= double(target.size());
-  const double p = mse > 0 ? -10.0 * std::log10(mse) : 99.0;
+  const double p = std::min(99.0, psnr(ras.image().data(), target.data(), W, H, 3));
   const double a = status_.iteration == 0 ? 1.0 : 0.05;
   status_.loss = (1 - a) * status_.loss + a * lv.total;
   status_.psnr = (1 - a) * status_.psnr + a * p;

@@ -13,9 +13,21 @@ namespace fillgs {
 
 template <typename Real>
 ModelParams<Real> ModelParams<Real>::zeros_like() const {
-  ModelParams z = *this;
-  for (std::vector<Real>* a : z.arrays()) std::fill(a->begin(), a->end(), Real(0));
+  ModelParams z;
+  z.set_zeros_like(*this);
   return z;
+}
+
+template <typename Real>
+void ModelParams<Real>::set_zeros_like(const ModelParams& shape) {
+  sh_degree = shape.sh_degree;
+  dynamic_ids = shape.dynamic_ids;
+  key_count = shape.key_count;
+  first_key_time = shape.first_key_time;
+  key_spacing = shape.key_spacing;
+  auto dst = arrays();
+  auto src = shape.arrays();
+  for (size_t a = 0; a < dst.size(); ++a) dst[a]->assign(src[a]->size(), Real(0));
 }
 
 template <typename Real>
@@ -31,13 +43,6 @@ std::vector<const std::vector<Real>*> ModelParams<Real>::arrays() const {
 }
 
 namespace {
-
-template <typename Real>
-Real sigmoid_t(Real x) {
-  if (x >= Real(0)) return Real(1) / (Real(1) + std::exp(-x));
-  const Real e = std::exp(x);
-  return e / (Real(1) + e);
-}
 
 /// y = x / |x| (identity quaternion for a zero vector, as normalize_quat).
 template <typename Real>
@@ -236,7 +241,7 @@ void evaluate_params(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
     for (size_t g = r.begin(); g < r.end(); ++g) {
       for (int k = 0; k < 3; ++k) f->means[3 * g + k] = p.means[3 * g + k], f->scales[3 * g + k] = std::exp(p.log_scales[3 * g + k]);
       normalize4(&p.rotations[4 * g], &f->rotations[4 * g]);
-      f->opacities[g] = sigmoid_t(p.opacity_logits[g]);
+      f->opacities[g] = sigmoid(p.opacity_logits[g]);
     }
   });
   if (M == 0) return;
@@ -267,7 +272,7 @@ void evaluate_params(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
       }
       if (!p.key_opacity_logits.empty()) {
         const Real* O = &p.key_opacity_logits[j * K];
-        f->opacities[g] = sigmoid_t(O[ks.i] + Real(ks.s) * (O[i1] - O[ks.i]));
+        f->opacities[g] = sigmoid(O[ks.i] + Real(ks.s) * (O[i1] - O[ks.i]));
       }
     }
   });
@@ -292,7 +297,7 @@ void evaluate_params_backward(const ModelParams<Real>& p, double t, const DiffFr
       if (!keyed[g] || !keyed_scale)
         for (int k = 0; k < 3; ++k) d->log_scales[3 * g + k] += gf.scales[3 * g + k] * std::exp(p.log_scales[3 * g + k]);
       if (!keyed[g] || !keyed_opacity) {
-        const Real o = sigmoid_t(p.opacity_logits[g]);
+        const Real o = sigmoid(p.opacity_logits[g]);
         d->opacity_logits[g] += gf.opacities[g] * o * (Real(1) - o);
       }
     }
@@ -335,7 +340,7 @@ void evaluate_params_backward(const ModelParams<Real>& p, double t, const DiffFr
       if (keyed_opacity) {
         const Real* O = &p.key_opacity_logits[j * K];
         Real* dO = &d->key_opacity_logits[j * K];
-        const Real o = sigmoid_t(O[ks.i] + s * (O[i1] - O[ks.i]));
+        const Real o = sigmoid(O[ks.i] + s * (O[i1] - O[ks.i]));
         const Real gx = gf.opacities[g] * o * (Real(1) - o);
         dO[ks.i] += (Real(1) - s) * gx;
         dO[i1] += s * gx;

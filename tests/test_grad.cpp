@@ -88,16 +88,13 @@ void require_close(const std::vector<double>& analytic, const std::vector<double
   for (double v : fd) scale = std::max(scale, std::abs(v));
   INFO(what << ": largest |gradient| " << scale);
   REQUIRE(scale > 0.0);
-  size_t compared = 0;
   for (size_t i = 0; i < fd.size(); ++i) {
     const double err = std::abs(analytic[i] - fd[i]);
     INFO(what << "[" << i << "] analytic " << analytic[i] << " finite difference " << fd[i]);
     // Relative error <= 1e-3, with a floor of 1e-7 of the group's largest entry for
     // entries that are (numerically) zero.
     CHECK(err <= 1e-3 * std::max(std::abs(fd[i]), 1e-4 * scale));
-    ++compared;
   }
-  REQUIRE(compared == fd.size());
 }
 
 }  // namespace
@@ -339,7 +336,9 @@ TEST_CASE("the differentiable forward renders what the forward rasterizer render
       double worst = 0;
       for (size_t i = 0; i < out.rgb.size(); ++i) worst = std::max(worst, double(std::abs(out.rgb[i] - ras.image()[i])));
       INFO("t " << t << " view " << v);
-      CHECK(worst < 2e-4);
+      // Measured: 0 (bit-identical) at t = 0 and 1; <= 8.9e-7 at t = 0.5, where the moving
+      // chair's means differ in the last bits (Catmull-Rom as weights vs as tangents).
+      CHECK(worst < 1e-5);
     }
   }
 }

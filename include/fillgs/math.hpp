@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <type_traits>
 
 namespace fillgs {
 
@@ -15,11 +16,12 @@ using Mat3f = Eigen::Matrix3f;
 using Mat3d = Eigen::Matrix3d;
 using Mat4d = Eigen::Matrix4d;
 
-/// Numerically stable logistic function; exact 0/1 only at float's limits.
-inline float sigmoid(float x) {
-  if (x >= 0.0f) return 1.0f / (1.0f + std::exp(-x));
-  const float e = std::exp(x);
-  return e / (1.0f + e);
+/// Numerically stable logistic function; exact 0/1 only at the type's limits.
+template <typename T, typename = std::enable_if_t<std::is_floating_point_v<T>>>
+inline T sigmoid(T x) {
+  if (x >= T(0)) return T(1) / (T(1) + std::exp(-x));
+  const T e = std::exp(x);
+  return e / (T(1) + e);
 }
 
 /// Inverse of sigmoid, clamped away from 0 and 1 so that it stays finite.

@@ -130,11 +130,12 @@ struct SplatProjection {
   bool valid = false;
 };
 
-/// Forward projection (the preprocess of raster.hpp) in scalar Real.
+/// Forward projection (the preprocess of raster.hpp); instantiated for double, the precision
+/// both rasterizers project in.
 template <typename Real>
 SplatProjection<Real> project_splat(const Real* mean, const Real* scale, const Real* rotation, const Camera& cam);
 
-/// Backward of project_splat: given dL/du, dL/dv and dL/dconic, adds dL/dmean, dL/dscale
+/// Backward of project_splat (double): given dL/du, dL/dv and dL/dconic, adds dL/dmean, dL/dscale
 /// and dL/drotation (unit quaternion) into the output arrays (3, 3, 4 values).
 template <typename Real>
 void project_splat_backward(const Real* mean, const Real* scale, const Real* rotation, const Camera& cam,

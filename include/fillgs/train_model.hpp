@@ -38,6 +38,8 @@ struct ModelParams {
   int sh_count() const { return (sh_degree + 1) * (sh_degree + 1); }
   /// Same shapes, every value zero (for gradients and Adam moments).
   ModelParams zeros_like() const;
+  /// Reshapes this to `shape`'s sizes, every value zero (keeps allocations).
+  void set_zeros_like(const ModelParams& shape);
   /// Every value array, in a fixed order, with its width per row (for generic loops).
   std::vector<std::vector<Real>*> arrays();
   std::vector<const std::vector<Real>*> arrays() const;
