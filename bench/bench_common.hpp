@@ -1,8 +1,11 @@
 #pragma once
 // Helpers shared by the benchmarks: where the shared data is, orbit cameras around a scene.
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <numeric>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -10,6 +13,9 @@
 #include "fillgs/gaussians.hpp"
 
 namespace fillgs::bench {
+
+using Clock = std::chrono::steady_clock;
+inline double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 inline std::string shared_data() {
   if (const char* e = std::getenv("FILLGS_SHARED_DATA")) return e;
@@ -44,6 +50,46 @@ inline std::vector<Camera> orbit(const GaussianCloud& c, int n, int w, int h) {
   }
   return cams;
 }
-
+/// `copies` of a cloud on a grid; every Gaussian of the first `moving` copies moves on a
+/// straight line (polynomial motion) at a speed log-uniform over [1e-5, 1] × the copy's size.
+inline GaussianCloud replicate(const GaussianCloud& base, int copies, double moving_fraction, uint64_t seed) {
+  GaussianCloud c;
+  c.sh_degree = base.sh_degree;
+  const size_t n = base.size();
+  c.resize(n * size_t(copies));
+  const auto [lo, hi] = bounding_box(base);
+  const Vec3f size = hi - lo;
+  const int side = int(std::ceil(std::cbrt(double(copies))));
+  for (int k = 0; k < copies; ++k) {
+    const Vec3f offset(1.3f * size.x() * float(k % side), 1.3f * size.y() * float((k / side) % side), 1.3f * size.z() * float(k / (side * side)));
+    for (size_t g = 0; g < n; ++g) {
+      const size_t d = size_t(k) * n + g;
+      c.means[d] = base.means[g] + offset;
+      c.log_scales[d] = base.log_scales[g];
+      c.rotations[d] = base.rotations[g];
+      c.opacity_logits[d] = base.opacity_logits[g];
+      std::copy_n(&base.sh[g * size_t(base.sh_count()) * 3], base.sh_count() * 3, &c.sh[d * size_t(c.sh_count()) * 3]);
+    }
+  }
+  const size_t m = size_t(moving_fraction * double(c.size()));
+  c.motion = MotionModel::Polynomial;
+  c.dynamic_ids.resize(m);
+  std::iota(c.dynamic_ids.begin(), c.dynamic_ids.end(), 0u);
+  PolynomialMotion& p = c.polynomial;
+  p.coeffs.assign(m * 9, 0.0f);
+  p.omega.assign(m * 4, 0.0f);
+  p.trbf_center.assign(m, 0.5f);
+  p.trbf_log_scale.assign(m, std::log(1e4f));
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  const double extent = size.norm();
+  for (size_t j = 0; j < m; ++j) {
+    const double speed = extent * std::pow(10.0, -5.0 + 5.0 * u(rng));
+    Vec3d dir(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+    dir.normalize();
+    for (int a = 0; a < 3; ++a) p.coeffs[9 * j + size_t(a)] = float(speed * dir[a]);
+  }
+  return c;
+}
 
 }  // namespace fillgs::bench

@@ -24,11 +24,9 @@
 #include "fillgs/train.hpp"
 
 using namespace fillgs;
-using Clock = std::chrono::steady_clock;
+using namespace fillgs::bench;
 
 namespace {
-
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 GaussianCloud subsample(const GaussianCloud& c, size_t n) {
   GaussianCloud s;

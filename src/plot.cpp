@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "fillgs/error.hpp"
+#include "fillgs/exploration.hpp"
 #include "fillgs/fs_util.hpp"
 
 namespace fillgs {
@@ -171,6 +172,65 @@ void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>
     text(img, s.name, cv::Point(left + 22, top + 20 + 18 * int(k)), 0.42);
   }
   frame_and_titles(img, cv::Rect(left, top, W, H), labels);
+  save(path, img);
+}
+
+
+int vertical_axis(const std::vector<Camera>& cameras) {
+  Vec3d up = Vec3d::Zero();
+  for (const Camera& c : cameras) up -= c.R.row(1).transpose();  // OpenCV y points down
+  int axis = 2;
+  up.cwiseAbs().maxCoeff(&axis);
+  return axis;
+}
+
+void write_topdown_png(const std::string& path, const ExplorationGrid& grid, const std::vector<Camera>& training,
+                       const std::vector<Camera>& virtual_cameras, const std::string& title) {
+  const int v = vertical_axis(training), a = (v + 1) % 3, b = (v + 2) % 3;
+  const Vec3i dims = grid.dims();
+  const Vec3d lo = grid.box().lo, hi = grid.box().hi;
+  const double wa = hi[a] - lo[a], wb = hi[b] - lo[b];
+  const double px = 640.0 / std::max(wa, wb);  // pixels per world unit
+  const int margin = 40, top = 34;
+  const int W = int(wa * px) + 2 * margin, H = int(wb * px) + margin + top + 24;
+  cv::Mat img(H, W, CV_8UC3, kWhite);
+  // world (a, b) → pixel: a to the right, b up
+  auto to_px = [&](const Vec3d& p) { return cv::Point2d(margin + (p[a] - lo[a]) * px, top + (hi[b] - p[b]) * px); };
+  const cv::Scalar occupied(70, 70, 70), free_col(250, 250, 250), unexplored(235, 215, 190);
+  // The horizontal slice at the training cameras' mean height (a floor would hide a projection).
+  double height = 0;
+  for (const Camera& c : training) height += c.centre()[v] / double(training.size());
+  const int layer = std::clamp(grid.voxel_of(Vec3d::Constant(height))[v], 0, dims[v] - 1);
+  for (int i = 0; i < dims[a]; ++i)
+    for (int j = 0; j < dims[b]; ++j) {
+      Vec3i ijk;
+      ijk[a] = i;
+      ijk[b] = j;
+      ijk[v] = layer;
+      const VoxelLabel l = grid.label(ijk);
+      const int best = l == VoxelLabel::Occupied ? 1 : l == VoxelLabel::Free ? 0 : 2;
+      Vec3d c0 = lo, c1 = lo;
+      c0[a] += i * wa / dims[a], c0[b] += (j + 1) * wb / dims[b];
+      c1[a] += (i + 1) * wa / dims[a], c1[b] += j * wb / dims[b];
+      cv::rectangle(img, to_px(c0), to_px(c1), best == 1 ? occupied : best == 0 ? free_col : unexplored, cv::FILLED);
+    }
+  cv::rectangle(img, to_px(lo), to_px(hi), kInk, 1);
+  const double arrow = 0.06 * std::max(wa, wb);
+  auto draw = [&](const std::vector<Camera>& cams, const cv::Scalar& colour, int radius) {
+    for (const Camera& c : cams) {
+      const Vec3d o = c.centre(), f = c.R.row(2).transpose();
+      cv::line(img, to_px(o), to_px(o + arrow * f), colour, 1, cv::LINE_AA);
+      cv::circle(img, to_px(o), radius, colour, cv::FILLED, cv::LINE_AA);
+    }
+  };
+  draw(virtual_cameras, cv::Scalar(220, 90, 20), 3);
+  draw(training, cv::Scalar(30, 30, 220), 4);
+  text(img, title, cv::Point(margin, 22), 0.55);
+  const char* axes = "xyz";
+  text(img,
+       std::string("slice ") + axes[v] + " = " + short_number(height) + " (" + axes[a] + " right, " + axes[b] +
+           " up): dark occupied, white free, beige unexplored; red training, blue virtual",
+       cv::Point(8, H - 8), 0.38);
   save(path, img);
 }
 

@@ -81,7 +81,7 @@ TEST_CASE("an empty scene renders the background", "[extremes]") {
   CHECK(r.contributors.offsets.size() == 201);
 }
 
-TEST_CASE("t = 0 and t = 1 evaluate the end keys; times outside [0, 1] clamp", "[extremes][motion]") {
+TEST_CASE("t = 0 and t = 1 evaluate the end keys and times outside [0, 1] clamp", "[extremes][motion]") {
   const SynthScene s = small_synth(5, 64, 48, 0.05);
   const GaussianCloud& c = s.scene;
   const size_t K = 5;

@@ -63,7 +63,7 @@ TEST_CASE("initial scales are the RMS distance to the 3 nearest neighbours", "[t
   REQUIRE(p.dynamic_count() == 0);
 }
 
-TEST_CASE("points from COLMAP text and PLY; an empty cloud is refused", "[train]") {
+TEST_CASE("points from COLMAP text and PLY, and an empty cloud is refused", "[train]") {
   const std::string d = scratch("points");
   {
     std::ofstream f(d + "/points3D.txt");

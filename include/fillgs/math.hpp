@@ -11,6 +11,7 @@ using Vec2f = Eigen::Vector2f;
 using Vec3f = Eigen::Vector3f;
 using Vec4f = Eigen::Vector4f;
 using Vec3d = Eigen::Vector3d;
+using Vec3i = Eigen::Vector3i;
 using Vec4d = Eigen::Vector4d;
 using Mat3f = Eigen::Matrix3f;
 using Mat3d = Eigen::Matrix3d;

@@ -22,105 +22,13 @@
 #include "fillgs/train.hpp"
 #include "fillgs/plot.hpp"
 #include "fillgs/visibility.hpp"
+#include "commands.hpp"
+#include "common.hpp"
 #include "progress_bar.hpp"
 
 namespace fillgs::cli {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-/// `--key value` / `--key=value` options and bare flags, checked against what a command knows.
-class Args {
- public:
-  Args(const std::string& command, const std::vector<std::string>& args, size_t first, const std::set<std::string>& options,
-       const std::set<std::string>& flags)
-      : command_(command) {
-    for (size_t i = first; i < args.size(); ++i) {
-      const std::string& a = args[i];
-      if (a.rfind("--", 0) != 0) {
-        positional.push_back(a);
-        continue;
-      }
-      std::string key = a.substr(2), value;
-      const size_t eq = key.find('=');
-      const bool inline_value = eq != std::string::npos;
-      if (inline_value) {
-        value = key.substr(eq + 1);
-        key = key.substr(0, eq);
-      }
-      if (flags.count(key)) {
-        flags_.insert(key);
-        continue;
-      }
-      if (!options.count(key)) throw_error("fillgs ", command, ": unknown option --", key, " (see 'fillgs help')");
-      if (!inline_value) {
-        if (i + 1 >= args.size()) throw_error("fillgs ", command, ": option --", key, " needs a value");
-        value = args[++i];
-      }
-      values_[key] = value;
-    }
-  }
-  bool flag(const std::string& k) const { return flags_.count(k) > 0; }
-  bool has(const std::string& k) const { return values_.count(k) > 0; }
-  std::string get(const std::string& k, const std::string& def = "") const {
-    auto it = values_.find(k);
-    return it == values_.end() ? def : it->second;
-  }
-  std::string require(const std::string& k) const {
-    if (!has(k)) throw_error("fillgs ", command_, ": missing --", k);
-    return get(k);
-  }
-  double number(const std::string& k, double def) const {
-    if (!has(k)) return def;
-    const std::string v = get(k);
-    char* end = nullptr;
-    const double x = std::strtod(v.c_str(), &end);
-    if (end == v.c_str() || *end != '\0' || !std::isfinite(x)) throw_error("fillgs ", command_, ": --", k, " expects a number, got '", v, "'");
-    return x;
-  }
-  int integer(const std::string& k, int def) const {
-    const double x = number(k, def);
-    if (x != std::floor(x) || std::fabs(x) > 1e9) throw_error("fillgs ", command_, ": --", k, " expects an integer");
-    return int(x);
-  }
-  std::vector<std::string> positional;
-
- private:
-  std::string command_;
-  std::map<std::string, std::string> values_;
-  std::set<std::string> flags_;
-};
-
-const std::set<std::string> kSceneOptions = {"scene-format", "duration", "stg-duration", "stg-color", "static-threshold"};
-const std::set<std::string> kCameraOptions = {"camera-format", "width", "height", "llff-downscale"};
-
-std::set<std::string> merge(std::set<std::string> a, const std::set<std::string>& b) {
-  a.insert(b.begin(), b.end());
-  return a;
-}
-
-SceneReadOptions scene_options(const Args& a) {
-  SceneReadOptions o;
-  o.format = parse_scene_format(a.get("scene-format", "auto"));
-  o.ex4dgs_duration = a.integer("duration", 0);
-  o.stg_duration = a.integer("stg-duration", 50);
-  o.stg_color_activation = a.get("stg-color", "auto");
-  o.partition.static_speed_threshold = float(a.number("static-threshold", o.partition.static_speed_threshold));
-  return o;
-}
-
-CameraReadOptions camera_options(const Args& a) {
-  CameraReadOptions o;
-  o.format = parse_camera_format(a.get("camera-format", "auto"));
-  o.width = a.integer("width", 0);
-  o.height = a.integer("height", 0);
-  o.llff_downscale = a.number("llff-downscale", 1.0);
-  return o;
-}
-
-bool progress_enabled(const Args& a) { return !a.flag("quiet") && ::isatty(2); }
 
 // ------------------------------------------------------------------ info
 
@@ -296,43 +204,6 @@ int cmd_cameras(const std::vector<std::string>& args, std::ostream& out, std::os
 
 // ------------------------------------------------------------------ observe
 
-/// The time grid: --times list, or --frames F, or what the scene or the cameras imply.
-std::vector<double> observe_times(const Args& a, const GaussianCloud& cloud, const std::vector<Camera>& cams, double* frame_step) {
-  int frames = a.integer("frames", 0);
-  if (a.has("frames") && frames < 2) throw_error("fillgs observe: --frames must be at least 2 (got ", frames, ")");
-  if (!frames && cloud.motion == MotionModel::Keyframed && cloud.keyframed.first_key_time == 0.0 && cloud.keyframed.key_count >= 2 &&
-      std::fabs(cloud.keyframed.key_spacing * (cloud.keyframed.key_count - 1) - 1.0) < 1e-6)
-    frames = cloud.keyframed.key_count;  // one key per frame
-  if (!frames) {
-    std::set<long long> distinct;
-    for (const Camera& c : cams)
-      if (c.has_time()) distinct.insert(std::llround(c.time * 1e6));
-    if (distinct.size() >= 2) frames = int(distinct.size());
-  }
-  if (a.has("times")) {
-    std::vector<double> times;
-    std::istringstream in(a.get("times"));
-    std::string tok;
-    while (std::getline(in, tok, ',')) {
-      char* end = nullptr;
-      const double t = std::strtod(tok.c_str(), &end);
-      if (end == tok.c_str() || *end != '\0' || !(t >= 0.0 && t <= 1.0))
-        throw_error("fillgs observe: --times expects comma-separated times in [0, 1], got '", tok, "'");
-      times.push_back(t);
-    }
-    std::sort(times.begin(), times.end());
-    times.erase(std::unique(times.begin(), times.end()), times.end());
-    if (times.empty()) throw_error("fillgs observe: --times is empty");
-    if (!frames) throw_error("fillgs observe: give --frames F with --times (the speed's Δt is one frame, 1/(F-1))");
-    *frame_step = 1.0 / (frames - 1);
-    return times;
-  }
-  if (!frames)
-    throw_error("fillgs observe: cannot tell the frame count from the scene or the cameras; give --frames F");
-  *frame_step = 1.0 / (frames - 1);
-  return frame_times(frames);
-}
-
 int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("observe", args, 1,
          merge(merge({"scene", "cameras", "frames", "times", "mode", "stride", "threads", "out", "tau", "motion-tables"}, kSceneOptions),
@@ -372,15 +243,6 @@ int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::os
 }
 
 // ------------------------------------------------------------------ train
-
-std::vector<std::string> split_commas(const std::string& s) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ','))
-    if (!item.empty()) out.push_back(item);
-  return out;
-}
 
 int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("train", args, 1,
@@ -500,8 +362,19 @@ int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   out << "fillgs run: observation tables (raytraced, stride 4) written to " << join_path(dir, "observe") << " in " << seconds_since(t1)
       << " s; deficiency peaks at frame "
       << std::max_element(r.deficiency_per_frame.begin(), r.deficiency_per_frame.end()) - r.deficiency_per_frame.begin() << "\n"
-      << "fillgs run: stages implemented so far: synth, render, observe. Not yet implemented: select, refine,\n"
-      << "            finetune, eval (tracked as open issues); this command grows with them.\n";
+      << "\n";
+
+  // Viewpoint-time selection with the FillGS strategy on the scene itself (a small budget).
+  const std::string scene_dir = join_path(dir, "scene");
+  std::vector<std::string> sel = {"select", "--scene", join_path(scene_dir, "scene.ply"), "--cameras",
+                                  join_path(scene_dir, "transforms_train.json"), "--images", scene_dir, "--out", join_path(dir, "select"),
+                                  "--trajectories", "5", "--time-stride", "3", "--threads", std::to_string(threads)};
+  if (a.flag("quiet")) sel.push_back("--quiet");
+  out << "fillgs run: ";
+  if (const int rc = cmd_select(sel, out, err)) return rc;
+  out << "fillgs run: stages implemented so far: synth, render, observe, explore, select (see " << join_path(dir, "select")
+      << "/trajectories.png and priority_heatmap.png).\n"
+      << "            Not yet implemented: refine, finetune, eval (tracked as open issues); this command grows with them.\n";
   return 0;
 }
 
@@ -522,6 +395,15 @@ void print_help(std::ostream& out) {
          "         [--resume CKPT] [--checkpoint-every N] [--seed n] [--key-interval F] [--max-gaussians N]\n"
          "         [--sh-degree D] [--test-cameras C --test-images DIR] [--static-only] [--background r,g,b]\n"
          "                                            train a 4D Gaussian model from multi-view video\n"
+         "  explore --scene S --cameras C --out DIR   the exploration grid: exploration.vdb, exploration.png\n"
+         "         [--divisions n] [--occupancy-alpha a] [--frames F]\n"
+         "  select --scene S --cameras C --out DIR [--images DIR] [--strategy NAME] [--trajectories K] [--seed n]\n"
+         "         [--views n] [--patch-frames n] [--time-stride k] [--render-scale s] [--renderer raytraced|raster]\n"
+         "         [--stride s] [--global-candidates n] [--grid exploration.vdb | --divisions n] [--mode frustum|raytraced|exact]\n"
+         "         [--no-start-selection] [--no-error-term] [--no-sensitivity-term] [--no-candidate-scoring]\n"
+         "         [--no-global] [--count-only | --speed-only] [--no-renders]\n"
+         "                                            viewpoint-time selection; strategies: fillgs random negative\n"
+         "                                            interpolation fisherrf coverage3d coverage4d\n"
          "  run [--out DIR]                           the pipeline on the built-in scene\n\n"
          "scene options:  --scene-format auto|3dgs|stg|ex4dgs|fillgs --duration F (Ex4DGS) --stg-duration F\n"
          "                --stg-color auto|sigmoid|clamp|none --static-threshold v\n"
@@ -547,6 +429,8 @@ int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     if (cmd == "observe") return cmd_observe(args, out, err);
     if (cmd == "run") return cmd_run(args, out, err);
     if (cmd == "train") return cmd_train(args, out, err);
+    if (cmd == "explore") return cmd_explore(args, out, err);
+    if (cmd == "select") return cmd_select(args, out, err);
     if (cmd == "--version") {
       out << "fillgs 0.1.0\n";
       return 0;

@@ -1,0 +1,187 @@
+#pragma once
+// Viewpoint-time selection (METHOD.md §2, §3, §8): the FillGS strategy and the baselines
+// the paper compares against, behind one interface.
+//
+// Inputs: a 4D scene, its observed viewpoints (training cameras, each at a frame time),
+// optionally their images (for the error term L), and the exploration grid. Output:
+// trajectories, each a start viewpoint (an observed camera at a frame), `views` virtual
+// poses found at that frame, and the consecutive frames a refiner patch spans
+// (METHOD.md §6): every pose is a virtual view at every patch frame.
+//
+// FillGS, in order:
+//  1. exploration priority E(v) = L(v) + V(v) over observed viewpoints (every
+//     `time_stride`-th frame), highest first; each viewpoint starts at most one trajectory;
+//  2. from the current viewpoint, 12 local candidates (± step along right/up/forward,
+//     ±10° about right and up, half-way to each of the two nearest training cameras at
+//     that time) and, at the first step, 12 global ones (free voxels of the box spanned by
+//     the start and its two nearest observed viewpoints, grown by views × step; viewing
+//     direction slerped between those two by distance). Candidates outside free space
+//     (centre not free, or a blocked straight path from the current pose) are dropped;
+//  3. score = mean of the rendered normalised deficiency D̂ = min(1, D / D_99%); the best
+//     local candidate extends the trajectory, a winning global candidate ends the search:
+//     the trajectory becomes the interpolation from the training camera nearest to it;
+//  4. every virtual view then counts as an observation: C += 1 where it sees, D = s/(1+C)
+//     recomputed, so the next trajectory goes to the next gap.
+#include <cstdint>
+#include <functional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "fillgs/camera.hpp"
+#include "fillgs/exploration.hpp"
+#include "fillgs/gaussians.hpp"
+#include "fillgs/progress.hpp"
+#include "fillgs/visibility.hpp"
+
+namespace fillgs {
+
+enum class Strategy { FillGS, Random, Negative, Interpolation, FisherRF, Coverage3D, Coverage4D };
+const char* to_string(Strategy s);
+/// fillgs | random | negative | interpolation | fisherrf | coverage3d | coverage4d.
+Strategy parse_strategy(const std::string& name);
+
+/// What a candidate's rendered map holds per Gaussian (the paper's score and its ablations).
+enum class CandidateScore { Deficiency, CountOnly, SpeedOnly };
+/// How candidate maps are rendered: rays through the Embree proxies every `stride`
+/// pixels, or the rasterizer at full resolution.
+enum class MapRenderer { Raytraced, Raster };
+const char* to_string(MapRenderer r);
+MapRenderer parse_map_renderer(const std::string& name);
+
+struct SelectOptions {
+  Strategy strategy = Strategy::FillGS;
+  int trajectories = 20;         ///< budget
+  int views = 3;                 ///< virtual poses per trajectory (the refiner patch takes 3)
+  int patch_frames = 3;          ///< consecutive frames each pose is rendered at (centred on the start's)
+  uint64_t seed = 1;
+  int threads = 0;
+
+  // starting viewpoints (§2)
+  int time_stride = 1;           ///< priority on every k-th frame only (long videos)
+  double render_scale = 0.5;     ///< V and Fisher renders at this fraction of the resolution (L is always full)
+  // candidates (§3)
+  int global_candidates = 12;
+  double rotation_step_degrees = 10.0;
+  MapRenderer renderer = MapRenderer::Raster;  // measured faster than rays at equal accuracy (bench select)
+  int stride = 4;                ///< ray stride of the candidate maps
+  float deficiency_quantile = 0.99f;  ///< D̂ = min(1, D / this quantile of D > 0)
+  VisibilityOptions visibility;  ///< counts C and their updates (frustum = the 3DGS rule, the paper's)
+
+  // ablations (the paper's tables)
+  bool no_start_selection = false;   ///< random starting viewpoints
+  bool no_error_term = false;        ///< E = V
+  bool no_sensitivity_term = false;  ///< E = L
+  bool no_candidate_scoring = false; ///< a random candidate
+  bool no_global = false;            ///< local candidates only
+  CandidateScore score = CandidateScore::Deficiency;
+
+  float fisher_lambda = 1e-6f;       ///< fisherrf: Σ H_cand / (H_train + λ)
+};
+
+/// One observed viewpoint: a training camera at a frame.
+struct ObservedView {
+  Camera camera;        ///< with time = frame time
+  int frame = 0;
+  uint32_t pose = 0;    ///< distinct pose (rig camera) it belongs to
+};
+
+/// The observed viewpoints of a camera list: timed cameras are assigned to their nearest
+/// frame; cameras without a time are a rig seen at every frame (input order kept, a rig
+/// camera's frames consecutively).
+std::vector<ObservedView> observed_views(const std::vector<Camera>& cameras, int frames);
+
+struct PriorityScores;
+
+struct SelectInput {
+  const GaussianCloud* scene = nullptr;
+  std::vector<ObservedView> views;
+  int frames = 1;
+  /// Image of views[i] as float RGB [H][W][3] at the camera's resolution; empty function:
+  /// no images (the error term L is then 0 and says so).
+  std::function<std::vector<float>(size_t)> image;
+  Vec3f background = Vec3f::Zero();
+  const ExplorationGrid* grid = nullptr;
+  /// Exploration priority computed before (it depends on the model and the views only, not
+  /// on C or D): reused instead of recomputed, e.g. across ablation runs. Must come from
+  /// exploration_priority on the same views with the same error/sensitivity flags.
+  const PriorityScores* priority = nullptr;
+};
+
+/// Exploration priority of the evaluated observed viewpoints (§2).
+struct PriorityScores {
+  std::vector<uint32_t> views;        ///< indices into SelectInput::views that were evaluated
+  std::vector<double> error;          ///< L (mean 1)
+  std::vector<double> translation, rotation, time;  ///< normalised groups (means 3/7, 3/7, 1/7)
+  std::vector<double> raw_error;      ///< mean squared error per pixel and channel
+  std::vector<double> priority;       ///< E = L + V (ablations drop terms)
+  double seconds = 0;
+};
+
+struct Trajectory {
+  int index = 0;
+  int start_view = -1;     ///< index into SelectInput::views
+  int frame = 0;           ///< frame the poses were chosen at
+  bool global = false;     ///< a global candidate won: interpolation from the nearest training camera
+  std::vector<Camera> poses;     ///< virtual poses (time = the frame's)
+  std::vector<double> scores;    ///< score of each pose when it was chosen (strategy's own score)
+  std::vector<int> patch_frames; ///< consecutive frames, the trajectory's frame among them
+  std::vector<double> patch_times;
+  /// Every pose at every patch frame (pose-major), named "traj<k>_v<j>_f<frame>".
+  std::vector<Camera> views() const;
+};
+
+struct SelectTimings {
+  double observe = 0, priority = 0, candidates = 0, scoring = 0, update = 0, total = 0;
+  size_t candidates_scored = 0, candidates_rejected = 0;
+};
+
+struct SelectResult {
+  std::vector<Trajectory> trajectories;
+  PriorityScores priority;       ///< filled by strategies that use it
+  SelectTimings timings;
+  float deficiency_scale = 1;    ///< D_99% of the initial tables
+  ObservationTables initial_tables;  ///< C, s, D before any trajectory was added
+  std::vector<std::string> notes;
+};
+
+/// Runs a strategy. Deterministic for a given seed, whatever the thread count.
+SelectResult select_viewpoints(const SelectInput& input, const SelectOptions& options, Progress& progress = null_progress());
+
+/// §2 alone, for the given observed viewpoints (used by select_viewpoints and tests).
+PriorityScores exploration_priority(const SelectInput& input, const SelectOptions& options, Progress& progress = null_progress());
+
+/// §3's 12 local candidates of a viewpoint, unfiltered, in the order: +right, −right, +up,
+/// −up, +forward, −forward (translations by `step`), +pitch, −pitch (about right), +yaw,
+/// −yaw (about up), then half-way to the nearest and second nearest of `training` (by
+/// centre distance, ignoring cameras at the same centre).
+std::vector<Camera> local_candidates(const Camera& current, const std::vector<Camera>& training, double step, double rotation_degrees);
+
+/// §3's global candidates: `count` points drawn among the free voxels of the box spanned by
+/// `start` and its two nearest cameras in `training` (ignoring any at its centre), grown by
+/// `grow` on every side; each looks in the direction slerped between those two cameras by
+/// distance (all the way to a's when at a). Intrinsics of `start`.
+std::vector<Camera> global_candidates(const Camera& start, const std::vector<Camera>& training, const ExplorationGrid& grid, int count,
+                                      double grow, std::mt19937_64& rng);
+
+/// Camera half-way (or at fraction s) between a and b: centre lerped, rotation slerped.
+Camera interpolate_camera(const Camera& a, const Camera& b, double s);
+
+/// Per-Gaussian values whose rendering scores a candidate at frame f (D̂, 1/(1+C) or ŝ).
+class DeficiencyField {
+ public:
+  DeficiencyField(ObservationTables tables, float quantile);
+  const ObservationTables& tables() const { return tables_; }
+  float scale() const { return scale_; }
+  /// D̂ (or the ablation's value) for all N Gaussians at frame f.
+  std::vector<float> values(int frame, CandidateScore score) const;
+  /// Counts one more observation of `visible` at frame f and updates D there.
+  void observe(int frame, const std::vector<uint32_t>& visible);
+
+ private:
+  ObservationTables tables_;
+  std::vector<int32_t> dynamic_index_;
+  float scale_ = 1, speed_scale_ = 1;
+};
+
+}  // namespace fillgs

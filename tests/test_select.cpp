@@ -1,0 +1,372 @@
+// Viewpoint-time selection: priority on the synthetic chair/shelf scene, candidate
+// geometry, observation updates, baselines, determinism, the command line.
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+#include <set>
+#include <sstream>
+
+#include "fillgs/cli.hpp"
+#include "fillgs/fs_util.hpp"
+#include "fillgs/camera.hpp"
+#include "fillgs/exploration.hpp"
+#include "fillgs/raster.hpp"
+#include "fillgs/select.hpp"
+#include "fillgs/visibility.hpp"
+#include "helpers.hpp"
+
+using namespace fillgs;
+using namespace fillgs::test;
+
+namespace {
+
+constexpr int kFrames = 10;  // t = f / 9: frames 2..7 lie in [0.2, 0.8]
+
+/// The chair/shelf scene at test size, its training views, images (8-bit like files) and grid.
+struct Fixture {
+  SynthScene synth = small_synth(kFrames, 80, 60, 0.04);
+  std::vector<ObservedView> views;
+  std::vector<std::vector<float>> images;
+  ExplorationGrid grid;
+  Fixture() {
+    views = observed_views(cameras_over_time(synth.train, kFrames), kFrames);
+    FrameEvaluator ev(synth.scene);
+    for (const ObservedView& v : views) {
+      std::vector<float> rgb = render(ev.evaluate(v.camera.time), v.camera).rgb;
+      for (float& x : rgb) x = std::round(std::clamp(x, 0.0f, 1.0f) * 255.0f) / 255.0f;
+      images.push_back(std::move(rgb));
+    }
+    std::vector<Camera> cams;
+    for (const ObservedView& v : views) cams.push_back(v.camera);
+    grid = ExplorationGrid::build(synth.scene, cams, {});
+  }
+  SelectInput input() const {
+    SelectInput in;
+    in.scene = &synth.scene;
+    in.views = views;
+    in.frames = kFrames;
+    in.image = [this](size_t i) { return images[i]; };
+    in.grid = &grid;
+    return in;
+  }
+};
+
+const Fixture& fixture() {
+  static const Fixture f;
+  return f;
+}
+
+SelectOptions small_options(Strategy s, int trajectories = 4) {
+  SelectOptions o;
+  o.strategy = s;
+  o.trajectories = trajectories;
+  o.render_scale = 1.0;
+  o.stride = 2;
+  return o;
+}
+
+/// Chair Gaussians a camera sees (occlusion-aware) at time t.
+size_t chair_seen(const Camera& cam, double t) {
+  const Fixture& fx = fixture();
+  VisibilityOptions vo;
+  vo.mode = VisibilityMode::Exact;
+  VisibilityEngine e(fx.synth.scene, vo);
+  e.set_time(t);
+  const std::vector<uint32_t> vis = e.visible_set(cam);
+  size_t n = 0;
+  for (uint32_t g : fx.synth.chair_ids) n += std::binary_search(vis.begin(), vis.end(), g);
+  return n;
+}
+
+bool chair_moving(double t) {
+  const SynthOptions& o = fixture().synth.options;
+  return t > o.move_start && t < o.move_end;
+}
+
+bool same_cameras(const std::vector<Trajectory>& a, const std::vector<Trajectory>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t k = 0; k < a.size(); ++k) {
+    if (a[k].frame != b[k].frame || a[k].poses.size() != b[k].poses.size() || a[k].scores != b[k].scores) return false;
+    for (size_t j = 0; j < a[k].poses.size(); ++j)
+      if (a[k].poses[j].R != b[k].poses[j].R || a[k].poses[j].t != b[k].poses[j].t) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST_CASE("priority: the highest viewpoints see the chair move, the lowest do not", "[select]") {
+  const Fixture& fx = fixture();
+  SelectOptions o = small_options(Strategy::FillGS);
+  const SelectInput in = fx.input();
+  const PriorityScores p = exploration_priority(in, o);
+  REQUIRE(p.views.size() == fx.views.size());
+  std::vector<size_t> order(p.views.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return p.priority[a] > p.priority[b]; });
+  int top_moving_chair = 0;
+  for (size_t r = 0; r < 10; ++r) {
+    const ObservedView& v = fx.views[p.views[order[r]]];
+    const bool ok = v.camera.time >= 0.2 && v.camera.time <= 0.8 && chair_seen(v.camera, v.camera.time) > 0;
+    INFO("rank " << r << ": " << v.camera.name << " t=" << v.camera.time << " E=" << p.priority[order[r]]);
+    top_moving_chair += ok;
+  }
+  CHECK(top_moving_chair >= 8);
+  for (size_t r = order.size() - 10; r < order.size(); ++r) {
+    const ObservedView& v = fx.views[p.views[order[r]]];
+    INFO(v.camera.name << " t=" << v.camera.time);
+    CHECK_FALSE((chair_moving(v.camera.time) && chair_seen(v.camera, v.camera.time) > 0));
+  }
+  // Normalisation (METHOD.md §2): L averages 1, the groups 3/7, 3/7 and 1/7.
+  auto mean = [](const std::vector<double>& x) { return std::accumulate(x.begin(), x.end(), 0.0) / double(x.size()); };
+  CHECK(mean(p.error) == Approx(1.0).epsilon(1e-9));
+  CHECK(mean(p.translation) == Approx(3.0 / 7.0).epsilon(1e-9));
+  CHECK(mean(p.rotation) == Approx(3.0 / 7.0).epsilon(1e-9));
+  CHECK(mean(p.time) == Approx(1.0 / 7.0).epsilon(1e-9));
+}
+
+TEST_CASE("priority: the time-subsampling knob evaluates every k-th frame only", "[select]") {
+  SelectOptions o = small_options(Strategy::FillGS);
+  o.time_stride = 3;
+  const PriorityScores p = exploration_priority(fixture().input(), o);
+  std::set<int> frames;
+  for (uint32_t v : p.views) frames.insert(fixture().views[v].frame);
+  CHECK(frames == std::set<int>{0, 3, 6, 9});
+  CHECK(p.views.size() == 4 * fixture().synth.train.size());
+}
+
+TEST_CASE("candidates: the 12 local poses are METHOD.md's steps and angles", "[select]") {
+  const Fixture& fx = fixture();
+  const Camera cur = fx.synth.train[3];
+  const double step = 0.37;
+  const std::vector<Camera> c = local_candidates(cur, fx.synth.train, step, 10.0);
+  REQUIRE(c.size() == 12);
+  const Vec3d o = cur.centre();
+  for (int k = 0; k < 6; ++k) {  // ± right, up (camera y), forward
+    const Vec3d axis = cur.R.row(k / 2).transpose();
+    CHECK((c[size_t(k)].centre() - (o + (k % 2 ? -step : step) * axis)).norm() < 1e-12);
+    CHECK((c[size_t(k)].R - cur.R).norm() < 1e-12);
+  }
+  for (int k = 6; k < 10; ++k) {  // ±10° about the camera's right, then up axis; centre kept
+    CHECK((c[size_t(k)].centre() - o).norm() < 1e-9);
+    const Mat3d rel = c[size_t(k)].R * cur.R.transpose();  // rotation in camera coordinates
+    const Eigen::AngleAxisd aa(rel);
+    CHECK(aa.angle() * 180.0 / kPi == Approx(10.0).epsilon(1e-9));
+    const int axis = (k - 6) / 2;
+    CHECK(std::fabs(aa.axis()[axis]) == Approx(1.0).epsilon(1e-9));
+  }
+  // Half-way to the two nearest training cameras: the ring neighbours 2 and 4 (22.5° apart).
+  std::set<std::string> toward;
+  for (int k = 10; k < 12; ++k) {
+    bool found = false;
+    for (int n : {2, 4}) {
+      const Camera& t = fx.synth.train[size_t(n)];
+      if ((c[size_t(k)].centre() - 0.5 * (o + t.centre())).norm() < 1e-9) {
+        found = true;
+        toward.insert(t.name);
+        const double half = Eigen::AngleAxisd(cur.R * t.R.transpose()).angle() / 2;
+        CHECK(Eigen::AngleAxisd(c[size_t(k)].R * cur.R.transpose()).angle() == Approx(half).epsilon(1e-9));
+      }
+    }
+    CHECK(found);
+  }
+  CHECK(toward.size() == 2);
+}
+
+TEST_CASE("candidates: global candidates lie in free voxels of the grown box and look between the neighbours", "[select]") {
+  const Fixture& fx = fixture();
+  const Camera start = fx.synth.train[5];
+  const double grow = 3 * fx.grid.step();
+  std::mt19937_64 rng(11);
+  const std::vector<Camera> g = global_candidates(start, fx.synth.train, fx.grid, 12, grow, rng);
+  REQUIRE(g.size() == 12);
+  Box3 box{start.centre(), start.centre()};
+  box.extend(fx.synth.train[4].centre());
+  box.extend(fx.synth.train[6].centre());
+  const Vec3d pad = Vec3d::Constant(grow) + 0.5 * fx.grid.voxel_size();  // a voxel whose centre is inside
+  for (const Camera& c : g) {
+    CHECK(fx.grid.is_free(c.centre()));
+    CHECK(((c.centre() - box.lo).array() >= -pad.array()).all());
+    CHECK(((c.centre() - box.hi).array() <= pad.array()).all());
+    // Its rotation lies on the geodesic between the neighbours' rotations.
+    const Mat3d& ra = fx.synth.train[4].R;
+    const Mat3d& rb = fx.synth.train[6].R;
+    auto angle = [](const Mat3d& x, const Mat3d& y) { return Eigen::AngleAxisd(x * y.transpose()).angle(); };
+    CHECK(angle(ra, c.R) + angle(c.R, rb) == Approx(angle(ra, rb)).margin(1e-9));
+  }
+}
+
+TEST_CASE("selection: D falls where a trajectory looked and the next trajectory starts elsewhere", "[select]") {
+  const Fixture& fx = fixture();
+  SelectOptions o = small_options(Strategy::FillGS, 2);
+  const SelectResult r = select_viewpoints(fx.input(), o);
+  REQUIRE(r.trajectories.size() == 2);
+  const Trajectory& t0 = r.trajectories[0];
+  CHECK(t0.poses.size() == 3);
+  CHECK(t0.patch_frames.size() == 3);
+  // Independent replay: D̂ of its views before and after counting them as observations.
+  DeficiencyField field(r.initial_tables, o.deficiency_quantile);
+  VisibilityEngine e(fx.synth.scene, o.visibility);
+  FrameEvaluator ev(fx.synth.scene);
+  auto mean_d = [&](const std::vector<Camera>& views) {
+    double s = 0;
+    for (const Camera& v : views) {
+      const int f = int(std::lround(v.time * (kFrames - 1)));
+      const std::vector<float> d = field.values(f, CandidateScore::Deficiency);
+      RenderOptions ro;
+      ro.rgb = false;
+      ro.features = d.data();
+      ro.feature_channels = 1;
+      const RenderOutput img = render(ev.evaluate(v.time), v, ro);
+      s += std::accumulate(img.features.begin(), img.features.end(), 0.0) / double(img.features.size());
+    }
+    return s / double(views.size());
+  };
+  const double before = mean_d(t0.views());
+  for (const Camera& v : t0.views()) {
+    e.set_time(v.time);
+    field.observe(int(std::lround(v.time * (kFrames - 1))), e.visible_set(v));
+  }
+  const double after = mean_d(t0.views());
+  INFO("mean D̂ of trajectory 0's views: before " << before << ", after " << after);
+  CHECK(before > 0.0);
+  CHECK(after < 0.9 * before);
+  const Trajectory& t1 = r.trajectories[1];
+  CHECK((t1.frame != t0.frame || (t1.poses[0].centre() - t0.poses[0].centre()).norm() > 1e-6 ||
+         (t1.poses[0].R - t0.poses[0].R).norm() > 1e-9));
+  CHECK(t1.start_view != t0.start_view);
+}
+
+TEST_CASE("selection: fillgs looks at the moving chair, negative avoids it", "[select]") {
+  const Fixture& fx = fixture();
+  auto chair_views = [&](Strategy s) {
+    const SelectResult r = select_viewpoints(fx.input(), small_options(s, 4));
+    REQUIRE(r.trajectories.size() == 4);
+    size_t seeing = 0, total = 0;
+    for (const Trajectory& t : r.trajectories)
+      for (const Camera& c : t.poses) {
+        seeing += chair_moving(c.time) && chair_seen(c, c.time) > 0;
+        ++total;
+      }
+    return std::make_pair(seeing, total);
+  };
+  const auto fill = chair_views(Strategy::FillGS);
+  const auto neg = chair_views(Strategy::Negative);
+  CHECK(fill.first == fill.second);
+  CHECK(neg.first == 0);
+}
+
+TEST_CASE("selection: every strategy returns free, deterministic trajectories whatever the thread count", "[select]") {
+  const Fixture& fx = fixture();
+  for (Strategy s : {Strategy::FillGS, Strategy::Random, Strategy::Negative, Strategy::Interpolation, Strategy::FisherRF,
+                     Strategy::Coverage3D, Strategy::Coverage4D}) {
+    INFO("strategy " << to_string(s));
+    SelectOptions o = small_options(s, 2);
+    o.time_stride = 3;  // priority on 4 of the 10 frames: the same code, a quarter of the renders
+    o.threads = 1;
+    o.visibility.threads = 1;
+    const SelectResult a = select_viewpoints(fx.input(), o);
+    o.threads = 2;
+    o.visibility.threads = 2;
+    const SelectResult b = select_viewpoints(fx.input(), o);
+    CHECK(a.trajectories.size() == 2);
+    CHECK(same_cameras(a.trajectories, b.trajectories));
+    o.seed = 99;
+    const SelectResult c = select_viewpoints(fx.input(), o);
+    if (s == Strategy::Random || s == Strategy::Interpolation) CHECK_FALSE(same_cameras(a.trajectories, c.trajectories));
+    for (const Trajectory& t : a.trajectories) {
+      CHECK(t.start_view >= 0);
+      for (const Camera& p : t.poses) CHECK(fx.grid.is_free(p.centre()));
+      for (double sc : t.scores) CHECK(std::isfinite(sc));
+    }
+  }
+}
+
+TEST_CASE("selection: interpolation poses lie between neighbouring training cameras", "[select]") {
+  const Fixture& fx = fixture();
+  const SelectResult r = select_viewpoints(fx.input(), small_options(Strategy::Interpolation, 6));
+  for (const Trajectory& t : r.trajectories) {
+    const Vec3d a = fx.views[size_t(t.start_view)].camera.centre();
+    // The other end: the pose after the last is as far again as the spacing.
+    const Vec3d d = t.poses[1].centre() - t.poses[0].centre();
+    const Vec3d b = t.poses[2].centre() + d;
+    CHECK((t.poses[0].centre() - (a + d)).norm() < 1e-9);
+    // b is a training camera 22.5° along the ring (a neighbour).
+    double nearest = 1e9;
+    for (const Camera& c : fx.synth.train) nearest = std::min(nearest, (c.centre() - b).norm());
+    CHECK(nearest < 1e-9);
+    CHECK((b - a).norm() == Approx(2 * 3.2 * std::sin(22.5 / 2 * kPi / 180)).epsilon(1e-6));
+  }
+}
+
+TEST_CASE("selection: a scene with no motion selects without NaN and says D is zero", "[select]") {
+  const Fixture& fx = fixture();
+  GaussianCloud still = fx.synth.scene;
+  // Freeze every track at its first key: nothing moves.
+  const int K = still.keyframed.key_count;
+  for (size_t m = 0; m < still.dynamic_ids.size(); ++m)
+    for (int k = 1; k < K; ++k)
+      for (int c = 0; c < 3; ++c) still.keyframed.positions[(m * K + k) * 3 + c] = still.keyframed.positions[m * K * 3 + c];
+  if (!still.keyframed.rotations.empty())
+    for (size_t m = 0; m < still.dynamic_ids.size(); ++m)
+      for (int k = 1; k < K; ++k)
+        for (int c = 0; c < 4; ++c) still.keyframed.rotations[(m * K + k) * 4 + c] = still.keyframed.rotations[m * K * 4 + c];
+  partition_static_dynamic(still);
+  REQUIRE(still.dynamic_count() == 0);
+  SelectInput in = fx.input();
+  in.scene = &still;
+  SelectOptions o = small_options(Strategy::FillGS, 2);
+  o.time_stride = 3;
+  const SelectResult r = select_viewpoints(in, o);
+  CHECK(r.trajectories.size() == 2);
+  CHECK(std::find(r.notes.begin(), r.notes.end(), "the scene has no moving Gaussians: D = 0 everywhere") != r.notes.end());
+  for (const Trajectory& t : r.trajectories)
+    for (double s : t.scores) CHECK(s == 0.0);
+  for (double e : r.priority.priority) CHECK(std::isfinite(e));
+}
+
+TEST_CASE("fillgs explore and fillgs select write their outputs and bad input writes nothing", "[select][cli]") {
+  const std::string dir = scratch("select_cli");
+  const SynthScene s = small_synth(6, 48, 36, 0.05);
+  write_synthetic_scene(s, join_path(dir, "scene"), null_progress(), 2);
+  const std::string scene = join_path(dir, "scene/scene.ply"), cams = join_path(dir, "scene/transforms_train.json");
+  std::ostringstream out, err;
+  REQUIRE(cli::run({"explore", "--scene", scene, "--cameras", cams, "--out", join_path(dir, "ex"), "--divisions", "32"}, out, err) == 0);
+  CHECK(std::filesystem::exists(join_path(dir, "ex/exploration.vdb")));
+  CHECK(std::filesystem::exists(join_path(dir, "ex/exploration.png")));
+  const int rc = cli::run({"select", "--scene", scene, "--cameras", cams, "--images", join_path(dir, "scene"), "--grid",
+                           join_path(dir, "ex/exploration.vdb"), "--out", join_path(dir, "sel"), "--trajectories", "2", "--quiet"},
+                          out, err);
+  INFO(err.str());
+  REQUIRE(rc == 0);
+  std::ifstream tj(join_path(dir, "sel/trajectories.json"));
+  const nlohmann::json j = nlohmann::json::parse(tj);
+  CHECK(j["trajectories"].size() == 2);
+  CHECK(j["cameras"].size() == 2 * 3 * 3);
+  for (const auto& c : j["cameras"]) {
+    CHECK(std::filesystem::exists(join_path(dir, "sel/renders/" + c["name"].get<std::string>() + ".png")));
+    CHECK(std::filesystem::exists(join_path(dir, "sel/renders/" + c["name"].get<std::string>() + "_D.png")));
+  }
+  for (const char* f : {"transforms.json", "colmap/images.txt", "summary.json", "trajectories.png", "priority_E.npy",
+                        "priority_heatmap.png", "priority_over_time.png"})
+    CHECK(std::filesystem::exists(join_path(dir, std::string("sel/") + f)));
+  const std::vector<Camera> back = read_cameras(join_path(dir, "sel/transforms.json"));
+  CHECK(back.size() == 18);
+
+  // Bad input: one line, exit 1, no output folder.
+  std::ostringstream e2;
+  CHECK(cli::run({"select", "--scene", scene, "--cameras", cams, "--out", join_path(dir, "bad"), "--strategy", "best"}, out, e2) == 1);
+  const std::string msg = e2.str();
+  CHECK(msg.find("unknown strategy 'best'") != std::string::npos);
+  CHECK(std::count(msg.begin(), msg.end(), '\n') == 1);
+  std::ostringstream e3;
+  CHECK(cli::run({"select", "--scene", join_path(dir, "missing.ply"), "--cameras", cams, "--out", join_path(dir, "bad")}, out, e3) == 1);
+  CHECK(e3.str().find("missing.ply") != std::string::npos);
+  std::ostringstream e4;
+  CHECK(cli::run({"select", "--scene", scene, "--cameras", cams, "--grid", cams, "--out", join_path(dir, "bad")}, out, e4) == 1);
+  CHECK(e4.str().find("transforms_train.json") != std::string::npos);
+  CHECK_FALSE(std::filesystem::exists(join_path(dir, "bad")));
+}
