@@ -77,12 +77,7 @@ double mean_deficiency(const Setup& s, const SelectResult& r) {
   for (const Trajectory& t : r.trajectories)
     for (const Camera& c : t.poses) {
       const std::vector<float> d = field.values(t.frame, CandidateScore::Deficiency);
-      RenderOptions ro;
-      ro.rgb = false;
-      ro.features = d.data();
-      ro.feature_channels = 1;
-      const RenderOutput img = render(ev.evaluate(c.time), c, ro);
-      sum += std::accumulate(img.features.begin(), img.features.end(), 0.0) / double(img.features.size());
+      sum += mean_value(render_value_map(ev.evaluate(c.time), c, d.data()));
       ++n;
     }
   return n ? sum / double(n) : 0.0;
@@ -230,12 +225,7 @@ int bench_select(const std::vector<std::string>& args) {
           engine.set_time(cam.time);
           out.push_back(engine.render_maps(cam, d.data(), nullptr, stride).score());
         } else {
-          RenderOptions ro;
-          ro.rgb = false;
-          ro.features = d.data();
-          ro.feature_channels = 1;
-          const RenderOutput img = render(ev.evaluate(cam.time), cam, ro);
-          out.push_back(std::accumulate(img.features.begin(), img.features.end(), 0.0) / double(img.features.size()));
+          out.push_back(mean_value(render_value_map(ev.evaluate(cam.time), cam, d.data())));
         }
       }
       *ms = 1000.0 * since(t) / double(pool.size());

@@ -78,18 +78,33 @@ bool same_pose(const Camera& a, const Camera& b, double tol) {
   return (a.centre() - b.centre()).norm() <= tol && (a.R - b.R).cwiseAbs().maxCoeff() <= 1e-6;
 }
 
-/// Frames a patch around frame f spans: `n` consecutive frames containing f, inside [0, F).
-std::vector<int> patch_frames_around(int f, int n, int frames) {
-  n = std::min(n, frames);
-  int first = std::clamp(f - (n - 1) / 2, 0, frames - n);
-  std::vector<int> out(static_cast<size_t>(n));
+}  // namespace
+
+// ------------------------------------------------------------------ cameras
+
+std::vector<int> consecutive_frames(int frame, int count, int frames) {
+  FILLGS_CHECK(frames >= 1 && count >= 1);
+  count = std::min(count, frames);
+  const int first = std::clamp(frame - (count - 1) / 2, 0, frames - count);
+  std::vector<int> out(static_cast<size_t>(count));
   std::iota(out.begin(), out.end(), first);
   return out;
 }
 
-}  // namespace
+std::vector<float> render_value_map(const FrameGaussians& frame, const Camera& camera, const float* values, int threads) {
+  RenderOptions ro;
+  ro.rgb = false;
+  ro.features = values;
+  ro.feature_channels = 1;
+  ro.threads = threads;
+  return render(frame, camera, ro).features;
+}
 
-// ------------------------------------------------------------------ cameras
+double mean_value(const std::vector<float>& map) {
+  double sum = 0;
+  for (float x : map) sum += x;
+  return map.empty() ? 0.0 : sum / double(map.size());
+}
 
 Camera interpolate_camera(const Camera& a, const Camera& b, double s) {
   const Eigen::Quaterniond qa(a.R), qb(b.R);
@@ -262,7 +277,8 @@ PriorityScores exploration_priority(const SelectInput& in, const SelectOptions& 
       current = v.frame;
       const auto time_of = [&](int f) { return F > 1 ? double(f) / (F - 1) : 0.0; };
       // Time perturbation ±1 frame; at the ends the window moves inward (same span, 2 frames).
-      const int lo = std::clamp(v.frame - 1, 0, std::max(0, F - 3)), hi = std::min(F - 1, lo + 2);
+      const std::vector<int> window = consecutive_frames(v.frame, 3, F);
+      const int lo = window.front(), hi = window.back();
       ft = &at_t.evaluate(time_of(v.frame));
       fm = &at_minus.evaluate(time_of(lo));
       fp = &at_plus.evaluate(time_of(hi));
@@ -362,15 +378,7 @@ class Scorer {
       engine_.set_time(t);
       return engine_.render_maps(cam, values, nullptr, o_.stride).score();
     }
-    RenderOptions ro;
-    ro.rgb = false;
-    ro.features = values;
-    ro.feature_channels = 1;
-    ro.threads = o_.threads;
-    const RenderOutput r = render(eval_.evaluate(t), cam, ro);
-    double sum = 0;
-    for (float x : r.features) sum += x;
-    return r.features.empty() ? 0.0 : sum / double(r.features.size());
+    return mean_value(render_value_map(eval_.evaluate(t), cam, values, o_.threads));
   }
 
   /// Every virtual view of a trajectory becomes an observation for every strategy's state.
@@ -540,7 +548,7 @@ class Selector {
         break;
       }
       tr.index = k;
-      tr.patch_frames = patch_frames_around(tr.frame, o_.patch_frames, F);
+      tr.patch_frames = consecutive_frames(tr.frame, o_.patch_frames, F);
       for (int f : tr.patch_frames) tr.patch_times.push_back(time_of(f));
       t0 = Clock::now();
       scorer.add(tr);

@@ -138,6 +138,21 @@ TEST_CASE("priority: the time-subsampling knob evaluates every k-th frame only",
   CHECK(p.views.size() == 4 * fixture().synth.train.size());
 }
 
+TEST_CASE("patch frames and the time window stay inside [0, F) at t = 0 and t = 1", "[select][extremes]") {
+  CHECK(consecutive_frames(0, 3, 30) == std::vector<int>{0, 1, 2});
+  CHECK(consecutive_frames(29, 3, 30) == std::vector<int>{27, 28, 29});
+  CHECK(consecutive_frames(5, 3, 30) == std::vector<int>{4, 5, 6});
+  CHECK(consecutive_frames(5, 4, 30) == std::vector<int>{4, 5, 6, 7});
+  CHECK(consecutive_frames(1, 3, 2) == std::vector<int>{0, 1});
+  CHECK(consecutive_frames(0, 3, 1) == std::vector<int>{0});
+  // Trajectories chosen at the first and last frames (a rig: every frame a start).
+  const Fixture& fx = fixture();
+  for (const Trajectory& t : select_viewpoints(fx.input(), small_options(Strategy::Interpolation, 12)).trajectories) {
+    CHECK(t.patch_frames == consecutive_frames(t.frame, 3, kFrames));
+    for (size_t i = 0; i < t.patch_frames.size(); ++i) CHECK(t.patch_times[i] == double(t.patch_frames[i]) / (kFrames - 1));
+  }
+}
+
 TEST_CASE("candidates: the 12 local poses are METHOD.md's steps and angles", "[select]") {
   const Fixture& fx = fixture();
   const Camera cur = fx.synth.train[3];
@@ -216,12 +231,7 @@ TEST_CASE("selection: D falls where a trajectory looked and the next trajectory 
     for (const Camera& v : views) {
       const int f = int(std::lround(v.time * (kFrames - 1)));
       const std::vector<float> d = field.values(f, CandidateScore::Deficiency);
-      RenderOptions ro;
-      ro.rgb = false;
-      ro.features = d.data();
-      ro.feature_channels = 1;
-      const RenderOutput img = render(ev.evaluate(v.time), v, ro);
-      s += std::accumulate(img.features.begin(), img.features.end(), 0.0) / double(img.features.size());
+      s += mean_value(render_value_map(ev.evaluate(v.time), v, d.data()));
     }
     return s / double(views.size());
   };

@@ -164,6 +164,16 @@ std::vector<Camera> local_candidates(const Camera& current, const std::vector<Ca
 std::vector<Camera> global_candidates(const Camera& start, const std::vector<Camera>& training, const ExplorationGrid& grid, int count,
                                       double grow, std::mt19937_64& rng);
 
+/// `count` consecutive frames containing `frame`, centred on it where [0, frames) allows,
+/// shifted inward at the ends (all frames when there are fewer): a patch's frames, and
+/// (count 3) the window of the priority's time perturbation.
+std::vector<int> consecutive_frames(int frame, int count, int frames);
+
+/// Per-Gaussian `values` (one channel) rendered by the rasterizer into `camera`: [H][W].
+std::vector<float> render_value_map(const FrameGaussians& frame, const Camera& camera, const float* values, int threads = 0);
+/// Mean of a map (0 for an empty one): the candidate score of a D̂ map.
+double mean_value(const std::vector<float>& map);
+
 /// Camera half-way (or at fraction s) between a and b: centre lerped, rotation slerped.
 Camera interpolate_camera(const Camera& a, const Camera& b, double s);
 
