@@ -138,7 +138,7 @@ TEST_CASE("priority: the time-subsampling knob evaluates every k-th frame only",
   CHECK(p.views.size() == 4 * fixture().synth.train.size());
 }
 
-TEST_CASE("patch frames and the time window stay inside [0, F) at t = 0 and t = 1", "[select][extremes]") {
+TEST_CASE("patch frames and the time window stay inside the frame range at t = 0 and t = 1", "[select][extremes]") {
   CHECK(consecutive_frames(0, 3, 30) == std::vector<int>{0, 1, 2});
   CHECK(consecutive_frames(29, 3, 30) == std::vector<int>{27, 28, 29});
   CHECK(consecutive_frames(5, 3, 30) == std::vector<int>{4, 5, 6});
