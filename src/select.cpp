@@ -47,6 +47,15 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+/// Normalised time of frame f of F (t = f / (F − 1); 0 for a single frame).
+double frame_time(int f, int frames) { return frames > 1 ? double(f) / (frames - 1) : 0.0; }
+
+std::vector<Camera> cameras_of(const std::vector<ObservedView>& views) {
+  std::vector<Camera> c;
+  for (const ObservedView& v : views) c.push_back(v.camera);
+  return c;
+}
+
 Camera with_pose(const Camera& c, const Mat3d& R, const Vec3d& centre) {
   Camera out = c;
   out.R = R;
@@ -161,12 +170,12 @@ std::vector<ObservedView> observed_views(const std::vector<Camera>& cameras, int
   for (const Camera& c : cameras) {
     if (c.has_time()) {
       ObservedView v{c, int(std::lround(std::clamp(c.time, 0.0, 1.0) * (frames - 1))), 0};
-      v.camera.time = frames > 1 ? double(v.frame) / (frames - 1) : 0.0;
+      v.camera.time = frame_time(v.frame, frames);
       out.push_back(v);
     } else {
       for (int f = 0; f < frames; ++f) {
         ObservedView v{c, f, 0};
-        v.camera.time = frames > 1 ? double(f) / (frames - 1) : 0.0;
+        v.camera.time = frame_time(f, frames);
         out.push_back(v);
       }
     }
@@ -275,13 +284,12 @@ PriorityScores exploration_priority(const SelectInput& in, const SelectOptions& 
     const ObservedView& v = in.views[p.views[k]];
     if (v.frame != current) {
       current = v.frame;
-      const auto time_of = [&](int f) { return F > 1 ? double(f) / (F - 1) : 0.0; };
       // Time perturbation ±1 frame; at the ends the window moves inward (same span, 2 frames).
       const std::vector<int> window = consecutive_frames(v.frame, 3, F);
       const int lo = window.front(), hi = window.back();
-      ft = &at_t.evaluate(time_of(v.frame));
-      fm = &at_minus.evaluate(time_of(lo));
-      fp = &at_plus.evaluate(time_of(hi));
+      ft = &at_t.evaluate(frame_time(v.frame, F));
+      fm = &at_minus.evaluate(frame_time(lo, F));
+      fp = &at_plus.evaluate(frame_time(hi, F));
     }
     // L at full resolution: a reduced render differs from a reduced image on fine texture
     // (aliasing), which would rank texture, not error.
@@ -326,21 +334,14 @@ namespace {
 /// Scores candidates with the strategy's own measure and records what each trajectory adds.
 class Scorer {
  public:
-  Scorer(const SelectInput& in, const SelectOptions& o, DeficiencyField& field)
-      : in_(in), o_(o), field_(field), engine_(*in.scene, o.visibility), eval_(*in.scene) {
+  Scorer(const SelectInput& in, const SelectOptions& o, DeficiencyField& field, int vertical)
+      : in_(in), o_(o), field_(field), engine_(*in.scene, o.visibility), eval_(*in.scene), vertical_(vertical) {
     if (o.strategy == Strategy::FisherRF) params_ = params_from_cloud<float>(*in.scene);
     if (o.strategy == Strategy::Coverage3D || o.strategy == Strategy::Coverage4D) {
-      vertical_ = vertical_axis(cameras_of(in.views));
       const size_t sets = o.strategy == Strategy::Coverage3D ? 1 : size_t(in.frames);
       coverage_.assign(sets * in.scene->size(), 0u);
       for (const ObservedView& v : in.views) cover(v.camera, v.frame);
     }
-  }
-
-  static std::vector<Camera> cameras_of(const std::vector<ObservedView>& views) {
-    std::vector<Camera> c;
-    for (const ObservedView& v : views) c.push_back(v.camera);
-    return c;
   }
 
   /// Higher is better for every strategy (negative inverts outside).
@@ -399,7 +400,7 @@ class Scorer {
   VisibilityEngine& engine() { return engine_; }
 
  private:
-  double time_of(int f) const { return in_.frames > 1 ? double(f) / (in_.frames - 1) : 0.0; }
+  double time_of(int f) const { return frame_time(f, in_.frames); }
   int frame_of(double t) const { return int(std::lround(std::clamp(t, 0.0, 1.0) * (in_.frames - 1))); }
 
   // ---- fisherrf: Σ_pixels (∂Î/∂θ)² at the selection's render scale
@@ -471,7 +472,7 @@ class Scorer {
   DiffRasterizer<float> raster_;
   std::map<int, std::vector<double>> fisher_train_;
   // coverage
-  int vertical_ = 2;
+  int vertical_;
   std::vector<uint32_t> coverage_;
 };
 
@@ -489,17 +490,17 @@ namespace {
 class Selector {
  public:
   Selector(const SelectInput& in, const SelectOptions& o, SelectResult& result, Progress& progress)
-      : in_(in), o_(o), result_(result), progress_(progress), rng_(o.seed) {}
+      : in_(in), o_(o), result_(result), progress_(progress), rng_(o.seed), cameras_(cameras_of(in.views)),
+        vertical_(vertical_axis(cameras_)) {}
 
   void run() {
     const auto t_start = Clock::now();
     const int F = in_.frames;
     // Observation tables over every frame of the training views.
     auto t0 = Clock::now();
-    std::vector<Camera> cams = Scorer::cameras_of(in_.views);
     ObservationOptions oo;
     oo.visibility = o_.visibility;
-    ObservationTables tables = observation_tables(*in_.scene, cams, frame_times(F), F > 1 ? 1.0 / (F - 1) : 1.0, oo, nullptr, progress_);
+    ObservationTables tables = observation_tables(*in_.scene, cameras_, frame_times(F), F > 1 ? 1.0 / (F - 1) : 1.0, oo, nullptr, progress_);
     result_.initial_tables = tables;
     DeficiencyField field(std::move(tables), o_.deficiency_quantile);
     result_.deficiency_scale = field.scale();
@@ -528,7 +529,7 @@ class Selector {
       for (size_t i = starts_.size(); i > 1; --i) std::swap(starts_[i - 1], starts_[size_t(rng_() % i)]);
     }
 
-    Scorer scorer(in_, o_, field);
+    Scorer scorer(in_, o_, field, vertical_);
     scorer_ = &scorer;
     progress_.start(std::string("select (") + to_string(o_.strategy) + ")", size_t(o_.trajectories));
     size_t next_start = 0;
@@ -561,7 +562,7 @@ class Selector {
   }
 
  private:
-  double time_of(int f) const { return in_.frames > 1 ? double(f) / (in_.frames - 1) : 0.0; }
+  double time_of(int f) const { return frame_time(f, in_.frames); }
 
   /// One camera per distinct pose observing frame f.
   std::vector<Camera> training_at(int f, std::vector<uint32_t>* view_ids = nullptr) const {
@@ -667,7 +668,7 @@ class Selector {
       if (fg.opacities[g] >= 0.5f) target = fg.means[g].cast<double>();
     }
     Vec3d up = Vec3d::Zero();
-    up[vertical_axis(Scorer::cameras_of(in_.views))] = 1.0;
+    up[vertical_] = 1.0;
     const uint32_t near = nearest_view(f, p[0]);
     Camera cur = in_.views[near].camera;
     cur.look_at(p[0], target, up);
@@ -735,6 +736,8 @@ class Selector {
   std::mt19937_64 rng_;
   std::vector<uint32_t> starts_;
   std::vector<std::pair<uint32_t, uint32_t>> pairs_;
+  const std::vector<Camera> cameras_;  ///< the observed viewpoints' cameras
+  const int vertical_;                 ///< world axis closest to the cameras' up
   Scorer* scorer_ = nullptr;
 };
 

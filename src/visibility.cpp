@@ -261,6 +261,8 @@ VisibilityEngine::~VisibilityEngine() = default;
 
 void VisibilityEngine::set_time(double t) {
   Impl& m = *impl_;
+  // The same time again (callers move between candidates of one frame): nothing to refit.
+  if (std::clamp(t, 0.0, 1.0) == m.frame->time) return;
   m.arena.execute([&] {
     m.frame = &m.evaluator.evaluate(t);
     if (m.tracer) m.tracer->refit_dynamic(*m.frame);
