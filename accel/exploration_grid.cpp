@@ -184,12 +184,12 @@ ExplorationGrid ExplorationGrid::build(const GaussianCloud& scene, const std::ve
   else
     progress.advance(times.size());
 
-  // ---- unexplored: centres inside no training frustum (one test per distinct pose)
   size_t distinct = 0;
   const std::vector<uint32_t> groups = camera_pose_groups(training, &distinct);
   std::vector<const Camera*> poses(distinct, nullptr);
   for (size_t c = 0; c < training.size(); ++c)
     if (!poses[groups[c]]) poses[groups[c]] = &training[c];
+  // ---- unexplored: centres inside no training frustum (one test per distinct pose)
   tbb::parallel_for(tbb::blocked_range<int>(0, dims.z()), [&](const tbb::blocked_range<int>& r) {
     for (int kz = r.begin(); kz < r.end(); ++kz)
       for (int jy = 0; jy < dims.y(); ++jy)
@@ -209,6 +209,21 @@ ExplorationGrid ExplorationGrid::build(const GaussianCloud& scene, const std::ve
         }
   });
   progress.advance();
+
+  // ---- a training camera stood in free space: its voxel is free whatever a trained model
+  // put there (a floater or an oversized Gaussian around a camera would otherwise wall in
+  // every trajectory starting from it) and although no other camera may see it (a sparse
+  // rig's own centres lie in no frustum)
+  for (const Camera* cam : poses) {
+    const Vec3i v = grid.voxel_of(cam->centre());
+    if ((v.array() < 0).any() || (v.array() >= dims.array()).any()) continue;
+    std::atomic<uint8_t>& l = labels[flat(v.x(), v.y(), v.z())];
+    const uint8_t was = l.load(std::memory_order_relaxed);
+    if (was) {
+      stats.cleared_at_cameras += was == uint8_t(VoxelLabel::Occupied);
+      l.store(0, std::memory_order_relaxed);
+    }
+  }
 
   // ---- into OpenVDB: only the non-free voxels are stored
   auto vdb = openvdb::Int32Grid::create(0);

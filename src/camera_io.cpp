@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "fillgs/camera.hpp"
+#include "fillgs/camera_json.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/image_io.hpp"
@@ -549,6 +550,14 @@ void write_colmap_text(const std::string& dir, const std::vector<Camera>& cams) 
   write_file_atomically(join_path(dir, "cameras.txt"), cs.str());
   write_file_atomically(join_path(dir, "images.txt"), is.str());
   write_file_atomically(join_path(dir, "points3D.txt"), "# 3D point list (empty)\n");
+}
+
+nlohmann::json camera_json(const Camera& c) {
+  const Mat4d c2w = c.camera_to_world();
+  nlohmann::json m = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) m.push_back({c2w(r, 0), c2w(r, 1), c2w(r, 2), c2w(r, 3)});
+  return {{"name", c.name}, {"width", c.width}, {"height", c.height}, {"fx", c.fx}, {"fy", c.fy}, {"cx", c.cx}, {"cy", c.cy},
+          {"time", c.time}, {"camera_to_world_opencv", m}};
 }
 
 }  // namespace fillgs

@@ -234,4 +234,23 @@ void write_topdown_png(const std::string& path, const ExplorationGrid& grid, con
   save(path, img);
 }
 
+void write_side_by_side_png(const std::string& path, const std::vector<std::vector<float>>& images, int width, int height,
+                            const std::vector<std::string>& captions, int zoom) {
+  if (images.empty() || images.size() != captions.size()) throw_error("side by side: ", images.size(), " images for ", captions.size(), " captions");
+  const int cap = 22, gap = 6, W = width * zoom, H = height * zoom;
+  cv::Mat img(H + cap, int(images.size()) * (W + gap) - gap, CV_8UC3, kWhite);
+  for (size_t i = 0; i < images.size(); ++i) {
+    if (images[i].size() != size_t(width) * height * 3) throw_error("side by side: image ", i, " is not ", width, "x", height);
+    const int x0 = int(i) * (W + gap);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        const float* p = &images[i][(size_t(y / zoom) * width + size_t(x / zoom)) * 3];
+        cv::Vec3b& q = img.at<cv::Vec3b>(y + cap, x0 + x);
+        for (int c = 0; c < 3; ++c) q[2 - c] = uint8_t(std::lround(std::clamp(p[c], 0.0f, 1.0f) * 255.0f));
+      }
+    text(img, captions[i], cv::Point(x0 + 4, 16));
+  }
+  save(path, img);
+}
+
 }  // namespace fillgs

@@ -384,16 +384,19 @@ class Scorer {
 
   /// Every virtual view of a trajectory becomes an observation for every strategy's state.
   void add(const Trajectory& tr) {
-    for (const Camera& v : tr.views()) {
-      const int f = frame_of(v.time);
-      engine_.set_time(time_of(f));
-      field_.observe(f, engine_.visible_set(v));
-      if (o_.strategy == Strategy::Coverage3D || o_.strategy == Strategy::Coverage4D) cover(v, f);
-      if (o_.strategy == Strategy::FisherRF) {
-        std::vector<double>& train = fisher_train(f);
-        const FisherDiagonal h = fisher(v, f);
-        for (size_t k = 0; k < h.values.size(); ++k) train[k] += h.values[k];
-      }
+    for (const Camera& v : tr.views()) observe(v);
+  }
+
+  /// One virtual view (with its time) becomes an observation.
+  void observe(const Camera& v) {
+    const int f = frame_of(v.time);
+    engine_.set_time(time_of(f));
+    field_.observe(f, engine_.visible_set(v));
+    if (o_.strategy == Strategy::Coverage3D || o_.strategy == Strategy::Coverage4D) cover(v, f);
+    if (o_.strategy == Strategy::FisherRF) {
+      std::vector<double>& train = fisher_train(f);
+      const FisherDiagonal h = fisher(v, f);
+      for (size_t k = 0; k < h.values.size(); ++k) train[k] += h.values[k];
     }
   }
 
@@ -531,6 +534,10 @@ class Selector {
 
     Scorer scorer(in_, o_, field, vertical_);
     scorer_ = &scorer;
+    for (const Camera& v : in_.earlier_views) {
+      if (!v.has_time()) throw_error("select: earlier virtual view ", v.name, " has no time");
+      scorer.observe(v);
+    }
     progress_.start(std::string("select (") + to_string(o_.strategy) + ")", size_t(o_.trajectories));
     size_t next_start = 0;
     for (int k = 0; k < o_.trajectories; ++k) {

@@ -148,6 +148,8 @@ double smoothstep01(double x) {
 
 }  // namespace
 
+std::vector<std::string> synthetic_variants() { return {"chair", "orbit", "lift"}; }
+
 SynthScene make_synthetic_scene(const SynthOptions& o) {
   if (o.frames < 2) throw_error("synth: --frames must be at least 2 (got ", o.frames, ")");
   if (o.width < 8 || o.height < 8) throw_error("synth: image size must be at least 8x8");
@@ -174,17 +176,28 @@ SynthScene make_synthetic_scene(const SynthOptions& o) {
   for (size_t i = 0; i < ns; ++i) put(stat, i, i);
   for (size_t i = 0; i < nm; ++i) put(moving, i, ns + i);
 
-  // Chair path: behind the shelf's back panel (y < 0), sliding along x and turning.
-  const Vec3d from(-0.55, -0.65, 0), to(0.5, -0.6, 0);
-  const double yaw_total = kPi / 2;
   const int F = o.frames;
+  // Chair pose (offset, yaw) at motion parameter s in [0, 1], per variant.
+  using Pose = std::pair<Vec3d, double>;
+  std::function<Pose(double)> path;
+  if (o.variant == "chair") {  // behind the shelf's back panel (y < 0), sliding along x and turning
+    path = [](double s) -> Pose { return {Vec3d(-0.55 + 1.05 * s, -0.65 + 0.05 * s, 0), s * kPi / 2}; };
+  } else if (o.variant == "orbit") {  // around the shelf: front, side, behind
+    path = [](double s) -> Pose {
+      const double a = (30.0 + 240.0 * s) * kPi / 180.0;
+      return {Vec3d(1.3 * std::cos(a), 1.3 * std::sin(a), 0), a};
+    };
+  } else if (o.variant == "lift") {  // rises behind the shelf, turning half a turn
+    path = [](double s) -> Pose { return {Vec3d(0.0, -0.6, 0.9 * s), s * kPi}; };
+  } else {
+    throw_error("synth: unknown variant \"", o.variant, "\" (chair, orbit, lift)");
+  }
   c.keyframed = per_frame_tracks(nm, F);
   KeyframedMotion& k = c.keyframed;
   for (int f = 0; f < F; ++f) {
     const double t = double(f) / (F - 1);
     const double s = smoothstep01((t - o.move_start) / (o.move_end - o.move_start));
-    const Vec3d offset = from + s * (to - from);
-    const double yaw = s * yaw_total;
+    const auto [offset, yaw] = path(s);
     const Mat3d Rz = Eigen::AngleAxisd(yaw, Vec3d::UnitZ()).toRotationMatrix();
     const Vec4d qz(std::cos(yaw / 2), 0, 0, std::sin(yaw / 2));
     for (size_t i = 0; i < nm; ++i) {
@@ -274,6 +287,7 @@ void write_synthetic_scene(const SynthScene& s, const std::string& dir, Progress
   }
   progress.finish();
   meta["frames"] = F;
+  meta["variant"] = s.options.variant;
   meta["width"] = s.options.width;
   meta["height"] = s.options.height;
   meta["seed"] = s.options.seed;

@@ -20,6 +20,7 @@
 #include "fillgs/image_io.hpp"
 #include "fillgs/loss.hpp"
 #include "fillgs/ply.hpp"
+#include "fillgs/random.hpp"
 #include "fillgs/raster.hpp"
 #include "fillgs/sh.hpp"
 
@@ -28,22 +29,6 @@ namespace fs = std::filesystem;
 namespace fillgs {
 
 namespace {
-
-/// SplitMix64: stateless, seeded random numbers so that a resumed run draws what an
-/// uninterrupted one would.
-uint64_t mix(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-double uniform(uint64_t a, uint64_t b, uint64_t c) {
-  return double(mix(mix(mix(a) ^ b) ^ c) >> 11) * (1.0 / 9007199254740992.0);
-}
-double normal(uint64_t a, uint64_t b, uint64_t c) {
-  const double u1 = std::max(uniform(a, b, 2 * c), 1e-300), u2 = uniform(a, b, 2 * c + 1);
-  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * kPi * u2);
-}
 
 std::string rig_of(const std::string& name) {
   const size_t slash = name.find('/');
@@ -370,9 +355,16 @@ void Trainer::step() {
   if (iteration_ > 0 && options_.sh_increase_interval > 0 && iteration_ % options_.sh_increase_interval == 0 &&
       params_.sh_degree < options_.max_sh_degree)
     raise_sh_degree();
-  const size_t v = pick_view();
-  const TrainView& view = data_->views()[v];
-  const std::vector<float> target = data_->image(v);
+  // A refined view with probability refined_share (seeded by the iteration), else a real one.
+  const RefinedView* refined = nullptr;
+  if (!refined_.empty() && uniform(options_.seed ^ 0x5eed, uint64_t(iteration_), 0) < options_.refined_share)
+    refined = &refined_[size_t(uniform(options_.seed ^ 0x5eed, uint64_t(iteration_), 1) * double(refined_.size())) % refined_.size()];
+  const size_t v = refined ? 0 : pick_view();
+  TrainView refined_view;
+  if (refined) refined_view.camera = refined->camera;
+  const TrainView& view = refined ? refined_view : data_->views()[v];
+  const std::vector<float> target = refined ? refined->rgb : data_->image(v);
+  const float* loss_weights = refined ? refined->weight.data() : nullptr;
   DiffFrame<float> frame;
   evaluate_params(params_, view.camera.time, &frame);
   DiffRenderOptions ro;
@@ -382,7 +374,7 @@ void Trainer::step() {
   ras.forward(frame, view.camera, ro);
   const int W = view.camera.width, H = view.camera.height;
   std::vector<float> dimg(size_t(W) * H * 3);
-  const LossValue lv = photometric_loss<float>(ras.image().data(), target.data(), W, H, nullptr, options_.lambda_dssim, dimg.data());
+  const LossValue lv = photometric_loss<float>(ras.image().data(), target.data(), W, H, loss_weights, options_.lambda_dssim, dimg.data());
   DiffFrameGrad<float> fg;
   ras.backward(dimg.data(), nullptr, nullptr, &fg);
   grad_.set_zeros_like(params_);
@@ -424,6 +416,16 @@ void Trainer::step() {
   status_.gaussians = params_.size();
   status_.dynamic = params_.dynamic_count();
   loss_history_.push_back(float(lv.total));
+}
+
+void Trainer::add_refined(std::vector<RefinedView> views) {
+  for (RefinedView& v : views) {
+    const size_t P = size_t(v.camera.width) * size_t(v.camera.height);
+    if (!v.camera.has_time()) throw_error("refined view ", v.camera.name, ": no time");
+    if (v.rgb.size() != P * 3 || v.weight.size() != P)
+      throw_error("refined view ", v.camera.name, ": image or weights do not match its ", v.camera.width, "x", v.camera.height, " camera");
+    refined_.push_back(std::move(v));
+  }
 }
 
 void Trainer::adam_step() {

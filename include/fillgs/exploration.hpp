@@ -42,6 +42,7 @@ struct ExplorationOptions {
 struct ExplorationStats {
   size_t occupied = 0, unexplored = 0, free = 0;
   size_t occupied_by_static = 0;  ///< voxels the static Gaussians alone occupy
+  size_t cleared_at_cameras = 0;  ///< occupied voxels freed because a training camera stands in them
   size_t occupying_gaussians = 0; ///< Gaussians with opacity >= occupancy_alpha
   int time_samples = 0;           ///< frames the moving Gaussians were swept over
   double seconds = 0;

@@ -28,4 +28,9 @@ struct ScatterSeries {
 /// Scatter plot of several series (one colour each, legend top-left); log10 x when asked.
 void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>& series, const PlotLabels& labels, bool log_x);
 
+/// RGB images ([H][W][3] in [0, 1], same height) side by side with a caption above each,
+/// scaled up by `zoom` (nearest neighbour, so pixels stay visible).
+void write_side_by_side_png(const std::string& path, const std::vector<std::vector<float>>& images, int width, int height,
+                            const std::vector<std::string>& captions, int zoom = 2);
+
 }  // namespace fillgs

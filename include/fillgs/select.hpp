@@ -106,6 +106,9 @@ struct SelectInput {
   /// on C or D): reused instead of recomputed, e.g. across ablation runs. Must come from
   /// exploration_priority on the same views with the same error/sensitivity flags.
   const PriorityScores* priority = nullptr;
+  /// Virtual views added before (earlier fine-tuning rounds, with times): they count as
+  /// observations (C, coverage, Fisher) before the first trajectory, but start nothing.
+  std::vector<Camera> earlier_views;
 };
 
 /// Exploration priority of the evaluated observed viewpoints (§2).

@@ -27,7 +27,16 @@ struct SynthOptions {
   double move_start = 0.2, move_end = 0.8;
   /// Surface sample spacing (metres) for the objects; the room uses 4x coarser.
   double spacing = 0.02;
+  /// Motion and occlusion of the moving chair (the room, shelf and cameras are the same):
+  ///  * "chair": slides 1.05 m along x behind the shelf's back panel, turning 90°;
+  ///  * "orbit": travels 240° around the shelf at 1.3 m (front, side, then behind it),
+  ///    facing along its path: long fast motion, occluded only at the end;
+  ///  * "lift": rises 0.9 m behind the shelf while turning 180°: hidden at first, then
+  ///    seen over the shelf's top from the front.
+  std::string variant = "chair";
 };
+/// The variants make_synthetic_scene knows.
+std::vector<std::string> synthetic_variants();
 
 struct SynthScene {
   GaussianCloud scene;             ///< ground truth, keyframed (one key per frame)

@@ -105,6 +105,10 @@ struct TrainOptions {
   int promote_min_samples = 3;  ///< views per time bin before a bin counts
   bool allow_dynamic = true;
   int checkpoint_interval = 0;  ///< 0: only at the end
+  /// Fine-tuning: probability that an iteration trains on a refined view (once any were
+  /// added) instead of a real one. Refined views would otherwise outnumber real ones on a
+  /// sparse rig (20 trajectories × 9 views against 2 cameras × 30 frames).
+  double refined_share = 0.3;
   /// The 3DGS schedule (defined for 30,000 iterations) scaled to `iterations`.
   static TrainOptions scaled(int iterations);
 };
@@ -114,6 +118,14 @@ struct TrainStatus {
   double loss = 0, psnr = 0;  ///< exponential moving averages over recent iterations
   size_t gaussians = 0, dynamic = 0;
   double iterations_per_second = 0;
+};
+
+/// A refined (generated) view for fine-tuning: its camera (with time), image and per-pixel
+/// loss weights (METHOD.md §7: the loss on it is weight × photometric error).
+struct RefinedView {
+  Camera camera;
+  std::vector<float> rgb;     ///< [H][W][3] in [0, 1]
+  std::vector<float> weight;  ///< [H][W]
 };
 
 class Trainer {
@@ -126,6 +138,11 @@ class Trainer {
   void step();
   /// Steps until `iteration() == until`, reporting progress and status.
   void run(int until, Progress& progress);
+
+  /// Adds refined views; from now on an iteration picks one of them with probability
+  /// options.refined_share. Not stored in checkpoints.
+  void add_refined(std::vector<RefinedView> views);
+  size_t refined_count() const { return refined_.size(); }
 
   void save_checkpoint(const std::string& path) const;
   int iteration() const { return iteration_; }
@@ -158,6 +175,7 @@ class Trainer {
   bool opacity_was_reset_ = false;
   TrainStatus status_;
   std::vector<float> loss_history_;
+  std::vector<RefinedView> refined_;
 };
 
 /// PSNR and SSIM of a model against every view of a dataset (optionally every k-th).

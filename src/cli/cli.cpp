@@ -162,11 +162,12 @@ SynthOptions synth_options(const Args& a) {
   o.height = a.integer("height", o.height);
   o.seed = uint64_t(a.integer("seed", int(o.seed)));
   o.spacing = a.number("spacing", o.spacing);
+  o.variant = a.get("variant", o.variant);
   return o;
 }
 
 int cmd_synth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("synth", args, 1, {"out", "frames", "width", "height", "seed", "spacing", "threads"}, {"quiet"});
+  Args a("synth", args, 1, {"out", "frames", "width", "height", "seed", "spacing", "threads", "variant"}, {"quiet"});
   const auto t0 = Clock::now();
   const std::string dir = a.require("out");
   const SynthScene s = make_synthetic_scene(synth_options(a));
@@ -337,54 +338,13 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   return 0;
 }
 
-// ------------------------------------------------------------------ run
-
-int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("run", args, 1, {"out", "threads"}, {"quiet"});
-  const std::string dir = a.get("out", "fillgs_run");
-  const int threads = a.integer("threads", 0);
-  const auto t0 = Clock::now();
-  SynthOptions so;
-  const SynthScene s = make_synthetic_scene(so);
-  TerminalProgress progress(err, progress_enabled(a));
-  write_synthetic_scene(s, join_path(dir, "scene"), progress, threads);
-  out << "fillgs run: built-in scene written to " << join_path(dir, "scene") << " (" << s.scene.size() << " Gaussians, "
-      << s.scene.dynamic_count() << " moving, " << s.train.size() << " cameras x " << so.frames << " frames) in "
-      << seconds_since(t0) << " s\n";
-
-  const auto t1 = Clock::now();
-  ObservationOptions o;
-  o.visibility.mode = VisibilityMode::Raytraced;
-  o.visibility.stride = 4;
-  o.visibility.threads = threads;
-  const ObserveReport r = observe_to_directory(s.scene, cameras_over_time(s.train, so.frames), frame_times(so.frames),
-                                               1.0 / (so.frames - 1), o, join_path(dir, "observe"), {}, progress);
-  out << "fillgs run: observation tables (raytraced, stride 4) written to " << join_path(dir, "observe") << " in " << seconds_since(t1)
-      << " s; deficiency peaks at frame "
-      << std::max_element(r.deficiency_per_frame.begin(), r.deficiency_per_frame.end()) - r.deficiency_per_frame.begin() << "\n"
-      << "\n";
-
-  // Viewpoint-time selection with the FillGS strategy on the scene itself (a small budget).
-  const std::string scene_dir = join_path(dir, "scene");
-  std::vector<std::string> sel = {"select", "--scene", join_path(scene_dir, "scene.ply"), "--cameras",
-                                  join_path(scene_dir, "transforms_train.json"), "--images", scene_dir, "--out", join_path(dir, "select"),
-                                  "--trajectories", "5", "--time-stride", "3", "--threads", std::to_string(threads)};
-  if (a.flag("quiet")) sel.push_back("--quiet");
-  out << "fillgs run: ";
-  if (const int rc = cmd_select(sel, out, err)) return rc;
-  out << "fillgs run: stages implemented so far: synth, render, observe, explore, select (see " << join_path(dir, "select")
-      << "/trajectories.png and priority_heatmap.png).\n"
-      << "            Not yet implemented: refine, finetune, eval (tracked as open issues); this command grows with them.\n";
-  return 0;
-}
-
 void print_help(std::ostream& out) {
   out << "fillgs: fill observation gaps in 4D Gaussian Splatting\n\n"
          "usage: fillgs <command> [options]\n\n"
          "  info SCENE [--json]                       Gaussian count, SH degree, motion, static/dynamic, bbox\n"
          "  render --scene S --cameras C --out DIR    render every camera to DIR/<camera>.png\n"
          "         [--time t] [--channel rgb|depth|alpha] [--format png|exr] [--threads n] [--background r,g,b]\n"
-         "  synth --out DIR [--frames F] [--width W] [--height H] [--seed n] [--spacing m]\n"
+         "  synth --out DIR [--frames F] [--width W] [--height H] [--seed n] [--spacing m] [--variant chair|orbit|lift]\n"
          "                                            the chair/shelf analysis scene with ground-truth images\n"
          "  convert --scene S --out F.ply [--to 3dgs|fillgs] [--time t] [--frames F]\n"
          "  cameras --cameras C --out PATH [--to transforms|colmap]\n"
@@ -404,7 +364,18 @@ void print_help(std::ostream& out) {
          "         [--no-global] [--count-only | --speed-only] [--no-renders]\n"
          "                                            viewpoint-time selection; strategies: fillgs random negative\n"
          "                                            interpolation fisherrf coverage3d coverage4d\n"
-         "  run [--out DIR]                           the pipeline on the built-in scene\n\n"
+         "  finetune --model M --images DIR --cameras C --out DIR [--train-cameras a,b] [--iterations N]\n"
+         "         [--select-every M] [--trajectories K] [--strategy NAME] [--weighting NAME] [--paper-schedule]\n"
+         "         [--refiner identity|oracle|external] [--refiner-command 'cmd {in} {out}'] [--refiner-timeout s]\n"
+         "         [--truth SCENE --artifact-strength a] [--confidence DIR] [--refined-share p] [selection flags]\n"
+         "                                            fine-tune with refined virtual views; weightings: fillgs none\n"
+         "                                            no-consistency no-covisibility 3dgs-enhancer exploregs ua-4dgs\n"
+         "  eval --model M --images DIR --cameras C1[,C2] [--splits n1,n2] [--select-cameras a,b] [--truth SCENE]\n"
+         "         [--lpips NET.onnx] [--out DIR] [--stride k]     PSNR, SSIM, moving-region PSNR per split\n"
+         "  bench [--out DIR] [--variants chair,orbit,lift] [--seeds 1,2] [--only GROUPS] [--configs IDS]\n"
+         "         [--iterations N] [--backbone-iterations N] [--width W --height H --frames F] [--smoke]\n"
+         "         [--artifact-strength a] [--baseline-weighting NAME]   the paper's comparison (resumable)\n"
+         "  run [--out DIR] [--baseline NAME]         the whole pipeline on the built-in scene, with a report\n\n"
          "scene options:  --scene-format auto|3dgs|stg|ex4dgs|fillgs --duration F (Ex4DGS) --stg-duration F\n"
          "                --stg-color auto|sigmoid|clamp|none --static-threshold v\n"
          "camera options: --camera-format auto|colmap|llff|transforms|3dgs|technicolor --width W --height H\n"
@@ -431,6 +402,9 @@ int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     if (cmd == "train") return cmd_train(args, out, err);
     if (cmd == "explore") return cmd_explore(args, out, err);
     if (cmd == "select") return cmd_select(args, out, err);
+    if (cmd == "finetune") return cmd_finetune(args, out, err);
+    if (cmd == "eval") return cmd_eval(args, out, err);
+    if (cmd == "bench") return cmd_bench(args, out, err);
     if (cmd == "--version") {
       out << "fillgs 0.1.0\n";
       return 0;

@@ -6,6 +6,7 @@
 
 #include "common.hpp"
 #include "commands.hpp"
+#include "fillgs/camera_json.hpp"
 #include "fillgs/exploration.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/image_io.hpp"
@@ -56,13 +57,6 @@ std::vector<Camera> timed_cameras(const std::vector<Camera>& cams, int frames) {
   return out;
 }
 
-nlohmann::json camera_json(const Camera& c) {
-  const Mat4d c2w = c.camera_to_world();
-  nlohmann::json m = nlohmann::json::array();
-  for (int r = 0; r < 4; ++r) m.push_back({c2w(r, 0), c2w(r, 1), c2w(r, 2), c2w(r, 3)});
-  return {{"name", c.name}, {"width", c.width}, {"height", c.height}, {"fx", c.fx}, {"fy", c.fy}, {"cx", c.cx}, {"cy", c.cy},
-          {"time", c.time}, {"camera_to_world_opencv", m}};
-}
 
 }  // namespace
 

@@ -8,5 +8,9 @@ namespace fillgs::cli {
 
 int cmd_explore(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 }  // namespace fillgs::cli

@@ -1,0 +1,64 @@
+#pragma once
+// Fine-tuning with refined virtual views (METHOD.md §5–§7): continue training the 4D model
+// on its real views; every `select_every` iterations select `trajectories` new ones with a
+// strategy, export their patches, refine them, weight every refined view and add it.
+//
+// Defaults are scaled down from the paper's (30,000 iterations, 20 trajectories every
+// 6,000) to a laptop CPU: 1,500 iterations, 5 trajectories every 500 (3 rounds, 15
+// trajectories). `FinetuneOptions::paper()` gives the paper's schedule.
+#include <string>
+#include <vector>
+
+#include "fillgs/exploration.hpp"
+#include "fillgs/gaussians.hpp"
+#include "fillgs/progress.hpp"
+#include "fillgs/refine.hpp"
+#include "fillgs/select.hpp"
+#include "fillgs/train.hpp"
+#include "fillgs/weights.hpp"
+
+namespace fillgs {
+
+struct FinetuneOptions {
+  int iterations = 1500;
+  int select_every = 500;     ///< M: a selection round at iterations 0, M, 2M, ... (< iterations)
+  int trajectories = 5;       ///< K per round
+  SelectOptions select;       ///< strategy and its knobs (trajectories is overridden by K)
+  Weighting weighting = Weighting::FillGS;
+  MaskOptions mask;
+  ExplorationOptions grid;
+  TrainOptions train;         ///< see fine_tune_schedule
+  std::string work_dir;       ///< patches/, refined/ (with masks and weights) per round
+  int threads = 0;
+  /// Paper: 30,000 iterations, 20 trajectories every 6,000.
+  static FinetuneOptions paper();
+};
+
+/// The training schedule for fine-tuning a trained model for `iterations`: the 3DGS one
+/// scaled, position learning rate starting where a trained model's ended (×10), no
+/// opacity reset (it would erase the trained model), densification over the first 60%.
+TrainOptions fine_tune_schedule(int iterations);
+
+struct FinetuneRound {
+  int iteration = 0;
+  int trajectories = 0;
+  size_t views_added = 0;
+  std::vector<std::pair<int, std::string>> refine_failures;
+  double seconds_select = 0, seconds_render = 0, seconds_refine = 0, seconds_weights = 0;
+  std::vector<std::string> notes;
+  double mean_weight = 0;  ///< mean per-pixel weight of the added views
+};
+
+struct FinetuneResult {
+  GaussianCloud model;
+  std::vector<FinetuneRound> rounds;
+  std::vector<Camera> virtual_views;  ///< every refined view added, in order
+  double seconds_train = 0, seconds_total = 0;
+  std::vector<float> loss_history;
+};
+
+/// Fine-tunes `model` (trained on `data`) with views refined by `refiner`.
+FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner& refiner, const FinetuneOptions& options,
+                        Progress& progress = null_progress());
+
+}  // namespace fillgs

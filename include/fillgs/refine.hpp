@@ -1,0 +1,115 @@
+#pragma once
+// Spatiotemporal patches for a generative refiner (METHOD.md §6) and the refiners fillgs
+// drives: `external` (any program, through a folder protocol), `oracle` (synthetic scenes:
+// the ground truth at the virtual view, with optional injected generation artifacts) and
+// `identity` (the render itself).
+//
+// A patch is 3 consecutive frames × 4 views of one trajectory: the observed start image,
+// then the trajectory's 3 virtual poses rendered by the current model. Order: serpentine
+// over views per frame (view k for even frame index, 3 − k for odd), frames increasing, so
+// neighbours in the sequence are neighbours in space or time.
+//
+// The folder protocol (what an external refiner sees):
+//   <in>/patch.json   {"trajectory", "frames", "views", "images": [{"file", "order",
+//                      "frame", "time", "view", "observed", "camera": {...}}]}
+//   <in>/<file>       8-bit PNG per image (observed ones are the real photographs)
+// The refiner writes <out>/<file> for every image with "observed": false, same size; it
+// may also copy the observed ones (ignored). Extra files are ignored. fillgs checks that
+// every expected image came back with the right size, applies a timeout, and reports which
+// patch failed while keeping the others.
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "fillgs/camera.hpp"
+#include "fillgs/gaussians.hpp"
+#include "fillgs/image_io.hpp"
+#include "fillgs/progress.hpp"
+#include "fillgs/select.hpp"
+
+namespace fillgs {
+
+struct PatchImage {
+  std::string file;     ///< "f<frame:04d>_v<view>.png"
+  Camera camera;        ///< with the frame's time
+  int frame = 0;
+  int view = 0;         ///< 0 = the observed start view, 1..3 = the trajectory's poses
+  bool observed = false;
+  int order = 0;        ///< position in the serpentine sequence
+};
+
+struct Patch {
+  int trajectory = 0;
+  std::string name;                ///< folder name, "patch_<trajectory:03d>" (prefix configurable)
+  std::vector<PatchImage> images;  ///< in serpentine order
+  int observed_view = -1;          ///< index into the observed views of the start (frame of the trajectory)
+};
+
+/// The patch of a trajectory: its patch frames × (the start's rig camera, then each pose).
+/// The observed image at each patch frame is the start view's pose at that frame, looked up
+/// in `views` (the ones selection ran on). Throws when a frame has no such observed view.
+Patch make_patch(const Trajectory& trajectory, const std::vector<ObservedView>& views, const std::string& name);
+
+/// Writes `dir`/patch.json and every image: observed ones from `observed_image(view index)`,
+/// virtual ones from `render(camera)` (float RGB [H][W][3]). Files are written atomically.
+void write_patch(const std::string& dir, const Patch& patch, const std::vector<ObservedView>& views,
+                 const std::function<std::vector<float>(size_t)>& observed_image,
+                 const std::function<std::vector<float>(const Camera&)>& render);
+
+/// Oracle generation artifacts (synthetic scenes only), each drawn per image from the seed:
+/// a blurred region, a colour drift over a region, hallucinated blobs and a shifted region.
+/// `strength` 0 gives the clean ground truth; 1 is strong (blur σ up to 5 px, colour ±30%,
+/// blobs up to 12% of the width, shifts up to 6 px).
+struct ArtifactOptions {
+  double strength = 0.0;
+  uint64_t seed = 1;
+  double region_fraction = 0.18;  ///< radius of an artifact region as a fraction of the width
+};
+/// Applies artifacts to `image` in place; returns the artifact mask ([H][W], 1 where the
+/// image changed by more than 2/255 in some channel).
+std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& options, uint64_t key);
+
+class Refiner {
+ public:
+  virtual ~Refiner() = default;
+  virtual std::string name() const = 0;
+  /// Reads the patch in `in_dir`, writes refined images of the virtual views into `out_dir`.
+  /// Throws on failure.
+  virtual void refine(const std::string& in_dir, const std::string& out_dir, const Patch& patch) = 0;
+};
+
+/// Copies the rendered images.
+std::unique_ptr<Refiner> make_identity_refiner();
+/// Renders `truth` at each virtual view (its time), applies artifacts when strength > 0 and
+/// writes the artifact masks to `out_dir`/masks/<file>.
+std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const ArtifactOptions& artifacts, const Vec3f& background,
+                                             int threads = 0);
+/// Runs `command` through /bin/sh with {in} and {out} replaced by the folders (quoted);
+/// killed after `timeout_seconds`. Its output goes to `out_dir`/refiner.log.
+std::unique_ptr<Refiner> make_external_refiner(const std::string& command, double timeout_seconds);
+
+/// Runs a command line with a timeout (its process group is killed when it expires).
+/// Returns the exit status, or −1 when it timed out; stdout and stderr go to `log_path`.
+int run_command(const std::string& command, double timeout_seconds, const std::string& log_path);
+
+/// One refined virtual view, read back.
+struct RefinedImage {
+  int patch = 0;
+  PatchImage image;
+  Image rgb;  ///< 3 channels
+  std::string path;
+};
+struct RefineReport {
+  std::vector<RefinedImage> images;                    ///< every virtual view of every patch that succeeded
+  std::vector<std::pair<int, std::string>> failures;   ///< (patch index, reason)
+  double seconds = 0;
+};
+/// Refines every patch: `<in_root>/<patch.name>` in, `<out_root>/<patch.name>` out. A patch
+/// whose refiner throws, times out, or misses an image (or returns a wrong size) is reported
+/// and skipped; the others are kept.
+RefineReport refine_patches(Refiner& refiner, const std::vector<Patch>& patches, const std::string& in_root, const std::string& out_root,
+                            Progress& progress = null_progress());
+
+}  // namespace fillgs
