@@ -157,7 +157,7 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& o,
     write_file_atomically(stamp_path, stamp.dump(1) + "\n");
     p.seconds_synth = since(t0);
     log << "scene " << o.variant << " (seed " << o.seed << "): " << p.synth.scene.size() << " Gaussians, " << p.synth.scene.dynamic_count()
-        << " moving, " << o.width << "x" << o.height << ", " << o.frames << " frames, rendered in " << fmt(p.seconds_synth, 1) << " s\n";
+        << " moving, " << o.width << "x" << o.height << ", " << o.frames << " frames, rendered in " << fmt(p.seconds_synth, 1) << " s" << std::endl;
   }
   DatasetOptions dopt;
   dopt.cameras = o.train_cameras;
@@ -191,7 +191,7 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& o,
   write_file_atomically(join_path(bb, "summary.json"), summary.dump(1) + "\n");
   log << "backbone: " << o.backbone_iterations << " iterations on " << p.train->views().size() << " views ("
       << p.train->rigs().size() << " cameras) in " << fmt(p.seconds_backbone, 1) << " s, " << p.backbone.size() << " Gaussians ("
-      << p.backbone.dynamic_count() << " moving)\n";
+      << p.backbone.dynamic_count() << " moving)" << std::endl;
   return p;
 }
 
@@ -296,7 +296,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   log << c.id << ": interpolation " << fmt(r.interpolation.psnr) << " dB (moving " << fmt(r.interpolation.psnr_moving) << "), extrapolation "
       << fmt(r.extrapolation.psnr) << " dB (moving " << fmt(r.extrapolation.psnr_moving) << "), train " << fmt(r.train.psnr) << " dB; "
       << r.trajectories << " trajectories, " << r.views_added << " views, mean weight " << fmt(r.mean_weight, 3) << ", "
-      << fmt(r.seconds_total, 0) << " s\n";
+      << fmt(r.seconds_total, 0) << " s" << std::endl;
   return r;
 }
 

@@ -226,6 +226,7 @@ void write_patch(const std::string& dir, const Patch& patch, const std::vector<O
 }
 
 std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& o, uint64_t key) {
+  // (kArtifactVisible: see refine.hpp)
   const int W = image.width, H = image.height;
   std::vector<uint8_t> mask(size_t(W) * H, 0);
   if (image.channels != 3) throw_error("artifacts: need an RGB image");
@@ -278,7 +279,7 @@ std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& o, ui
     for (int x = 0; x < W; ++x) {
       const cv::Vec3f d = img.at<cv::Vec3f>(y, x) - clean.at<cv::Vec3f>(y, x);
       const float mx = std::max({std::abs(d[0]), std::abs(d[1]), std::abs(d[2])});
-      mask[size_t(y) * W + x] = mx > 2.0f / 255.0f;
+      mask[size_t(y) * W + x] = mx > kArtifactVisible;
     }
   return mask;
 }

@@ -90,16 +90,24 @@ std::vector<float> consistency_with(const Image& refined, const Camera& cam, con
       const int ni = std::clamp(int(std::lround(u)), 0, OW - 1), nj = std::clamp(int(std::lround(v)), 0, OH - 1);
       const float oz = odepth[size_t(nj) * OW + ni];
       if (!(oz > 0) || std::abs(oz - q.z()) > o.depth_tolerance * q.z()) continue;  // occluded in the observed view
-      const int i0 = std::min(int(u), OW - 2 < 0 ? 0 : OW - 2), j0 = std::min(int(v), OH - 2 < 0 ? 0 : OH - 2);
-      const double a = std::clamp(u - i0, 0.0, 1.0), b = std::clamp(v - j0, 0.0, 1.0);
-      const int i1 = std::min(i0 + 1, OW - 1), j1 = std::min(j0 + 1, OH - 1);
-      double d2 = 0;
-      for (int c = 0; c < 3; ++c) {
-        auto at = [&](int i, int j) { return double(observed.pixels[(size_t(j) * OW + i) * oc + c]); };
-        const double w = (1 - a) * (1 - b) * at(i0, j0) + a * (1 - b) * at(i1, j0) + (1 - a) * b * at(i0, j1) + a * b * at(i1, j1);
-        const double r = refined.pixels[(size_t(y) * W + x) * rc + c];
-        d2 += (r - w) * (r - w);
-      }
+      // Colour difference to the warped observation, the best within ±search pixels (the
+      // warp through a rendered depth is not exact at texture edges and silhouettes).
+      double d2 = 1e30;
+      for (int dv = -o.search; dv <= o.search; ++dv)
+        for (int du = -o.search; du <= o.search; ++du) {
+          const double su = std::clamp(u + du, 0.0, double(OW - 1)), sv = std::clamp(v + dv, 0.0, double(OH - 1));
+          const int i0 = std::min(int(su), std::max(0, OW - 2)), j0 = std::min(int(sv), std::max(0, OH - 2));
+          const int i1 = std::min(i0 + 1, OW - 1), j1 = std::min(j0 + 1, OH - 1);
+          const double a = std::clamp(su - i0, 0.0, 1.0), b = std::clamp(sv - j0, 0.0, 1.0);
+          double e = 0;
+          for (int c = 0; c < 3; ++c) {
+            auto at = [&](int i, int j) { return double(observed.pixels[(size_t(j) * OW + i) * oc + c]); };
+            const double w = (1 - a) * (1 - b) * at(i0, j0) + a * (1 - b) * at(i1, j0) + (1 - a) * b * at(i0, j1) + a * b * at(i1, j1);
+            const double r = refined.pixels[(size_t(y) * W + x) * rc + c];
+            e += (r - w) * (r - w);
+          }
+          d2 = std::min(d2, e);
+        }
       diff.at<float>(y, x) = float(d2 / 3);
       valid.at<float>(y, x) = 1;
     }

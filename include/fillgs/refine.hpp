@@ -67,8 +67,11 @@ struct ArtifactOptions {
   uint64_t seed = 1;
   double region_fraction = 0.18;  ///< radius of an artifact region as a fraction of the width
 };
+/// A change counts as an artifact above this (≈ 8/255 in some channel): fainter changes (the
+/// soft rims of the regions) are below what any check of agreement could see.
+constexpr float kArtifactVisible = 0.03f;
 /// Applies artifacts to `image` in place; returns the artifact mask ([H][W], 1 where the
-/// image changed by more than 2/255 in some channel).
+/// image changed by more than kArtifactVisible in some channel).
 std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& options, uint64_t key);
 
 class Refiner {

@@ -41,8 +41,9 @@ Weighting parse_weighting(const std::string& name);
 enum class MaskMethod { DepthWarp, External };
 struct MaskOptions {
   MaskMethod method = MaskMethod::DepthWarp;
-  double sigma = 0.1;             ///< colour difference (RMS, [0,1] units) at which confidence is 1/e
-  int window = 5;                 ///< local agreement window (pixels, odd)
+  double sigma = 0.05;            ///< colour difference (RMS, [0,1] units) at which confidence is 1/e
+  int window = 3;                 ///< local agreement window (pixels, odd); 3 separated oracle artifacts best (AUC 0.913 vs 0.905 at 5, 0.890 at 9)
+  int search = 0;                 ///< best match within ±search pixels of the warped position (±1 lowered the AUC to 0.901)
   double depth_tolerance = 0.05;  ///< occlusion test: |z − z_observed| ≤ this × z
   double min_alpha = 0.5;         ///< pixels with less rendered opacity have no depth
   /// External maps: `<external_dir>/<name>` (8/16-bit grey, same size) for a refined view

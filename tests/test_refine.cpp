@@ -1,0 +1,514 @@
+// Patches, refiners (identity, oracle artifacts, the external protocol with the example
+// script), consistency masks and weights, fine-tuning with refined views, evaluation.
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "fillgs/cli.hpp"
+#include "fillgs/evaluate.hpp"
+#include "fillgs/experiment.hpp"
+#include "fillgs/finetune.hpp"
+#include "fillgs/fs_util.hpp"
+#include "fillgs/image_io.hpp"
+#include "fillgs/loss.hpp"
+#include "fillgs/raster.hpp"
+#include "fillgs/refine.hpp"
+#include "fillgs/scene_io.hpp"
+#include "fillgs/train_model.hpp"
+#include "fillgs/weights.hpp"
+#include "helpers.hpp"
+
+using namespace fillgs;
+using namespace fillgs::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::vector<float> render_rgb(const GaussianCloud& c, const Camera& cam) {
+  return render(evaluate(c, cam.time), cam).rgb;
+}
+
+/// A trajectory of 3 poses between ring cameras a and b at `frame`, patch frames around it.
+Trajectory between(const std::vector<ObservedView>& views, const SynthScene& s, int a, int b, int frame, int start_view) {
+  Trajectory tr;
+  tr.index = 0;
+  tr.start_view = start_view;
+  tr.frame = frame;
+  for (int j = 1; j <= 3; ++j) tr.poses.push_back(interpolate_camera(s.train[size_t(a)], s.train[size_t(b)], 0.25 * j));
+  tr.patch_frames = consecutive_frames(frame, 3, s.options.frames);
+  for (int f : tr.patch_frames) tr.patch_times.push_back(double(f) / (s.options.frames - 1));
+  for (Camera& c : tr.poses) c.time = views[size_t(start_view)].camera.time;
+  return tr;
+}
+
+int view_index(const std::vector<ObservedView>& views, const std::string& rig, int frame) {
+  for (size_t i = 0; i < views.size(); ++i)
+    if (views[i].frame == frame && views[i].camera.name.rfind(rig, 0) == 0) return int(i);
+  return -1;
+}
+
+}  // namespace
+
+TEST_CASE("patch: 3 frames x 4 views in serpentine order with the observed start image", "[refine]") {
+  const SynthScene s = small_synth(6, 48, 36, 0.05);
+  const std::vector<ObservedView> views = observed_views(cameras_over_time(s.train, 6), 6);
+  const int start = view_index(views, "cam04", 5);  // the last frame: patch frames shift inward to 3, 4, 5
+  const Trajectory tr = between(views, s, 4, 5, 5, start);
+  const Patch p = make_patch(tr, views, "patch_000");
+  REQUIRE(p.images.size() == 12);
+  const int expect_view[12] = {0, 1, 2, 3, 3, 2, 1, 0, 0, 1, 2, 3};
+  const int expect_frame[12] = {3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5};
+  for (int k = 0; k < 12; ++k) {
+    CHECK(p.images[size_t(k)].view == expect_view[k]);
+    CHECK(p.images[size_t(k)].frame == expect_frame[k]);
+    CHECK(p.images[size_t(k)].order == k);
+    CHECK(p.images[size_t(k)].observed == (expect_view[k] == 0));
+    CHECK(p.images[size_t(k)].camera.time == Approx(expect_frame[k] / 5.0));
+  }
+  // The observed image of frame 3 is cam04's at frame 3.
+  CHECK(p.images[0].camera.name == views[size_t(view_index(views, "cam04", 3))].camera.name);
+
+  const std::string dir = scratch("patch");
+  std::vector<size_t> asked;
+  write_patch(
+      join_path(dir, p.name), p, views,
+      [&](size_t i) {
+        asked.push_back(i);
+        return render_rgb(s.scene, views[i].camera);
+      },
+      [&](const Camera& c) { return render_rgb(s.scene, c); });
+  CHECK(asked.size() == 3);
+  const nlohmann::json j = nlohmann::json::parse(read_file(join_path(join_path(dir, p.name), "patch.json")));
+  REQUIRE(j["images"].size() == 12);
+  CHECK(j["frames"] == 3);
+  CHECK(j["views"] == 4);
+  CHECK(j["images"][4]["file"] == "f0004_v3.png");
+  CHECK(j["images"][7]["observed"] == true);
+  CHECK(j["images"][5]["camera"]["width"] == 48);
+  for (const auto& im : j["images"]) CHECK(fs::exists(join_path(join_path(dir, p.name), im["file"].get<std::string>())));
+}
+
+TEST_CASE("artifacts: strength 0 is the clean image, otherwise changes are confined to the mask and seeded", "[refine]") {
+  Image img(64, 48, 3);
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x)
+      for (int c = 0; c < 3; ++c) img.at(x, y, c) = float(((x / 8 + y / 8) % 2) * 0.6 + 0.2 * c / 2.0);
+  Image clean = img;
+  ArtifactOptions o;
+  const std::vector<uint8_t> none = inject_artifacts(clean, o, 7);
+  CHECK(std::count(none.begin(), none.end(), 1) == 0);
+  CHECK(clean.pixels == img.pixels);
+  o.strength = 0.8;
+  Image a = img, b = img;
+  const std::vector<uint8_t> ma = inject_artifacts(a, o, 7), mb = inject_artifacts(b, o, 7);
+  CHECK(ma == mb);
+  CHECK(a.pixels == b.pixels);
+  const size_t n = size_t(std::count(ma.begin(), ma.end(), 1));
+  CHECK(n > 50);
+  for (size_t p = 0; p < ma.size(); ++p)
+    if (!ma[p])
+      for (int c = 0; c < 3; ++c) REQUIRE(std::abs(a.pixels[p * 3 + c] - img.pixels[p * 3 + c]) <= kArtifactVisible + 1e-6f);
+  Image other = img;
+  CHECK(inject_artifacts(other, o, 8) != ma);  // another image draws other artifacts
+}
+
+TEST_CASE("roc_auc: the Mann-Whitney statistic with ties counted half", "[refine]") {
+  CHECK(roc_auc({0.1f, 0.4f, 0.35f, 0.8f}, {0, 0, 1, 1}) == Approx(0.75));
+  CHECK(roc_auc({0.5f, 0.5f, 0.5f}, {0, 1, 0}) == Approx(0.5));
+  CHECK(roc_auc({0.9f, 0.8f, 0.1f}, {1, 1, 0}) == Approx(1.0));
+  CHECK(std::isnan(roc_auc({0.2f, 0.3f}, {1, 1})));
+}
+
+TEST_CASE("external refiner: the example script follows the protocol; failures, timeouts and wrong sizes are reported per patch", "[refine]") {
+  const SynthScene s = small_synth(4, 40, 30, 0.05);
+  const std::vector<ObservedView> views = observed_views(cameras_over_time(s.train, 4), 4);
+  const std::string dir = scratch("external");
+  std::vector<Patch> patches;
+  for (int k = 0; k < 3; ++k) {
+    Trajectory tr = between(views, s, 2 * k, 2 * k + 1, 1, view_index(views, "cam0" + std::to_string(2 * k), 1));
+    tr.index = k;
+    patches.push_back(make_patch(tr, views, "patch_00" + std::to_string(k)));
+    write_patch(join_path(join_path(dir, "in"), patches.back().name), patches.back(), views,
+                [&](size_t i) { return render_rgb(s.scene, views[i].camera); }, [&](const Camera& c) { return render_rgb(s.scene, c); });
+  }
+  const std::string script = std::string(FILLGS_SOURCE_DIR) + "/scripts/refiners/median_denoise.sh";
+  {
+    auto r = make_external_refiner("bash " + script + " {in} {out}", 60);
+    const RefineReport rep = refine_patches(*r, patches, join_path(dir, "in"), join_path(dir, "out"));
+    CHECK(rep.failures.empty());
+    REQUIRE(rep.images.size() == 27);
+    // The result is a 3x3 median of the rendered input (checked on interior pixels).
+    const RefinedImage& ri = rep.images[4];
+    const Image in = read_image(join_path(join_path(join_path(dir, "in"), patches[size_t(ri.patch)].name), ri.image.file));
+    size_t differing = 0;
+    for (int y = 1; y < in.height - 1; ++y)
+      for (int x = 1; x < in.width - 1; ++x)
+        for (int c = 0; c < 3; ++c) {
+          std::vector<float> nb;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) nb.push_back(in.at(x + dx, y + dy, c));
+          std::nth_element(nb.begin(), nb.begin() + 4, nb.end());
+          REQUIRE(ri.rgb.at(x, y, c) == Approx(nb[4]).margin(0.5 / 255));
+          differing += std::abs(ri.rgb.at(x, y, c) - in.at(x, y, c)) > 0.5f / 255;
+        }
+    CHECK(differing > 0);  // it did something
+  }
+  {
+    // Patch 1 fails, the others come back.
+    auto r = make_external_refiner("case {in} in *patch_001*) exit 3 ;; *) bash " + script + " {in} {out} ;; esac", 60);
+    const RefineReport rep = refine_patches(*r, patches, join_path(dir, "in"), join_path(dir, "out2"));
+    REQUIRE(rep.failures.size() == 1);
+    CHECK(rep.failures[0].first == 1);
+    CHECK(rep.failures[0].second.find("status 3") != std::string::npos);
+    CHECK(rep.images.size() == 18);
+  }
+  {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto r = make_external_refiner("sleep 20; echo {in} {out}", 0.5);
+    const RefineReport rep = refine_patches(*r, {patches[0]}, join_path(dir, "in"), join_path(dir, "out3"));
+    REQUIRE(rep.failures.size() == 1);
+    CHECK(rep.failures[0].second.find("timed out") != std::string::npos);
+    CHECK(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < 5.0);
+  }
+  {
+    // Wrong size and missing images name the file.
+    auto r = make_external_refiner("test -d {in} && mkdir -p {out} && oiiotool --pattern constant:color=0.5,0.5,0.5 10x10 3 -o {out}/f0000_v1.png", 60);
+    const RefineReport rep = refine_patches(*r, {patches[0]}, join_path(dir, "in"), join_path(dir, "out4"));
+    REQUIRE(rep.failures.size() == 1);
+    CHECK(rep.failures[0].second.find("f0000_v1.png is 10x10, expected 40x30") != std::string::npos);
+    auto r2 = make_external_refiner("test -d {in} && mkdir -p {out}", 60);
+    const RefineReport rep2 = refine_patches(*r2, {patches[0]}, join_path(dir, "in"), join_path(dir, "out5"));
+    REQUIRE(rep2.failures.size() == 1);
+    CHECK(rep2.failures[0].second.find("missing refined image f0000_v1.png") != std::string::npos);
+  }
+  CHECK_THROWS_WITH(make_external_refiner("denoise {in}", 1), Catch::Contains("{in} and {out}"));
+}
+
+TEST_CASE("consistency mask separates oracle artifacts from clean pixels (ROC AUC >= 0.9)", "[refine][weights]") {
+  const int F = 4;
+  const SynthScene s = small_synth(F, 96, 72, 0.04);
+  const std::vector<ObservedView> views = observed_views(cameras_over_time(s.train, F), F);
+  const std::string dir = scratch("auc");
+  ArtifactOptions ao;
+  ao.strength = 0.5;
+  auto oracle = make_oracle_refiner(s.scene, ao, Vec3f::Zero());
+  std::vector<Patch> patches;
+  for (int k = 0; k < 4; ++k) {
+    Trajectory tr = between(views, s, 3 * k, 3 * k + 1, 1 + k % 2, view_index(views, "cam" + std::string(3 * k < 10 ? "0" : "") + std::to_string(3 * k), 1 + k % 2));
+    tr.index = k;
+    patches.push_back(make_patch(tr, views, "p" + std::to_string(k)));
+    write_patch(join_path(join_path(dir, "in"), patches.back().name), patches.back(), views,
+                [&](size_t i) { return render_rgb(s.scene, views[i].camera); }, [&](const Camera& c) { return render_rgb(s.scene, c); });
+  }
+  const RefineReport rep = refine_patches(*oracle, patches, join_path(dir, "in"), join_path(dir, "out"));
+  REQUIRE(rep.failures.empty());
+  REQUIRE(rep.images.size() == 36);
+  WeightContext ctx;
+  ctx.model = &s.scene;  // the model's depth = the truth's: the mask's own quality is measured
+  ctx.views = views;
+  ctx.image = [&](size_t i) {
+    Image im(views[i].camera.width, views[i].camera.height, 3);
+    im.pixels = render_rgb(s.scene, views[i].camera);
+    return im;
+  };
+  ctx.frames = F;
+  std::vector<float> score;
+  std::vector<uint8_t> label;
+  size_t artifacts = 0;
+  const MaskOptions mo;  // defaults: σ 0.05, 3×3 window, no search (measured: AUC 0.913; 5×5 window 0.905, ±1 search 0.901)
+  for (const RefinedImage& ri : rep.images) {
+    const ViewWeights w = compute_weights(ctx, ri.rgb, ri.image.camera, Weighting::NoCovisibility, mo);
+    REQUIRE(w.consistency.size() == size_t(96 * 72));
+    REQUIRE(all_finite(w.weight));
+    const Image mask = read_image(join_path(join_path(join_path(dir, "out"), patches[size_t(ri.patch)].name), "masks/" + ri.image.file));
+    for (size_t p = 0; p < w.consistency.size(); ++p) {
+      score.push_back(1.0f - w.consistency[p]);
+      label.push_back(mask.pixels[p * size_t(mask.channels)] > 0.5f);
+      artifacts += label.back();
+    }
+  }
+  INFO("artifact pixels " << artifacts << " of " << label.size());
+  REQUIRE(artifacts > 1000);
+  const double auc = roc_auc(score, label);
+  INFO("ROC AUC " << auc);
+  CHECK(auc >= 0.9);
+}
+
+TEST_CASE("weights: co-visibility is D-hat (1 on an unseen moving Gaussian, 0 on static content); other weightings in [0, 1]", "[refine][weights]") {
+  // A static backdrop and a moving Gaussian in front of it; the only training camera looks
+  // away from the moving one, so its D = s / (1 + 0) is the scene's largest: D-hat = 1.
+  GaussianCloud c;
+  for (int i = -3; i <= 3; ++i)
+    for (int j = -3; j <= 3; ++j) add_gaussian(c, Vec3f(0.3f * i, 0.3f * j, 5.0f), 0.2f, 6.0f, Vec3f(0.4f, 0.5f, 0.6f));
+  add_gaussian(c, Vec3f(0, 0, 3.0f), 0.15f, 8.0f, Vec3f(0.9f, 0.1f, 0.1f));
+  const int F = 5;
+  c.keyframed = per_frame_tracks(1, F);
+  for (int f = 0; f < F; ++f) {
+    const float pos[3] = {0.1f * f, 0.0f, 3.0f};
+    for (int a = 0; a < 3; ++a) c.keyframed.positions[size_t(f) * 3 + size_t(a)] = pos[a];
+    for (int a = 0; a < 4; ++a) c.keyframed.rotations[size_t(f) * 4 + size_t(a)] = a == 0 ? 1.0f : 0.0f;
+  }
+  c.motion = MotionModel::Keyframed;
+  c.dynamic_ids = {uint32_t(c.size() - 1)};
+  canonical_from_first_key(c);
+  Camera away = axis_camera(64, 48, 60);
+  away.name = "away";
+  away.look_at(Vec3d(0, 0, 0), Vec3d(0, 0, -5), Vec3d(0, -1, 0));
+  Camera view = axis_camera(64, 48, 60);
+  view.name = "virtual";
+  view.time = 0.5;
+  const std::vector<ObservedView> views = observed_views({away}, F);
+  const ObservationTables tables = observation_tables(c, cameras_over_time({away}, F), frame_times(F), 1.0 / (F - 1), ObservationOptions());
+  const DeficiencyField field(tables, 0.99f);
+  WeightContext ctx;
+  ctx.model = &c;
+  ctx.views = views;
+  ctx.image = [&](size_t i) {
+    Image im(64, 48, 3);
+    im.pixels = render_rgb(c, views[i].camera);
+    return im;
+  };
+  ctx.deficiency = &field;
+  ctx.frames = F;
+  Image refined(64, 48, 3);
+  refined.pixels = render_rgb(c, view);
+  const ViewWeights w = compute_weights(ctx, refined, view, Weighting::NoConsistency, MaskOptions());
+  const RenderOutput r = render(evaluate(c, view.time), view);
+  std::vector<float> mover(c.size(), 0.0f);
+  mover.back() = 1.0f;
+  RenderOptions only;
+  only.features = mover.data();
+  only.feature_channels = 1;
+  const std::vector<float> mover_weight = render(evaluate(c, view.time), view, only).features;  // its own α·T per pixel
+  // Centre pixel: the moving Gaussian at x = 0.2 projects to u = 32 + 60 * 0.2 / 3 = 36.
+  const size_t moving_px = size_t(24) * 64 + 36, static_px = size_t(20) * 64 + 22;  // static: the backdrop, 4.5 sigma from the mover
+  CHECK(w.covisibility[moving_px] == Approx(mover_weight[moving_px]).margin(1e-4));
+  CHECK(w.covisibility[moving_px] > 0.9f);
+  CHECK(r.alpha[static_px] > 0.5f);
+  CHECK(w.covisibility[static_px] == 0.0f);
+  CHECK(w.weight == w.covisibility);
+  // The observed camera looks away: no pixel of the virtual view can be checked against it.
+  const ViewWeights wc = compute_weights(ctx, refined, view, Weighting::NoCovisibility, MaskOptions());
+  CHECK(*std::max_element(wc.consistency.begin(), wc.consistency.end()) == 0.0f);
+  for (Weighting k : {Weighting::None, Weighting::Enhancer3DGS, Weighting::ExploreGS, Weighting::UA4DGS}) {
+    const ViewWeights o = compute_weights(ctx, refined, view, k, MaskOptions());
+    INFO(to_string(k));
+    REQUIRE(o.weight.size() == size_t(64 * 48));
+    CHECK(*std::min_element(o.weight.begin(), o.weight.end()) >= 0.0f);
+    CHECK(*std::max_element(o.weight.begin(), o.weight.end()) <= 1.0f + 1e-5f);
+  }
+  // UA-4DGS: nothing is seen by the training view, so every Gaussian's uncertainty is 1 and the
+  // weight is the rendered opacity. ExploreGS: disjoint visible sets, 1 - IoU = 1, times SSIM = 1.
+  const ViewWeights ua = compute_weights(ctx, refined, view, Weighting::UA4DGS, MaskOptions());
+  CHECK(ua.weight[moving_px] == Approx(r.alpha[moving_px]).margin(1e-3));
+  const ViewWeights ex = compute_weights(ctx, refined, view, Weighting::ExploreGS, MaskOptions());
+  CHECK(ex.image_weight == Approx(1.0));
+  CHECK(ex.weight[moving_px] == Approx(1.0).margin(1e-3));
+  CHECK(compute_weights(ctx, refined, view, Weighting::None, MaskOptions()).weight == std::vector<float>(64 * 48, 1.0f));
+  CHECK_THROWS_WITH(parse_weighting("roma"), Catch::Contains("unknown weighting \"roma\""));
+}
+
+TEST_CASE("weighted fine-tuning keeps the training views; unweighted fine-tuning on the same artifacts loses more", "[refine][finetune]") {
+  const std::string dir = scratch("finetune");
+  SynthOptions so;
+  so.frames = 4;
+  so.width = 64;
+  so.height = 48;
+  so.spacing = 0.04;
+  const SynthScene s = make_synthetic_scene(so);
+  write_synthetic_scene(s, join_path(dir, "scene"), null_progress());
+  DatasetOptions dopt;
+  dopt.cameras = {"cam04", "cam05", "cam06"};
+  const Dataset data = Dataset::load(join_path(dir, "scene"), join_path(dir, "scene/transforms_train.json"), dopt);
+  TrainOptions to = TrainOptions::scaled(400);
+  Trainer backbone(data, init_from_points(read_points(join_path(dir, "scene/points.ply"))), to);
+  backbone.run(400, null_progress());
+  const GaussianCloud start = backbone.model();
+  const double psnr0 = evaluate_views(start, data).psnr;
+
+  ArtifactOptions ao;
+  ao.strength = 1.0;
+  auto oracle = make_oracle_refiner(s.scene, ao, Vec3f::Zero());
+  auto tune = [&](Weighting w) {
+    FinetuneOptions fo;
+    fo.iterations = 300;
+    fo.select_every = 150;
+    fo.trajectories = 3;
+    fo.weighting = w;
+    fo.train = fine_tune_schedule(300);
+    fo.train.refined_share = 0.5;
+    fo.select.time_stride = 2;
+    fo.work_dir = join_path(dir, std::string("work_") + to_string(w));
+    return finetune(data, start, *oracle, fo);
+  };
+  const FinetuneResult weighted = tune(Weighting::FillGS), plain = tune(Weighting::None), masked = tune(Weighting::NoCovisibility);
+  REQUIRE(weighted.virtual_views.size() == plain.virtual_views.size());
+  REQUIRE(weighted.virtual_views.size() >= 27);
+  const double pw = evaluate_views(weighted.model, data).psnr, pn = evaluate_views(plain.model, data).psnr;
+  const double pm = evaluate_views(masked.model, data).psnr;
+  INFO("train PSNR: start " << psnr0 << ", weighted " << pw << ", consistency mask only " << pm << ", unweighted " << pn << "; mean weights "
+                            << weighted.rounds[0].mean_weight << ", " << masked.rounds[0].mean_weight);
+  CHECK(pw >= psnr0 - 0.5);
+  CHECK(pm >= psnr0 - 0.5);  // the mask alone (non-zero weights on static content too) also keeps them
+  CHECK(masked.rounds[0].mean_weight > 0.05);
+  CHECK(pn < pw);
+  CHECK(psnr0 - pn > psnr0 - pw);
+  // The weight images are written next to every refined view.
+  size_t refined = 0, weights = 0, masks = 0, covis = 0;
+  for (const auto& e : fs::directory_iterator(join_path(dir, "work_fillgs/refined/r0_t00"))) {
+    const std::string n = e.path().filename().string();
+    const auto has = [&](const char* suffix) { return n.size() > std::strlen(suffix) && n.compare(n.size() - std::strlen(suffix), std::string::npos, suffix) == 0; };
+    weights += has("_weight.png"), masks += has("_mask.png"), covis += has("_covis.png");
+    refined += n.find("_v") != std::string::npos && !has("_weight.png") && !has("_mask.png") && !has("_covis.png") && has(".png");
+  }
+  CHECK(refined == 9);
+  CHECK(weights == 9);
+  CHECK(masks == 9);
+  CHECK(covis == 9);
+}
+
+TEST_CASE("trainer: refined views with the wrong size or no time are refused", "[refine][finetune]") {
+  const std::string dir = scratch("refused");
+  const SynthScene s = small_synth(2, 32, 24, 0.06);
+  write_synthetic_scene(s, join_path(dir, "scene"), null_progress());
+  DatasetOptions dopt;
+  dopt.cameras = {"cam00"};
+  const Dataset data = Dataset::load(join_path(dir, "scene"), join_path(dir, "scene/transforms_train.json"), dopt);
+  Trainer t(data, init_from_points(read_points(join_path(dir, "scene/points.ply"))), TrainOptions::scaled(10));
+  RefinedView v;
+  v.camera = s.train[0];
+  v.camera.name = "v";
+  CHECK_THROWS_WITH(t.add_refined({v}), Catch::Contains("refined view v: no time"));
+  v.camera.time = 0.0;
+  v.rgb.assign(10, 0.0f);
+  CHECK_THROWS_WITH(t.add_refined({v}), Catch::Contains("do not match its 32x24 camera"));
+}
+
+TEST_CASE("eval: the truth scores its own images; a model without the moving object fails on the moving region only", "[refine][eval]") {
+  const std::string dir = scratch("eval");
+  const SynthScene s = small_synth(3, 64, 48, 0.04);
+  write_synthetic_scene(s, join_path(dir, "scene"), null_progress());
+  DatasetOptions dopt;
+  dopt.cameras = {"interp04", "interp05"};
+  const Dataset split = Dataset::load(join_path(dir, "scene"), join_path(dir, "scene/transforms_interpolation.json"), dopt);
+  EvalOptions eo;
+  eo.truth = &s.scene;
+  const SplitMetrics own = evaluate_split(s.scene, split, "interpolation", eo);
+  CHECK(own.views == 6);
+  CHECK(own.psnr > 45.0);  // 8-bit quantisation only
+  CHECK(own.psnr_moving > 45.0);
+  REQUIRE(own.moving_pixels > 100);
+  // Remove the chair: opacity 0 on every moving Gaussian.
+  GaussianCloud no_chair = s.scene;
+  for (uint32_t g : no_chair.dynamic_ids) no_chair.opacity_logits[g] = -30.0f;
+  const SplitMetrics m = evaluate_split(no_chair, split, "interpolation", eo);
+  CHECK(m.moving_pixels == own.moving_pixels);
+  CHECK(m.psnr_moving < 20.0);
+  CHECK(m.psnr > m.psnr_moving + 5.0);
+  // The moving region is where the chair renders: its pixel count matches a direct count.
+  size_t direct = 0;
+  for (const TrainView& v : split.views()) {
+    const std::vector<unsigned char> mask = moving_region(s.scene, v.camera);
+    direct += size_t(std::count(mask.begin(), mask.end(), 1));
+  }
+  CHECK(direct == own.moving_pixels);
+  eo.truth = nullptr;
+  CHECK(std::isnan(evaluate_split(s.scene, split, "interpolation", eo).psnr_moving));
+  eo.lpips_onnx = join_path(dir, "missing.onnx");
+  CHECK_THROWS_WITH(evaluate_split(s.scene, split, "interpolation", eo), Catch::Contains("cannot load the LPIPS network"));
+}
+
+TEST_CASE("cli: finetune with the example refiner, eval, and bad input", "[refine][cli]") {
+  const std::string dir = scratch("cli_finetune");
+  std::ostringstream out, err;
+  REQUIRE(cli::run({"synth", "--out", join_path(dir, "scene"), "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06", "--quiet"},
+                   out, err) == 0);
+  const std::string cams = join_path(dir, "scene/transforms_train.json"), scene = join_path(dir, "scene/scene.ply");
+  const std::string script = std::string(FILLGS_SOURCE_DIR) + "/scripts/refiners/median_denoise.sh";
+  REQUIRE(cli::run({"finetune", "--model", scene, "--images", join_path(dir, "scene"), "--cameras", cams, "--train-cameras", "cam04,cam06",
+                    "--out", join_path(dir, "ft"), "--iterations", "20", "--select-every", "10", "--trajectories", "1", "--refiner",
+                    "external", "--refiner-command", "bash " + script + " {in} {out}", "--quiet"},
+                   out, err) == 0);
+  INFO(out.str() << err.str());
+  for (const char* f : {"model.ply", "summary.json", "virtual_views.json", "loss.png"}) CHECK(fs::exists(join_path(join_path(dir, "ft"), f)));
+  const nlohmann::json j = nlohmann::json::parse(read_file(join_path(dir, "ft/summary.json")));
+  CHECK(j["virtual_views"] == 18);
+  CHECK(j["rounds"].size() == 2);
+  CHECK(j["refiner"] == "external");
+  std::ostringstream eout;
+  REQUIRE(cli::run({"eval", "--model", join_path(dir, "ft/model.ply"), "--images", join_path(dir, "scene"), "--cameras",
+                    join_path(dir, "scene/transforms_interpolation.json") + "," + join_path(dir, "scene/transforms_extrapolation.json"),
+                    "--splits", "interpolation,extrapolation", "--truth", scene, "--out", join_path(dir, "eval"), "--quiet"},
+                   eout, err) == 0);
+  const nlohmann::json m = nlohmann::json::parse(read_file(join_path(dir, "eval/metrics.json")));
+  CHECK(m["interpolation"]["views"] == 48);
+  CHECK(m["extrapolation"]["views"] == 24);
+  CHECK(m["interpolation"]["psnr"].get<double>() > 10.0);
+
+  auto fails = [&](std::vector<std::string> args, const std::string& what) {
+    std::ostringstream o, e;
+    CHECK(cli::run(args, o, e) == 1);
+    const std::string msg = e.str();
+    INFO(msg);
+    CHECK(msg.find(what) != std::string::npos);
+    CHECK(std::count(msg.begin(), msg.end(), '\n') == 1);
+  };
+  const std::vector<std::string> base = {"finetune", "--model", scene, "--images", join_path(dir, "scene"), "--cameras", cams, "--out", join_path(dir, "bad")};
+  auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> a = base;
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+  };
+  fails(with({"--weighting", "roma"}), "unknown weighting \"roma\"");
+  fails(with({"--refiner", "diffusion"}), "unknown --refiner \"diffusion\"");
+  fails(with({"--refiner", "external", "--refiner-command", "denoise"}), "must contain {in} and {out}");
+  fails(with({"--refiner", "oracle"}), "missing --truth");
+  fails({"finetune", "--model", join_path(dir, "none.ply"), "--images", join_path(dir, "scene"), "--cameras", cams, "--out", join_path(dir, "bad")},
+        "none.ply");
+  fails(with({"--out", join_path(dir, "ft")}), "exists and is not empty");
+  CHECK_FALSE(fs::exists(join_path(dir, "bad")));
+  fails({"eval", "--model", scene, "--images", join_path(dir, "scene"), "--cameras", cams, "--splits", "a,b"}, "2 --splits names for 1 camera files");
+}
+
+TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refine][bench]") {
+  const std::string dir = scratch("bench");
+  std::ostringstream out, err;
+  const std::vector<std::string> args = {"bench", "--smoke", "--out", dir, "--configs", "no-refinement,fillgs,random", "--quiet"};
+  REQUIRE(cli::run(args, out, err) == 0);
+  INFO(out.str() << err.str());
+  const std::string csv1 = read_file(join_path(dir, "results.csv"));
+  CHECK(std::count(csv1.begin(), csv1.end(), '\n') == 5);  // header, backbone, 3 runs
+  for (const char* f : {"results.md", "psnr_interpolation.png", "psnr_extrapolation.png", "time_per_phase.png"}) CHECK(fs::exists(join_path(dir, f)));
+  // Interrupted: the last run's result is missing. The rerun reuses the scene, the backbone
+  // and the finished runs, recomputes only the missing one, and gets the same numbers.
+  fs::remove(join_path(dir, "chair_s1/runs/random/result.json"));
+  std::ostringstream out2;
+  REQUIRE(cli::run(args, out2, err) == 0);
+  const std::string log = out2.str();
+  CHECK(log.find("backbone reused") != std::string::npos);
+  CHECK(log.find("fillgs: reused") != std::string::npos);
+  CHECK(log.find("no-refinement: reused") != std::string::npos);
+  CHECK(log.find("random: reused") == std::string::npos);
+  // Same metrics (the first 11 columns; the timings differ).
+  auto metrics = [](const std::string& csv) {
+    std::vector<std::string> rows;
+    std::istringstream in(csv);
+    for (std::string line; std::getline(in, line);) {
+      size_t cut = 0;
+      for (int k = 0; k < 11 && cut != std::string::npos; ++k) cut = line.find(',', cut + 1);
+      rows.push_back(line.substr(0, cut));
+    }
+    return rows;
+  };
+  CHECK(metrics(read_file(join_path(dir, "results.csv"))) == metrics(csv1));
+  // Other options in the same folder are refused.
+  std::ostringstream o3, e3;
+  CHECK(cli::run({"bench", "--smoke", "--out", dir, "--frames", "5", "--configs", "fillgs", "--quiet"}, o3, e3) == 1);
+  CHECK(e3.str().find("made with other options") != std::string::npos);
+}
