@@ -132,6 +132,39 @@ std::string fmt(double x, int digits = 2) {
 
 }  // namespace
 
+void save_result(const std::string& path, const RunResult& r) { write_file_atomically(path, result_json(r).dump(1) + "\n"); }
+
+RunResult load_result(const std::string& path) {
+  try {
+    return result_from(json::parse(read_file(path)));
+  } catch (const json::exception& e) {
+    throw_error(path, ": not a fillgs result (", e.what(), ")");
+  }
+}
+
+std::vector<RunResult> collect_results(const std::string& root) {
+  std::vector<std::string> order = {"backbone"};
+  for (const RunConfig& c : standard_configs()) order.push_back(c.id);
+  std::vector<std::pair<std::string, RunResult>> found;
+  if (!fs::is_directory(root)) return {};
+  std::vector<fs::path> scenes;
+  for (const auto& e : fs::directory_iterator(root))
+    if (e.is_directory() && fs::exists(e.path() / "options.json")) scenes.push_back(e.path());
+  std::sort(scenes.begin(), scenes.end());
+  std::vector<RunResult> out;
+  for (const fs::path& sc : scenes) {
+    std::vector<RunResult> rs;
+    if (fs::exists(sc / "backbone" / "result.json")) rs.push_back(load_result((sc / "backbone" / "result.json").string()));
+    if (fs::is_directory(sc / "runs"))
+      for (const auto& e : fs::directory_iterator(sc / "runs"))
+        if (fs::exists(e.path() / "result.json")) rs.push_back(load_result((e.path() / "result.json").string()));
+    auto rank = [&](const std::string& id) { return size_t(std::find(order.begin(), order.end(), id) - order.begin()); };
+    std::sort(rs.begin(), rs.end(), [&](const RunResult& a, const RunResult& b) { return rank(a.id) != rank(b.id) ? rank(a.id) < rank(b.id) : a.id < b.id; });
+    out.insert(out.end(), rs.begin(), rs.end());
+  }
+  return out;
+}
+
 PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& o, Progress& progress, std::ostream& log) {
   PreparedScene p;
   p.dir = join_path(root, o.variant + "_s" + std::to_string(o.seed));
@@ -258,7 +291,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   const std::string dir = join_path(join_path(p.dir, "runs"), c.id);
   const std::string result_path = join_path(dir, "result.json");
   if (fs::exists(result_path)) {
-    RunResult r = result_from(json::parse(read_file(result_path)));
+    RunResult r = load_result(result_path);
     log << c.id << ": reused " << result_path << "\n";
     return r;
   }
@@ -292,7 +325,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   r.seconds_train = fr.seconds_train;
   r.seconds_total = since(t0);
   write_fillgs_ply(join_path(dir, "model.ply"), fr.model, p.synth.options.frames);
-  write_file_atomically(result_path, result_json(r).dump(1) + "\n");
+  save_result(result_path, r);
   log << c.id << ": interpolation " << fmt(r.interpolation.psnr) << " dB (moving " << fmt(r.interpolation.psnr_moving) << "), extrapolation "
       << fmt(r.extrapolation.psnr) << " dB (moving " << fmt(r.extrapolation.psnr_moving) << "), train " << fmt(r.train.psnr) << " dB; "
       << r.trajectories << " trajectories, " << r.views_added << " views, mean weight " << fmt(r.mean_weight, 3) << ", "

@@ -81,6 +81,15 @@ RunResult evaluate_model(const PreparedScene& scene, const GaussianCloud& model,
 RunResult run_config(const PreparedScene& scene, const RunConfig& config, const FinetuneOptions& base, Progress& progress,
                      std::ostream& log);
 
+/// A result as JSON on disk (atomic) and back.
+void save_result(const std::string& path, const RunResult& result);
+RunResult load_result(const std::string& path);
+
+/// Every result stored under a benchmark root: <variant>_s<seed>/backbone/result.json and
+/// <variant>_s<seed>/runs/*/result.json, sorted by scene then configuration order of
+/// standard_configs (backbone first).
+std::vector<RunResult> collect_results(const std::string& root);
+
 /// results.csv (every run), results.md (means over scenes and seeds, shaped like the
 /// paper's tables), psnr_per_strategy.png, budget.png, time_per_phase.png.
 void write_bench_report(const std::string& root, const std::vector<RunResult>& results, const RunResult* backbone_mean);

@@ -4,7 +4,7 @@
 // strategy, export their patches, refine them, weight every refined view and add it.
 //
 // Defaults are scaled down from the paper's (30,000 iterations, 20 trajectories every
-// 6,000) to a laptop CPU: 1,500 iterations, 5 trajectories every 500 (3 rounds, 15
+// 6,000) to a laptop CPU: 1,200 iterations, 5 trajectories every 400 (3 rounds, 15
 // trajectories). `FinetuneOptions::paper()` gives the paper's schedule.
 #include <string>
 #include <vector>
@@ -20,8 +20,8 @@
 namespace fillgs {
 
 struct FinetuneOptions {
-  int iterations = 1500;
-  int select_every = 500;     ///< M: a selection round at iterations 0, M, 2M, ... (< iterations)
+  int iterations = 1200;
+  int select_every = 400;     ///< M: a selection round at iterations 0, M, 2M, ... (< iterations)
   int trajectories = 5;       ///< K per round
   SelectOptions select;       ///< strategy and its knobs (trajectories is overridden by K)
   Weighting weighting = Weighting::FillGS;

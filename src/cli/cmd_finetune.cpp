@@ -252,7 +252,6 @@ int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostr
   make_directories(root);
   TerminalProgress progress(err, progress_enabled(a));
   std::vector<RunResult> results;
-  std::vector<RunResult> backbones;
   out << "fillgs bench: " << variants.size() << " scene(s) x " << seeds.size() << " seed(s) x " << chosen.size() << " configurations -> " << root
       << " (resumable: finished runs are reused)\n";
   for (const std::string& v : variants)
@@ -261,23 +260,27 @@ int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostr
       eo.variant = v;
       eo.seed = seed;
       const PreparedScene p = prepare_scene(root, eo, progress, out);
-      RunResult bb = evaluate_model(p, p.backbone, "backbone", eo.threads, "", progress);
-      bb.group = "control";
-      backbones.push_back(bb);
+      const std::string bb_path = join_path(join_path(p.dir, "backbone"), "result.json");
+      RunResult bb;
+      if (fs::exists(bb_path)) {
+        bb = load_result(bb_path);
+      } else {
+        bb = evaluate_model(p, p.backbone, "backbone", eo.threads, "", progress);
+        bb.group = "control";
+        save_result(bb_path, bb);
+      }
       out << v << " seed " << seed << " backbone: interpolation " << fixed(bb.interpolation.psnr) << " dB, extrapolation "
           << fixed(bb.extrapolation.psnr) << " dB, train " << fixed(bb.train.psnr) << " dB\n";
       for (const RunConfig& c : chosen) {
         FinetuneOptions fo = setup.finetune;
         results.push_back(run_config(p, c, fo, progress, out));
-        std::vector<RunResult> all = backbones;
-        all.insert(all.end(), results.begin(), results.end());
-        write_bench_report(root, all, nullptr);  // after every run: an interrupted bench still has its tables
+        // After every run, over everything the folder holds (earlier invocations included):
+        // an interrupted bench still has its tables.
+        write_bench_report(root, collect_results(root), nullptr);
       }
     }
-  std::vector<RunResult> all = backbones;
-  all.insert(all.end(), results.begin(), results.end());
-  write_bench_report(root, all, nullptr);
-  out << "fillgs bench: " << results.size() << " runs; tables in " << join_path(root, "results.md") << ", " << join_path(root, "results.csv")
+  write_bench_report(root, collect_results(root), nullptr);
+  out << "fillgs bench: " << results.size() << " runs here, tables over every run in the folder: " << join_path(root, "results.md") << ", " << join_path(root, "results.csv")
       << "\n";
   return 0;
 }
