@@ -261,6 +261,14 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
   for (Weighting w : {Weighting::None, Weighting::NoConsistency, Weighting::NoCovisibility, Weighting::Enhancer3DGS, Weighting::ExploreGS,
                       Weighting::UA4DGS})
     add(std::string("fillgs.w-") + to_string(w), "weighting", Strategy::FillGS, w, strength, 5);
+  // fillgs's own options beyond the paper: model-independent sweep matching, density weight on static content.
+  add("fillgs.m-sweep", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.method = MaskMethod::Sweep;
+  add("fillgs.covis-static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.static_count = true;
+  {
+    RunConfig* c = add("fillgs.sweep+static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5);
+    c->mask.method = MaskMethod::Sweep;
+    c->mask.static_count = true;
+  }
   for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), "budget", Strategy::FillGS, Weighting::FillGS, strength, k);
   for (Strategy s : all)
     add(std::string(to_string(s)) + ".clean", "refiner", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);
@@ -305,6 +313,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   fo.select.seed = base.select.seed;
   fo.trajectories = c.trajectories;
   fo.weighting = c.weighting;
+  fo.mask = c.mask;
   fo.work_dir = join_path(dir, "work");
   make_directories(dir);
   const FinetuneResult fr = finetune(*p.train, p.backbone, *refiner, fo, progress);

@@ -126,6 +126,64 @@ std::vector<float> consistency_with(const Image& refined, const Camera& cam, con
   return conf;
 }
 
+MaskMethod parse_mask_method(const std::string& name) {
+  if (name == "depth-warp") return MaskMethod::DepthWarp;
+  if (name == "sweep") return MaskMethod::Sweep;
+  throw_error("unknown mask method \"", name, "\" (depth-warp, sweep)");
+}
+
+std::vector<float> sweep_consistency(const Image& refined, const Camera& cam, const Image& observed, const Camera& ocam, double near, double far,
+                                     const MaskOptions& o) {
+  const int W = cam.width, H = cam.height, OW = ocam.width, OH = ocam.height;
+  if (refined.width != W || refined.height != H || observed.width != OW || observed.height != OH)
+    throw_error("sweep consistency: images do not match their cameras");
+  const int win = std::max(1, o.window | 1);
+  const int K = std::max(2, o.sweep_planes);
+  const Mat3d Rt = cam.R.transpose();
+  const int rc = refined.channels, oc = observed.channels;
+  cv::Mat best(H, W, CV_32F, cv::Scalar(1e9f));
+  cv::Mat cost(H, W, CV_32F), valid(H, W, CV_32F);
+  for (int k = 0; k < K; ++k) {
+    const double inv = 1.0 / near + (1.0 / far - 1.0 / near) * k / (K - 1);
+    const double z = 1.0 / inv;
+    cost.setTo(0);
+    valid.setTo(0);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        const Vec3d pc((x + 0.5 - cam.cx) / cam.fx * z, (y + 0.5 - cam.cy) / cam.fy * z, z);
+        const Vec3d q = ocam.project(Rt * (pc - cam.t));
+        if (!(q.z() > kNearPlane)) continue;
+        const double u = q.x() - 0.5, v = q.y() - 0.5;
+        if (u < 0 || v < 0 || u > OW - 1 || v > OH - 1) continue;
+        const int i0 = std::min(int(u), std::max(0, OW - 2)), j0 = std::min(int(v), std::max(0, OH - 2));
+        const int i1 = std::min(i0 + 1, OW - 1), j1 = std::min(j0 + 1, OH - 1);
+        const double a = std::clamp(u - i0, 0.0, 1.0), b = std::clamp(v - j0, 0.0, 1.0);
+        double e = 0;
+        for (int c = 0; c < 3; ++c) {
+          auto at = [&](int i, int j) { return double(observed.pixels[(size_t(j) * OW + i) * oc + c]); };
+          const double w = (1 - a) * (1 - b) * at(i0, j0) + a * (1 - b) * at(i1, j0) + (1 - a) * b * at(i0, j1) + a * b * at(i1, j1);
+          const double r = refined.pixels[(size_t(y) * W + x) * rc + c];
+          e += (r - w) * (r - w);
+        }
+        cost.at<float>(y, x) = float(e / 3);
+        valid.at<float>(y, x) = 1;
+      }
+    cv::Mat sc, sv;
+    cv::boxFilter(cost, sc, CV_32F, cv::Size(win, win), cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
+    cv::boxFilter(valid, sv, CV_32F, cv::Size(win, win), cv::Point(-1, -1), false, cv::BORDER_CONSTANT);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        if (valid.at<float>(y, x) > 0) best.at<float>(y, x) = std::min(best.at<float>(y, x), sc.at<float>(y, x) / std::max(1.0f, sv.at<float>(y, x)));
+  }
+  std::vector<float> conf(size_t(W) * H, 0.0f);
+  const double s2 = o.sigma * o.sigma;
+  for (int p = 0; p < W * H; ++p) {
+    const float m = best.at<float>(p);
+    conf[size_t(p)] = m >= 1e8f ? 0.0f : float(std::exp(-m / s2));
+  }
+  return conf;
+}
+
 std::vector<float> ssim_map(const Image& a, const Image& b) {
   if (a.width != b.width || a.height != b.height || a.channels < 3 || b.channels < 3) throw_error("ssim map: images differ in size");
   const int W = a.width, H = a.height;
@@ -190,18 +248,28 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
     } else {
       if (!ctx.image) throw_error("weights: the consistency mask needs the observed images");
       const std::vector<float> depth = expected_depth(frame, camera, o.min_alpha, ctx.threads);
+      const float far = 2.0f * std::max(1.0f, *std::max_element(depth.begin(), depth.end()));
       w.consistency.assign(P, 0.0f);
       for (int a : adj) {
         const Camera& oc = ctx.views[size_t(a)].camera;
         const std::vector<float> c =
-            consistency_with(refined, camera, depth, ctx.image(size_t(a)), oc, expected_depth(frame, oc, o.min_alpha, ctx.threads), o);
+            o.method == MaskMethod::Sweep
+                ? sweep_consistency(refined, camera, ctx.image(size_t(a)), oc, o.sweep_near, far, o)
+                : consistency_with(refined, camera, depth, ctx.image(size_t(a)), oc, expected_depth(frame, oc, o.min_alpha, ctx.threads), o);
         for (size_t p = 0; p < P; ++p) w.consistency[p] = std::max(w.consistency[p], c[p]);
       }
     }
   }
   if (use_covis) {
     if (!ctx.deficiency) throw_error("weights: the co-visibility weight needs the deficiency tables");
-    const std::vector<float> v = ctx.deficiency->values(f, CandidateScore::Deficiency);
+    std::vector<float> v = ctx.deficiency->values(f, CandidateScore::Deficiency);
+    if (o.static_count) {
+      const std::vector<float> density = ctx.deficiency->values(f, CandidateScore::CountOnly);  // 1 / (1 + C)
+      std::vector<uint8_t> moving(v.size(), 0);
+      for (uint32_t g : ctx.deficiency->tables().dynamic_ids) moving[g] = 1;
+      for (size_t g = 0; g < v.size(); ++g)
+        if (!moving[g]) v[g] = density[g];
+    }
     w.covisibility = render_value_map(frame, camera, v.data(), ctx.threads);
   }
 

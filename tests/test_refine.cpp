@@ -221,9 +221,9 @@ TEST_CASE("consistency mask separates oracle artifacts from clean pixels (ROC AU
   std::vector<float> score;
   std::vector<uint8_t> label;
   size_t artifacts = 0;
-  const MaskOptions mo;  // defaults: σ 0.05, 3×3 window, no search (measured: AUC 0.913; 5×5 window 0.905, ±1 search 0.901)
+  MaskOptions mo;  // defaults: σ 0.05, 3×3 window, no search (measured: AUC 0.913; 5×5 window 0.905, ±1 search 0.901)
   for (const RefinedImage& ri : rep.images) {
-    const ViewWeights w = compute_weights(ctx, ri.rgb, ri.image.camera, Weighting::NoCovisibility, mo);
+      const ViewWeights w = compute_weights(ctx, ri.rgb, ri.image.camera, Weighting::NoCovisibility, mo);
     REQUIRE(w.consistency.size() == size_t(96 * 72));
     REQUIRE(all_finite(w.weight));
     const Image mask = read_image(join_path(join_path(join_path(dir, "out"), patches[size_t(ri.patch)].name), "masks/" + ri.image.file));
@@ -293,6 +293,12 @@ TEST_CASE("weights: co-visibility is D-hat (1 on an unseen moving Gaussian, 0 on
   CHECK(r.alpha[static_px] > 0.5f);
   CHECK(w.covisibility[static_px] == 0.0f);
   CHECK(w.weight == w.covisibility);
+  // With the density option, static content weighs 1 / (1 + C) = 1 here (nothing sees it).
+  MaskOptions dense;
+  dense.static_count = true;
+  const ViewWeights wd = compute_weights(ctx, refined, view, Weighting::NoConsistency, dense);
+  CHECK(wd.covisibility[static_px] == Approx(r.alpha[static_px]).margin(1e-4));
+  CHECK(wd.covisibility[moving_px] == Approx(r.alpha[moving_px]).margin(1e-4));
   // The observed camera looks away: no pixel of the virtual view can be checked against it.
   const ViewWeights wc = compute_weights(ctx, refined, view, Weighting::NoCovisibility, MaskOptions());
   CHECK(*std::max_element(wc.consistency.begin(), wc.consistency.end()) == 0.0f);
@@ -312,6 +318,42 @@ TEST_CASE("weights: co-visibility is D-hat (1 on an unseen moving Gaussian, 0 on
   CHECK(ex.weight[moving_px] == Approx(1.0).margin(1e-3));
   CHECK(compute_weights(ctx, refined, view, Weighting::None, MaskOptions()).weight == std::vector<float>(64 * 48, 1.0f));
   CHECK_THROWS_WITH(parse_weighting("roma"), Catch::Contains("unknown weighting \"roma\""));
+}
+
+TEST_CASE("sweep mask: a model without the chair hides it from the depth warp, not from the sweep", "[refine][weights]") {
+  const int F = 3;
+  const SynthScene s = small_synth(F, 96, 72, 0.04);
+  GaussianCloud no_chair = s.scene;  // the model: everything but the chair
+  for (uint32_t g : no_chair.dynamic_ids) no_chair.opacity_logits[g] = -30.0f;
+  const std::vector<ObservedView> views = observed_views(cameras_over_time(s.train, F), F);
+  WeightContext ctx;
+  ctx.model = &no_chair;
+  ctx.views = views;
+  ctx.image = [&](size_t i) {
+    Image im(views[i].camera.width, views[i].camera.height, 3);
+    im.pixels = render_rgb(s.scene, views[i].camera);  // the real photographs show the chair
+    return im;
+  };
+  ctx.frames = F;
+  Camera v = interpolate_camera(s.train[4], s.train[5], 0.5);
+  v.time = 0.5;
+  Image refined(v.width, v.height, 3);
+  refined.pixels = render_rgb(s.scene, v);  // a perfect refiner
+  const std::vector<unsigned char> chair = moving_region(s.scene, v);
+  REQUIRE(std::count(chair.begin(), chair.end(), 1) > 50);
+  MaskOptions warp, sweep;
+  sweep.method = MaskMethod::Sweep;
+  const ViewWeights a = compute_weights(ctx, refined, v, Weighting::NoCovisibility, warp);
+  const ViewWeights b = compute_weights(ctx, refined, v, Weighting::NoCovisibility, sweep);
+  double ma = 0, mb = 0, n = 0;
+  for (size_t p = 0; p < chair.size(); ++p)
+    if (chair[p]) ma += a.consistency[p], mb += b.consistency[p], n += 1;
+  ma /= n, mb /= n;
+  INFO("mean confidence on the chair: depth warp " << ma << ", sweep " << mb);
+  CHECK(mb > ma + 0.2);
+  CHECK(mb > 0.6);
+  CHECK(parse_mask_method("sweep") == MaskMethod::Sweep);
+  CHECK_THROWS_WITH(parse_mask_method("roma"), Catch::Contains("unknown mask method \"roma\""));
 }
 
 TEST_CASE("weighted fine-tuning keeps the training views; unweighted fine-tuning on the same artifacts loses more", "[refine][finetune]") {

@@ -11,6 +11,7 @@
 // LPIPS network contract: an ONNX file with two inputs named `in0` and `in1`, each
 // 1×3×H×W float RGB in [−1, 1], returning the distance as the first value of its output
 // (the names and layout of the lpips package's forward(in0, in1) exported to ONNX).
+#include <limits>
 #include <string>
 #include <vector>
 

@@ -52,6 +52,7 @@ struct RunConfig {
   std::string group;        ///< "strategy", "ablation", "weighting", "budget", "refiner", "control"
   SelectOptions select;     ///< strategy and ablation flags
   Weighting weighting = Weighting::FillGS;
+  MaskOptions mask;
   double artifact_strength = 0.5;  ///< oracle artifacts (0: clean ground truth)
   int trajectories = 5;     ///< per round; 0: fine-tune on the real views only (the control)
 };

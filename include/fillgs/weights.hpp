@@ -38,7 +38,11 @@ const char* to_string(Weighting w);
 /// fillgs | none | no-consistency | no-covisibility | 3dgs-enhancer | exploregs | ua-4dgs.
 Weighting parse_weighting(const std::string& name);
 
-enum class MaskMethod { DepthWarp, External };
+/// depth-warp: through the model's rendered depth (occlusion-checked); sweep: the best
+/// match along the epipolar line over `sweep_planes` depths (model-independent, like a
+/// dense matcher); external: maps computed elsewhere.
+enum class MaskMethod { DepthWarp, Sweep, External };
+MaskMethod parse_mask_method(const std::string& name);  ///< depth-warp | sweep
 struct MaskOptions {
   MaskMethod method = MaskMethod::DepthWarp;
   double sigma = 0.05;            ///< colour difference (RMS, [0,1] units) at which confidence is 1/e
@@ -46,9 +50,16 @@ struct MaskOptions {
   int search = 0;                 ///< best match within ±search pixels of the warped position (±1 lowered the AUC to 0.901)
   double depth_tolerance = 0.05;  ///< occlusion test: |z − z_observed| ≤ this × z
   double min_alpha = 0.5;         ///< pixels with less rendered opacity have no depth
+  int sweep_planes = 64;          ///< sweep: depths, uniform in inverse depth
+  double sweep_near = 0.3;        ///< sweep: nearest depth; the farthest is 2 × the view's largest rendered depth
   /// External maps: `<external_dir>/<name>` (8/16-bit grey, same size) for a refined view
   /// named `name` (the refined image's path relative to the refined root).
   std::string external_dir;
+  /// Co-visibility of static Gaussians: 0 (the paper's D = s / (1 + C) with s = 0) or, with
+  /// this set, 1 / (1 + C) — the observation density alone (an option fillgs adds: a
+  /// model whose moving Gaussians are misplaced otherwise gives the true moving object's
+  /// pixels, drawn over static content, no weight at all).
+  bool static_count = false;
 };
 
 /// Expected depth Σ α·T·z / α of a render, 0 where α < min_alpha.
@@ -58,6 +69,11 @@ std::vector<float> expected_depth(const FrameGaussians& frame, const Camera& cam
 /// agrees with `observed` (seen from `observed_camera`, depth `observed_depth`).
 std::vector<float> consistency_with(const Image& refined, const Camera& camera, const std::vector<float>& depth, const Image& observed,
                                     const Camera& observed_camera, const std::vector<float>& observed_depth, const MaskOptions& options);
+
+/// Sweep consistency: per pixel, the best local agreement of `refined` with `observed`
+/// over depths uniform in inverse depth between `near` and `far` ([H][W] in [0, 1]).
+std::vector<float> sweep_consistency(const Image& refined, const Camera& camera, const Image& observed, const Camera& observed_camera,
+                                     double near, double far, const MaskOptions& options);
 
 /// Per-pixel SSIM map (11×11 Gaussian window, σ 1.5) of two RGB images, mean over channels.
 std::vector<float> ssim_map(const Image& a, const Image& b);

@@ -63,7 +63,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
   Args a("finetune", args, 1,
          merge({"model", "images", "cameras", "out", "train-cameras", "iterations", "select-every", "trajectories", "strategy", "weighting",
                 "refiner", "refiner-command", "refiner-timeout", "truth", "artifact-strength", "confidence", "seed", "threads",
-                "time-stride", "refined-share", "mask-sigma"},
+                "time-stride", "refined-share", "mask-sigma", "mask", "covis-static"},
                kSceneOptions),
          kSelectFlags);
   const auto t0 = Clock::now();
@@ -85,6 +85,10 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
   apply_select_flags(a, o.select);
   o.weighting = parse_weighting(a.get("weighting", "fillgs"));
   o.mask.sigma = a.number("mask-sigma", o.mask.sigma);
+  o.mask.method = parse_mask_method(a.get("mask", "depth-warp"));
+  const std::string cs = a.get("covis-static", "zero");
+  if (cs != "zero" && cs != "count") throw_error("fillgs finetune: --covis-static must be zero or count (got \"", cs, "\")");
+  o.mask.static_count = cs == "count";
   if (a.has("confidence")) {
     o.mask.method = MaskMethod::External;
     o.mask.external_dir = a.get("confidence");
