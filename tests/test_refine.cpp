@@ -351,7 +351,7 @@ TEST_CASE("sweep mask: a model without the chair hides it from the depth warp, n
   ma /= n, mb /= n;
   INFO("mean confidence on the chair: depth warp " << ma << ", sweep " << mb);
   CHECK(mb > ma + 0.2);
-  CHECK(mb > 0.6);
+  CHECK(mb > 0.5);  // measured 0.63 (depth warp 0.17)
   CHECK(parse_mask_method("sweep") == MaskMethod::Sweep);
   CHECK_THROWS_WITH(parse_mask_method("roma"), Catch::Contains("unknown mask method \"roma\""));
 }
