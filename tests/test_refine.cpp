@@ -125,7 +125,7 @@ TEST_CASE("roc_auc: the Mann-Whitney statistic with ties counted half", "[refine
   CHECK(std::isnan(roc_auc({0.2f, 0.3f}, {1, 1})));
 }
 
-TEST_CASE("external refiner: the example script follows the protocol; failures, timeouts and wrong sizes are reported per patch", "[refine]") {
+TEST_CASE("external refiner: the example script follows the protocol, and failures, timeouts and wrong sizes are reported per patch", "[refine]") {
   const SynthScene s = small_synth(4, 40, 30, 0.05);
   const std::vector<ObservedView> views = observed_views(cameras_over_time(s.train, 4), 4);
   const std::string dir = scratch("external");
@@ -240,7 +240,7 @@ TEST_CASE("consistency mask separates oracle artifacts from clean pixels (ROC AU
   CHECK(auc >= 0.9);
 }
 
-TEST_CASE("weights: co-visibility is D-hat (1 on an unseen moving Gaussian, 0 on static content); other weightings in [0, 1]", "[refine][weights]") {
+TEST_CASE("weights: co-visibility is D-hat (1 on an unseen moving Gaussian, 0 on static content), other weightings in [0, 1]", "[refine][weights]") {
   // A static backdrop and a moving Gaussian in front of it; the only training camera looks
   // away from the moving one, so its D = s / (1 + 0) is the scene's largest: D-hat = 1.
   GaussianCloud c;
@@ -356,7 +356,7 @@ TEST_CASE("sweep mask: a model without the chair hides it from the depth warp, n
   CHECK_THROWS_WITH(parse_mask_method("roma"), Catch::Contains("unknown mask method \"roma\""));
 }
 
-TEST_CASE("weighted fine-tuning keeps the training views; unweighted fine-tuning on the same artifacts loses more", "[refine][finetune]") {
+TEST_CASE("weighted fine-tuning keeps the training views, unweighted fine-tuning on the same artifacts loses more", "[refine][finetune]") {
   const std::string dir = scratch("finetune");
   SynthOptions so;
   so.frames = 4;
@@ -432,7 +432,7 @@ TEST_CASE("trainer: refined views with the wrong size or no time are refused", "
   CHECK_THROWS_WITH(t.add_refined({v}), Catch::Contains("do not match its 32x24 camera"));
 }
 
-TEST_CASE("eval: the truth scores its own images; a model without the moving object fails on the moving region only", "[refine][eval]") {
+TEST_CASE("eval: the truth scores its own images, a model without the moving object fails on the moving region only", "[refine][eval]") {
   const std::string dir = scratch("eval");
   const SynthScene s = small_synth(3, 64, 48, 0.04);
   write_synthetic_scene(s, join_path(dir, "scene"), null_progress());
