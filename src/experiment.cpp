@@ -357,15 +357,16 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
 
   // Means per configuration, in first-seen order.
   struct Mean {
-    std::string id, group;
+    std::string id, group, variant;
     int n = 0;
     double v[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};  // ip is im ep es em tp weight traj
     double t[5] = {0, 0, 0, 0, 0};
   };
   std::vector<Mean> means;
   auto accumulate = [&](const RunResult& r) {
-    auto it = std::find_if(means.begin(), means.end(), [&](const Mean& m) { return m.id == r.id; });
-    if (it == means.end()) means.push_back({r.id, r.group}), it = means.end() - 1;
+    // Means over seeds, per scene variant (variants differ too much to average).
+    auto it = std::find_if(means.begin(), means.end(), [&](const Mean& m) { return m.id == r.id && m.variant == r.variant; });
+    if (it == means.end()) means.push_back({r.id, r.group, r.variant}), it = means.end() - 1;
     const double x[9] = {r.interpolation.psnr, r.interpolation.ssim, r.interpolation.psnr_moving, r.extrapolation.psnr,
                          r.extrapolation.ssim,  r.extrapolation.psnr_moving, r.train.psnr, r.mean_weight, double(r.trajectories)};
     for (int k = 0; k < 9; ++k) it->v[k] += x[k];
@@ -382,7 +383,7 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   std::set<std::string> scenes;
   for (const RunResult& r : results) scenes.insert(r.variant + " seed " + std::to_string(r.seed));
   std::ostringstream md;
-  md << "# fillgs bench\n\nMeans over " << scenes.size() << " scene run(s):";
+  md << "# fillgs bench\n\nMeans over seeds, per scene variant; " << scenes.size() << " scene run(s):";
   for (const std::string& s : scenes) md << " " << s << ";";
   md << "\nPSNR in dB. \"moving\": PSNR over the pixels of the moving object (ground truth). Train: PSNR on the 2 training cameras.\n\n";
   const char* groups[][2] = {{"control", "Without generated views"},      {"strategy", "Viewpoint selection strategies (Table 1 of the paper)"},
@@ -392,35 +393,37 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
     bool any = false;
     for (const Mean& m : means) any |= m.group == g[0] || (std::string(g[0]) == "control" && m.id == "backbone");
     if (!any) continue;
-    md << "## " << g[1] << "\n\n| Method | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | weight | runs |\n"
-       << "|---|---|---|---|---|---|---|---|---|---|\n";
+    md << "## " << g[1] << "\n\n| Scene | Method | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | weight | runs |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const Mean& m : means) {
       if (!(m.group == g[0] || (std::string(g[0]) == "control" && m.id == "backbone"))) continue;
-      md << "| " << m.id << " | " << fmt(m.v[0]) << " | " << fmt(m.v[1], 3) << " | " << fmt(m.v[2]) << " | " << fmt(m.v[3]) << " | "
+      md << "| " << m.variant << " | " << m.id << " | " << fmt(m.v[0]) << " | " << fmt(m.v[1], 3) << " | " << fmt(m.v[2]) << " | " << fmt(m.v[3]) << " | "
          << fmt(m.v[4], 3) << " | " << fmt(m.v[5]) << " | " << fmt(m.v[6]) << " | " << fmt(m.v[7], 3) << " | " << m.n << " |\n";
     }
     md << "\n";
   }
-  md << "## Seconds per phase (mean per run)\n\n| Method | select | refine | weights | train | eval |\n|---|---|---|---|---|---|\n";
+  md << "## Seconds per phase (mean per run)\n\n| Scene | Method | select | refine | weights | train | eval |\n|---|---|---|---|---|---|---|\n";
   for (const Mean& m : means)
     if (m.id != "backbone")
-      md << "| " << m.id << " | " << fmt(m.t[0], 1) << " | " << fmt(m.t[1], 1) << " | " << fmt(m.t[2], 1) << " | " << fmt(m.t[3], 1) << " | "
+      md << "| " << m.variant << " | " << m.id << " | " << fmt(m.t[0], 1) << " | " << fmt(m.t[1], 1) << " | " << fmt(m.t[2], 1) << " | " << fmt(m.t[3], 1) << " | "
          << fmt(m.t[4], 1) << " |\n";
   write_file_atomically(join_path(root, "results.md"), md.str());
 
   // Plots.
+  // Plots: the first scene variant (the chair scene when present).
+  const std::string plotted = means.empty() ? "" : means.front().variant;
   std::vector<std::string> names;
   std::vector<double> interp, extrap;
   for (const Mean& m : means)
-    if (m.group == "strategy" || m.group == "control" || m.id == "backbone")
+    if (m.variant == plotted && (m.group == "strategy" || m.group == "control" || m.id == "backbone"))
       names.push_back(m.id), interp.push_back(m.v[0]), extrap.push_back(m.v[3]);
   if (!names.empty()) {
-    write_bar_chart_png(join_path(root, "psnr_interpolation.png"), names, interp, {"interpolation PSNR per strategy", "", "PSNR (dB)"});
-    write_bar_chart_png(join_path(root, "psnr_extrapolation.png"), names, extrap, {"extrapolation PSNR per strategy", "", "PSNR (dB)"});
+    write_bar_chart_png(join_path(root, "psnr_interpolation.png"), names, interp, {"interpolation PSNR per strategy (" + plotted + ")", "", "PSNR (dB)"});
+    write_bar_chart_png(join_path(root, "psnr_extrapolation.png"), names, extrap, {"extrapolation PSNR per strategy (" + plotted + ")", "", "PSNR (dB)"});
   }
   ScatterSeries bi{"interpolation", {}, {}, {}}, be{"extrapolation", {}, {}, {}};
   for (const Mean& m : means)
-    if (m.group == "budget" || m.id == "fillgs") {
+    if (m.variant == plotted && (m.group == "budget" || m.id == "fillgs")) {
       const double k = m.v[8];  // trajectories selected over all rounds
       bi.x.push_back(k), bi.y.push_back(m.v[0]);
       be.x.push_back(k), be.y.push_back(m.v[3]);
