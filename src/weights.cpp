@@ -37,6 +37,23 @@ std::vector<float> max_weights(const FrameGaussians& frame, const Camera& camera
   return render(frame, camera, ro).max_weight;
 }
 
+/// Σ over RGB of (refined(x, y) − observed bilinear at (u, v))², (u, v) in pixel-index
+/// coordinates inside the observed image.
+double squared_difference(const Image& refined, int x, int y, const Image& observed, double u, double v) {
+  const int OW = observed.width, OH = observed.height, oc = observed.channels;
+  const int i0 = std::min(int(u), std::max(0, OW - 2)), j0 = std::min(int(v), std::max(0, OH - 2));
+  const int i1 = std::min(i0 + 1, OW - 1), j1 = std::min(j0 + 1, OH - 1);
+  const double a = std::clamp(u - i0, 0.0, 1.0), b = std::clamp(v - j0, 0.0, 1.0);
+  double e = 0;
+  for (int c = 0; c < 3; ++c) {
+    auto at = [&](int i, int j) { return double(observed.pixels[(size_t(j) * OW + i) * oc + c]); };
+    const double w = (1 - a) * (1 - b) * at(i0, j0) + a * (1 - b) * at(i1, j0) + (1 - a) * b * at(i0, j1) + a * b * at(i1, j1);
+    const double r = refined.pixels[(size_t(y) * refined.width + x) * refined.channels + c];
+    e += (r - w) * (r - w);
+  }
+  return e;
+}
+
 std::vector<float> ones(const Camera& c) { return std::vector<float>(size_t(c.width) * size_t(c.height), 1.0f); }
 
 }  // namespace
@@ -76,7 +93,6 @@ std::vector<float> consistency_with(const Image& refined, const Camera& cam, con
   if (depth.size() != size_t(W) * H || odepth.size() != size_t(OW) * OH) throw_error("consistency: depth maps do not match the cameras");
   cv::Mat diff(H, W, CV_32F, cv::Scalar(0)), valid(H, W, CV_32F, cv::Scalar(0));
   const Mat3d Rt = cam.R.transpose();
-  const int rc = refined.channels, oc = observed.channels;
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
       const float z = depth[size_t(y) * W + x];
@@ -96,17 +112,7 @@ std::vector<float> consistency_with(const Image& refined, const Camera& cam, con
       for (int dv = -o.search; dv <= o.search; ++dv)
         for (int du = -o.search; du <= o.search; ++du) {
           const double su = std::clamp(u + du, 0.0, double(OW - 1)), sv = std::clamp(v + dv, 0.0, double(OH - 1));
-          const int i0 = std::min(int(su), std::max(0, OW - 2)), j0 = std::min(int(sv), std::max(0, OH - 2));
-          const int i1 = std::min(i0 + 1, OW - 1), j1 = std::min(j0 + 1, OH - 1);
-          const double a = std::clamp(su - i0, 0.0, 1.0), b = std::clamp(sv - j0, 0.0, 1.0);
-          double e = 0;
-          for (int c = 0; c < 3; ++c) {
-            auto at = [&](int i, int j) { return double(observed.pixels[(size_t(j) * OW + i) * oc + c]); };
-            const double w = (1 - a) * (1 - b) * at(i0, j0) + a * (1 - b) * at(i1, j0) + (1 - a) * b * at(i0, j1) + a * b * at(i1, j1);
-            const double r = refined.pixels[(size_t(y) * W + x) * rc + c];
-            e += (r - w) * (r - w);
-          }
-          d2 = std::min(d2, e);
+          d2 = std::min(d2, squared_difference(refined, x, y, observed, su, sv));
         }
       diff.at<float>(y, x) = float(d2 / 3);
       valid.at<float>(y, x) = 1;
@@ -140,7 +146,6 @@ std::vector<float> sweep_consistency(const Image& refined, const Camera& cam, co
   const int win = std::max(1, o.window | 1);
   const int K = std::max(2, o.sweep_planes);
   const Mat3d Rt = cam.R.transpose();
-  const int rc = refined.channels, oc = observed.channels;
   cv::Mat best(H, W, CV_32F, cv::Scalar(1e9f));
   cv::Mat cost(H, W, CV_32F), valid(H, W, CV_32F);
   for (int k = 0; k < K; ++k) {
@@ -155,17 +160,7 @@ std::vector<float> sweep_consistency(const Image& refined, const Camera& cam, co
         if (!(q.z() > kNearPlane)) continue;
         const double u = q.x() - 0.5, v = q.y() - 0.5;
         if (u < 0 || v < 0 || u > OW - 1 || v > OH - 1) continue;
-        const int i0 = std::min(int(u), std::max(0, OW - 2)), j0 = std::min(int(v), std::max(0, OH - 2));
-        const int i1 = std::min(i0 + 1, OW - 1), j1 = std::min(j0 + 1, OH - 1);
-        const double a = std::clamp(u - i0, 0.0, 1.0), b = std::clamp(v - j0, 0.0, 1.0);
-        double e = 0;
-        for (int c = 0; c < 3; ++c) {
-          auto at = [&](int i, int j) { return double(observed.pixels[(size_t(j) * OW + i) * oc + c]); };
-          const double w = (1 - a) * (1 - b) * at(i0, j0) + a * (1 - b) * at(i1, j0) + (1 - a) * b * at(i0, j1) + a * b * at(i1, j1);
-          const double r = refined.pixels[(size_t(y) * W + x) * rc + c];
-          e += (r - w) * (r - w);
-        }
-        cost.at<float>(y, x) = float(e / 3);
+        cost.at<float>(y, x) = float(squared_difference(refined, x, y, observed, u, v) / 3);
         valid.at<float>(y, x) = 1;
       }
     cv::Mat sc, sv;
