@@ -11,11 +11,12 @@
 
 #include "fillgs/camera.hpp"
 #include "fillgs/gaussians.hpp"
+#include "fillgs/timing.hpp"
 
 namespace fillgs::bench {
 
-using Clock = std::chrono::steady_clock;
-inline double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+using fillgs::Clock;
+using fillgs::seconds_since;
 
 inline std::string shared_data() {
   if (const char* e = std::getenv("FILLGS_SHARED_DATA")) return e;

@@ -148,7 +148,7 @@ int bench_select(const std::vector<std::string>& args) {
   auto t0 = Clock::now();
   Setup s;
   build(s, synth.scene, synth.train, so.frames, true);
-  const double grid_s = since(t0);
+  const double grid_s = seconds_since(t0);
   std::printf("## Selection on the synthetic scene (%zu Gaussians, %zu moving, %zu cameras x %d frames, %dx%d), 2 threads\n\n",
               synth.scene.size(), synth.scene.dynamic_count(), synth.train.size(), so.frames, so.width, so.height);
   std::fflush(stdout);
@@ -228,7 +228,7 @@ int bench_select(const std::vector<std::string>& args) {
           out.push_back(mean_value(render_value_map(ev.evaluate(cam.time), cam, d.data())));
         }
       }
-      *ms = 1000.0 * since(t) / double(pool.size());
+      *ms = 1000.0 * seconds_since(t) / double(pool.size());
       return out;
     };
     const int Kr = smoke ? 2 : 5;
@@ -301,7 +301,7 @@ int bench_select(const std::vector<std::string>& args) {
       ExplorationOptions eo;
       eo.divisions = div;
       g.grid = ExplorationGrid::build(*s.scene, cams, {}, eo);
-      const double gs = since(tg);
+      const double gs = seconds_since(tg);
       SelectOptions o = base;
       o.global_candidates = globals;
       o.no_global = globals == 0;
@@ -326,7 +326,7 @@ int bench_select(const std::vector<std::string>& args) {
     Setup L;
     const auto tl = Clock::now();
     build(L, big, rig, frames, false);
-    const double lg = since(tl);
+    const double lg = seconds_since(tl);
     std::printf("\n### Large scene: guitar.ply x %d = %zu Gaussians (%zu moving), %d orbit cameras x %d frames at %dx%d, no images (L = 0)\n\n",
                 copies, big.size(), big.dynamic_count(), ncam, frames, rig[0].width, rig[0].height);
     std::printf("%s", kPhaseHeader);

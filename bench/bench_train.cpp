@@ -65,7 +65,7 @@ void speed(bool smoke) {
       render(fg, cams[0], ro);  // warm-up
       auto t0 = Clock::now();
       for (const Camera& cam : cams) render(fg, cam, ro);
-      const double fwd = since(t0) / reps;
+      const double fwd = seconds_since(t0) / reps;
       std::vector<float> target(size_t(w) * h * 3, 0.5f), dimg(target.size());
       DiffRenderOptions dro;
       dro.threads = 2;
@@ -77,7 +77,7 @@ void speed(bool smoke) {
         DiffFrameGrad<float> g;
         r.backward(dimg.data(), nullptr, nullptr, &g);
       }
-      const double both = since(t0) / reps;
+      const double both = seconds_since(t0) / reps;
       std::printf("| %zu | %dx%d | %.1f | %.1f | %.2f | %.1f |\n", c.size(), w, h, fwd * 1e3, both * 1e3, both / fwd, 1.0 / both);
     }
   }
@@ -99,7 +99,7 @@ Quality train_and_eval(const std::string& dir, const SynthScene& s, const std::v
   const auto t0 = Clock::now();
   t.run(iterations, null_progress());
   Quality q;
-  q.seconds = since(t0);
+  q.seconds = seconds_since(t0);
   const GaussianCloud m = t.model();
   q.gaussians = m.size();
   q.moving = m.dynamic_count();

@@ -177,7 +177,7 @@ void synthetic_sweep(bool smoke, std::vector<ScatterSeries>& pareto) {
   ref_opt.visibility.mode = VisibilityMode::Exact;
   auto t0 = Clock::now();
   const ObservationTables ref = observation_tables(s.scene, s.train, times, dt, ref_opt);
-  const double ref_seconds = since(t0);
+  const double ref_seconds = seconds_since(t0);
   const auto ref_scores = candidate_scores(s.scene, ref, candidates, candidate_frame, 4);
   std::printf("| setting | table time (s) | vs exact | rays/s | recall | precision | worst-view recall | worst-view precision | mean abs dC | candidate rank corr. |\n");
   std::printf("|---|---|---|---|---|---|---|---|---|---|\n");
@@ -190,7 +190,7 @@ void synthetic_sweep(bool smoke, std::vector<ScatterSeries>& pareto) {
     ObservationSummary sum;
     t0 = Clock::now();
     const ObservationTables t = observation_tables(s.scene, s.train, times, dt, o, &sum);
-    const double seconds = since(t0);
+    const double seconds = seconds_since(t0);
     const SetAccuracy a = set_accuracy(s.scene, s.train, acc_times, st.vis, exact_cache);
     const double rho = spearman(ref_scores, candidate_scores(s.scene, t, candidates, candidate_frame, 4));
     const double rays_per_s = sum.counters.rays ? double(sum.counters.rays) / sum.seconds_frames : 0.0;
@@ -221,7 +221,7 @@ void guitar_sweep(bool smoke, std::vector<ScatterSeries>& pareto) {
     VisibilityEngine e(cloud, ex);
     for (size_t c = 0; c < cams.size(); ++c) exact_cache[{0, c}] = e.visible_set(cams[c]);
   }
-  const double ref_seconds = since(t0);
+  const double ref_seconds = seconds_since(t0);
   std::printf("| exact (reference) | %.2f | 1.00 | - | 1 | 1 | 1 | 1 |\n", ref_seconds);
   ScatterSeries series{"guitar 1352x1014", {}, {}, {}};
   for (const Setting& st : settings(smoke)) {
@@ -229,7 +229,7 @@ void guitar_sweep(bool smoke, std::vector<ScatterSeries>& pareto) {
     VisibilityEngine e(cloud, st.vis);
     t0 = Clock::now();
     for (const Camera& c : cams) e.visible_set(c);
-    const double seconds = since(t0);  // includes the proxy build (first view)
+    const double seconds = seconds_since(t0);  // includes the proxy build (first view)
     const SetAccuracy a = set_accuracy(cloud, cams, {0.0}, st.vis, exact_cache);
     const double rps = e.counters().rays ? double(e.counters().rays) / (seconds - e.build_seconds()) : 0.0;
     std::printf("| %s | %.2f | %.3f | %s | %.4f | %.4f | %.4f | %.4f |\n", st.name.c_str(), seconds, seconds / ref_seconds,
@@ -276,7 +276,7 @@ void million_scene(bool smoke) {
     const auto t0 = Clock::now();
     const ObserveReport r = observe_to_directory(cloud, cams, times, dt, o, tmp, oo);
     std::printf("frustum, full table %zu x %d cameras x %d frames: %.1f s (static answers %.1f s, frames %.1f s, speeds %.1f s, write %.1f s); peak memory %.0f MB\n",
-                cloud.size(), cameras, frames, since(t0), r.summary.seconds_static, r.summary.seconds_frames, r.summary.seconds_speed,
+                cloud.size(), cameras, frames, seconds_since(t0), r.summary.seconds_static, r.summary.seconds_frames, r.summary.seconds_speed,
                 r.summary.seconds_sink, r.peak_memory_bytes / 1048576.0);
   }
   {  // raytraced stride 4: incremental against from scratch, on the first frames
@@ -288,11 +288,11 @@ void million_scene(bool smoke) {
     ObservationSummary si, sf;
     auto t0 = Clock::now();
     const ObservationTables a = observation_tables(cloud, cams, few, dt, inc, &si);
-    const double inc_s = since(t0);
+    const double inc_s = seconds_since(t0);
     const std::vector<double> fewer(times.begin(), times.begin() + 2);
     t0 = Clock::now();
     const ObservationTables b = observation_tables(cloud, cams, fewer, dt, full, &sf);
-    const double full_s = since(t0);
+    const double full_s = seconds_since(t0);
     bool same = std::equal(b.counts.begin(), b.counts.end(), a.counts.begin());
     const double per_frame_inc = (si.seconds_frames - si.seconds_static) / traced_frames + si.seconds_refit / traced_frames;
     const double per_frame_full = sf.seconds_frames / 2.0 + sf.seconds_refit / 2.0;
@@ -323,10 +323,10 @@ void million_scene(bool smoke) {
       rt.visibility.stride = 4;
       auto t0 = Clock::now();
       observation_tables(c, some, few, dt, fr);
-      const double fs = since(t0);
+      const double fs = seconds_since(t0);
       t0 = Clock::now();
       const ObservationTables t = observation_tables(c, some, few, dt, rt);
-      const double rs = since(t0);
+      const double rs = seconds_since(t0);
       if (th == 0.0) unfrozen = t;
       double dd = 0;
       for (int f = 0; f < int(few.size()); ++f) {

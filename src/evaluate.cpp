@@ -10,6 +10,7 @@
 #include "fillgs/image_io.hpp"
 #include "fillgs/loss.hpp"
 #include "fillgs/raster.hpp"
+#include "fillgs/timing.hpp"
 
 namespace fillgs {
 
@@ -62,7 +63,7 @@ double LpipsNetwork::distance(const float* a, const float* b, int W, int H) {
 
 SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, const std::string& name, const EvalOptions& o,
                             Progress& progress) {
-  const auto t0 = std::chrono::steady_clock::now();
+  const auto t0 = Clock::now();
   SplitMetrics m;
   m.split = name;
   std::unique_ptr<LpipsNetwork> lpips;
@@ -114,7 +115,7 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
     const double mse = moving_se / (3.0 * double(m.moving_pixels));
     m.psnr_moving = mse > 0 ? 10.0 * std::log10(1.0 / mse) : std::numeric_limits<double>::infinity();
   }
-  m.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  m.seconds = seconds_since(t0);
   return m;
 }
 

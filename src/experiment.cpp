@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "fillgs/error.hpp"
+#include "fillgs/timing.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/plot.hpp"
 #include "fillgs/scene_io.hpp"
@@ -22,8 +23,6 @@ namespace fillgs {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 json options_json(const ExperimentOptions& o) {
   return {{"variant", o.variant},
@@ -188,7 +187,7 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& o,
   if (!p.reused_scene) {
     write_synthetic_scene(p.synth, scene_dir, progress, o.threads);
     write_file_atomically(stamp_path, stamp.dump(1) + "\n");
-    p.seconds_synth = since(t0);
+    p.seconds_synth = seconds_since(t0);
     log << "scene " << o.variant << " (seed " << o.seed << "): " << p.synth.scene.size() << " Gaussians, " << p.synth.scene.dynamic_count()
         << " moving, " << o.width << "x" << o.height << ", " << o.frames << " frames, rendered in " << fmt(p.seconds_synth, 1) << " s" << std::endl;
   }
@@ -213,7 +212,7 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& o,
   Trainer trainer(*p.train, init_from_points(read_points(join_path(scene_dir, "points.ply"))), to);
   trainer.run(o.backbone_iterations, progress);
   p.backbone = trainer.model();
-  p.seconds_backbone = since(t0);
+  p.seconds_backbone = seconds_since(t0);
   make_directories(bb);
   write_fillgs_ply(model_path, p.backbone, o.frames);
   const json summary = {{"iterations", o.backbone_iterations},
@@ -291,7 +290,7 @@ RunResult evaluate_model(const PreparedScene& p, const GaussianCloud& model, con
   r.extrapolation = evaluate_split(model, *p.extrapolation, "extrapolation", eo, progress);
   eo.save_dir.clear();
   r.train = evaluate_split(model, *p.train, "train", eo, progress);
-  r.seconds_eval = since(t0);
+  r.seconds_eval = seconds_since(t0);
   return r;
 }
 
@@ -332,7 +331,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   }
   if (r.views_added) r.mean_weight /= double(r.views_added);
   r.seconds_train = fr.seconds_train;
-  r.seconds_total = since(t0);
+  r.seconds_total = seconds_since(t0);
   write_fillgs_ply(join_path(dir, "model.ply"), fr.model, p.synth.options.frames);
   save_result(result_path, r);
   log << c.id << ": interpolation " << fmt(r.interpolation.psnr) << " dB (moving " << fmt(r.interpolation.psnr_moving) << "), extrapolation "
@@ -342,7 +341,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   return r;
 }
 
-void write_bench_report(const std::string& root, const std::vector<RunResult>& results, const RunResult* backbone) {
+void write_bench_report(const std::string& root, const std::vector<RunResult>& results) {
   // CSV: every run.
   std::ostringstream csv;
   csv << "variant,seed,id,group,interp_psnr,interp_ssim,interp_psnr_moving,extrap_psnr,extrap_ssim,extrap_psnr_moving,train_psnr,"
@@ -374,7 +373,6 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
     for (int k = 0; k < 5; ++k) it->t[k] += s[k];
     it->n += 1;
   };
-  if (backbone) accumulate(*backbone);
   for (const RunResult& r : results) accumulate(r);
   for (Mean& m : means) {
     for (double& x : m.v) x /= m.n;

@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "fillgs/error.hpp"
+#include "fillgs/timing.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/image_io.hpp"
 #include "fillgs/raster.hpp"
@@ -16,8 +17,6 @@ namespace fillgs {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 Image grey(const std::vector<float>& v, int w, int h) {
   Image im(w, h, 1);
@@ -91,7 +90,7 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
       so.seed = o.select.seed + uint64_t(round) * 7919;
       so.threads = o.threads;
       const SelectResult sel = select_viewpoints(in, so, progress);
-      r.seconds_select = since(t0);
+      r.seconds_select = seconds_since(t0);
       r.trajectories = int(sel.trajectories.size());
       r.notes = sel.notes;
 
@@ -109,10 +108,10 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
         write_patch(join_path(patch_root, name), patches.back(), views, image_of,
                     [&](const Camera& c) { return render(evaluate(current, c.time), c, ro).rgb; });
       }
-      r.seconds_render = since(t0);
+      r.seconds_render = seconds_since(t0);
       t0 = Clock::now();
       const RefineReport rep = refine_patches(refiner, patches, patch_root, refined_root, progress);
-      r.seconds_refine = since(t0);
+      r.seconds_refine = seconds_since(t0);
       r.refine_failures = rep.failures;
 
       // Weights, written next to every refined image.
@@ -145,20 +144,20 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
         progress.advance();
       }
       progress.finish();
-      r.seconds_weights = since(t0);
+      r.seconds_weights = seconds_since(t0);
       r.views_added = added.size();
       r.mean_weight = weight_count ? weight_sum / double(weight_count) : 0.0;
       trainer.add_refined(std::move(added));
     }
     const auto t0 = Clock::now();
     trainer.run(std::min(o.iterations, it0 + o.select_every), progress);
-    train_seconds += since(t0);
+    train_seconds += seconds_since(t0);
     result.rounds.push_back(std::move(r));
   }
   result.model = trainer.model();
   result.loss_history = trainer.loss_history();
   result.seconds_train = train_seconds;
-  result.seconds_total = since(t_start);
+  result.seconds_total = seconds_since(t_start);
   return result;
 }
 

@@ -19,6 +19,7 @@
 #include "fillgs/fs_util.hpp"
 #include "fillgs/random.hpp"
 #include "fillgs/raster.hpp"
+#include "fillgs/timing.hpp"
 
 namespace fs = std::filesystem;
 
@@ -26,7 +27,6 @@ namespace fillgs {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 
 Image to_image(const std::vector<float>& rgb, int width, int height) {
   Image im(width, height, 3);
@@ -226,7 +226,6 @@ void write_patch(const std::string& dir, const Patch& patch, const std::vector<O
 }
 
 std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& o, uint64_t key) {
-  // (kArtifactVisible: see refine.hpp)
   const int W = image.width, H = image.height;
   std::vector<uint8_t> mask(size_t(W) * H, 0);
   if (image.channels != 3) throw_error("artifacts: need an RGB image");
@@ -311,7 +310,7 @@ int run_command(const std::string& command, double timeout_seconds, const std::s
     const pid_t r = waitpid(pid, &status, WNOHANG);
     if (r == pid) break;
     if (r < 0) throw_error("refiner: lost the process");
-    if (std::chrono::duration<double>(Clock::now() - t0).count() > timeout_seconds) {
+    if (seconds_since(t0) > timeout_seconds) {
       kill(-pid, SIGKILL);
       waitpid(pid, &status, 0);
       return -1;
@@ -363,7 +362,7 @@ RefineReport refine_patches(Refiner& refiner, const std::vector<Patch>& patches,
     progress.advance();
   }
   progress.finish();
-  rep.seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  rep.seconds = seconds_since(t0);
   return rep;
 }
 

@@ -8,6 +8,7 @@
 #include <random>
 
 #include "fillgs/error.hpp"
+#include "fillgs/timing.hpp"
 #include "fillgs/raster.hpp"
 #include "fillgs/raster_grad.hpp"
 #include "fillgs/train_model.hpp"
@@ -44,8 +45,6 @@ MapRenderer parse_map_renderer(const std::string& name) {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 /// Normalised time of frame f of F (t = f / (F − 1); 0 for a single frame).
 double frame_time(int f, int frames) { return frames > 1 ? double(f) / (frames - 1) : 0.0; }

@@ -11,6 +11,7 @@
 #include <map>
 
 #include "fillgs/error.hpp"
+#include "fillgs/timing.hpp"
 #include "fillgs/gaussian_tracer.hpp"
 
 namespace fillgs {
@@ -47,8 +48,6 @@ std::vector<double> frame_times(int frames) {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 RasterMatch camera_raster_match(const Camera& cam) {
   RasterMatch f;

@@ -54,6 +54,14 @@ double squared_difference(const Image& refined, int x, int y, const Image& obser
   return e;
 }
 
+/// The model's expected depth in observed view `v` (cached in the context).
+const std::vector<float>& observed_depth(const WeightContext& ctx, const FrameGaussians& frame, size_t v, double min_alpha) {
+  auto it = ctx.observed_depths.find(v);
+  if (it == ctx.observed_depths.end())
+    it = ctx.observed_depths.emplace(v, expected_depth(frame, ctx.views[v].camera, min_alpha, ctx.threads)).first;
+  return it->second;
+}
+
 std::vector<float> ones(const Camera& c) { return std::vector<float>(size_t(c.width) * size_t(c.height), 1.0f); }
 
 }  // namespace
@@ -250,7 +258,7 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
         const std::vector<float> c =
             o.method == MaskMethod::Sweep
                 ? sweep_consistency(refined, camera, ctx.image(size_t(a)), oc, o.sweep_near, far, o)
-                : consistency_with(refined, camera, depth, ctx.image(size_t(a)), oc, expected_depth(frame, oc, o.min_alpha, ctx.threads), o);
+                : consistency_with(refined, camera, depth, ctx.image(size_t(a)), oc, observed_depth(ctx, frame, size_t(a), o.min_alpha), o);
         for (size_t p = 0; p < P; ++p) w.consistency[p] = std::max(w.consistency[p], c[p]);
       }
     }

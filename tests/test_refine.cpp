@@ -358,12 +358,7 @@ TEST_CASE("sweep mask: a model without the chair hides it from the depth warp, n
 
 TEST_CASE("weighted fine-tuning keeps the training views, unweighted fine-tuning on the same artifacts loses more", "[refine][finetune]") {
   const std::string dir = scratch("finetune");
-  SynthOptions so;
-  so.frames = 4;
-  so.width = 64;
-  so.height = 48;
-  so.spacing = 0.04;
-  const SynthScene s = make_synthetic_scene(so);
+  const SynthScene s = small_synth(4, 64, 48, 0.04);
   write_synthetic_scene(s, join_path(dir, "scene"), null_progress());
   DatasetOptions dopt;
   dopt.cameras = {"cam04", "cam05", "cam06"};
@@ -399,8 +394,7 @@ TEST_CASE("weighted fine-tuning keeps the training views, unweighted fine-tuning
   CHECK(pw >= psnr0 - 0.5);
   CHECK(pm >= psnr0 - 0.5);  // the mask alone (non-zero weights on static content too) also keeps them
   CHECK(masked.rounds[0].mean_weight > 0.05);
-  CHECK(pn < pw);
-  CHECK(psnr0 - pn > psnr0 - pw);
+  CHECK(pn < pw);  // the unweighted run ends lower (measured: it gains 0.05 dB where the weighted gains 0.39)
   // The weight images are written next to every refined view.
   size_t refined = 0, weights = 0, masks = 0, covis = 0;
   for (const auto& e : fs::directory_iterator(join_path(dir, "work_fillgs/refined/r0_t00"))) {
@@ -453,13 +447,24 @@ TEST_CASE("eval: the truth scores its own images, a model without the moving obj
   CHECK(m.moving_pixels == own.moving_pixels);
   CHECK(m.psnr_moving < 20.0);
   CHECK(m.psnr > m.psnr_moving + 5.0);
-  // The moving region is where the chair renders: its pixel count matches a direct count.
-  size_t direct = 0;
+  // The moving region is where the chair shows: every pixel of it changes when the chair is
+  // removed, and it covers most of the pixels that change (the rest: the chair's soft rim,
+  // under half the opacity).
+  size_t changed = 0, inside = 0, region = 0;
   for (const TrainView& v : split.views()) {
     const std::vector<unsigned char> mask = moving_region(s.scene, v.camera);
-    direct += size_t(std::count(mask.begin(), mask.end(), 1));
+    const std::vector<float> with = render_rgb(s.scene, v.camera), without = render_rgb(no_chair, v.camera);
+    for (size_t p = 0; p < mask.size(); ++p) {
+      bool differs = false;
+      for (int c = 0; c < 3; ++c) differs |= std::abs(with[p * 3 + c] - without[p * 3 + c]) > 1.0f / 255;
+      changed += differs;
+      region += mask[p];
+      inside += mask[p] && differs;
+    }
   }
-  CHECK(direct == own.moving_pixels);
+  CHECK(region == own.moving_pixels);
+  CHECK(inside == region);
+  CHECK(double(region) > 0.5 * double(changed));
   eo.truth = nullptr;
   CHECK(std::isnan(evaluate_split(s.scene, split, "interpolation", eo).psnr_moving));
   eo.lpips_onnx = join_path(dir, "missing.onnx");

@@ -93,6 +93,6 @@ std::vector<RunResult> collect_results(const std::string& root);
 
 /// results.csv (every run), results.md (means over scenes and seeds, shaped like the
 /// paper's tables), psnr_per_strategy.png, budget.png, time_per_phase.png.
-void write_bench_report(const std::string& root, const std::vector<RunResult>& results, const RunResult* backbone_mean);
+void write_bench_report(const std::string& root, const std::vector<RunResult>& results);
 
 }  // namespace fillgs

@@ -23,6 +23,7 @@
 //  * ua-4dgs: rendered per-Gaussian uncertainty 1 / (1 + Σ_training views at that frame of
 //    the Gaussian's maximum blending weight).
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -88,6 +89,9 @@ struct WeightContext {
   int frames = 1;
   Vec3f background = Vec3f::Zero();
   int threads = 0;
+  /// Rendered depths of observed views, computed once per context (a context belongs to
+  /// one model; every refined view of a round compares against the same few views).
+  mutable std::map<size_t, std::vector<float>> observed_depths;
 };
 
 struct ViewWeights {

@@ -25,7 +25,8 @@ namespace fillgs::cli {
 
 namespace {
 
-const std::set<std::string> kSelectFlags = {"no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring",
+/// Flags of finetune: the selection ablations, --paper-schedule, --quiet.
+const std::set<std::string> kFinetuneFlags = {"no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring",
                                             "no-global", "count-only", "speed-only", "quiet", "paper-schedule"};
 
 void apply_select_flags(const Args& a, SelectOptions& s) {
@@ -65,7 +66,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
                 "refiner", "refiner-command", "refiner-timeout", "truth", "artifact-strength", "confidence", "seed", "threads",
                 "time-stride", "refined-share", "mask-sigma", "mask", "covis-static"},
                kSceneOptions),
-         kSelectFlags);
+         kFinetuneFlags);
   const auto t0 = Clock::now();
   const std::string out_dir = a.require("out");
   DatasetOptions dopt;
@@ -280,10 +281,10 @@ int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostr
         results.push_back(run_config(p, c, fo, progress, out));
         // After every run, over everything the folder holds (earlier invocations included):
         // an interrupted bench still has its tables.
-        write_bench_report(root, collect_results(root), nullptr);
+        write_bench_report(root, collect_results(root));
       }
     }
-  write_bench_report(root, collect_results(root), nullptr);
+  write_bench_report(root, collect_results(root));
   out << "fillgs bench: " << results.size() << " runs here, tables over every run in the folder: " << join_path(root, "results.md") << ", " << join_path(root, "results.csv")
       << "\n";
   return 0;
@@ -315,7 +316,7 @@ int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     }
   std::vector<RunResult> all = {bb};
   all.insert(all.end(), results.begin(), results.end());
-  write_bench_report(dir, all, nullptr);
+  write_bench_report(dir, all);
 
   // Side-by-side pictures: an interpolation and an extrapolation view at mid-motion.
   const int F = setup.scene.frames;

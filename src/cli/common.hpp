@@ -15,12 +15,13 @@
 #include "fillgs/camera.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/scene_io.hpp"
+#include "fillgs/timing.hpp"
 #include "fillgs/visibility.hpp"
 
 namespace fillgs::cli {
 
-using Clock = std::chrono::steady_clock;
-inline double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+using fillgs::Clock;
+using fillgs::seconds_since;
 
 /// `--key value` / `--key=value` options and bare flags, checked against what a command knows.
 class Args {
