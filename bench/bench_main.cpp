@@ -11,13 +11,15 @@ int bench_render(const std::vector<std::string>& args);
 int bench_visibility(const std::vector<std::string>& args);
 int bench_train(const std::vector<std::string>& args);
 int bench_select(const std::vector<std::string>& args);
+int bench_motion(const std::vector<std::string>& args);
 
 int main(int argc, char** argv) {
   if (argc < 2) {
     std::cerr << "usage: fillgs_bench render [--smoke] [--scene PLY] [--frames N]\n"
                  "       fillgs_bench visibility [--smoke] [--out DIR] [--only synthetic|guitar|million]\n"
                  "       fillgs_bench train [--smoke] [--out DIR] [--only speed|quality]\n"
-                 "       fillgs_bench select [--smoke] [--only strategies,renderer,priority,grid,large]\n";
+                 "       fillgs_bench select [--smoke] [--only strategies,renderer,priority,grid,large]\n"
+                 "       fillgs_bench motion [--smoke] [--out DIR] [--variant V] [--cameras all|a,b] [--iterations N] [--config label:k=v;..]\n";
     return 2;
   }
   const std::string name = argv[1];
@@ -27,6 +29,7 @@ int main(int argc, char** argv) {
     if (name == "visibility") return bench_visibility(args);
     if (name == "train") return bench_train(args);
     if (name == "select") return bench_select(args);
+    if (name == "motion") return bench_motion(args);
     std::cerr << "error: unknown benchmark '" << name << "'\n";
     return 2;
   } catch (const fillgs::Error& e) {

@@ -174,7 +174,7 @@ int bench_select(const std::vector<std::string>& args) {
         e.set_time(c.time);
         const std::vector<uint32_t> vis = e.visible_set(c);
         size_t n = 0;
-        for (uint32_t g : synth.chair_ids) n += std::binary_search(vis.begin(), vis.end(), g);
+        for (uint32_t g : synth.moving_ids) n += std::binary_search(vis.begin(), vis.end(), g);
         seeing += n > 0;
       }
     return total ? double(seeing) / double(total) : 0.0;

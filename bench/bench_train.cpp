@@ -113,7 +113,7 @@ Quality train_and_eval(const std::string& dir, const SynthScene& s, const std::v
   std::vector<std::vector<Vec3f>> chair(static_cast<size_t>(F));
   for (int f = 0; f < F; ++f) {
     const FrameGaussians g = evaluate(s.scene, double(f) / (F - 1));
-    for (uint32_t id : s.chair_ids) chair[size_t(f)].push_back(g.means[id]);
+    for (uint32_t id : s.moving_ids) chair[size_t(f)].push_back(g.means[id]);
   }
   for (size_t j = 0; j < m.dynamic_count(); ++j) {
     bool on = false;

@@ -25,7 +25,8 @@ namespace {
 
 
 json options_json(const ExperimentOptions& o) {
-  return {{"variant", o.variant},
+  return {{"rig", o.rig},
+          {"variant", o.variant},
           {"seed", o.seed},
           {"width", o.width},
           {"height", o.height},
@@ -36,14 +37,11 @@ json options_json(const ExperimentOptions& o) {
           {"backbone_iterations", o.backbone_iterations}};
 }
 
-/// Every frame of the named rig cameras (looked up in the scene's splits), for a Dataset.
+/// Every frame of the named cameras (looked up in the scene's rigs), for a Dataset.
 std::vector<Camera> split_cameras(const SynthScene& s, const std::vector<std::string>& names) {
   std::vector<Camera> rig;
   for (const std::string& n : names) {
-    const Camera* found = nullptr;
-    for (const auto* list : {&s.train, &s.interpolation, &s.extrapolation})
-      for (const Camera& c : *list)
-        if (c.name == n) found = &c;
+    const Camera* found = s.camera(n);
     if (!found) throw_error("experiment: no camera named ", n, " in the synthetic scene");
     rig.push_back(*found);
   }
@@ -87,6 +85,8 @@ json result_json(const RunResult& r) {
           {"trajectories", r.trajectories},
           {"views_added", r.views_added},
           {"mean_weight", r.mean_weight},
+          {"support", r.support},
+          {"support_share", r.support_share},
           {"refine_failures", r.refine_failures},
           {"seconds",
            {{"select", r.seconds_select},
@@ -109,6 +109,8 @@ RunResult result_from(const json& j) {
   r.trajectories = j.at("trajectories");
   r.views_added = j.at("views_added");
   r.mean_weight = j.at("mean_weight");
+  r.support = j.value("support", "");
+  r.support_share = j.value("support_share", 0.0);
   r.refine_failures = j.at("refine_failures");
   const json& s = j.at("seconds");
   r.seconds_select = s.at("select");
@@ -129,6 +131,16 @@ std::string fmt(double x, int digits = 2) {
   return s.str();
 }
 
+/// The backbone: trained from the scene's points on `data` for the experiment's iterations.
+GaussianCloud train_backbone(const Dataset& data, const std::string& points, const ExperimentOptions& o, Progress& progress) {
+  TrainOptions to = TrainOptions::scaled(o.backbone_iterations);
+  to.seed = o.seed;
+  to.threads = o.threads;
+  Trainer trainer(data, init_from_points(read_points(points)), to);
+  trainer.run(o.backbone_iterations, progress);
+  return trainer.model();
+}
+
 }  // namespace
 
 void save_result(const std::string& path, const RunResult& r) { write_file_atomically(path, result_json(r).dump(1) + "\n"); }
@@ -143,7 +155,7 @@ RunResult load_result(const std::string& path) {
 
 std::vector<RunResult> collect_results(const std::string& root) {
   std::vector<std::string> order = {"backbone"};
-  for (const RunConfig& c : standard_configs()) order.push_back(c.id);
+  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, 0.5, {OracleSupport::Observed, OracleSupport::Full})) order.push_back(c.id);
   std::vector<std::pair<std::string, RunResult>> found;
   if (!fs::is_directory(root)) return {};
   std::vector<fs::path> scenes;
@@ -164,18 +176,42 @@ std::vector<RunResult> collect_results(const std::string& root) {
   return out;
 }
 
-PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& o, Progress& progress, std::ostream& log) {
-  PreparedScene p;
-  p.dir = join_path(root, o.variant + "_s" + std::to_string(o.seed));
-  const std::string scene_dir = join_path(p.dir, "scene"), stamp_path = join_path(p.dir, "options.json");
-  const json stamp = options_json(o);
-  if (fs::exists(stamp_path)) {
-    const json old = json::parse(read_file(stamp_path));
-    if (old != stamp)
-      throw_error(stamp_path, ": this folder holds a run made with other options (", old.dump(), "); use another --out");
-  }
-  make_directories(p.dir);
+SceneChoice parse_scene(const std::string& name) {
+  if (name == "n3v" || name == "technicolor") return {name, ""};
+  const std::vector<std::string> ring = synthetic_variants("ring");
+  if (std::count(ring.begin(), ring.end(), name)) return {"ring", name};
+  throw_error("unknown scene \"", name, "\" (n3v, technicolor, chair, orbit, lift)");
+}
+
+std::vector<std::string> bench_scenes() { return {"n3v", "technicolor", "chair", "orbit", "lift"}; }
+
+std::string ExperimentOptions::scene_name() const {
   SynthOptions so;
+  so.rig = rig;
+  so.variant = variant;
+  return so.scene_name();
+}
+
+ExperimentOptions ExperimentOptions::resolved() const {
+  ExperimentOptions o = *this;
+  SynthOptions so;
+  so.rig = rig;
+  so.variant = variant;
+  o.variant = so.resolved_variant();
+  if (o.width <= 0 || o.height <= 0) {
+    if (rig == "technicolor") o.width = 192, o.height = 102;  // 2048×1088 aspect
+    else o.width = 160, o.height = 120;
+  }
+  return o;
+}
+
+std::string PreparedScene::scene_dir() const { return join_path(dir, "scene"); }
+
+PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& options, Progress& progress, std::ostream& log) {
+  PreparedScene p;
+  ExperimentOptions o = options.resolved();
+  SynthOptions so;
+  so.rig = o.rig;
   so.variant = o.variant;
   so.seed = o.seed;
   so.width = o.width;
@@ -183,12 +219,25 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& o,
   so.frames = o.frames;
   auto t0 = Clock::now();
   p.synth = make_synthetic_scene(so);
+  if (o.train_cameras.empty()) o.train_cameras = p.synth.split.train;
+  if (o.interpolation_cameras.empty()) o.interpolation_cameras = p.synth.split.interpolation;
+  if (o.extrapolation_cameras.empty()) o.extrapolation_cameras = p.synth.split.extrapolation;
+  p.options = o;
+  p.dir = join_path(root, o.scene_name() + "_s" + std::to_string(o.seed));
+  const std::string scene_dir = p.scene_dir(), stamp_path = join_path(p.dir, "options.json");
+  const json stamp = options_json(o);
+  if (fs::exists(stamp_path)) {
+    const json old = json::parse(read_file(stamp_path));
+    if (old != stamp)
+      throw_error(stamp_path, ": this folder holds a run made with other options (", old.dump(), "); use another --out");
+  }
+  make_directories(p.dir);
   p.reused_scene = fs::exists(join_path(scene_dir, "synth.json")) && fs::exists(stamp_path);
   if (!p.reused_scene) {
     write_synthetic_scene(p.synth, scene_dir, progress, o.threads);
     write_file_atomically(stamp_path, stamp.dump(1) + "\n");
     p.seconds_synth = seconds_since(t0);
-    log << "scene " << o.variant << " (seed " << o.seed << "): " << p.synth.scene.size() << " Gaussians, " << p.synth.scene.dynamic_count()
+    log << "scene " << o.scene_name() << " (seed " << o.seed << "): " << p.synth.scene.size() << " Gaussians, " << p.synth.scene.dynamic_count()
         << " moving, " << o.width << "x" << o.height << ", " << o.frames << " frames, rendered in " << fmt(p.seconds_synth, 1) << " s" << std::endl;
   }
   DatasetOptions dopt;
@@ -206,12 +255,7 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& o,
     return p;
   }
   t0 = Clock::now();
-  TrainOptions to = TrainOptions::scaled(o.backbone_iterations);
-  to.seed = o.seed;
-  to.threads = o.threads;
-  Trainer trainer(*p.train, init_from_points(read_points(join_path(scene_dir, "points.ply"))), to);
-  trainer.run(o.backbone_iterations, progress);
-  p.backbone = trainer.model();
+  p.backbone = train_backbone(*p.train, join_path(scene_dir, "points.ply"), o, progress);
   p.seconds_backbone = seconds_since(t0);
   make_directories(bb);
   write_fillgs_ply(model_path, p.backbone, o.frames);
@@ -227,50 +271,68 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& o,
   return p;
 }
 
-std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double strength) {
+std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double strength, const std::vector<OracleSupport>& supports) {
   std::vector<RunConfig> out;
-  auto add = [&](const std::string& id, const std::string& group, Strategy s, Weighting w, double a, int k) {
-    RunConfig c;
-    c.id = id;
-    c.group = group;
-    c.select.strategy = s;
-    c.weighting = w;
-    c.artifact_strength = a;
-    c.trajectories = k;
-    out.push_back(c);
-    return &out.back();
-  };
-  add("no-refinement", "control", Strategy::FillGS, Weighting::None, strength, 0);
   const Strategy all[] = {Strategy::FillGS,     Strategy::Random,     Strategy::Negative,  Strategy::Interpolation,
                           Strategy::FisherRF,   Strategy::Coverage3D, Strategy::Coverage4D};
-  for (Strategy s : all) add(to_string(s), "strategy", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, strength, 5);
-  const char* ablations[] = {"no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring",
-                             "no-global",          "count-only",    "speed-only"};
-  for (const char* a : ablations) {
-    RunConfig* c = add(std::string("fillgs.") + a, "ablation", Strategy::FillGS, Weighting::FillGS, strength, 5);
-    const std::string n = a;
-    c->select.no_start_selection = n == "no-start-selection";
-    c->select.no_error_term = n == "no-error-term";
-    c->select.no_sensitivity_term = n == "no-sensitivity-term";
-    c->select.no_candidate_scoring = n == "no-candidate-scoring";
-    c->select.no_global = n == "no-global";
-    if (n == "count-only") c->select.score = CandidateScore::CountOnly;
-    if (n == "speed-only") c->select.score = CandidateScore::SpeedOnly;
+  for (size_t si = 0; si < supports.size(); ++si) {
+    const OracleSupport support = supports[si];
+    const std::string suffix = si == 0 ? "" : std::string("@") + to_string(support);
+    auto add = [&](const std::string& id, const std::string& group, Strategy s, Weighting w, double a, int k) {
+      RunConfig c;
+      c.id = id + suffix;
+      c.group = group;
+      c.select.strategy = s;
+      c.weighting = w;
+      c.artifact_strength = a;
+      c.trajectories = k;
+      c.support = support;
+      out.push_back(c);
+      return &out.back();
+    };
+    add("no-refinement", "control", Strategy::FillGS, Weighting::None, strength, 0);
+    for (Strategy s : all) add(to_string(s), "strategy", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, strength, 5);
+    const char* ablations[] = {"no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring",
+                               "no-global",          "count-only",    "speed-only"};
+    for (const char* a : ablations) {
+      RunConfig* c = add(std::string("fillgs.") + a, "ablation", Strategy::FillGS, Weighting::FillGS, strength, 5);
+      const std::string n = a;
+      c->select.no_start_selection = n == "no-start-selection";
+      c->select.no_error_term = n == "no-error-term";
+      c->select.no_sensitivity_term = n == "no-sensitivity-term";
+      c->select.no_candidate_scoring = n == "no-candidate-scoring";
+      c->select.no_global = n == "no-global";
+      if (n == "count-only") c->select.score = CandidateScore::CountOnly;
+      if (n == "speed-only") c->select.score = CandidateScore::SpeedOnly;
+    }
+    for (Weighting w : {Weighting::None, Weighting::NoConsistency, Weighting::NoCovisibility, Weighting::Enhancer3DGS, Weighting::ExploreGS,
+                        Weighting::UA4DGS})
+      add(std::string("fillgs.w-") + to_string(w), "weighting", Strategy::FillGS, w, strength, 5);
+    // fillgs's own options beyond the paper: model-independent sweep matching, density weight on static content.
+    add("fillgs.m-sweep", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.method = MaskMethod::Sweep;
+    add("fillgs.covis-static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.static_count = true;
+    {
+      RunConfig* c = add("fillgs.sweep+static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5);
+      c->mask.method = MaskMethod::Sweep;
+      c->mask.static_count = true;
+    }
+    for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), "budget", Strategy::FillGS, Weighting::FillGS, strength, k);
+    for (Strategy s : all)
+      add(std::string(to_string(s)) + ".clean", "refiner", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);
   }
-  for (Weighting w : {Weighting::None, Weighting::NoConsistency, Weighting::NoCovisibility, Weighting::Enhancer3DGS, Weighting::ExploreGS,
-                      Weighting::UA4DGS})
-    add(std::string("fillgs.w-") + to_string(w), "weighting", Strategy::FillGS, w, strength, 5);
-  // fillgs's own options beyond the paper: model-independent sweep matching, density weight on static content.
-  add("fillgs.m-sweep", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.method = MaskMethod::Sweep;
-  add("fillgs.covis-static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.static_count = true;
-  {
-    RunConfig* c = add("fillgs.sweep+static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5);
-    c->mask.method = MaskMethod::Sweep;
-    c->mask.static_count = true;
-  }
-  for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), "budget", Strategy::FillGS, Weighting::FillGS, strength, k);
-  for (Strategy s : all)
-    add(std::string(to_string(s)) + ".clean", "refiner", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);
+  RunConfig tv;
+  tv.id = "upper.test-views";
+  tv.group = "upper";
+  tv.kind = RunKind::TestViews;
+  tv.weighting = Weighting::None;
+  tv.artifact_strength = 0;
+  tv.trajectories = 0;
+  tv.support = OracleSupport::Full;
+  out.push_back(tv);
+  RunConfig dense = tv;
+  dense.id = "upper.dense";
+  dense.kind = RunKind::Dense;
+  out.push_back(dense);
   return out;
 }
 
@@ -279,8 +341,8 @@ RunResult evaluate_model(const PreparedScene& p, const GaussianCloud& model, con
   const auto t0 = Clock::now();
   RunResult r;
   r.id = id;
-  r.variant = p.synth.options.variant;
-  r.seed = p.synth.options.seed;
+  r.variant = p.options.scene_name();
+  r.seed = p.options.seed;
   EvalOptions eo;
   eo.threads = threads;
   eo.truth = &p.synth.scene;
@@ -303,10 +365,24 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
     return r;
   }
   const auto t0 = Clock::now();
-  ArtifactOptions ao;
-  ao.strength = c.artifact_strength;
-  ao.seed = p.synth.options.seed;
-  const std::unique_ptr<Refiner> refiner = make_oracle_refiner(p.synth.scene, ao, Vec3f::Zero(), base.threads);
+  make_directories(dir);
+  const int F = p.options.frames;
+  if (c.kind == RunKind::Dense) {
+    // Every camera of the rig, trained like the backbone.
+    const Dataset all = Dataset::load(p.scene_dir(), join_path(p.scene_dir(), "transforms_train.json"));
+    const GaussianCloud model = train_backbone(all, join_path(p.scene_dir(), "points.ply"), p.options, progress);
+    const double train_s = seconds_since(t0);
+    RunResult r = evaluate_model(p, model, c.id, base.threads, "", progress);
+    r.group = c.group;
+    r.seconds_train = train_s;
+    r.seconds_total = seconds_since(t0);
+    write_fillgs_ply(join_path(dir, "model.ply"), model, F);
+    save_result(result_path, r);
+    log << c.id << ": " << all.rigs().size() << " cameras; interpolation " << fmt(r.interpolation.psnr) << " dB (moving "
+        << fmt(r.interpolation.psnr_moving) << "), extrapolation " << fmt(r.extrapolation.psnr) << " dB (moving "
+        << fmt(r.extrapolation.psnr_moving) << "), " << fmt(r.seconds_total, 0) << " s" << std::endl;
+    return r;
+  }
   FinetuneOptions fo = base;
   fo.select = c.select;
   fo.select.seed = base.select.seed;
@@ -314,11 +390,34 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   fo.weighting = c.weighting;
   fo.mask = c.mask;
   fo.work_dir = join_path(dir, "work");
-  make_directories(dir);
+  if (c.kind == RunKind::TestViews) {
+    // Clean ground truth at every test camera and frame, weight 1: what no selection can beat.
+    RenderOptions ro;
+    ro.threads = base.threads;
+    FrameEvaluator truth(p.synth.scene);
+    for (const Dataset* split : {p.interpolation.get(), p.extrapolation.get()})
+      for (const TrainView& v : split->views()) {
+        const size_t P = size_t(v.camera.width) * size_t(v.camera.height);
+        fo.extra_views.push_back({v.camera, render(truth.evaluate(v.camera.time), v.camera, ro).rgb, std::vector<float>(P, 1.0f)});
+      }
+  }
+  OracleOptions oo;
+  oo.artifacts.strength = c.artifact_strength;
+  oo.artifacts.seed = p.options.seed;
+  oo.support = c.support;
+  for (const TrainView& v : p.train->views()) oo.observers.push_back(v.camera);
+  oo.frames = F;
+  oo.threads = base.threads;
+  SupportStats stats;
+  const std::unique_ptr<Refiner> refiner = make_oracle_refiner(p.synth.scene, oo, &stats);
   const FinetuneResult fr = finetune(*p.train, p.backbone, *refiner, fo, progress);
   RunResult r = evaluate_model(p, fr.model, c.id, base.threads, "", progress);
   r.group = c.group;
   r.trajectories = 0;
+  if (c.kind == RunKind::Finetune && c.trajectories > 0) {
+    r.support = to_string(c.support);
+    r.support_share = stats.share();
+  }
   for (const FinetuneRound& round : fr.rounds) {
     r.trajectories += round.trajectories;
     r.views_added += round.views_added;
@@ -330,73 +429,86 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
     for (const std::string& n : round.notes) log << c.id << ": round at iteration " << round.iteration << ": " << n << "\n";
   }
   if (r.views_added) r.mean_weight /= double(r.views_added);
+  if (c.kind == RunKind::TestViews) r.views_added = fo.extra_views.size(), r.mean_weight = 1.0;
   r.seconds_train = fr.seconds_train;
   r.seconds_total = seconds_since(t0);
-  write_fillgs_ply(join_path(dir, "model.ply"), fr.model, p.synth.options.frames);
+  write_fillgs_ply(join_path(dir, "model.ply"), fr.model, F);
   save_result(result_path, r);
   log << c.id << ": interpolation " << fmt(r.interpolation.psnr) << " dB (moving " << fmt(r.interpolation.psnr_moving) << "), extrapolation "
       << fmt(r.extrapolation.psnr) << " dB (moving " << fmt(r.extrapolation.psnr_moving) << "), train " << fmt(r.train.psnr) << " dB; "
-      << r.trajectories << " trajectories, " << r.views_added << " views, mean weight " << fmt(r.mean_weight, 3) << ", "
-      << fmt(r.seconds_total, 0) << " s" << std::endl;
+      << r.trajectories << " trajectories, " << r.views_added << " views, mean weight " << fmt(r.mean_weight, 3);
+  if (!r.support.empty()) log << ", supported " << fmt(100 * r.support_share, 1) << "%";
+  log << ", " << fmt(r.seconds_total, 0) << " s" << std::endl;
   return r;
 }
 
 void write_bench_report(const std::string& root, const std::vector<RunResult>& results) {
   // CSV: every run.
   std::ostringstream csv;
-  csv << "variant,seed,id,group,interp_psnr,interp_ssim,interp_psnr_moving,extrap_psnr,extrap_ssim,extrap_psnr_moving,train_psnr,"
-         "trajectories,views_added,mean_weight,refine_failures,s_select,s_refine,s_weights,s_train,s_eval,s_total\n";
+  csv << "scene,seed,id,group,support,interp_psnr,interp_ssim,interp_psnr_moving,extrap_psnr,extrap_ssim,extrap_psnr_moving,train_psnr,"
+         "trajectories,views_added,mean_weight,support_share,refine_failures,s_select,s_refine,s_weights,s_train,s_eval,s_total\n";
   for (const RunResult& r : results)
-    csv << r.variant << "," << r.seed << "," << r.id << "," << r.group << "," << r.interpolation.psnr << "," << r.interpolation.ssim << ","
-        << r.interpolation.psnr_moving << "," << r.extrapolation.psnr << "," << r.extrapolation.ssim << "," << r.extrapolation.psnr_moving
-        << "," << r.train.psnr << "," << r.trajectories << "," << r.views_added << "," << r.mean_weight << "," << r.refine_failures << ","
-        << r.seconds_select << "," << r.seconds_refine << "," << r.seconds_weights << "," << r.seconds_train << "," << r.seconds_eval << ","
-        << r.seconds_total << "\n";
+    csv << r.variant << "," << r.seed << "," << r.id << "," << r.group << "," << r.support << "," << r.interpolation.psnr << "," << r.interpolation.ssim
+        << "," << r.interpolation.psnr_moving << "," << r.extrapolation.psnr << "," << r.extrapolation.ssim << "," << r.extrapolation.psnr_moving
+        << "," << r.train.psnr << "," << r.trajectories << "," << r.views_added << "," << r.mean_weight << "," << r.support_share << ","
+        << r.refine_failures << "," << r.seconds_select << "," << r.seconds_refine << "," << r.seconds_weights << "," << r.seconds_train << ","
+        << r.seconds_eval << "," << r.seconds_total << "\n";
   write_file_atomically(join_path(root, "results.csv"), csv.str());
 
-  // Means per configuration, in first-seen order.
+  // Mean and standard deviation over seeds, per scene and configuration, in first-seen order.
+  constexpr int kValues = 10;  // ip is im ep es em tp weight trajectories support
   struct Mean {
-    std::string id, group, variant;
+    std::string id, group, variant, support;
     int n = 0;
-    double v[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};  // ip is im ep es em tp weight traj
-    double t[5] = {0, 0, 0, 0, 0};
+    double v[kValues] = {}, v2[kValues] = {};
+    double t[5] = {};
+    double mean(int k) const { return v[k] / n; }
+    double sd(int k) const { return n > 1 ? std::sqrt(std::max(0.0, (v2[k] - v[k] * v[k] / n) / (n - 1))) : 0.0; }
   };
   std::vector<Mean> means;
-  auto accumulate = [&](const RunResult& r) {
-    // Means over seeds, per scene variant (variants differ too much to average).
+  for (const RunResult& r : results) {
     auto it = std::find_if(means.begin(), means.end(), [&](const Mean& m) { return m.id == r.id && m.variant == r.variant; });
-    if (it == means.end()) means.push_back({r.id, r.group, r.variant}), it = means.end() - 1;
-    const double x[9] = {r.interpolation.psnr, r.interpolation.ssim, r.interpolation.psnr_moving, r.extrapolation.psnr,
-                         r.extrapolation.ssim,  r.extrapolation.psnr_moving, r.train.psnr, r.mean_weight, double(r.trajectories)};
-    for (int k = 0; k < 9; ++k) it->v[k] += x[k];
-    const double s[5] = {r.seconds_select, r.seconds_refine, r.seconds_weights, r.seconds_train, r.seconds_eval};
-    for (int k = 0; k < 5; ++k) it->t[k] += s[k];
+    if (it == means.end()) means.push_back({r.id, r.group, r.variant, r.support}), it = means.end() - 1;
+    const double x[kValues] = {r.interpolation.psnr, r.interpolation.ssim, r.interpolation.psnr_moving, r.extrapolation.psnr,
+                               r.extrapolation.ssim,  r.extrapolation.psnr_moving, r.train.psnr, r.mean_weight, double(r.trajectories),
+                               r.support_share};
+    for (int k = 0; k < kValues; ++k) it->v[k] += x[k], it->v2[k] += x[k] * x[k];
+    const double sec[5] = {r.seconds_select, r.seconds_refine, r.seconds_weights, r.seconds_train, r.seconds_eval};
+    for (int k = 0; k < 5; ++k) it->t[k] += sec[k];
     it->n += 1;
-  };
-  for (const RunResult& r : results) accumulate(r);
-  for (Mean& m : means) {
-    for (double& x : m.v) x /= m.n;
-    for (double& x : m.t) x /= m.n;
   }
+  for (Mean& m : means)
+    for (double& x : m.t) x /= m.n;
+  auto cell = [](const Mean& m, int k, int digits) {
+    std::string c = fmt(m.mean(k), digits);
+    if (m.n > 1 && std::isfinite(m.mean(k))) c += " ± " + fmt(m.sd(k), digits);
+    return c;
+  };
   std::set<std::string> scenes;
   for (const RunResult& r : results) scenes.insert(r.variant + " seed " + std::to_string(r.seed));
   std::ostringstream md;
-  md << "# fillgs bench\n\nMeans over seeds, per scene variant; " << scenes.size() << " scene run(s):";
+  md << "# fillgs bench\n\nMean ± standard deviation over seeds, per scene; " << scenes.size() << " scene run(s):";
   for (const std::string& s : scenes) md << " " << s << ";";
-  md << "\nPSNR in dB. \"moving\": PSNR over the pixels of the moving object (ground truth). Train: PSNR on the 2 training cameras.\n\n";
-  const char* groups[][2] = {{"control", "Without generated views"},      {"strategy", "Viewpoint selection strategies (Table 1 of the paper)"},
-                             {"ablation", "FillGS selection ablations"},   {"weighting", "Fine-tuning weights (Table 4 of the paper)"},
-                             {"budget", "Trajectory budget per round"},    {"refiner", "Clean oracle (no generation artifacts)"}};
+  md << "\nPSNR in dB. \"moving\": PSNR over the pixels of the moving objects (ground truth). Train: PSNR on the training cameras. "
+        "Oracle support: \"observed\" restores only what the training cameras saw, \"full\" the ground truth everywhere. "
+        "\"supported\": share of the refined pixels the observations support.\n\n";
+  const char* groups[][2] = {{"control", "Without generated views"},
+                             {"upper", "Upper bounds"},
+                             {"strategy", "Viewpoint selection strategies (Table 1 of the paper)"},
+                             {"ablation", "FillGS selection ablations (Table 3 of the paper)"},
+                             {"weighting", "Fine-tuning weights (Table 4 of the paper)"},
+                             {"budget", "Trajectory budget per round"},
+                             {"refiner", "Clean oracle (no generation artifacts)"}};
+  auto in_group = [](const Mean& m, const std::string& g) { return m.group == g || (g == "control" && m.id == "backbone"); };
   for (const auto& g : groups) {
-    bool any = false;
-    for (const Mean& m : means) any |= m.group == g[0] || (std::string(g[0]) == "control" && m.id == "backbone");
-    if (!any) continue;
-    md << "## " << g[1] << "\n\n| Scene | Method | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | weight | runs |\n"
-       << "|---|---|---|---|---|---|---|---|---|---|---|\n";
+    if (std::none_of(means.begin(), means.end(), [&](const Mean& m) { return in_group(m, g[0]); })) continue;
+    md << "## " << g[1] << "\n\n| Scene | Method | oracle | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | weight | supported | runs |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const Mean& m : means) {
-      if (!(m.group == g[0] || (std::string(g[0]) == "control" && m.id == "backbone"))) continue;
-      md << "| " << m.variant << " | " << m.id << " | " << fmt(m.v[0]) << " | " << fmt(m.v[1], 3) << " | " << fmt(m.v[2]) << " | " << fmt(m.v[3]) << " | "
-         << fmt(m.v[4], 3) << " | " << fmt(m.v[5]) << " | " << fmt(m.v[6]) << " | " << fmt(m.v[7], 3) << " | " << m.n << " |\n";
+      if (!in_group(m, g[0])) continue;
+      md << "| " << m.variant << " | " << m.id << " | " << (m.support.empty() ? "–" : m.support) << " | " << cell(m, 0, 2) << " | " << cell(m, 1, 3)
+         << " | " << cell(m, 2, 2) << " | " << cell(m, 3, 2) << " | " << cell(m, 4, 3) << " | " << cell(m, 5, 2) << " | " << cell(m, 6, 2) << " | "
+         << fmt(m.mean(7), 3) << " | " << (m.support.empty() ? "–" : fmt(100 * m.mean(9), 1) + "%") << " | " << m.n << " |\n";
     }
     md << "\n";
   }
@@ -407,24 +519,23 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
          << fmt(m.t[4], 1) << " |\n";
   write_file_atomically(join_path(root, "results.md"), md.str());
 
-  // Plots.
-  // Plots: the first scene variant (the chair scene when present).
+  // Plots of the first scene: strategies with the first support mode, the control, the upper bounds.
   const std::string plotted = means.empty() ? "" : means.front().variant;
   std::vector<std::string> names;
   std::vector<double> interp, extrap;
   for (const Mean& m : means)
-    if (m.variant == plotted && (m.group == "strategy" || m.group == "control" || m.id == "backbone"))
-      names.push_back(m.id), interp.push_back(m.v[0]), extrap.push_back(m.v[3]);
+    if (m.variant == plotted && m.id.find('@') == std::string::npos &&
+        (m.group == "strategy" || m.group == "control" || m.group == "upper" || m.id == "backbone"))
+      names.push_back(m.id), interp.push_back(m.mean(0)), extrap.push_back(m.mean(3));
   if (!names.empty()) {
     write_bar_chart_png(join_path(root, "psnr_interpolation.png"), names, interp, {"interpolation PSNR per strategy (" + plotted + ")", "", "PSNR (dB)"});
     write_bar_chart_png(join_path(root, "psnr_extrapolation.png"), names, extrap, {"extrapolation PSNR per strategy (" + plotted + ")", "", "PSNR (dB)"});
   }
   ScatterSeries bi{"interpolation", {}, {}, {}}, be{"extrapolation", {}, {}, {}};
   for (const Mean& m : means)
-    if (m.variant == plotted && (m.group == "budget" || m.id == "fillgs")) {
-      const double k = m.v[8];  // trajectories selected over all rounds
-      bi.x.push_back(k), bi.y.push_back(m.v[0]);
-      be.x.push_back(k), be.y.push_back(m.v[3]);
+    if (m.variant == plotted && m.id.find('@') == std::string::npos && (m.group == "budget" || m.id == "fillgs")) {
+      bi.x.push_back(m.mean(8)), bi.y.push_back(m.mean(0));
+      be.x.push_back(m.mean(8)), be.y.push_back(m.mean(3));
     }
   if (bi.x.size() >= 2)
     write_scatter_png(join_path(root, "budget.png"), {bi, be}, {"FillGS: PSNR against trajectories (3 rounds)", "trajectories in all", "PSNR (dB)"},

@@ -42,6 +42,7 @@ TrainOptions fine_tune_schedule(int iterations) {
   t.position_lr_init = 1.6e-5;
   t.position_lr_final = 1.6e-6;
   t.opacity_reset_interval = 0;
+  t.time_ramp = 0.0;  // the model already covers the whole video
   t.densify_from = std::max(1, iterations / 20);
   t.densify_until = iterations * 6 / 10;
   return t;
@@ -69,6 +70,7 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
   to.threads = o.threads;
   Trainer trainer(data, params_from_cloud<float>(model, F), to);
   FinetuneResult result;
+  if (!o.extra_views.empty()) trainer.add_refined(o.extra_views);
   double train_seconds = 0;
   for (int round = 0, it0 = 0; it0 < o.iterations; ++round, it0 += o.select_every) {
     FinetuneRound r;

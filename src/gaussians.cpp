@@ -421,6 +421,70 @@ size_t partition_static_dynamic(GaussianCloud& c, const PartitionOptions& opt) {
   return moved;
 }
 
+size_t fold_still_keys(GaussianCloud& c, const StillTolerance& tol) {
+  if (c.motion != MotionModel::Keyframed || c.dynamic_ids.empty()) return 0;
+  KeyframedMotion& k = c.keyframed;
+  const size_t K = size_t(k.key_count), M = c.dynamic_ids.size();
+  if (K < 2 || !k.temporal_opacity.empty()) return 0;
+  const float cos_half = std::cos(float(tol.rotation_degrees * kPi / 360.0));
+  std::vector<uint8_t> still(M, 0);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, M, 1024), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t j = r.begin(); j < r.end(); ++j) {
+      float* P = &k.positions[j * K * 3];
+      Vec3f pm = Vec3f::Zero();
+      for (size_t i = 0; i < K; ++i) pm += Eigen::Map<const Vec3f>(P + 3 * i) / float(K);
+      bool ok = true;
+      for (size_t i = 0; i < K && ok; ++i) ok = (Eigen::Map<const Vec3f>(P + 3 * i) - pm).norm() <= tol.position;
+      Vec4f qm = Vec4f::Zero();
+      if (ok && !k.rotations.empty()) {
+        const float* Q = &k.rotations[j * K * 4];
+        const Vec4f q0 = normalize_quat(Eigen::Map<const Vec4f>(Q));
+        for (size_t i = 0; i < K; ++i) {
+          const Vec4f q = normalize_quat(Eigen::Map<const Vec4f>(Q + 4 * i));
+          qm += q.dot(q0) < 0 ? Vec4f(-q) : q;
+        }
+        qm = normalize_quat(qm);
+        for (size_t i = 0; i < K && ok; ++i) ok = std::fabs(normalize_quat(Eigen::Map<const Vec4f>(Q + 4 * i)).dot(qm)) >= cos_half;
+      }
+      float om = 0;
+      if (ok && !k.opacity_logits.empty()) {
+        const float* O = &k.opacity_logits[j * K];
+        for (size_t i = 0; i < K; ++i) om += O[i] / float(K);
+        for (size_t i = 0; i < K && ok; ++i) ok = std::fabs(O[i] - om) <= tol.opacity_logit;
+      }
+      if (!ok || !k.log_scales.empty()) continue;
+      still[j] = 1;
+      for (size_t i = 0; i < K; ++i) {
+        Eigen::Map<Vec3f>(P + 3 * i) = pm;
+        if (!k.rotations.empty()) Eigen::Map<Vec4f>(&k.rotations[(j * K + i) * 4]) = qm;
+        if (!k.opacity_logits.empty()) k.opacity_logits[j * K + i] = om;
+      }
+    }
+  });
+  return size_t(std::count(still.begin(), still.end(), 1));
+}
+
+void static_first(GaussianCloud& c) {
+  std::vector<uint32_t> order = c.static_ids();
+  const size_t S = order.size();
+  order.insert(order.end(), c.dynamic_ids.begin(), c.dynamic_ids.end());
+  bool identity = true;
+  for (size_t i = 0; i < order.size() && identity; ++i) identity = order[i] == i;
+  if (identity) return;
+  auto permute = [&](auto& v, size_t width) {
+    auto out = v;
+    for (size_t i = 0; i < order.size(); ++i)
+      std::copy(v.begin() + ptrdiff_t(order[i] * width), v.begin() + ptrdiff_t((order[i] + 1) * width), out.begin() + ptrdiff_t(i * width));
+    v = std::move(out);
+  };
+  permute(c.means, 1);
+  permute(c.log_scales, 1);
+  permute(c.rotations, 1);
+  permute(c.opacity_logits, 1);
+  permute(c.sh, size_t(c.sh_count()) * 3);
+  for (size_t j = 0; j < c.dynamic_ids.size(); ++j) c.dynamic_ids[j] = uint32_t(S + j);
+}
+
 KeyframedMotion per_frame_tracks(size_t gaussians, int frames) {
   FILLGS_CHECK(frames >= 2);
   KeyframedMotion k;

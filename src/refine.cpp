@@ -20,6 +20,7 @@
 #include "fillgs/random.hpp"
 #include "fillgs/raster.hpp"
 #include "fillgs/timing.hpp"
+#include "fillgs/visibility.hpp"
 
 namespace fs = std::filesystem;
 
@@ -98,25 +99,81 @@ class IdentityRefiner : public Refiner {
   }
 };
 
+/// The model's render where the observations do not reach, degraded as a diffusion model
+/// fails there: blurred, colours drifted, one hallucinated blob.
+void degrade_unsupported(Image& image, double strength, uint64_t seed, uint64_t key) {
+  const int W = image.width, H = image.height;
+  cv::Mat img(H, W, CV_32FC3, image.pixels.data());
+  uint64_t draw = 1000;  // draws apart from inject_artifacts' for the same key
+  auto u = [&] { return uniform(seed, key, draw++); };
+  cv::GaussianBlur(img, img, cv::Size(0, 0), 2.0 + 3.0 * strength);
+  cv::Vec3f gain;
+  for (int c = 0; c < 3; ++c) gain[c] = float(1 + 0.2 * strength * (2 * u() - 1));
+  img.forEach<cv::Vec3f>([&](cv::Vec3f& p, const int*) {
+    for (int c = 0; c < 3; ++c) p[c] *= gain[c];
+  });
+  const double r = W * (0.05 + 0.05 * strength) * (0.6 + 0.4 * u());
+  const cv::Mat m = disc(W, H, u() * W, u() * H, r);
+  const cv::Mat colour(H, W, CV_32FC3, cv::Scalar(u(), u(), u()));
+  blend(img, colour, m, 0.8f);
+}
+
 class OracleRefiner : public Refiner {
  public:
-  OracleRefiner(const GaussianCloud& truth, const ArtifactOptions& a, const Vec3f& bg, int threads)
-      : truth_(truth), artifacts_(a), background_(bg), threads_(threads) {}
-  std::string name() const override { return artifacts_.strength > 0 ? "oracle+artifacts" : "oracle"; }
-  void refine(const std::string&, const std::string& out, const Patch& patch) override {
+  OracleRefiner(const GaussianCloud& truth, const OracleOptions& o, SupportStats* stats) : truth_(truth), o_(o), stats_(stats) {
+    if (o.support == OracleSupport::Observed) {
+      if (o.observers.empty() || o.frames < 1) throw_error("oracle: support 'observed' needs the training cameras and the frame count");
+      support_ = oracle_support_table(truth, o.observers, o.frames, o.window, o.threads);
+    }
+  }
+  std::string name() const override {
+    return std::string(o_.artifacts.strength > 0 ? "oracle+artifacts" : "oracle") + (o_.support == OracleSupport::Observed ? " (observed support)" : "");
+  }
+  void refine(const std::string& in, const std::string& out, const Patch& patch) override {
     make_directories(out);
-    if (artifacts_.strength > 0) make_directories(join_path(out, "masks"));
+    const bool limited = o_.support == OracleSupport::Observed;
+    if (o_.artifacts.strength > 0) make_directories(join_path(out, "masks"));
+    if (limited) make_directories(join_path(out, "support"));
+    const size_t N = truth_.size();
+    std::vector<float> flags;
     for (const PatchImage& im : patch.images) {
       if (im.observed) continue;
       RenderOptions ro;
-      ro.background = background_;
-      ro.threads = threads_;
+      ro.background = o_.background;
+      ro.threads = o_.threads;
+      if (limited) {
+        const int f = std::clamp(im.frame, 0, o_.frames - 1);
+        flags.assign(support_.begin() + ptrdiff_t(size_t(f) * N), support_.begin() + ptrdiff_t(size_t(f + 1) * N));
+        ro.features = flags.data();
+        ro.feature_channels = 1;
+      }
       const RenderOutput r = render(evaluate(truth_, im.camera.time), im.camera, ro);
       Image img = to_image(r.rgb, r.width, r.height);
-      if (artifacts_.strength > 0) {
-        const std::vector<uint8_t> mask = inject_artifacts(img, artifacts_, string_key((patch.name + "/" + im.file).c_str()));
+      const uint64_t key = string_key((patch.name + "/" + im.file).c_str());
+      double sum = double(img.width) * img.height;
+      if (limited) {
+        Image fill = read_image(join_path(in, im.file));
+        if (fill.width != img.width || fill.height != img.height || fill.channels < 3)
+          throw_error(join_path(in, im.file), ": the rendered view is not a ", img.width, "x", img.height, " RGB image");
+        if (fill.channels != 3) fill = to_image(rgb_of(fill), fill.width, fill.height);
+        degrade_unsupported(fill, o_.artifacts.strength > 0 ? o_.artifacts.strength : 0.5, o_.artifacts.seed, key);
+        Image mask(img.width, img.height, 1);
+        sum = 0;
+        for (size_t p = 0; p < mask.pixels.size(); ++p) {
+          const float a = r.alpha[p];
+          // Supported where observed surfaces make up at least half of what the pixel shows.
+          const float sp = a > 1e-4f && r.features[p] >= 0.5f * a ? 1.0f : 0.0f;
+          mask.pixels[p] = sp;
+          sum += sp;
+          for (int c = 0; c < 3; ++c) img.pixels[p * 3 + c] = sp * img.pixels[p * 3 + c] + (1 - sp) * fill.pixels[p * 3 + c];
+        }
+        write_image(join_path(join_path(out, "support"), im.file), mask);
+      }
+      if (stats_) stats_->support_sum += sum, stats_->pixels += size_t(img.width) * img.height;
+      if (o_.artifacts.strength > 0) {
+        const std::vector<uint8_t> amask = inject_artifacts(img, o_.artifacts, key);
         Image m(img.width, img.height, 1);
-        for (size_t p = 0; p < mask.size(); ++p) m.pixels[p] = mask[p] ? 1.0f : 0.0f;
+        for (size_t p = 0; p < amask.size(); ++p) m.pixels[p] = amask[p] ? 1.0f : 0.0f;
         write_image(join_path(join_path(out, "masks"), im.file), m);
       }
       write_image(join_path(out, im.file), img);
@@ -124,10 +181,16 @@ class OracleRefiner : public Refiner {
   }
 
  private:
+  static std::vector<float> rgb_of(const Image& im) {
+    std::vector<float> v(size_t(im.width) * im.height * 3);
+    for (size_t p = 0; p < size_t(im.width) * im.height; ++p)
+      for (int c = 0; c < 3; ++c) v[p * 3 + c] = im.pixels[p * size_t(im.channels) + size_t(c)];
+    return v;
+  }
   const GaussianCloud& truth_;
-  ArtifactOptions artifacts_;
-  Vec3f background_;
-  int threads_;
+  OracleOptions o_;
+  SupportStats* stats_;
+  std::vector<uint8_t> support_;  // [F][N]
 };
 
 class ExternalRefiner : public Refiner {
@@ -285,8 +348,48 @@ std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& o, ui
 
 std::unique_ptr<Refiner> make_identity_refiner() { return std::make_unique<IdentityRefiner>(); }
 
+const char* to_string(OracleSupport s) { return s == OracleSupport::Full ? "full" : "observed"; }
+
+OracleSupport parse_oracle_support(const std::string& name) {
+  if (name == "full") return OracleSupport::Full;
+  if (name == "observed") return OracleSupport::Observed;
+  throw_error("unknown oracle support \"", name, "\" (observed, full)");
+}
+
+std::vector<uint8_t> oracle_support_table(const GaussianCloud& truth, const std::vector<Camera>& observers, int frames, int window,
+                                          int threads) {
+  const size_t N = truth.size(), F = size_t(std::max(1, frames));
+  ObservationOptions oo;
+  oo.visibility.mode = VisibilityMode::Exact;
+  oo.visibility.threads = threads;
+  const ObservationTables t = observation_tables(truth, observers, frame_times(int(F)), F > 1 ? 1.0 / double(F - 1) : 1.0, oo);
+  std::vector<uint8_t> moving(N, 0);
+  for (uint32_t g : truth.dynamic_ids) moving[g] = 1;
+  std::vector<uint8_t> ever(N, 0), out(F * N, 0);
+  for (size_t f = 0; f < F; ++f)
+    for (size_t g = 0; g < N; ++g) ever[g] |= t.counts[f * N + g] > 0;
+  for (size_t f = 0; f < F; ++f)
+    for (size_t g = 0; g < N; ++g) {
+      if (!moving[g]) {
+        out[f * N + g] = ever[g];
+        continue;
+      }
+      const size_t lo = f >= size_t(std::max(0, window)) ? f - size_t(std::max(0, window)) : 0, hi = std::min(F - 1, f + size_t(std::max(0, window)));
+      for (size_t k = lo; k <= hi && !out[f * N + g]; ++k) out[f * N + g] = t.counts[k * N + g] > 0;
+    }
+  return out;
+}
+
+std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const OracleOptions& o, SupportStats* stats) {
+  return std::make_unique<OracleRefiner>(truth, o, stats);
+}
+
 std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const ArtifactOptions& a, const Vec3f& bg, int threads) {
-  return std::make_unique<OracleRefiner>(truth, a, bg, threads);
+  OracleOptions o;
+  o.artifacts = a;
+  o.background = bg;
+  o.threads = threads;
+  return std::make_unique<OracleRefiner>(truth, o, nullptr);
 }
 
 std::unique_ptr<Refiner> make_external_refiner(const std::string& command, double timeout) {

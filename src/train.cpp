@@ -281,12 +281,22 @@ ModelParams<float> init_from_points(const PointSet& pts) {
   return p;
 }
 
-PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction, double noise, uint64_t seed) {
+PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction, double noise, uint64_t seed,
+                           const std::vector<Camera>& observers, int min_views) {
   const FrameGaussians f = evaluate(scene, t);
+  std::vector<int> seen(f.size(), 0);
+  for (const Camera& cam : observers) {
+    RenderOptions ro;
+    ro.rgb = false;
+    ro.max_weights = true;
+    const RenderOutput r = render(f, cam, ro);
+    for (size_t g = 0; g < f.size(); ++g) seen[g] += r.max_weight[g] >= kMinAlpha;
+  }
   PointSet ps;
   const int K = scene.sh_count();
   for (size_t g = 0; g < f.size(); ++g) {
     if (uniform(seed, g, 0) >= fraction) continue;
+    if (!observers.empty() && seen[g] < min_views) continue;
     Vec3f p = f.means[g];
     for (int a = 0; a < 3; ++a) p[a] += float(noise * normal(seed, g, 1 + a));
     ps.positions.push_back(p);
@@ -299,6 +309,14 @@ PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction
 
 // ---------------------------------------------------------------------------------
 // Options
+
+const char* to_string(MotionLearning m) { return m == MotionLearning::All ? "all" : "promote"; }
+
+MotionLearning motion_learning_from_string(const std::string& name) {
+  if (name == "all") return MotionLearning::All;
+  if (name == "promote") return MotionLearning::Promote;
+  throw_error("unknown motion learning '", name, "' (all, promote)");
+}
 
 TrainOptions TrainOptions::scaled(int iterations) {
   TrainOptions o;
@@ -319,16 +337,85 @@ Trainer::Trainer(const Dataset& data, ModelParams<float> initial, const TrainOpt
     : data_(&data), options_(options), params_(std::move(initial)) {
   if (params_.size() == 0) throw_error("training: the initial model has no Gaussians");
   extent_ = data.camera_extent().second;
-  if (params_.key_count == 0) {
-    const int F = data.frames();
-    const int step = std::max(1, options_.key_interval_frames);
-    params_.key_count = F > 1 ? (F - 1 + step - 1) / step + 1 : 1;
-    params_.first_key_time = 0.0;
-    params_.key_spacing = params_.key_count > 1 ? 1.0 / (params_.key_count - 1) : 1.0;
+  if (params_.key_count == 0) set_key_layout(params_, data.frames(), options_.key_interval_frames);
+  build_change_masks();
+  // Gaussians that move in the model given (fine-tuning) keep their right to move.
+  on_change_.assign(params_.size(), change_masks_.empty() ? 1 : 0);
+  for (uint32_t g : params_.dynamic_ids) on_change_[g] = 1;
+  if (options_.allow_dynamic && data.frames() > 1) {
+    if (options_.keyed_opacity) add_key_opacities(params_);
+    if (options_.motion == MotionLearning::All) key_every_gaussian(params_);
   }
+  // Views by frame, for the time curriculum.
+  const int F = std::max(1, data.frames());
+  views_by_frame_.resize(data.views().size());
+  std::iota(views_by_frame_.begin(), views_by_frame_.end(), size_t(0));
+  std::stable_sort(views_by_frame_.begin(), views_by_frame_.end(),
+                   [&](size_t a, size_t b) { return data.views()[a].frame < data.views()[b].frame; });
+  frame_begin_.assign(size_t(F) + 1, 0);
+  for (const TrainView& v : data.views()) frame_begin_[size_t(std::clamp(v.frame, 0, F - 1)) + 1] += 1;
+  for (int f = 0; f < F; ++f) frame_begin_[size_t(f) + 1] += frame_begin_[size_t(f)];
   adam_m_ = params_.zeros_like();
   adam_v_ = params_.zeros_like();
   reset_stats();
+}
+
+void Trainer::build_change_masks() {
+  view_mask_.assign(data_->views().size(), -1);
+  change_masks_.clear();
+  if (!options_.motion_where_images_change || data_->frames() < 3) return;
+  // Views of each rig camera; a camera counts when it holds one pose over 3 or more frames.
+  std::map<std::string, std::vector<size_t>> by_rig;
+  for (size_t v = 0; v < data_->views().size(); ++v) by_rig[data_->views()[v].rig].push_back(v);
+  for (const auto& [rig, vs] : by_rig) {
+    if (vs.size() < 3) continue;
+    const Camera& c0 = data_->views()[vs[0]].camera;
+    bool fixed = true;
+    for (size_t v : vs) {
+      const Camera& c = data_->views()[v].camera;
+      fixed = fixed && c.width == c0.width && c.height == c0.height && (c.R - c0.R).norm() < 1e-9 && (c.t - c0.t).norm() < 1e-9;
+    }
+    if (!fixed) continue;
+    const size_t P = size_t(c0.width) * size_t(c0.height);
+    std::vector<float> lo(P * 3, 1e9f), hi(P * 3, -1e9f);
+    for (size_t v : vs) {
+      const std::vector<float> im = data_->image(v);
+      for (size_t i = 0; i < P * 3; ++i) lo[i] = std::min(lo[i], im[i]), hi[i] = std::max(hi[i], im[i]);
+    }
+    std::vector<uint8_t> mask(P, 0);
+    for (size_t p = 0; p < P; ++p)
+      for (int ch = 0; ch < 3; ++ch) mask[p] |= hi[p * 3 + ch] - lo[p * 3 + ch] > float(options_.change_threshold);
+    // Dilate (square, change_dilation pixels): a Gaussian's mean may sit just outside what it covers.
+    const int r = std::max(0, options_.change_dilation), W = c0.width, H = c0.height;
+    std::vector<uint8_t> grown(P, 0);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        if (!mask[size_t(y) * W + x]) continue;
+        for (int dy = -r; dy <= r; ++dy)
+          for (int dx = -r; dx <= r; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            if (xx >= 0 && yy >= 0 && xx < W && yy < H) grown[size_t(yy) * W + xx] = 1;
+          }
+      }
+    change_masks_.push_back(std::move(grown));
+    for (size_t v : vs) view_mask_[v] = int(change_masks_.size()) - 1;
+  }
+}
+
+std::vector<double> Trainer::changing_share() const {
+  std::vector<double> out(view_mask_.size(), -1.0);
+  for (size_t v = 0; v < out.size(); ++v)
+    if (view_mask_[v] >= 0) {
+      const std::vector<uint8_t>& m = change_masks_[size_t(view_mask_[v])];
+      out[v] = double(std::count(m.begin(), m.end(), 1)) / double(m.size());
+    }
+  return out;
+}
+
+void Trainer::carry(const std::vector<uint32_t>& sources) {
+  std::vector<uint8_t> next(sources.size());
+  for (size_t i = 0; i < sources.size(); ++i) next[i] = on_change_[sources[i]];
+  on_change_ = std::move(next);
 }
 
 void Trainer::reset_stats() {
@@ -341,7 +428,33 @@ void Trainer::reset_stats() {
   bin_count_.assign(n * B, 0);
 }
 
+int Trainer::window_last_frame(int iteration) const {
+  const int F = data_->frames();
+  const int ramp = int(std::lround(options_.time_ramp * options_.iterations));
+  if (F <= 1 || ramp <= 0 || iteration >= ramp || !options_.allow_dynamic) return F - 1;
+  // Each frame is the newest of the window for ramp / F iterations.
+  return std::min(F - 1, int(double(F) * double(iteration) / double(ramp)));
+}
+
+int Trainer::key_interval_of_frame(int frame) const {
+  const int K = params_.key_count, F = data_->frames();
+  if (K < 2 || F < 2) return 0;
+  const double t = double(frame) / (F - 1);
+  return std::clamp(int(std::floor((t - params_.first_key_time) / params_.key_spacing + 1e-9)), 0, K - 2);
+}
+
 size_t Trainer::pick_view() const {
+  const int last = window_last_frame(iteration_);
+  if (last < data_->frames() - 1) {
+    // Time curriculum: a frame of the window, one of its newest with probability frontier_share.
+    const bool frontier = uniform(options_.seed ^ 0xc0ffee, uint64_t(iteration_), 0) < options_.frontier_share;
+    const int first = frontier ? std::max(0, last - std::max(1, options_.frontier_frames) + 1) : 0;
+    const size_t lo = frame_begin_[size_t(first)], hi = frame_begin_[size_t(last) + 1];
+    if (hi > lo) {
+      const size_t k = lo + std::min(hi - lo - 1, size_t(uniform(options_.seed ^ 0xc0ffee, uint64_t(iteration_), 1) * double(hi - lo)));
+      return views_by_frame_[k];
+    }
+  }
   // A fresh permutation of the views every epoch, like 3DGS's shuffled camera stack.
   const size_t V = data_->views().size();
   const uint64_t epoch = uint64_t(iteration_) / V, pos = uint64_t(iteration_) % V;
@@ -355,6 +468,11 @@ void Trainer::step() {
   if (iteration_ > 0 && options_.sh_increase_interval > 0 && iteration_ % options_.sh_increase_interval == 0 &&
       params_.sh_degree < options_.max_sh_degree)
     raise_sh_degree();
+  if (iteration_ > 0 && key_interval_of_frame(window_last_frame(iteration_)) > key_interval_of_frame(window_last_frame(iteration_ - 1)))
+    enter_key_interval();
+  if (iteration_ > 0 && options_.motion == MotionLearning::All && options_.freeze_distance > 0 &&
+      window_last_frame(iteration_) == data_->frames() - 1 && window_last_frame(iteration_ - 1) < data_->frames() - 1)
+    frozen_ = freeze_still();
   // A refined view with probability refined_share (seeded by the iteration), else a real one.
   const RefinedView* refined = nullptr;
   if (!refined_.empty() && uniform(options_.seed ^ 0x5eed, uint64_t(iteration_), 0) < options_.refined_share)
@@ -382,11 +500,22 @@ void Trainer::step() {
 
   // Densification statistics (3DGS: norm of the NDC-space mean gradient, per view seen).
   const int B = std::max(1, options_.time_bins);
-  const int bin = std::min(B - 1, int(view.camera.time * B));
+  // Time bins over the trained window (the whole video once the ramp is over).
+  const int F = std::max(2, data_->frames());
+  const double window_end = std::max(1, window_last_frame(iteration_)) / double(F - 1);
+  const int bin = std::clamp(int(view.camera.time / window_end * B), 0, B - 1);
   std::vector<uint8_t> moving(params_.size(), 0);
   for (uint32_t g : params_.dynamic_ids) moving[g] = 1;
+  seen_.assign(params_.size(), 0);
+  const std::vector<uint8_t>* change = !refined && view_mask_[v] >= 0 ? &change_masks_[size_t(view_mask_[v])] : nullptr;
   for (size_t g = 0; g < params_.size(); ++g) {
     if (ras.radii()[g] <= 0) continue;
+    seen_[g] = 1;
+    if (change && !on_change_[g]) {
+      const Vec3d px = view.camera.project(Vec3d(frame.means[3 * g], frame.means[3 * g + 1], frame.means[3 * g + 2]));
+      const int x = int(std::floor(px.x())), y = int(std::floor(px.y()));
+      if (px.z() > 0 && x >= 0 && y >= 0 && x < W && y < H) on_change_[g] = (*change)[size_t(y) * size_t(W) + size_t(x)];
+    }
     const float gx = fg.screen[2 * g] * 0.5f * float(W), gy = fg.screen[2 * g + 1] * 0.5f * float(H);
     grad_accum_[g] += std::sqrt(gx * gx + gy * gy);
     denom_[g] += 1;
@@ -401,8 +530,15 @@ void Trainer::step() {
 
   const int it = iteration_;
   if (it < options_.densify_until && it > options_.densify_from && it % options_.densify_interval == 0) {
-    if (options_.allow_dynamic) promote_static();
-    densify_and_prune(opacity_was_reset_);
+    DensifyRecord rec;
+    rec.iteration = it;
+    if (options_.allow_dynamic && options_.motion == MotionLearning::All) rec.made_static = fold_unchanging();
+    if (options_.allow_dynamic && (options_.motion == MotionLearning::Promote || window_last_frame(it) == data_->frames() - 1))
+      rec.promoted = promote_static();
+    densify_and_prune(opacity_was_reset_, &rec);
+    rec.gaussians = params_.size();
+    rec.dynamic = params_.dynamic_count();
+    densify_log_.push_back(rec);
   }
   if (options_.opacity_reset_interval > 0 && it < options_.densify_until && it % options_.opacity_reset_interval == 0)
     reset_opacity();
@@ -415,7 +551,38 @@ void Trainer::step() {
   status_.iteration = it;
   status_.gaussians = params_.size();
   status_.dynamic = params_.dynamic_count();
+  status_.window_frames = window_last_frame(iteration_) + 1;
   loss_history_.push_back(float(lv.total));
+}
+
+void Trainer::enter_key_interval() {
+  // The window has entered key interval i: keys i+1 on continue the motion of keys i−1, i.
+  const int i = key_interval_of_frame(window_last_frame(iteration_));
+  if (i < 1 || params_.dynamic_count() == 0) return;
+  extrapolate_keys(params_, i + 1, float(options_.extrapolate_min_step));
+  const size_t K = size_t(params_.key_count);
+  auto clear_from = [&](ModelParams<float>& m) {
+    for (size_t j = 0; j < m.dynamic_count(); ++j) {
+      std::fill(m.key_positions.begin() + (j * K + size_t(i) + 1) * 3, m.key_positions.begin() + (j + 1) * K * 3, 0.0f);
+      std::fill(m.key_rotations.begin() + (j * K + size_t(i) + 1) * 4, m.key_rotations.begin() + (j + 1) * K * 4, 0.0f);
+      if (m.keyed_opacity)
+        std::fill(m.key_opacity_logits.begin() + j * K + size_t(i) + 1, m.key_opacity_logits.begin() + (j + 1) * K, 0.0f);
+    }
+  };
+  clear_from(adam_m_);
+  clear_from(adam_v_);
+}
+
+void Trainer::motion_sparsity_step(double key_lr) {
+  // An L1 step per key value towards the mean of its Gaussian's keys, τ = sparsity × the
+  // learning rate. Adam moves a value by about lr × |m̂|/√v̂ per step: a key that follows
+  // motion (gradients of one sign whenever its frames are drawn) moves faster than τ and
+  // keeps its motion; one that only wanders by noise (|m̂|/√v̂ ≪ 1) is pulled back exactly.
+  if (!(options_.motion_sparsity > 0) || params_.dynamic_count() == 0 || params_.key_count < 2) return;
+  const int trained = std::min(params_.key_count, key_interval_of_frame(window_last_frame(iteration_)) + 2);
+  if (trained < 2) return;
+  const double sp = options_.motion_sparsity;
+  shrink_key_deviations(params_, trained, float(sp * key_lr), float(sp * options_.rotation_lr), float(sp * options_.opacity_lr), nullptr, true);
 }
 
 void Trainer::add_refined(std::vector<RefinedView> views) {
@@ -432,36 +599,56 @@ void Trainer::adam_step() {
   constexpr double b1 = 0.9, b2 = 0.999, eps = 1e-15;
   const double t = double(iteration_ + 1);
   const double c1 = 1.0 - std::pow(b1, t), c2 = 1.0 - std::pow(b2, t);
-  // Position learning rate: exponential decay (3DGS get_expon_lr_func, no delay).
-  const double frac = std::clamp(double(iteration_) / std::max(1, options_.iterations), 0.0, 1.0);
-  const double pos_lr = std::exp(std::log(options_.position_lr_init) * (1 - frac) + std::log(options_.position_lr_final) * frac) *
-                        double(extent_);
+  // Position learning rate: exponential decay (3DGS get_expon_lr_func, no delay). Keys hold
+  // their initial rate while the time window grows, then decay over the remaining iterations.
+  auto decayed = [&](double frac) {
+    frac = std::clamp(frac, 0.0, 1.0);
+    return std::exp(std::log(options_.position_lr_init) * (1 - frac) + std::log(options_.position_lr_final) * frac) * double(extent_);
+  };
+  const double pos_lr = decayed(double(iteration_) / std::max(1, options_.iterations));
+  const int ramp_end = window_last_frame(0) < data_->frames() - 1 ? int(std::lround(options_.time_ramp * options_.iterations)) : 0;
+  const double key_lr = options_.key_lr_scale * (iteration_ < ramp_end ? decayed(0.0)
+                                                                        : decayed(double(iteration_ - ramp_end) / std::max(1, options_.iterations - ramp_end)));
   const int K = params_.sh_count();
-  auto update = [&](std::vector<float>& x, std::vector<float>& g, std::vector<float>& m, std::vector<float>& v, auto lr_of) {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, x.size(), 8192), [&](const tbb::blocked_range<size_t>& r) {
+  // Element-wise Adam in float (vectorisable); lr / c1 and 1 / √c2 fold the bias corrections.
+  const float fb1 = float(b1), fb2 = float(b2), s2 = float(1.0 / std::sqrt(c2)), feps = float(eps);
+  auto update = [&](std::vector<float>& x, const std::vector<float>& g, std::vector<float>& m, std::vector<float>& v, double lr) {
+    const float a = float(lr / c1);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, x.size(), 16384), [&](const tbb::blocked_range<size_t>& r) {
+      float *X = x.data(), *M = m.data(), *Vv = v.data();
+      const float* G = g.data();
       for (size_t i = r.begin(); i < r.end(); ++i) {
-        const double gi = g[i];
-        m[i] = float(b1 * m[i] + (1 - b1) * gi);
-        v[i] = float(b2 * v[i] + (1 - b2) * gi * gi);
-        const double mh = m[i] / c1, vh = v[i] / c2;
-        x[i] = float(x[i] - lr_of(i) * mh / (std::sqrt(vh) + eps));
+        M[i] = fb1 * M[i] + (1 - fb1) * G[i];
+        Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
+        X[i] -= a * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
       }
     });
   };
-  auto constant = [](double lr) { return [lr](size_t) { return lr; }; };
   tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
   arena.execute([&] {
-    update(params_.means, grad_.means, adam_m_.means, adam_v_.means, constant(pos_lr));
-    update(params_.key_positions, grad_.key_positions, adam_m_.key_positions, adam_v_.key_positions, constant(pos_lr));
-    update(params_.log_scales, grad_.log_scales, adam_m_.log_scales, adam_v_.log_scales, constant(options_.scaling_lr));
-    update(params_.key_log_scales, grad_.key_log_scales, adam_m_.key_log_scales, adam_v_.key_log_scales, constant(options_.scaling_lr));
-    update(params_.rotations, grad_.rotations, adam_m_.rotations, adam_v_.rotations, constant(options_.rotation_lr));
-    update(params_.key_rotations, grad_.key_rotations, adam_m_.key_rotations, adam_v_.key_rotations, constant(options_.rotation_lr));
-    update(params_.opacity_logits, grad_.opacity_logits, adam_m_.opacity_logits, adam_v_.opacity_logits, constant(options_.opacity_lr));
-    update(params_.key_opacity_logits, grad_.key_opacity_logits, adam_m_.key_opacity_logits, adam_v_.key_opacity_logits,
-           constant(options_.opacity_lr));
-    const double dc = options_.feature_lr, rest = options_.feature_lr / 20.0;
-    update(params_.sh, grad_.sh, adam_m_.sh, adam_v_.sh, [&](size_t i) { return (i / 3) % size_t(K) == 0 ? dc : rest; });
+    update(params_.means, grad_.means, adam_m_.means, adam_v_.means, pos_lr);
+    update(params_.key_positions, grad_.key_positions, adam_m_.key_positions, adam_v_.key_positions, key_lr);
+    update(params_.log_scales, grad_.log_scales, adam_m_.log_scales, adam_v_.log_scales, options_.scaling_lr);
+    update(params_.key_log_scales, grad_.key_log_scales, adam_m_.key_log_scales, adam_v_.key_log_scales, options_.scaling_lr);
+    update(params_.rotations, grad_.rotations, adam_m_.rotations, adam_v_.rotations, options_.rotation_lr);
+    update(params_.key_rotations, grad_.key_rotations, adam_m_.key_rotations, adam_v_.key_rotations, options_.rotation_lr);
+    update(params_.opacity_logits, grad_.opacity_logits, adam_m_.opacity_logits, adam_v_.opacity_logits, options_.opacity_lr);
+    update(params_.key_opacity_logits, grad_.key_opacity_logits, adam_m_.key_opacity_logits, adam_v_.key_opacity_logits, options_.opacity_lr);
+    // SH: the DC coefficients (the first 3 values of each Gaussian's block) at feature_lr, the rest at 1/20 of it.
+    const size_t block = size_t(K) * 3;
+    const float a_dc = float(options_.feature_lr / c1), a_rest = float(options_.feature_lr / 20.0 / c1);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, params_.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t gi = r.begin(); gi < r.end(); ++gi) {
+        float *X = &params_.sh[gi * block], *M = &adam_m_.sh[gi * block], *Vv = &adam_v_.sh[gi * block];
+        const float* G = &grad_.sh[gi * block];
+        for (size_t i = 0; i < block; ++i) {
+          M[i] = fb1 * M[i] + (1 - fb1) * G[i];
+          Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
+          X[i] -= (i < 3 ? a_dc : a_rest) * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
+        }
+      }
+    });
+    motion_sparsity_step(key_lr);
   });
 }
 
@@ -475,7 +662,27 @@ struct Row {
   bool make_dynamic;   // promote a static Gaussian (keys at its pose)
   Vec3f offset = Vec3f::Zero();
   float log_scale_shift = 0.0f;
+  bool make_static = false;  // freeze a moving Gaussian at the mean of its keys
 };
+
+/// The mean of a moving Gaussian's keys: position, rotation (on the first key's hemisphere,
+/// normalised) and opacity logit.
+void key_means(const ModelParams<float>& p, size_t j, Vec3f* position, Vec4f* rotation, float* opacity) {
+  const size_t K = size_t(p.key_count);
+  Vec3f pm = Vec3f::Zero();
+  Vec4f qm = Vec4f::Zero();
+  float om = 0;
+  const Vec4f q0 = normalize_quat(Eigen::Map<const Vec4f>(&p.key_rotations[j * K * 4]));
+  for (size_t k = 0; k < K; ++k) {
+    pm += Eigen::Map<const Vec3f>(&p.key_positions[(j * K + k) * 3]) / float(K);
+    const Vec4f q = normalize_quat(Eigen::Map<const Vec4f>(&p.key_rotations[(j * K + k) * 4]));
+    qm += q.dot(q0) < 0 ? Vec4f(-q) : q;
+    if (p.keyed_opacity) om += p.key_opacity_logits[j * K + k] / float(K);
+  }
+  *position = pm;
+  *rotation = normalize_quat(qm);
+  *opacity = p.keyed_opacity ? om : p.opacity_logits[p.dynamic_ids[j]];
+}
 
 ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Row>& rows, bool moments) {
   ModelParams<float> q;
@@ -483,10 +690,11 @@ ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Ro
   q.key_count = p.key_count;
   q.first_key_time = p.first_key_time;
   q.key_spacing = p.key_spacing;
+  q.keyed_opacity = p.keyed_opacity;
   const size_t K = size_t(std::max(p.key_count, 1)), S = size_t(p.sh_count()) * 3;
   std::vector<int64_t> dyn_index(p.size(), -1);
   for (size_t j = 0; j < p.dynamic_ids.size(); ++j) dyn_index[p.dynamic_ids[j]] = int64_t(j);
-  const bool keyed_scale = !p.key_log_scales.empty(), keyed_opacity = !p.key_opacity_logits.empty();
+  const bool keyed_scale = !p.key_log_scales.empty(), keyed_opacity = p.keyed_opacity;
   auto put = [](std::vector<float>& dst, const float* src, size_t n, bool zero) {
     for (size_t i = 0; i < n; ++i) dst.push_back(zero ? 0.0f : src[i]);
   };
@@ -504,6 +712,17 @@ ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Ro
     put(q.opacity_logits, &p.opacity_logits[s], 1, zero);
     put(q.sh, &p.sh[s * S], S, zero);
     const int64_t j = dyn_index[s];
+    if (j >= 0 && r.make_static) {
+      // Frozen: its own values become the keys' mean (moments start at zero).
+      Vec3f pm;
+      Vec4f qm;
+      float om;
+      key_means(p, size_t(j), &pm, &qm, &om);
+      for (int a = 0; a < 3; ++a) q.means[3 * id + a] = moments ? 0.0f : pm[a];
+      for (int a = 0; a < 4; ++a) q.rotations[4 * id + a] = moments ? 0.0f : qm[a];
+      q.opacity_logits[id] = moments ? 0.0f : om;
+      continue;
+    }
     if (j >= 0 || r.make_dynamic) {
       q.dynamic_ids.push_back(id);
       for (size_t k = 0; k < K; ++k) {
@@ -533,7 +752,77 @@ ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Ro
 
 }  // namespace
 
-void Trainer::promote_static() {
+size_t Trainer::fold_unchanging() {
+  if (change_masks_.empty() || params_.dynamic_count() == 0) return 0;
+  std::vector<Row> rows;
+  rows.reserve(params_.size());
+  std::vector<uint8_t> moving(params_.size(), 0);
+  for (uint32_t g : params_.dynamic_ids) moving[g] = 1;
+  size_t folded = 0;
+  for (uint32_t g = 0; g < params_.size(); ++g) {
+    Row r{g, false, false};
+    r.make_static = moving[g] && !on_change_[g];
+    folded += r.make_static;
+    rows.push_back(r);
+  }
+  if (folded == 0) return 0;
+  params_ = gather_rows(params_, rows, false);
+  adam_m_ = gather_rows(adam_m_, rows, true);
+  adam_v_ = gather_rows(adam_v_, rows, true);
+  std::vector<uint32_t> src;
+  for (const Row& r : rows) src.push_back(r.src);
+  carry(src);
+  return folded;
+}
+
+size_t Trainer::freeze_still() {
+  // Gaussians whose keys stayed within freeze_distance × their size (and 5° and 0.5 in
+  // opacity logit) while the time window grew showed no motion: they become static again,
+  // so that every view constrains their one position instead of each key drifting with
+  // only its own frames' views. promote_static can key them again later.
+  const size_t n = params_.size(), M = params_.dynamic_count(), K = size_t(params_.key_count);
+  if (M == 0 || K < 2) return 0;
+  std::vector<uint8_t> freeze(n, 0);
+  const float cos_half = std::cos(float(5.0 * kPi / 360.0));
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, M, 1024), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t j = r.begin(); j < r.end(); ++j) {
+      const uint32_t g = params_.dynamic_ids[j];
+      Vec3f pm;
+      Vec4f qm;
+      float om;
+      key_means(params_, j, &pm, &qm, &om);
+      const float size = std::exp(std::max({params_.log_scales[3 * g], params_.log_scales[3 * g + 1], params_.log_scales[3 * g + 2]}));
+      bool still = true;
+      for (size_t k = 0; k < K && still; ++k) {
+        still = (Eigen::Map<const Vec3f>(&params_.key_positions[(j * K + k) * 3]) - pm).norm() <= options_.freeze_distance * size &&
+                std::fabs(normalize_quat(Eigen::Map<const Vec4f>(&params_.key_rotations[(j * K + k) * 4])).dot(qm)) >= cos_half &&
+                (!params_.keyed_opacity || std::fabs(params_.key_opacity_logits[j * K + k] - om) <= 0.5f);
+      }
+      freeze[g] = still;
+    }
+  });
+  std::vector<Row> rows;
+  rows.reserve(n);
+  size_t frozen = 0;
+  for (uint32_t g = 0; g < n; ++g) {
+    Row r{g, false, false};
+    r.make_static = freeze[g];
+    frozen += freeze[g];
+    rows.push_back(r);
+  }
+  if (frozen == 0) return 0;
+  params_ = gather_rows(params_, rows, false);
+  adam_m_ = gather_rows(adam_m_, rows, true);
+  adam_v_ = gather_rows(adam_v_, rows, true);
+  {
+    std::vector<uint32_t> src;
+    for (const Row& r : rows) src.push_back(r.src);
+    carry(src);
+  }
+  return frozen;
+}
+
+size_t Trainer::promote_static() {
   const size_t n = params_.size();
   const int B = std::max(1, options_.time_bins);
   std::vector<uint8_t> moving(n, 0);
@@ -543,7 +832,8 @@ void Trainer::promote_static() {
   size_t promoted = 0;
   for (uint32_t g = 0; g < n; ++g) {
     Row r{g, false, false};
-    if (!moving[g] && denom_[g] > 0 && grad_accum_[g] / float(denom_[g]) >= options_.densify_grad_threshold) {
+    if (!moving[g] && on_change_[g] && denom_[g] > 0 &&
+        grad_accum_[g] / float(denom_[g]) >= options_.promote_grad_scale * options_.densify_grad_threshold) {
       Vec3f sum = Vec3f::Zero();
       float norms = 0;
       int bins = 0;
@@ -562,14 +852,15 @@ void Trainer::promote_static() {
     }
     rows.push_back(r);
   }
-  if (promoted == 0) return;
+  if (promoted == 0) return 0;
   params_ = gather_rows(params_, rows, false);
   adam_m_ = gather_rows(adam_m_, rows, true);
   adam_v_ = gather_rows(adam_v_, rows, true);
   // Statistics rows are unchanged (same order, same count).
+  return promoted;
 }
 
-void Trainer::densify_and_prune(bool prune_big) {
+void Trainer::densify_and_prune(bool prune_big, DensifyRecord* record) {
   const size_t n = params_.size();
   std::vector<uint8_t> moving(n, 0);
   for (uint32_t g : params_.dynamic_ids) moving[g] = 1;
@@ -581,7 +872,7 @@ void Trainer::densify_and_prune(bool prune_big) {
   };
   auto opacity = [&](uint32_t g) {
     float o = sigmoid(params_.opacity_logits[g]);
-    if (dyn_index[g] >= 0 && !params_.key_opacity_logits.empty())
+    if (dyn_index[g] >= 0 && params_.keyed_opacity)
       for (size_t k = 0; k < K; ++k) o = std::max(o, sigmoid(params_.key_opacity_logits[size_t(dyn_index[g]) * K + k]));
     return o;
   };
@@ -610,6 +901,11 @@ void Trainer::densify_and_prune(bool prune_big) {
     if (prune_big) prune = prune || max_radii_[g] > options_.max_screen_size || max_scale(g) > 0.1f * extent_;
     remove[g] = prune;
   }
+  if (record) {
+    record->cloned = size_t(std::count(clone.begin(), clone.end(), 1));
+    record->split = size_t(std::count(split.begin(), split.end(), 1));
+    record->pruned = size_t(std::count(remove.begin(), remove.end(), 1));
+  }
   std::vector<Row> rows;
   rows.reserve(n + hot.size() * 2);
   for (uint32_t g = 0; g < n; ++g)
@@ -636,6 +932,11 @@ void Trainer::densify_and_prune(bool prune_big) {
   params_ = gather_rows(params_, rows, false);
   adam_m_ = gather_rows(adam_m_, rows, true);
   adam_v_ = gather_rows(adam_v_, rows, true);
+  {
+    std::vector<uint32_t> src;
+    for (const Row& r : rows) src.push_back(r.src);
+    carry(src);
+  }
   reset_stats();
 }
 
@@ -685,8 +986,28 @@ void Trainer::run(int until, Progress& progress) {
 }
 
 GaussianCloud Trainer::model() const {
-  GaussianCloud c = cloud_from_params(params_);
+  ModelParams<float> p = params_;
+  if (!change_masks_.empty()) {  // keyed Gaussians never on a changing pixel: their keys' mean
+    const size_t K = size_t(std::max(p.key_count, 1));
+    for (size_t j = 0; j < p.dynamic_count(); ++j) {
+      if (on_change_[p.dynamic_ids[j]]) continue;
+      Vec3f pm;
+      Vec4f qm;
+      float om;
+      key_means(p, j, &pm, &qm, &om);
+      for (size_t k = 0; k < K; ++k) {
+        Eigen::Map<Vec3f>(&p.key_positions[(j * K + k) * 3]) = pm;
+        Eigen::Map<Vec4f>(&p.key_rotations[(j * K + k) * 4]) = qm;
+        if (p.keyed_opacity) p.key_opacity_logits[j * K + k] = om;
+      }
+    }
+  }
+  GaussianCloud c = cloud_from_params(p);
+  StillTolerance tol = options_.still;
+  tol.position = float(options_.still_distance * extent_);
+  fold_still_keys(c, tol);
   partition_static_dynamic(c);
+  static_first(c);
   return c;
 }
 
@@ -695,7 +1016,7 @@ GaussianCloud Trainer::model() const {
 
 namespace {
 constexpr char kMagic[8] = {'F', 'I', 'L', 'L', 'G', 'S', 'C', 'K'};
-constexpr uint32_t kVersion = 1;
+constexpr uint32_t kVersion = 3;  // 2: keyed-opacity flag; 3: Gaussians on changing pixels
 
 struct Writer {
   std::string bytes;
@@ -737,6 +1058,7 @@ void write_params(Writer& w, const ModelParams<float>& p) {
   w.pod(int32_t(p.key_count));
   w.pod(p.first_key_time);
   w.pod(p.key_spacing);
+  w.pod(uint8_t(p.keyed_opacity));
   w.vec(p.dynamic_ids);
   for (const std::vector<float>* a : p.arrays()) w.vec(*a);
 }
@@ -747,6 +1069,7 @@ ModelParams<float> read_params(Reader& r) {
   p.key_count = r.pod<int32_t>();
   p.first_key_time = r.pod<double>();
   p.key_spacing = r.pod<double>();
+  p.keyed_opacity = r.pod<uint8_t>() != 0;
   p.dynamic_ids = r.vec<uint32_t>();
   for (std::vector<float>* a : p.arrays()) *a = r.vec<float>();
   const size_t n = p.size();
@@ -772,6 +1095,7 @@ void Trainer::save_checkpoint(const std::string& path) const {
   w.vec(bin_grad_);
   w.vec(bin_count_);
   w.vec(loss_history_);
+  w.vec(on_change_);
   w.pod(status_.loss);
   w.pod(status_.psnr);
   write_file_atomically(path, w.bytes);
@@ -791,6 +1115,7 @@ Trainer Trainer::resume(const Dataset& data, const std::string& path, const Trai
   if (r.pod<uint64_t>() != options.seed) throw_error(path, ": checkpoint was trained with another --seed");
   ModelParams<float> p = read_params(r);
   Trainer t(data, p, options);
+  t.params_ = std::move(p);  // as saved: the constructor's conversions (keys for every Gaussian) do not apply
   t.adam_m_ = read_params(r);
   t.adam_v_ = read_params(r);
   t.iteration_ = it;
@@ -801,12 +1126,15 @@ Trainer Trainer::resume(const Dataset& data, const std::string& path, const Trai
   t.bin_grad_ = r.vec<float>();
   t.bin_count_ = r.vec<uint32_t>();
   t.loss_history_ = r.vec<float>();
+  t.on_change_ = r.vec<uint8_t>();
   t.status_.loss = r.pod<double>();
   t.status_.psnr = r.pod<double>();
   t.status_.iteration = it;
   t.status_.gaussians = t.params_.size();
   t.status_.dynamic = t.params_.dynamic_count();
-  if (t.grad_accum_.size() != t.params_.size()) throw_error(path, ": checkpoint statistics disagree with its model");
+  if (t.grad_accum_.size() != t.params_.size() || t.on_change_.size() != t.params_.size() || t.adam_m_.size() != t.params_.size() ||
+      t.adam_v_.size() != t.params_.size() || t.adam_m_.dynamic_ids != t.params_.dynamic_ids || t.adam_v_.dynamic_ids != t.params_.dynamic_ids)
+    throw_error(path, ": checkpoint statistics disagree with its model");
   return t;
 }
 

@@ -25,6 +25,7 @@ void ModelParams<Real>::set_zeros_like(const ModelParams& shape) {
   key_count = shape.key_count;
   first_key_time = shape.first_key_time;
   key_spacing = shape.key_spacing;
+  keyed_opacity = shape.keyed_opacity;
   auto dst = arrays();
   auto src = shape.arrays();
   for (size_t a = 0; a < dst.size(); ++a) dst[a]->assign(src[a]->size(), Real(0));
@@ -160,6 +161,55 @@ struct Slerp {
 
 }  // namespace
 
+void shrink_key_deviations(ModelParams<float>& p, int keys, float tau_position, float tau_rotation, float tau_opacity,
+                           const std::vector<uint8_t>* only, bool per_value) {
+  const int K = p.key_count, n = std::min(keys, K);
+  if (n < 2) return;
+  FILLGS_CHECK(n <= 64);
+  auto shrink = [n, per_value](float* x, int width, float tau) {
+    if (per_value) {  // soft-threshold every value's steps between consecutive keys, keeping the mean
+      for (int a = 0; a < width; ++a) {
+        float mean = 0, y[64];
+        y[0] = 0;
+        for (int k = 0; k < n; ++k) mean += x[k * width + a] / float(n);
+        for (int k = 1; k < n; ++k) {
+          const float d = x[k * width + a] - x[(k - 1) * width + a];
+          y[k] = y[k - 1] + (std::fabs(d) <= tau ? 0.0f : (d > 0 ? d - tau : d + tau));
+        }
+        float ym = 0;
+        for (int k = 0; k < n; ++k) ym += y[k] / float(n);
+        for (int k = 0; k < n; ++k) x[k * width + a] = mean + (y[k] - ym);
+      }
+      return;
+    }
+    float mean[4] = {0, 0, 0, 0};
+    for (int k = 0; k < n; ++k)
+      for (int a = 0; a < width; ++a) mean[a] += x[k * width + a] / float(n);
+    double norm2 = 0;
+    for (int k = 0; k < n; ++k)
+      for (int a = 0; a < width; ++a) norm2 += double(x[k * width + a] - mean[a]) * double(x[k * width + a] - mean[a]);
+    const double norm = std::sqrt(norm2);
+    const float keep = norm <= double(tau) ? 0.0f : float(1.0 - double(tau) / norm);
+    for (int k = 0; k < n; ++k)
+      for (int a = 0; a < width; ++a) x[k * width + a] = mean[a] + keep * (x[k * width + a] - mean[a]);
+  };
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, p.dynamic_count(), 2048), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t j = r.begin(); j < r.end(); ++j) {
+      if (only && !(*only)[p.dynamic_ids[j]]) continue;
+      shrink(&p.key_positions[j * size_t(K) * 3], 3, tau_position);
+      float* Q = &p.key_rotations[j * size_t(K) * 4];
+      for (int k = 1; k < n; ++k) {
+        float d = 0;
+        for (int a = 0; a < 4; ++a) d += Q[a] * Q[4 * k + a];
+        if (d < 0)
+          for (int a = 0; a < 4; ++a) Q[4 * k + a] = -Q[4 * k + a];
+      }
+      shrink(Q, 4, tau_rotation);
+      if (p.keyed_opacity) shrink(&p.key_opacity_logits[j * size_t(K)], 1, tau_opacity);
+    }
+  });
+}
+
 template <typename Real>
 ModelParams<Real> params_from_cloud(const GaussianCloud& cloud_in, int bake_frames) {
   const GaussianCloud* cloud = &cloud_in;
@@ -196,8 +246,100 @@ ModelParams<Real> params_from_cloud(const GaussianCloud& cloud_in, int bake_fram
     copy(k.rotations.data(), k.rotations.size(), p.key_rotations);
     copy(k.log_scales.data(), k.log_scales.size(), p.key_log_scales);
     copy(k.opacity_logits.data(), k.opacity_logits.size(), p.key_opacity_logits);
+    p.keyed_opacity = !k.opacity_logits.empty();
   }
   return p;
+}
+
+template <typename Real>
+void set_key_layout(ModelParams<Real>& p, int frames, int interval) {
+  FILLGS_CHECK(p.dynamic_count() == 0);  // existing keys would change meaning
+  const int step = std::max(1, interval);
+  p.key_count = frames > 1 ? (frames - 1 + step - 1) / step + 1 : 1;
+  p.first_key_time = 0.0;
+  p.key_spacing = frames > 1 ? double(step) / (frames - 1) : 1.0;
+}
+
+template <typename Real>
+void add_key_opacities(ModelParams<Real>& p) {
+  if (p.keyed_opacity) return;
+  const size_t K = size_t(std::max(p.key_count, 1));
+  p.key_opacity_logits.resize(p.dynamic_count() * K);
+  for (size_t j = 0; j < p.dynamic_count(); ++j)
+    std::fill_n(&p.key_opacity_logits[j * K], K, p.opacity_logits[p.dynamic_ids[j]]);
+  p.keyed_opacity = true;
+}
+
+template <typename Real>
+size_t key_every_gaussian(ModelParams<Real>& p) {
+  FILLGS_CHECK(p.key_count > 0);
+  const size_t N = p.size(), M = p.dynamic_count(), K = size_t(p.key_count);
+  if (M == N) return 0;
+  const bool keyed_scale = !p.key_log_scales.empty();
+  ModelParams<Real> q = p;
+  q.dynamic_ids.resize(N);
+  for (uint32_t g = 0; g < N; ++g) q.dynamic_ids[g] = g;
+  q.key_positions.assign(N * K * 3, Real(0));
+  q.key_rotations.assign(N * K * 4, Real(0));
+  if (keyed_scale) q.key_log_scales.assign(N * K * 3, Real(0));
+  if (p.keyed_opacity) q.key_opacity_logits.assign(N * K, Real(0));
+  size_t j = 0;  // row of g among p's moving Gaussians
+  for (uint32_t g = 0; g < N; ++g) {
+    const bool moving = j < M && p.dynamic_ids[j] == g;
+    for (size_t k = 0; k < K; ++k) {
+      const size_t src = moving ? j * K + k : 0;
+      for (int a = 0; a < 3; ++a) q.key_positions[(g * K + k) * 3 + a] = moving ? p.key_positions[src * 3 + a] : p.means[3 * g + a];
+      for (int a = 0; a < 4; ++a) q.key_rotations[(g * K + k) * 4 + a] = moving ? p.key_rotations[src * 4 + a] : p.rotations[4 * g + a];
+      if (keyed_scale)
+        for (int a = 0; a < 3; ++a) q.key_log_scales[(g * K + k) * 3 + a] = moving ? p.key_log_scales[src * 3 + a] : p.log_scales[3 * g + a];
+      if (p.keyed_opacity) q.key_opacity_logits[g * K + k] = moving ? p.key_opacity_logits[src] : p.opacity_logits[g];
+    }
+    if (moving) ++j;
+  }
+  p = std::move(q);
+  return N - M;
+}
+
+void extrapolate_keys(ModelParams<float>& p, int from, float min_step) {
+  const int K = p.key_count;
+  FILLGS_CHECK(from >= 2);
+  if (from >= K) return;
+  const size_t M = p.dynamic_count();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, M, 1024), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t j = r.begin(); j < r.end(); ++j) {
+      float* P = &p.key_positions[j * size_t(K) * 3];
+      float* Q = &p.key_rotations[j * size_t(K) * 4];
+      const uint32_t g = p.dynamic_ids[j];
+      const float size = std::exp(std::max({p.log_scales[3 * g], p.log_scales[3 * g + 1], p.log_scales[3 * g + 2]}));
+      const Vec3f last(P[3 * (from - 1)] - P[3 * (from - 2)], P[3 * (from - 1) + 1] - P[3 * (from - 2) + 1],
+                       P[3 * (from - 1) + 2] - P[3 * (from - 2) + 2]);
+      if (last.norm() < min_step * size) {  // no evidence of motion: hold the last key
+        for (int k = from; k < K; ++k) {
+          for (int a = 0; a < 3; ++a) P[3 * k + a] = P[3 * (k - 1) + a];
+          for (int a = 0; a < 4; ++a) Q[4 * k + a] = Q[4 * (k - 1) + a];
+          if (!p.key_log_scales.empty())
+            for (int a = 0; a < 3; ++a) p.key_log_scales[(j * size_t(K) + size_t(k)) * 3 + a] = p.key_log_scales[(j * size_t(K) + size_t(k - 1)) * 3 + a];
+          if (p.keyed_opacity) p.key_opacity_logits[j * size_t(K) + size_t(k)] = p.key_opacity_logits[j * size_t(K) + size_t(k - 1)];
+        }
+        continue;
+      }
+      for (int k = from; k < K; ++k) {
+        for (int a = 0; a < 3; ++a) P[3 * k + a] = 2.0f * P[3 * (k - 1) + a] - P[3 * (k - 2) + a];
+        Vec4d q0, q1;
+        for (int a = 0; a < 4; ++a) q0[a] = Q[4 * (k - 2) + a], q1[a] = Q[4 * (k - 1) + a];
+        q0 = q0.norm() > 1e-30 ? Vec4d(q0 / q0.norm()) : Vec4d(1, 0, 0, 0);
+        q1 = q1.norm() > 1e-30 ? Vec4d(q1 / q1.norm()) : Vec4d(1, 0, 0, 0);
+        if (q0.dot(q1) < 0) q0 = -q0;
+        const Vec4d step = quat_mul(Vec4d(q0[0], -q0[1], -q0[2], -q0[3]), q1);
+        Vec4d q2 = quat_mul(q1, step);
+        q2 /= q2.norm();
+        for (int a = 0; a < 4; ++a) Q[4 * k + a] = float(q2[a]);
+        if (!p.key_log_scales.empty())
+          for (int a = 0; a < 3; ++a) p.key_log_scales[(j * size_t(K) + size_t(k)) * 3 + a] = p.key_log_scales[(j * size_t(K) + size_t(k - 1)) * 3 + a];
+        if (p.keyed_opacity) p.key_opacity_logits[j * size_t(K) + size_t(k)] = p.key_opacity_logits[j * size_t(K) + size_t(k - 1)];
+      }
+    }
+  });
 }
 
 GaussianCloud cloud_from_params(const ModelParams<float>& p) {
@@ -222,7 +364,7 @@ GaussianCloud cloud_from_params(const ModelParams<float>& p) {
     k.positions = p.key_positions;
     k.rotations = p.key_rotations;
     k.log_scales = p.key_log_scales;
-    k.opacity_logits = p.key_opacity_logits;
+    k.opacity_logits = p.keyed_opacity ? p.key_opacity_logits : std::vector<float>{};
     canonical_from_first_key(c);
   }
   return c;
@@ -270,7 +412,7 @@ void evaluate_params(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
         for (int a = 0; a < 3; ++a)
           f->scales[3 * g + a] = std::exp(S[3 * ks.i + a] + Real(ks.s) * (S[3 * i1 + a] - S[3 * ks.i + a]));
       }
-      if (!p.key_opacity_logits.empty()) {
+      if (p.keyed_opacity) {
         const Real* O = &p.key_opacity_logits[j * K];
         f->opacities[g] = sigmoid(O[ks.i] + Real(ks.s) * (O[i1] - O[ks.i]));
       }
@@ -287,7 +429,7 @@ void evaluate_params_backward(const ModelParams<Real>& p, double t, const DiffFr
   // Own values (static Gaussians; for moving ones only what keys do not replace).
   std::vector<uint8_t> keyed(N, 0);
   for (uint32_t g : p.dynamic_ids) keyed[g] = 1;
-  const bool keyed_scale = !p.key_log_scales.empty(), keyed_opacity = !p.key_opacity_logits.empty();
+  const bool keyed_scale = !p.key_log_scales.empty(), keyed_opacity = p.keyed_opacity;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t g = r.begin(); g < r.end(); ++g) {
       if (!keyed[g]) {
@@ -352,6 +494,12 @@ void evaluate_params_backward(const ModelParams<Real>& p, double t, const DiffFr
 template struct ModelParams<float>;
 template struct ModelParams<double>;
 template ModelParams<float> params_from_cloud<float>(const GaussianCloud&, int);
+template void set_key_layout<float>(ModelParams<float>&, int, int);
+template void set_key_layout<double>(ModelParams<double>&, int, int);
+template size_t key_every_gaussian<float>(ModelParams<float>&);
+template size_t key_every_gaussian<double>(ModelParams<double>&);
+template void add_key_opacities<float>(ModelParams<float>&);
+template void add_key_opacities<double>(ModelParams<double>&);
 template ModelParams<double> params_from_cloud<double>(const GaussianCloud&, int);
 template void evaluate_params<float>(const ModelParams<float>&, double, DiffFrame<float>*);
 template void evaluate_params<double>(const ModelParams<double>&, double, DiffFrame<double>*);

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <sstream>
 
 #include "fillgs/cli.hpp"
@@ -526,15 +527,28 @@ TEST_CASE("cli: finetune with the example refiner, eval, and bad input", "[refin
 TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refine][bench]") {
   const std::string dir = scratch("bench");
   std::ostringstream out, err;
-  const std::vector<std::string> args = {"bench", "--smoke", "--out", dir, "--configs", "no-refinement,fillgs,random", "--quiet"};
+  const std::vector<std::string> args = {"bench", "--smoke", "--out", dir, "--configs", "no-refinement,fillgs,random,upper.test-views,upper.dense",
+                                         "--quiet"};
   REQUIRE(cli::run(args, out, err) == 0);
   INFO(out.str() << err.str());
   const std::string csv1 = read_file(join_path(dir, "results.csv"));
-  CHECK(std::count(csv1.begin(), csv1.end(), '\n') == 5);  // header, backbone, 3 runs
+  CHECK(std::count(csv1.begin(), csv1.end(), '\n') == 7);  // header, backbone, 5 runs
+  // The upper bounds: ground truth at the test cameras (every view, weight 1), and every rig camera.
+  const RunResult tv = load_result(join_path(dir, "n3v_s1/runs/upper.test-views/result.json"));
+  CHECK(tv.views_added == size_t((5 + 8) * 6));
+  const RunResult dense = load_result(join_path(dir, "n3v_s1/runs/upper.dense/result.json"));
+  const RunResult bb = load_result(join_path(dir, "n3v_s1/backbone/result.json"));
+  CHECK(dense.extrapolation.psnr > bb.extrapolation.psnr);
+  // FillGS ran with the observation-limited oracle and says how much of its views it supported.
+  const RunResult fg = load_result(join_path(dir, "n3v_s1/runs/fillgs/result.json"));
+  CHECK(fg.support == "observed");
+  CHECK(fg.support_share > 0.0);
+  CHECK(fg.support_share <= 1.0);
+  CHECK(fs::exists(join_path(dir, "n3v_s1/runs/fillgs/work/refined/r0_t00/support")));
   for (const char* f : {"results.md", "psnr_interpolation.png", "psnr_extrapolation.png", "time_per_phase.png"}) CHECK(fs::exists(join_path(dir, f)));
   // Interrupted: the last run's result is missing. The rerun reuses the scene, the backbone
   // and the finished runs, recomputes only the missing one, and gets the same numbers.
-  fs::remove(join_path(dir, "chair_s1/runs/random/result.json"));
+  fs::remove(join_path(dir, "n3v_s1/runs/random/result.json"));
   std::ostringstream out2;
   REQUIRE(cli::run(args, out2, err) == 0);
   const std::string log = out2.str();
@@ -542,13 +556,13 @@ TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refi
   CHECK(log.find("fillgs: reused") != std::string::npos);
   CHECK(log.find("no-refinement: reused") != std::string::npos);
   CHECK(log.find("random: reused") == std::string::npos);
-  // Same metrics (the first 11 columns; the timings differ).
+  // Same metrics (the first 12 columns; the timings differ).
   auto metrics = [](const std::string& csv) {
     std::vector<std::string> rows;
     std::istringstream in(csv);
     for (std::string line; std::getline(in, line);) {
       size_t cut = 0;
-      for (int k = 0; k < 11 && cut != std::string::npos; ++k) cut = line.find(',', cut + 1);
+      for (int k = 0; k < 12 && cut != std::string::npos; ++k) cut = line.find(',', cut + 1);
       rows.push_back(line.substr(0, cut));
     }
     return rows;
@@ -558,4 +572,137 @@ TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refi
   std::ostringstream o3, e3;
   CHECK(cli::run({"bench", "--smoke", "--out", dir, "--frames", "5", "--configs", "fillgs", "--quiet"}, o3, e3) == 1);
   CHECK(e3.str().find("made with other options") != std::string::npos);
+}
+
+// ---------------------------------------------------------------------------------
+// The oracle limited to what the training cameras observed.
+
+namespace {
+
+/// A wall of opaque Gaussians at z = 2 facing a camera at the origin (looking down +z), and
+/// an object that stands in front of the wall at frame 0 (the camera sees it) and behind it
+/// at frames 1 and 2 (hidden).
+GaussianCloud wall_and_object() {
+  GaussianCloud c;
+  for (int i = -10; i <= 10; ++i)
+    for (int j = -10; j <= 10; ++j) add_gaussian(c, Vec3f(0.1f * i, 0.1f * j, 2.0f), 0.06f, logit(0.99f), Vec3f(0.8f, 0.8f, 0.7f));
+  const size_t wall = c.size();
+  for (int i = -6; i <= 6; ++i)
+    for (int j = -6; j <= 6; ++j) add_gaussian(c, Vec3f(0.05f * i, 0.05f * j, 3.0f), 0.04f, logit(0.99f), Vec3f(0.9f, 0.1f, 0.1f));
+  const size_t M = c.size() - wall;
+  c.motion = MotionModel::Keyframed;
+  c.keyframed = per_frame_tracks(M, 3);
+  for (size_t j = 0; j < M; ++j) {
+    c.dynamic_ids.push_back(uint32_t(wall + j));
+    for (int f = 0; f < 3; ++f) {
+      const Vec3f p = c.means[wall + j] - Vec3f(0, 0, f == 0 ? 1.5f : 0.0f);
+      for (int a = 0; a < 3; ++a) c.keyframed.positions[(j * 3 + size_t(f)) * 3 + a] = p[a];
+      c.keyframed.rotations[(j * 3 + size_t(f)) * 4] = 1.0f;
+    }
+  }
+  canonical_from_first_key(c);
+  c.validate("wall_and_object");
+  return c;
+}
+
+/// Refines one virtual view with the observed-support oracle; returns its support mask.
+std::vector<float> support_of(const GaussianCloud& truth, const Camera& view, int frame, int window, const std::string& dir,
+                              Image* refined = nullptr, double seed = 1) {
+  const Camera observer = axis_camera(32, 24, 40);
+  OracleOptions o;
+  o.support = OracleSupport::Observed;
+  o.observers = {observer};
+  o.frames = 3;
+  o.window = window;
+  o.artifacts.seed = uint64_t(seed);
+  SupportStats stats;
+  const std::unique_ptr<Refiner> oracle = make_oracle_refiner(truth, o, &stats);
+  Patch p;
+  p.name = "p";
+  PatchImage im;
+  im.file = "f000" + std::to_string(frame) + "_v1.png";
+  im.camera = view;
+  im.camera.time = frame / 2.0;
+  im.frame = frame;
+  im.view = 1;
+  p.images.push_back(im);
+  const std::string in = join_path(dir, "in"), out = join_path(dir, "out");
+  make_directories(in);
+  Image fill(view.width, view.height, 3);
+  std::fill(fill.pixels.begin(), fill.pixels.end(), 0.5f);  // "the current model's render"
+  write_image(join_path(in, im.file), fill);
+  oracle->refine(in, out, p);
+  if (refined) *refined = read_image(join_path(out, im.file));
+  const Image mask = read_image(join_path(join_path(out, "support"), im.file));
+  REQUIRE(stats.pixels == size_t(view.width) * view.height);
+  CHECK(stats.share() == Approx(std::accumulate(mask.pixels.begin(), mask.pixels.end(), 0.0) / mask.pixels.size()).margin(0.01));
+  return mask.pixels;
+}
+
+}  // namespace
+
+TEST_CASE("oracle support: a training view is all supported, an object no camera saw is not", "[refine][support]") {
+  const GaussianCloud truth = wall_and_object();
+  const std::string d = scratch("support");
+  // The training camera itself, at frame 0: every visible surface is observed.
+  Image same;
+  const std::vector<float> all = support_of(truth, axis_camera(32, 24, 40), 0, 0, join_path(d, "same"), &same);
+  CHECK(*std::min_element(all.begin(), all.end()) == 1.0f);
+  // With full support the refined image is the ground truth itself (no artifacts here).
+  const std::vector<float> gt = render(evaluate(truth, 0.0), axis_camera(32, 24, 40)).rgb;
+  double worst = 0;
+  for (size_t i = 0; i < gt.size(); ++i) worst = std::max(worst, double(std::fabs(same.pixels[i] - gt[i])));
+  CHECK(worst <= 1.0 / 255 + 1e-6);
+  // Behind the wall, close to the object that fills the view: at frame 2 the object was seen
+  // only at frame 0 (in front of the wall), outside a ±1 frame window: nothing is supported.
+  Camera behind = axis_camera(32, 24, 40);
+  behind.R = Vec3d(1, -1, -1).asDiagonal();
+  behind.t = -behind.R * Vec3d(0, 0, 3.5);
+  Image hallucinated;
+  const std::vector<float> none = support_of(truth, behind, 2, 1, join_path(d, "none"), &hallucinated);
+  CHECK(*std::max_element(none.begin(), none.end()) == 0.0f);
+  // There the refined image is the degraded render (grey 0.5, blurred, drifted, a blob): not the red object.
+  double red = 0;
+  for (size_t p = 0; p < size_t(32 * 24); ++p) red += hallucinated.pixels[p * 3] - hallucinated.pixels[p * 3 + 1];
+  CHECK(red / (32 * 24) < 0.3);
+  // Within the window the same surface counts: frame 1 with ±1, frame 2 with ±2.
+  const std::vector<float> near = support_of(truth, behind, 1, 1, join_path(d, "near"));
+  CHECK(*std::min_element(near.begin(), near.end()) == 1.0f);
+  const std::vector<float> wide = support_of(truth, behind, 2, 2, join_path(d, "wide"));
+  CHECK(*std::min_element(wide.begin(), wide.end()) == 1.0f);
+}
+
+TEST_CASE("oracle support: the degraded fill is seeded", "[refine][support]") {
+  const GaussianCloud truth = wall_and_object();
+  const std::string d = scratch("support_seed");
+  Camera behind = axis_camera(32, 24, 40);
+  behind.R = Vec3d(1, -1, -1).asDiagonal();
+  behind.t = -behind.R * Vec3d(0, 0, 3.5);
+  Image a, b, c;
+  support_of(truth, behind, 2, 1, join_path(d, "a"), &a, 1);
+  support_of(truth, behind, 2, 1, join_path(d, "b"), &b, 1);
+  support_of(truth, behind, 2, 1, join_path(d, "c"), &c, 2);
+  CHECK(a.pixels == b.pixels);
+  CHECK(a.pixels != c.pixels);
+}
+
+TEST_CASE("fillgs run: the whole pipeline prints its comparison and writes its report", "[refine][bench][run]") {
+  const std::string dir = join_path(scratch("run"), "out");
+  std::ostringstream out, err;
+  REQUIRE(cli::run({"run", "--smoke", "--out", dir, "--quiet"}, out, err) == 0);
+  const std::string log = out.str();
+  INFO(log << err.str());
+  // The table: backbone, the control, FillGS and the baseline, each with both splits.
+  for (const char* row : {"\nbackbone ", "\nno-refinement ", "\nfillgs ", "\ncoverage4d "}) CHECK(log.find(row) != std::string::npos);
+  CHECK(log.find("interp PSNR (moving)") != std::string::npos);
+  const std::string report = read_file(join_path(dir, "report.md"));
+  CHECK(report.find("| fillgs |") != std::string::npos);
+  // Every picture the report shows exists: ground truth | backbone | each model at a moving moment.
+  size_t pictures = 0;
+  for (size_t at = report.find("]("); at != std::string::npos; at = report.find("](", at + 2)) {
+    const std::string file = report.substr(at + 2, report.find(')', at) - at - 2);
+    CHECK(fs::exists(join_path(dir, file)));
+    ++pictures;
+  }
+  CHECK(pictures == 2);
 }

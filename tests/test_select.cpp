@@ -77,7 +77,7 @@ size_t chair_seen(const Camera& cam, double t) {
   e.set_time(t);
   const std::vector<uint32_t> vis = e.visible_set(cam);
   size_t n = 0;
-  for (uint32_t g : fx.synth.chair_ids) n += std::binary_search(vis.begin(), vis.end(), g);
+  for (uint32_t g : fx.synth.moving_ids) n += std::binary_search(vis.begin(), vis.end(), g);
   return n;
 }
 

@@ -303,7 +303,7 @@ TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame"
     // test): occlusion-aware counts stay at most 12; the frustum rule counts all 16.
     uint16_t most = 0;
     for (int f = 0; f < 7; ++f)
-      for (uint32_t g : s.chair_ids) most = std::max(most, a.counts[size_t(f) * a.gaussians + g]);
+      for (uint32_t g : s.moving_ids) most = std::max(most, a.counts[size_t(f) * a.gaussians + g]);
     if (mode == VisibilityMode::Raytraced) CHECK(most <= 12);
     else CHECK(most == 16);
   }
@@ -459,7 +459,7 @@ TEST_CASE("traced deficiency maps agree with the rasterizer's feature maps", "[v
   engine.set_time(0.5);
   // A per-Gaussian value: 1 on the chair, 0.25 elsewhere.
   std::vector<float> value(s.scene.size(), 0.25f);
-  for (uint32_t g : s.chair_ids) value[g] = 1.0f;
+  for (uint32_t g : s.moving_ids) value[g] = 1.0f;
   for (const Camera& cam : {s.train[4], s.train[8]}) {
     const ViewMaps maps = engine.render_maps(cam, value.data(), nullptr, 1);
     REQUIRE(maps.width == cam.width);

@@ -1,13 +1,16 @@
 #pragma once
 // The paper's comparison on synthetic scenes (what `fillgs bench` and `fillgs run` run):
-// a scene variant is rendered, a backbone is trained on 2 of its cameras, and every
-// configuration (a selection strategy or ablation, a weighting, an oracle refiner with or
-// without artifacts, a budget) fine-tunes that backbone and is evaluated on the
-// interpolation and extrapolation cameras. Everything lands in a folder and is reused:
-// an interrupted benchmark continues where it stopped.
+// a scene is rendered, a backbone is trained on the 2 training cameras of its split, and
+// every configuration (a selection strategy or ablation, a weighting, an oracle refiner with
+// or without artifacts and with full or observation-limited support, a budget, an upper
+// bound) fine-tunes that backbone and is evaluated on the interpolation and extrapolation
+// cameras. Everything lands in a folder and is reused: an interrupted benchmark continues
+// where it stopped.
 //
-// Layout: <root>/<variant>_s<seed>/scene/ (synth), backbone/ (model.ply, summary.json),
-// runs/<config id>/ (work folders, model.ply, result.json).
+// Layout: <root>/<scene>_s<seed>/scene/ (synth), backbone/ (model.ply, summary.json,
+// result.json), dense/ (the upper.dense backbone), runs/<config id>/ (work folders,
+// model.ply, result.json). <scene> is the rig ("n3v", "technicolor") or the ring's variant
+// ("chair", "orbit", "lift").
 #include <iosfwd>
 #include <memory>
 #include <string>
@@ -20,55 +23,82 @@
 
 namespace fillgs {
 
+/// A scene of the comparison by name: "n3v", "technicolor" (the kitchen on those rigs) or a
+/// ring variant ("chair", "orbit", "lift"). Throws for other names.
+struct SceneChoice {
+  std::string rig, variant;
+};
+SceneChoice parse_scene(const std::string& name);
+std::vector<std::string> bench_scenes();  ///< every name parse_scene knows
+
 struct ExperimentOptions {
-  std::string variant = "chair";
+  std::string rig = "n3v";
+  std::string variant;          ///< empty: the rig's default
   uint64_t seed = 1;
-  int width = 160, height = 120, frames = 20;
-  std::vector<std::string> train_cameras = {"cam04", "cam06"};
-  /// Between the two training cameras (same ring) / outside their arc (the neighbouring
-  /// ring cameras and the raised, closer camera above the arc).
-  std::vector<std::string> interpolation_cameras = {"interp04", "interp05"};
-  std::vector<std::string> extrapolation_cameras = {"cam03", "cam07", "extrap02"};
+  int width = 0, height = 0;    ///< 0: the rig's default (160×120; technicolor 192×102)
+  int frames = 20;
+  /// Cameras of the split; empty: the scene's own (SynthScene::split).
+  std::vector<std::string> train_cameras, interpolation_cameras, extrapolation_cameras;
   int backbone_iterations = 2000;
   int threads = 0;
+  /// The scene's folder name: the rig, or the ring's variant.
+  std::string scene_name() const;
+  /// The options with the rig's defaults filled in.
+  ExperimentOptions resolved() const;
 };
 
 struct PreparedScene {
   SynthScene synth;
-  std::string dir;  ///< <root>/<variant>_s<seed>
+  ExperimentOptions options;  ///< resolved
+  std::string dir;  ///< <root>/<scene>_s<seed>
   std::unique_ptr<Dataset> train, interpolation, extrapolation;
   GaussianCloud backbone;
   double seconds_synth = 0, seconds_backbone = 0;  ///< 0 when reused
   bool reused_scene = false, reused_backbone = false;
+  std::string scene_dir() const;
 };
 
 /// Renders the scene and trains the backbone, or reuses what an earlier run left (checked
 /// against the options it was made with).
 PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& options, Progress& progress, std::ostream& log);
 
-/// One fine-tuning configuration.
+/// What a configuration does with the backbone.
+enum class RunKind {
+  Finetune,   ///< select, refine (oracle), weight, fine-tune
+  TestViews,  ///< upper.test-views: fine-tune on clean ground truth at every test camera and frame, weight 1
+  Dense,      ///< upper.dense: a backbone trained on every camera of the scene's rig
+};
+
+/// One configuration of the comparison.
 struct RunConfig {
-  std::string id;           ///< folder name and table row, e.g. "fillgs", "random", "fillgs.no-global"
-  std::string group;        ///< "strategy", "ablation", "weighting", "budget", "refiner", "control"
+  std::string id;           ///< folder name and table row, e.g. "fillgs", "random", "fillgs.no-global", "fillgs@full"
+  std::string group;        ///< "control", "strategy", "ablation", "weighting", "budget", "refiner", "upper"
+  RunKind kind = RunKind::Finetune;
   SelectOptions select;     ///< strategy and ablation flags
   Weighting weighting = Weighting::FillGS;
   MaskOptions mask;
   double artifact_strength = 0.5;  ///< oracle artifacts (0: clean ground truth)
   int trajectories = 5;     ///< per round; 0: fine-tune on the real views only (the control)
+  OracleSupport support = OracleSupport::Observed;
 };
 
-/// The paper's comparison: the control (no refined views), every strategy (FillGS with its
-/// weights, baselines with `baseline_weighting`, the paper's protocol: ExploreGS), FillGS's
-/// selection ablations, weighting ablations, budgets 1/5/10/20, the clean oracle.
-std::vector<RunConfig> standard_configs(Weighting baseline_weighting = Weighting::ExploreGS, double artifact_strength = 0.5);
+/// The paper's comparison, for every oracle support in `supports` (ids of the Full support
+/// end in "@full"; the first support's have no suffix): the control (no refined views),
+/// every strategy (FillGS with its weights, baselines with `baseline_weighting`, the
+/// paper's protocol: ExploreGS), FillGS's selection ablations, weighting ablations, budgets
+/// 1/10/20, the clean oracle; then the two upper bounds (once).
+std::vector<RunConfig> standard_configs(Weighting baseline_weighting = Weighting::ExploreGS, double artifact_strength = 0.5,
+                                        const std::vector<OracleSupport>& supports = {OracleSupport::Observed});
 
 struct RunResult {
-  std::string id, group, variant;
+  std::string id, group, variant;  ///< variant: the scene name
   uint64_t seed = 0;
   SplitMetrics interpolation, extrapolation, train;
   int trajectories = 0;
   size_t views_added = 0;
   double mean_weight = 0;
+  std::string support;             ///< "observed", "full", or "" (no oracle)
+  double support_share = 0;        ///< mean support of the refined pixels (1 for full)
   double seconds_select = 0, seconds_refine = 0, seconds_weights = 0, seconds_train = 0, seconds_eval = 0, seconds_total = 0;
   int refine_failures = 0;
 };
@@ -77,8 +107,9 @@ struct RunResult {
 RunResult evaluate_model(const PreparedScene& scene, const GaussianCloud& model, const std::string& id, int threads,
                          const std::string& save_dir = "", Progress& progress = null_progress());
 
-/// Fine-tunes the backbone with `config` (oracle refiner), evaluates, writes
-/// <scene.dir>/runs/<id>/result.json; returns the stored result when it exists already.
+/// Runs `config` on the backbone (fine-tuning with the oracle refiner, or an upper bound),
+/// evaluates, writes <scene.dir>/runs/<id>/result.json; returns the stored result when it
+/// exists already.
 RunResult run_config(const PreparedScene& scene, const RunConfig& config, const FinetuneOptions& base, Progress& progress,
                      std::ostream& log);
 
@@ -86,13 +117,14 @@ RunResult run_config(const PreparedScene& scene, const RunConfig& config, const 
 void save_result(const std::string& path, const RunResult& result);
 RunResult load_result(const std::string& path);
 
-/// Every result stored under a benchmark root: <variant>_s<seed>/backbone/result.json and
-/// <variant>_s<seed>/runs/*/result.json, sorted by scene then configuration order of
+/// Every result stored under a benchmark root: <scene>_s<seed>/backbone/result.json and
+/// <scene>_s<seed>/runs/*/result.json, sorted by scene then configuration order of
 /// standard_configs (backbone first).
 std::vector<RunResult> collect_results(const std::string& root);
 
-/// results.csv (every run), results.md (means over scenes and seeds, shaped like the
-/// paper's tables), psnr_per_strategy.png, budget.png, time_per_phase.png.
+/// results.csv (every run), results.md (mean ± standard deviation over seeds per scene,
+/// shaped like the paper's tables), psnr_interpolation.png, psnr_extrapolation.png,
+/// budget.png, time_per_phase.png.
 void write_bench_report(const std::string& root, const std::vector<RunResult>& results);
 
 }  // namespace fillgs

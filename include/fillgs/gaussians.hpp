@@ -122,6 +122,23 @@ struct PartitionOptions {
 /// freezing them at their time-averaged position. Returns how many were moved.
 size_t partition_static_dynamic(GaussianCloud& cloud, const PartitionOptions& options = {});
 
+/// How little a keyframed Gaussian may change to count as still (fold_still_keys).
+struct StillTolerance {
+  float position = 1e-3f;         ///< largest distance of a key from the keys' mean, world units
+  float rotation_degrees = 1.0f;  ///< largest angle between a key's rotation and the keys' mean
+  float opacity_logit = 0.1f;     ///< largest difference of a key's opacity logit from the mean
+};
+
+/// Sets every key of each keyframed Gaussian that changes less than `tolerance` to the keys'
+/// mean (position, normalised mean rotation, mean opacity logit), so that
+/// partition_static_dynamic then folds it into the static set. Returns how many were set.
+size_t fold_still_keys(GaussianCloud& cloud, const StillTolerance& tolerance);
+
+/// Reorders the cloud so that its static Gaussians come first, then the moving ones (each
+/// in their order): the order fillgs 4D PLY files store, so that a model written and read
+/// back is the same cloud, Gaussian for Gaussian.
+void static_first(GaussianCloud& cloud);
+
 /// Keyframed motion with one key per frame (key f at t = f / (frames - 1)), fillgs
 /// conventions, positions and rotations sized for `gaussians` tracks (zero-filled).
 KeyframedMotion per_frame_tracks(size_t gaussians, int frames);

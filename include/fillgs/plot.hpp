@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/camera.hpp"
+
 namespace fillgs {
 
 struct PlotLabels {
@@ -27,6 +29,17 @@ struct ScatterSeries {
 
 /// Scatter plot of several series (one colour each, legend top-left); log10 x when asked.
 void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>& series, const PlotLabels& labels, bool log_x);
+
+/// Top view (z up) of a rig's split: static points grey, moving points orange, cameras
+/// coloured by role (0 training red, 1 interpolation blue, 2 extrapolation purple, other
+/// grey) with their viewing direction and name.
+void write_split_png(const std::string& path, const std::vector<Vec3f>& static_points, const std::vector<Vec3f>& moving_points,
+                     const std::vector<Camera>& cameras, const std::vector<int>& roles, const std::string& title);
+
+/// RGB images ([H][W][3] in [0, 1], all width × height) in rows of `columns`, each with a
+/// caption above it, scaled up by `zoom` (nearest neighbour).
+void write_image_grid_png(const std::string& path, const std::vector<std::vector<float>>& images, int width, int height,
+                          const std::vector<std::string>& captions, int columns, int zoom = 2);
 
 /// RGB images ([H][W][3] in [0, 1], same height) side by side with a caption above each,
 /// scaled up by `zoom` (nearest neighbour, so pixels stay visible).

@@ -1,8 +1,8 @@
 #pragma once
 // Spatiotemporal patches for a generative refiner (METHOD.md §6) and the refiners fillgs
 // drives: `external` (any program, through a folder protocol), `oracle` (synthetic scenes:
-// the ground truth at the virtual view, with optional injected generation artifacts) and
-// `identity` (the render itself).
+// the ground truth at the virtual view where the training cameras support it, with optional
+// injected generation artifacts) and `identity` (the render itself).
 //
 // A patch is 3 consecutive frames × 4 views of one trajectory: the observed start image,
 // then the trajectory's 3 virtual poses rendered by the current model. Order: serpentine
@@ -85,8 +85,51 @@ class Refiner {
 
 /// Copies the rendered images.
 std::unique_ptr<Refiner> make_identity_refiner();
-/// Renders `truth` at each virtual view (its time), applies artifacts when strength > 0 and
-/// writes the artifact masks to `out_dir`/masks/<file>.
+/// What the oracle may restore (METHOD.md §9: a generative model conditioned on the observed
+/// views restores what they support and hallucinates the rest).
+///  * Full: the ground truth everywhere (the earlier behaviour; rewards looking away from
+///    the capture).
+///  * Observed: the ground truth only where the surface is seen by some training camera —
+///    a static Gaussian seen at any frame, a moving one seen within ±window frames of the
+///    view's frame (exact visibility of the truth, α·T ≥ 1/255, through the visibility
+///    engine; a pixel is supported when such surfaces make up at least half of its rendered
+///    opacity); elsewhere the patch's own render (the
+///    current model) degraded as diffusion models fail there: blurred (σ 2 + 3a px), its
+///    colours drifted (±20a %) and a hallucinated blob, a = the artifact strength (0.5 when
+///    it is 0), seeded per image. The artifacts of ArtifactOptions go on top everywhere.
+enum class OracleSupport { Full, Observed };
+const char* to_string(OracleSupport s);
+OracleSupport parse_oracle_support(const std::string& name);  ///< "full" | "observed"
+
+struct OracleOptions {
+  ArtifactOptions artifacts;
+  OracleSupport support = OracleSupport::Full;
+  std::vector<Camera> observers;  ///< Observed: the training cameras (with times, or a rig without)
+  int frames = 0;                 ///< Observed: the video's frame count
+  int window = 2;                 ///< Observed: ± frames within which a moving surface counts as seen
+  Vec3f background = Vec3f::Zero();
+  int threads = 0;
+};
+
+/// Mean support of the virtual views an oracle refined (1 for Full).
+struct SupportStats {
+  double support_sum = 0;
+  size_t pixels = 0;
+  double share() const { return pixels ? support_sum / double(pixels) : 0.0; }
+};
+
+/// The support of every Gaussian of `truth` at every frame ([F][N], 1 = seen), as the
+/// Observed oracle uses it: exact visibility from `observers`, static Gaussians at any frame,
+/// moving ones within ±window frames.
+std::vector<uint8_t> oracle_support_table(const GaussianCloud& truth, const std::vector<Camera>& observers, int frames, int window,
+                                          int threads = 0);
+
+/// Renders `truth` at each virtual view (its time), limits it to the supported pixels (see
+/// OracleSupport; the support mask goes to `out_dir`/support/<file>), applies artifacts
+/// when strength > 0 and writes the artifact masks to `out_dir`/masks/<file>. `stats`, when
+/// given, accumulates the support of every refined pixel.
+std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const OracleOptions& options, SupportStats* stats = nullptr);
+/// The full-support oracle (ground truth everywhere).
 std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const ArtifactOptions& artifacts, const Vec3f& background,
                                              int threads = 0);
 /// Runs `command` through /bin/sh with {in} and {out} replaced by the folders (quoted);

@@ -4,14 +4,25 @@
 // progressive SH, densification (clone / split / prune / opacity reset) with a cap, and
 // keyframed motion for the Gaussians that need it.
 //
-// Static → dynamic: every Gaussian starts static (no motion parameters). The mean gradient
-// of each static Gaussian is accumulated separately in `time_bins` bins of time. A static
-// Gaussian is promoted to a keyframed one at a densification step when (a) its screen-space
-// gradient is above the densification threshold (it is under stress) and (b) the time bins
-// disagree: |Σ_b ḡ_b| < promote_agreement · Σ_b |ḡ_b| over at least two bins with
-// promote_min_samples views each — no
-// single position satisfies it at every time. Its keys start at its current pose. Models
-// are written with partition_static_dynamic, so keys that never moved become static again.
+// Motion (MotionLearning):
+//  * `all` (default): every Gaussian carries keys while it trains — positions, rotations and,
+//    with keyed_opacity, opacities — so anything can move from the first iteration on. A
+//    sparsity prior (an L1 proximal step after every Adam step, pulling each key towards the
+//    mean of its Gaussian's trained keys) makes the keys of still Gaussians exactly equal, and
+//    the written model folds those back into static Gaussians (partition_static_dynamic): the
+//    output carries no motion for what does not move.
+//  * `promote` (the earlier behaviour): every Gaussian starts static. The mean gradient of
+//    each static Gaussian is accumulated in `time_bins` bins of time; a static Gaussian
+//    becomes keyframed at a densification step when its screen-space gradient is above the
+//    densification threshold and the bins disagree, |Σ_b ḡ_b| < promote_agreement · Σ_b |ḡ_b|
+//    over at least two bins with promote_min_samples views each. Its keys start at its pose.
+// Time curriculum (time_ramp > 0): the trained window of frames grows from frame 0 to the
+// whole video over the first time_ramp of the iterations, frontier_share of the iterations
+// drawing one of its newest frontier_frames frames; whenever the window enters a new key
+// interval, the keys beyond it are continued at constant velocity (extrapolate_keys), so a
+// Gaussian that tracks its content up to now starts the next interval where the content
+// goes. Key position learning rates stay at their initial value until the ramp ends, then
+// decay like the position one.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -76,8 +87,16 @@ void write_points_ply(const std::string& path, const PointSet& points);
 ModelParams<float> init_from_points(const PointSet& points);
 
 /// A noisy subsample of a scene's Gaussian means at one time, standing in for SfM points
-/// (fraction kept, Gaussian noise of `noise` world units, colour = SH DC), seeded.
-PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction, double noise, uint64_t seed);
+/// (fraction kept, Gaussian noise of `noise` world units, colour = SH DC), seeded. With
+/// `observers`, only Gaussians that at least `min_views` of them observe at time t (exact
+/// visibility: largest α·T ≥ 1/255) — what SfM can triangulate from those images.
+PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction, double noise, uint64_t seed,
+                           const std::vector<Camera>& observers = {}, int min_views = 2);
+
+/// How a model learns motion (see above).
+enum class MotionLearning { All, Promote };
+const char* to_string(MotionLearning m);
+MotionLearning motion_learning_from_string(const std::string& name);
 
 struct TrainOptions {
   int iterations = 3000;
@@ -99,11 +118,34 @@ struct TrainOptions {
   int max_screen_size = 20;  ///< pixels, pruning after the first opacity reset
   size_t max_gaussians = 300000;
   // Motion.
+  bool allow_dynamic = true;    ///< false: a static model (no keys at all)
+  MotionLearning motion = MotionLearning::All;
   int key_interval_frames = 3;  ///< keyframe spacing in frames (keys at t = k·spacing)
-  int time_bins = 4;
+  bool keyed_opacity = true;    ///< an opacity logit per key for moving Gaussians
+  double time_ramp = 0.7;       ///< fraction of the iterations over which the time window grows (0: none)
+  double frontier_share = 0.5;  ///< while it grows: share of iterations on its newest frames
+  int frontier_frames = 2;
+  double key_lr_scale = 3.0;    ///< key position learning rate / position learning rate
+  double extrapolate_min_step = 0.5;  ///< keys continue a motion only of at least this × the Gaussian's size per key
+  double freeze_distance = 0.0; ///< `all`: at the end of the ramp, Gaussians whose keys stayed within this × their size become static (0: never)
+  /// Motion only where the images change: for a fixed camera of the rig, a pixel changes when
+  /// some channel varies by more than change_threshold over the frames (dilated by
+  /// change_dilation pixels). A Gaussian earns motion once its mean falls on a changing pixel
+  /// of a view that renders it; at every densification step the keyed Gaussians that have not
+  /// are made static, and only those that have may be promoted. Off, or a dataset without a
+  /// fixed camera over 3 or more frames: any Gaussian may move.
+  bool motion_where_images_change = true;
+  double change_threshold = 0.1;
+  int change_dilation = 2;
+  double motion_sparsity = 0.0;  ///< L1 step on the key-to-key steps (shrink_key_deviations), × the key learning rate (0: off)
+  /// The written model folds Gaussians whose keys change less than this into static ones;
+  /// the position tolerance is a fraction of the camera extent.
+  double still_distance = 1e-3;
+  StillTolerance still;
+  int time_bins = 4;            ///< `promote` only
   double promote_agreement = 0.3;
+  double promote_grad_scale = 1.0;  ///< promotion needs this × the densification gradient threshold
   int promote_min_samples = 3;  ///< views per time bin before a bin counts
-  bool allow_dynamic = true;
   int checkpoint_interval = 0;  ///< 0: only at the end
   /// Fine-tuning: probability that an iteration trains on a refined view (once any were
   /// added) instead of a real one. Refined views would otherwise outnumber real ones on a
@@ -118,6 +160,14 @@ struct TrainStatus {
   double loss = 0, psnr = 0;  ///< exponential moving averages over recent iterations
   size_t gaussians = 0, dynamic = 0;
   double iterations_per_second = 0;
+  int window_frames = 0;      ///< frames in the trained time window (all once the ramp ends)
+};
+
+/// What a densification step did (for diagnostics and summaries).
+struct DensifyRecord {
+  int iteration = 0;
+  size_t gaussians = 0, dynamic = 0, promoted = 0, cloned = 0, split = 0, pruned = 0;
+  size_t made_static = 0;  ///< keyed Gaussians made static (never on a changing pixel)
 };
 
 /// A refined (generated) view for fine-tuning: its camera (with time), image and per-pixel
@@ -150,13 +200,28 @@ class Trainer {
   TrainStatus status() const { return status_; }
   /// Loss of every iteration so far (for plots).
   const std::vector<float>& loss_history() const { return loss_history_; }
+  /// Every densification step of this session (not stored in checkpoints).
+  const std::vector<DensifyRecord>& densify_log() const { return densify_log_; }
+  /// The last frame of the trained time window at an iteration (time curriculum).
+  int window_last_frame(int iteration) const;
+  /// How many Gaussians were made static again when the window reached the whole video.
+  size_t frozen() const { return frozen_; }
+  /// Per view, the share of its pixels that change over the video (−1: no fixed camera).
+  std::vector<double> changing_share() const;
   /// The trained model as a cloud (keys that never moved folded back into static Gaussians).
   GaussianCloud model() const;
 
  private:
   void adam_step();
-  void densify_and_prune(bool prune_big);
-  void promote_static();
+  void densify_and_prune(bool prune_big, DensifyRecord* record);
+  size_t promote_static();
+  size_t freeze_still();
+  size_t fold_unchanging();
+  void build_change_masks();
+  void carry(const std::vector<uint32_t>& sources);
+  void enter_key_interval();
+  void motion_sparsity_step(double key_lr);
+  int key_interval_of_frame(int frame) const;
   void raise_sh_degree();
   void reset_opacity();
   void reset_stats();
@@ -175,7 +240,17 @@ class Trainer {
   bool opacity_was_reset_ = false;
   TrainStatus status_;
   std::vector<float> loss_history_;
+  std::vector<DensifyRecord> densify_log_;
+  size_t frozen_ = 0;
+  std::vector<uint8_t> seen_;  // Gaussians the current iteration's view renders
+  // Motion where the images change: per view the index of its camera's mask (−1: none),
+  // the masks ([H][W], 1 = changing), and per Gaussian whether it has been on one.
+  std::vector<int> view_mask_;
+  std::vector<std::vector<uint8_t>> change_masks_;
+  std::vector<uint8_t> on_change_;
   std::vector<RefinedView> refined_;
+  std::vector<size_t> views_by_frame_;  // view indices sorted by frame
+  std::vector<size_t> frame_begin_;     // [F + 1] offsets into views_by_frame_
 };
 
 /// PSNR and SSIM of a model against every view of a dataset (optionally every k-th).

@@ -162,19 +162,21 @@ SynthOptions synth_options(const Args& a) {
   o.height = a.integer("height", o.height);
   o.seed = uint64_t(a.integer("seed", int(o.seed)));
   o.spacing = a.number("spacing", o.spacing);
+  o.rig = a.get("rig", o.rig);
   o.variant = a.get("variant", o.variant);
   return o;
 }
 
 int cmd_synth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("synth", args, 1, {"out", "frames", "width", "height", "seed", "spacing", "threads", "variant"}, {"quiet"});
+  Args a("synth", args, 1, {"out", "frames", "width", "height", "seed", "spacing", "threads", "rig", "variant"}, {"quiet"});
   const auto t0 = Clock::now();
   const std::string dir = a.require("out");
   const SynthScene s = make_synthetic_scene(synth_options(a));
   TerminalProgress progress(err, progress_enabled(a));
   write_synthetic_scene(s, dir, progress, a.integer("threads", 0));
   out << "synthetic scene: " << s.scene.size() << " Gaussians (" << s.scene.dynamic_count() << " moving), "
-      << s.train.size() << " training cameras, " << s.options.frames << " frames, " << s.options.width << "x" << s.options.height
+      << s.train.size() << " rig cameras (" << s.options.rig << ", split: train " << s.split.train.size() << ", interpolation "
+      << s.split.interpolation.size() << ", extrapolation " << s.split.extrapolation.size() << "), " << s.options.frames << " frames, " << s.options.width << "x" << s.options.height
       << ", written to " << dir << " in " << seconds_since(t0) << " s\n";
   return 0;
 }
@@ -248,8 +250,9 @@ int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::os
 int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("train", args, 1,
          {"images", "cameras", "points", "iterations", "out", "train-cameras", "resume", "checkpoint-every", "seed", "threads",
-          "key-interval", "max-gaussians", "sh-degree", "test-images", "test-cameras", "background"},
-         {"quiet", "static-only"});
+          "key-interval", "max-gaussians", "sh-degree", "test-images", "test-cameras", "background", "motion", "time-ramp",
+          "key-lr-scale", "motion-sparsity"},
+         {"quiet", "static-only", "no-keyed-opacity"});
   const auto t0 = Clock::now();
   const std::string out_dir = a.require("out");
   const std::string cameras = a.require("cameras");
@@ -267,6 +270,14 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   o.max_sh_degree = a.integer("sh-degree", o.max_sh_degree);
   if (o.max_sh_degree < 0 || o.max_sh_degree > 3) throw_error("fillgs train: --sh-degree must be 0..3");
   o.allow_dynamic = !a.flag("static-only");
+  o.motion = motion_learning_from_string(a.get("motion", to_string(o.motion)));
+  o.keyed_opacity = !a.flag("no-keyed-opacity");
+  o.time_ramp = a.number("time-ramp", o.time_ramp);
+  if (!(o.time_ramp >= 0 && o.time_ramp < 1)) throw_error("fillgs train: --time-ramp must be in [0, 1)");
+  o.key_lr_scale = a.number("key-lr-scale", o.key_lr_scale);
+  if (!(o.key_lr_scale > 0)) throw_error("fillgs train: --key-lr-scale must be positive");
+  o.motion_sparsity = a.number("motion-sparsity", o.motion_sparsity);
+  if (!(o.motion_sparsity >= 0)) throw_error("fillgs train: --motion-sparsity must be at least 0");
   o.checkpoint_interval = a.integer("checkpoint-every", std::max(1, iterations / 5));
   if (a.has("background")) {
     const std::vector<std::string> c = split_commas(a.get("background"));
@@ -316,6 +327,13 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   j["gaussians"] = model.size();
   j["moving_gaussians"] = model.dynamic_count();
   j["final_loss_ema"] = trainer->status().loss;
+  j["motion"] = {{"learning", to_string(o.motion)}, {"keyed_opacity", o.keyed_opacity}, {"time_ramp", o.time_ramp},
+                 {"key_lr_scale", o.key_lr_scale}, {"motion_sparsity", o.motion_sparsity}, {"key_interval_frames", o.key_interval_frames}};
+  nlohmann::json dens = nlohmann::json::array();
+  for (const DensifyRecord& r : trainer->densify_log())
+    dens.push_back({{"iteration", r.iteration}, {"gaussians", r.gaussians}, {"keyed", r.dynamic}, {"promoted", r.promoted},
+                    {"cloned", r.cloned}, {"split", r.split}, {"pruned", r.pruned}});
+  j["densification"] = dens;
   const EvalResult tr = evaluate_views(model, data, std::max<int>(1, int(data.views().size() / 32)), o.background, o.threads);
   j["train_psnr"] = tr.psnr;
   j["train_ssim"] = tr.ssim;
@@ -344,7 +362,8 @@ void print_help(std::ostream& out) {
          "  info SCENE [--json]                       Gaussian count, SH degree, motion, static/dynamic, bbox\n"
          "  render --scene S --cameras C --out DIR    render every camera to DIR/<camera>.png\n"
          "         [--time t] [--channel rgb|depth|alpha] [--format png|exr] [--threads n] [--background r,g,b]\n"
-         "  synth --out DIR [--frames F] [--width W] [--height H] [--seed n] [--spacing m] [--variant chair|orbit|lift]\n"
+         "  synth --out DIR [--frames F] [--width W] [--height H] [--seed n] [--spacing m] [--rig ring|n3v|technicolor]\n"
+         "        [--variant chair|orbit|lift (ring) | kitchen (n3v, technicolor)]\n"
          "                                            the chair/shelf analysis scene with ground-truth images\n"
          "  convert --scene S --out F.ply [--to 3dgs|fillgs] [--time t] [--frames F]\n"
          "  cameras --cameras C --out PATH [--to transforms|colmap]\n"
@@ -354,6 +373,7 @@ void print_help(std::ostream& out) {
          "  train --images DIR --cameras C --out DIR [--points P] [--iterations N] [--train-cameras a,b]\n"
          "         [--resume CKPT] [--checkpoint-every N] [--seed n] [--key-interval F] [--max-gaussians N]\n"
          "         [--sh-degree D] [--test-cameras C --test-images DIR] [--static-only] [--background r,g,b]\n"
+         "         [--motion all|promote] [--time-ramp r] [--key-lr-scale s] [--motion-sparsity s] [--no-keyed-opacity]\n"
          "                                            train a 4D Gaussian model from multi-view video\n"
          "  explore --scene S --cameras C --out DIR   the exploration grid: exploration.vdb, exploration.png\n"
          "         [--divisions n] [--occupancy-alpha a] [--frames F]\n"
@@ -367,16 +387,18 @@ void print_help(std::ostream& out) {
          "  finetune --model M --images DIR --cameras C --out DIR [--train-cameras a,b] [--iterations N]\n"
          "         [--select-every M] [--trajectories K] [--strategy NAME] [--weighting NAME] [--paper-schedule]\n"
          "         [--refiner identity|oracle|external] [--refiner-command 'cmd {in} {out}'] [--refiner-timeout s]\n"
-         "         [--truth SCENE --artifact-strength a] [--confidence DIR] [--mask depth-warp|sweep]\n"
+         "         [--truth SCENE --artifact-strength a --support observed|full --support-window w]\n"
+         "         [--confidence DIR] [--mask depth-warp|sweep]\n"
          "         [--covis-static zero|count] [--mask-sigma s] [--refined-share p] [selection flags]\n"
          "                                            fine-tune with refined virtual views; weightings: fillgs none\n"
          "                                            no-consistency no-covisibility 3dgs-enhancer exploregs ua-4dgs\n"
          "  eval --model M --images DIR --cameras C1[,C2] [--splits n1,n2] [--select-cameras a,b] [--truth SCENE]\n"
          "         [--lpips NET.onnx] [--out DIR] [--stride k]     PSNR, SSIM, moving-region PSNR per split\n"
-         "  bench [--out DIR] [--variants chair,orbit,lift] [--seeds 1,2] [--only GROUPS] [--configs IDS]\n"
-         "         [--iterations N] [--backbone-iterations N] [--width W --height H --frames F] [--smoke]\n"
-         "         [--artifact-strength a] [--baseline-weighting NAME]   the paper's comparison (resumable)\n"
-         "  run [--out DIR] [--baseline NAME]         the whole pipeline on the built-in scene, with a report\n\n"
+         "  bench [--out DIR] [--scenes n3v,technicolor,chair,orbit,lift] [--seeds 1,2,3] [--only GROUPS] [--configs IDS]\n"
+         "         [--support observed|full|both] [--iterations N] [--backbone-iterations N] [--width W --height H --frames F]\n"
+         "         [--artifact-strength a] [--baseline-weighting NAME] [--smoke]   the paper's comparison (resumable)\n"
+         "  run [--out DIR] [--scene NAME] [--baseline NAME] [--support observed|full] [--smoke]\n"
+         "                                            the whole pipeline on the built-in scene, with a report\n\n"
          "scene options:  --scene-format auto|3dgs|stg|ex4dgs|fillgs --duration F (Ex4DGS) --stg-duration F\n"
          "                --stg-color auto|sigmoid|clamp|none --static-threshold v\n"
          "camera options: --camera-format auto|colmap|llff|transforms|3dgs|technicolor --width W --height H\n"

@@ -64,7 +64,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
   Args a("finetune", args, 1,
          merge({"model", "images", "cameras", "out", "train-cameras", "iterations", "select-every", "trajectories", "strategy", "weighting",
                 "refiner", "refiner-command", "refiner-timeout", "truth", "artifact-strength", "confidence", "seed", "threads",
-                "time-stride", "refined-share", "mask-sigma", "mask", "covis-static"},
+                "time-stride", "refined-share", "mask-sigma", "mask", "covis-static", "support", "support-window"},
                kSceneOptions),
          kFinetuneFlags);
   const auto t0 = Clock::now();
@@ -105,10 +105,16 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
     refiner = make_identity_refiner();
   } else if (kind == "oracle") {
     truth = std::make_unique<GaussianCloud>(read_scene(a.require("truth"), scene_options(a)));
-    ArtifactOptions ao;
-    ao.strength = a.number("artifact-strength", 0.0);
-    ao.seed = o.train.seed;
-    refiner = make_oracle_refiner(*truth, ao, Vec3f::Zero(), o.threads);
+    OracleOptions oo;
+    oo.artifacts.strength = a.number("artifact-strength", 0.0);
+    oo.artifacts.seed = o.train.seed;
+    oo.support = parse_oracle_support(a.get("support", "observed"));
+    oo.window = a.integer("support-window", oo.window);
+    if (oo.window < 0) throw_error("fillgs finetune: --support-window must be at least 0");
+    for (const TrainView& v : data.views()) oo.observers.push_back(v.camera);
+    oo.frames = data.frames();
+    oo.threads = o.threads;
+    refiner = make_oracle_refiner(*truth, oo);
   } else if (kind == "external") {
     refiner = make_external_refiner(a.require("refiner-command"), a.number("refiner-timeout", 600.0));
   } else {
@@ -227,42 +233,48 @@ BenchSetup bench_setup(const Args& a, bool smoke) {
   return b;
 }
 
+std::vector<OracleSupport> parse_supports(const std::string& s) {
+  if (s == "both") return {OracleSupport::Observed, OracleSupport::Full};
+  return {parse_oracle_support(s)};
+}
+
 }  // namespace
 
 int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("bench", args, 1,
-         {"out", "variants", "seeds", "only", "configs", "iterations", "select-every", "backbone-iterations", "width", "height", "frames",
-          "artifact-strength", "baseline-weighting", "threads", "time-stride"},
+         {"out", "scenes", "variants", "seeds", "only", "configs", "iterations", "select-every", "backbone-iterations", "width", "height", "frames",
+          "artifact-strength", "baseline-weighting", "threads", "time-stride", "support"},
          {"quiet", "smoke"});
   const bool smoke = a.flag("smoke");
   const std::string root = a.get("out", "fillgs_bench");
   BenchSetup setup = bench_setup(a, smoke);
-  std::vector<std::string> variants = split_commas(a.get("variants", smoke ? "chair" : "chair,orbit,lift"));
+  // --variants is the earlier name of --scenes.
+  const std::vector<std::string> scenes = split_commas(a.get("scenes", a.get("variants", "n3v")));
+  for (const std::string& sc : scenes) parse_scene(sc);  // unknown names fail before any work
   std::vector<uint64_t> seeds;
-  for (const std::string& s : split_commas(a.get("seeds", smoke ? "1" : "1,2"))) seeds.push_back(uint64_t(std::stoull(s)));
+  for (const std::string& s : split_commas(a.get("seeds", smoke ? "1" : "1,2,3"))) seeds.push_back(uint64_t(std::stoull(s)));
   const double strength = a.number("artifact-strength", 0.5);
-  std::vector<RunConfig> configs = standard_configs(parse_weighting(a.get("baseline-weighting", "exploregs")), strength);
+  const std::vector<OracleSupport> supports = parse_supports(a.get("support", "observed"));
+  std::vector<RunConfig> configs = standard_configs(parse_weighting(a.get("baseline-weighting", "exploregs")), strength, supports);
   const std::vector<std::string> only = split_commas(a.get("only")), ids = split_commas(a.get("configs"));
   std::vector<RunConfig> chosen;
   for (const RunConfig& c : configs) {
     const bool by_group = only.empty() || std::count(only.begin(), only.end(), c.group);
     const bool by_id = ids.empty() || std::count(ids.begin(), ids.end(), c.id);
-    if (by_group && by_id && (!smoke || c.group == "control" || c.group == "strategy")) chosen.push_back(c);
+    if (by_group && by_id && (!smoke || c.group == "control" || c.group == "strategy" || c.group == "upper")) chosen.push_back(c);
   }
   if (chosen.empty()) throw_error("fillgs bench: --only/--configs select no configuration");
-  const std::vector<std::string> known = synthetic_variants();
-  for (const std::string& v : variants)
-    if (std::count(known.begin(), known.end(), v) == 0)
-      throw_error("fillgs bench: unknown variant \"", v, "\" (chair, orbit, lift)");
   make_directories(root);
   TerminalProgress progress(err, progress_enabled(a));
   std::vector<RunResult> results;
-  out << "fillgs bench: " << variants.size() << " scene(s) x " << seeds.size() << " seed(s) x " << chosen.size() << " configurations -> " << root
+  out << "fillgs bench: " << scenes.size() << " scene(s) x " << seeds.size() << " seed(s) x " << chosen.size() << " configurations -> " << root
       << " (resumable: finished runs are reused)\n";
-  for (const std::string& v : variants)
+  for (const std::string& sc : scenes)
     for (uint64_t seed : seeds) {
       ExperimentOptions eo = setup.scene;
-      eo.variant = v;
+      const SceneChoice choice = parse_scene(sc);
+      eo.rig = choice.rig;
+      eo.variant = choice.variant;
       eo.seed = seed;
       const PreparedScene p = prepare_scene(root, eo, progress, out);
       const std::string bb_path = join_path(join_path(p.dir, "backbone"), "result.json");
@@ -274,7 +286,7 @@ int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostr
         bb.group = "control";
         save_result(bb_path, bb);
       }
-      out << v << " seed " << seed << " backbone: interpolation " << fixed(bb.interpolation.psnr) << " dB, extrapolation "
+      out << sc << " seed " << seed << " backbone: interpolation " << fixed(bb.interpolation.psnr) << " dB, extrapolation "
           << fixed(bb.extrapolation.psnr) << " dB, train " << fixed(bb.train.psnr) << " dB\n";
       for (const RunConfig& c : chosen) {
         FinetuneOptions fo = setup.finetune;
@@ -293,23 +305,28 @@ int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostr
 // ------------------------------------------------------------------ run
 
 int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("run", args, 1, {"out", "threads", "baseline"}, {"quiet"});
+  Args a("run", args, 1, {"out", "threads", "baseline", "scene", "support"}, {"quiet", "smoke"});
   const auto t0 = Clock::now();
   const std::string dir = a.get("out", "fillgs_run");
-  const std::string baseline = a.get("baseline", "coverage4d");  // the best mean of interpolation and extrapolation PSNR in bench/results/paper
+  const std::string baseline = a.get("baseline", "coverage4d");
   const Strategy baseline_strategy = parse_strategy(baseline);
   if (baseline_strategy == Strategy::FillGS) throw_error("fillgs run: --baseline must be another strategy than fillgs");
-  BenchSetup setup = bench_setup(a, false);
+  const OracleSupport support = parse_oracle_support(a.get("support", "observed"));
+  BenchSetup setup = bench_setup(a, a.flag("smoke"));
+  const SceneChoice choice = parse_scene(a.get("scene", "n3v"));
+  setup.scene.rig = choice.rig;
+  setup.scene.variant = choice.variant;
   TerminalProgress progress(err, progress_enabled(a));
-  out << "fillgs run: the whole pipeline on the built-in scene (" << setup.scene.variant << ", " << setup.scene.width << "x"
-      << setup.scene.height << ", " << setup.scene.frames << " frames): train a backbone on 2 cameras, then fine-tune it without generated "
-      << "views, with FillGS's and with " << baseline << "'s viewpoints (oracle refiner with artifacts) -> " << dir << "\n";
+  const ExperimentOptions eo = setup.scene.resolved();
+  out << "fillgs run: the whole pipeline on the built-in scene (" << eo.scene_name() << ", " << eo.width << "x" << eo.height << ", "
+      << eo.frames << " frames): train a backbone on 2 cameras, then fine-tune it without generated views, with FillGS's and with "
+      << baseline << "'s viewpoints (oracle refiner, " << to_string(support) << " support, artifacts) -> " << dir << "\n";
   const PreparedScene p = prepare_scene(dir, setup.scene, progress, out);
-  RunResult bb = evaluate_model(p, p.backbone, "backbone", setup.scene.threads, join_path(p.dir, "renders/backbone"), progress);
+  RunResult bb = evaluate_model(p, p.backbone, "backbone", eo.threads, "", progress);
   bb.group = "control";
   std::vector<RunResult> results;
   std::vector<std::string> run_ids;
-  for (const RunConfig& c : standard_configs())
+  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, 0.5, {support}))
     if (c.id == "no-refinement" || c.id == "fillgs" || c.id == baseline) {
       results.push_back(run_config(p, c, setup.finetune, progress, out));
       run_ids.push_back(c.id);
@@ -318,34 +335,39 @@ int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   all.insert(all.end(), results.begin(), results.end());
   write_bench_report(dir, all);
 
-  // Side-by-side pictures: an interpolation and an extrapolation view at mid-motion.
-  const int F = setup.scene.frames;
+  // Side-by-side pictures: ground truth | backbone | each fine-tuned model, at the moment of
+  // each split where the moving content covers most of a view (a moving moment).
   std::vector<GaussianCloud> models = {p.backbone};
   for (const std::string& id : run_ids) models.push_back(read_scene(join_path(join_path(join_path(p.dir, "runs"), id), "model.ply")));
   std::vector<std::string> pictures;
-  for (const auto* split : {p.interpolation.get(), p.extrapolation.get()}) {
+  for (const auto* split : {p.extrapolation.get(), p.interpolation.get()}) {
+    size_t best = 0, most = 0;
     for (size_t v = 0; v < split->views().size(); ++v) {
-      const TrainView& view = split->views()[v];
-      if (view.frame != F / 2 || (view.rig != "interp04" && view.rig != "cam07")) continue;
-      std::vector<std::vector<float>> imgs = {split->image(v)};
-      std::vector<std::string> caps = {"ground truth"};
-      for (size_t m = 0; m < models.size(); ++m) {
-        RenderOptions ro;
-        ro.threads = setup.scene.threads;
-        imgs.push_back(render(evaluate(models[m], view.camera.time), view.camera, ro).rgb);
-        caps.push_back(m == 0 ? "backbone" : run_ids[m - 1]);
-      }
-      const std::string file = "compare_" + view.rig + ".png";
-      write_side_by_side_png(join_path(dir, file), imgs, view.camera.width, view.camera.height, caps, 2);
-      pictures.push_back(file);
+      const std::vector<unsigned char> m = moving_region(p.synth.scene, split->views()[v].camera, eo.threads);
+      const size_t n = size_t(std::count(m.begin(), m.end(), 1));
+      if (n > most) most = n, best = v;
     }
+    const TrainView& view = split->views()[best];
+    std::vector<std::vector<float>> imgs = {split->image(best)};
+    std::vector<std::string> caps = {"ground truth"};
+    for (size_t m = 0; m < models.size(); ++m) {
+      RenderOptions ro;
+      ro.threads = eo.threads;
+      imgs.push_back(render(evaluate(models[m], view.camera.time), view.camera, ro).rgb);
+      caps.push_back(m == 0 ? "backbone" : run_ids[m - 1]);
+    }
+    const std::string file = "compare_" + view.rig + "_f" + std::to_string(view.frame) + ".png";
+    write_side_by_side_png(join_path(dir, file), imgs, view.camera.width, view.camera.height, caps, 2);
+    pictures.push_back(file);
   }
   // Report.
   std::ostringstream md;
-  md << "# fillgs run\n\nScene: built-in synthetic (" << setup.scene.variant << "), " << setup.scene.width << "x" << setup.scene.height << ", "
-     << F << " frames; backbone trained on " << p.train->rigs().size() << " cameras for " << setup.scene.backbone_iterations
-     << " iterations; each fine-tuning: " << setup.finetune.iterations << " iterations, 5 trajectories every " << setup.finetune.select_every
-     << " iterations, oracle refiner with artifacts (strength 0.5). Baselines use ExploreGS weights (the paper's protocol); FillGS its own.\n\n"
+  md << "# fillgs run\n\nScene: built-in synthetic (" << eo.scene_name() << "), " << eo.width << "x" << eo.height << ", " << eo.frames
+     << " frames; backbone trained on " << p.train->rigs().size() << " cameras (";
+  for (size_t k = 0; k < p.options.train_cameras.size(); ++k) md << (k ? ", " : "") << p.options.train_cameras[k];
+  md << ") for " << eo.backbone_iterations << " iterations; each fine-tuning: " << setup.finetune.iterations << " iterations, "
+     << setup.finetune.trajectories << " trajectories every " << setup.finetune.select_every << " iterations, oracle refiner ("
+     << to_string(support) << " support) with artifacts (strength 0.5). Baselines use ExploreGS weights (the paper's protocol); FillGS its own.\n\n"
      << "| Method | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | seconds |\n|---|---|---|---|---|---|---|---|---|\n";
   out << "\nmethod           interp PSNR (moving)   extrap PSNR (moving)   train PSNR\n";
   for (const RunResult& r : all) {
@@ -360,8 +382,8 @@ int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   }
   md << "\n";
   for (const std::string& f : pictures) md << "![" << f << "](" << f << ")\n\n";
-  md << "Per-run folders (patches, refined views with their consistency mask, co-visibility and weight images): `" << join_path(p.dir, "runs")
-     << "`.\n";
+  md << "Per-run folders (patches, refined views with their support, consistency mask, co-visibility and weight images): `"
+     << join_path(p.dir, "runs") << "`.\n";
   write_file_atomically(join_path(dir, "report.md"), md.str());
   out << "\nfillgs run: finished in " << fixed(seconds_since(t0), 0) << " s; report " << join_path(dir, "report.md") << "\n";
   return 0;
