@@ -54,6 +54,9 @@ MotionConfig parse_config(const std::string& spec, int iterations) {
     c.options.keyed_opacity = false;
     c.options.time_ramp = 0;
     c.options.motion_sparsity = 0;
+    c.options.key_lr_scale = 1;
+    c.options.motion_where_images_change = false;
+    c.options.flow_keys = false;
   }
   if (colon == std::string::npos) return c;
   std::stringstream ss(spec.substr(colon + 1));
@@ -75,6 +78,8 @@ MotionConfig parse_config(const std::string& spec, int iterations) {
     else if (k == "agree") c.options.promote_agreement = std::stod(v);
     else if (k == "pgrad") c.options.promote_grad_scale = std::stod(v);
     else if (k == "change") c.options.motion_where_images_change = v != "0";
+    else if (k == "flow") c.options.flow_keys = v != "0";
+    else if (k == "dafter") c.options.densify_after_ramp = std::stod(v);
     else throw_error("bench motion: unknown key '", k, "'");
   }
   return c;
@@ -293,7 +298,8 @@ int bench_motion(const std::vector<std::string>& args) {
     MotionResult r = measure(s, m, interp, extrap, join_path(out, "motion_" + name + "_" + c.label + ".png"), camera);
     r.seconds = secs;
     for (const DensifyRecord& rec : t.densify_log()) r.promoted += rec.promoted;
-    std::fprintf(stderr, "%s: %zu frozen at the end of the ramp\n", c.label.c_str(), t.frozen());
+    std::fprintf(stderr, "%s: %zu frozen at the end of the ramp; keys placed by flow %zu of %zu\n", c.label.c_str(), t.frozen(),
+                 t.flow_placed().first, t.flow_placed().second);
     std::printf("| %s | %.2f | %.2f | %.2f | %.2f | %.3f | %.3f | %zu | %zu | %zu | %.0f%% | %zu | %.0f |\n", c.label.c_str(), r.psnr, r.psnr_moving,
                 r.extrap_psnr, r.extrap_moving, r.track_mean, r.track_worst, r.gaussians, r.dynamic, r.dynamic_on_object, 100 * r.speed_on_object,
                 r.promoted, r.seconds);

@@ -16,6 +16,7 @@
 #include <unordered_map>
 
 #include "fillgs/error.hpp"
+#include "fillgs/flow.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/image_io.hpp"
 #include "fillgs/loss.hpp"
@@ -338,6 +339,10 @@ Trainer::Trainer(const Dataset& data, ModelParams<float> initial, const TrainOpt
   if (params_.size() == 0) throw_error("training: the initial model has no Gaussians");
   extent_ = data.camera_extent().second;
   if (params_.key_count == 0) set_key_layout(params_, data.frames(), options_.key_interval_frames);
+  // Densification must reach the frames the time window adds last: content that appears
+  // late (from behind an occluder, or moving in) needs Gaussians of its own.
+  if (options_.allow_dynamic && options_.time_ramp > 0 && data.frames() > 1)
+    options_.densify_until = std::max(options_.densify_until, int(std::lround((options_.time_ramp + options_.densify_after_ramp) * options_.iterations)));
   build_change_masks();
   // Gaussians that move in the model given (fine-tuning) keep their right to move.
   on_change_.assign(params_.size(), change_masks_.empty() ? 1 : 0);
@@ -468,8 +473,12 @@ void Trainer::step() {
   if (iteration_ > 0 && options_.sh_increase_interval > 0 && iteration_ % options_.sh_increase_interval == 0 &&
       params_.sh_degree < options_.max_sh_degree)
     raise_sh_degree();
-  if (iteration_ > 0 && key_interval_of_frame(window_last_frame(iteration_)) > key_interval_of_frame(window_last_frame(iteration_ - 1)))
-    enter_key_interval();
+  if (iteration_ > 0) {
+    const int last = window_last_frame(iteration_), before = window_last_frame(iteration_ - 1);
+    const bool entered = key_interval_of_frame(last) > key_interval_of_frame(before);
+    if (entered) enter_key_interval();
+    if (options_.flow_keys && last > before && (entered || before == 0)) place_keys_by_flow(before);
+  }
   if (iteration_ > 0 && options_.motion == MotionLearning::All && options_.freeze_distance > 0 &&
       window_last_frame(iteration_) == data_->frames() - 1 && window_last_frame(iteration_ - 1) < data_->frames() - 1)
     frozen_ = freeze_still();
@@ -573,6 +582,125 @@ void Trainer::enter_key_interval() {
   clear_from(adam_v_);
 }
 
+void Trainer::place_keys_by_flow(int f0) {
+  const int F = data_->frames(), K = params_.key_count;
+  const size_t D = params_.dynamic_count();
+  if (K < 3 || D == 0 || F < 2) return;
+  auto key_frame = [&](int k) { return (params_.first_key_time + k * params_.key_spacing) * (F - 1); };
+  int k1 = 0;
+  while (k1 < K && key_frame(k1) <= f0 + 1e-9) ++k1;
+  if (k1 >= K) return;
+  const int targets = k1 + 1 < K ? 2 : 1;
+  // The frames each target key stands for, as far as the video goes.
+  int frame_end[2] = {0, 0};
+  double stretch[2] = {1, 1};
+  for (int m = 0; m < targets; ++m) {
+    const double fk = key_frame(k1 + m);
+    frame_end[m] = std::min(F - 1, int(std::lround(fk)));
+    if (frame_end[m] > f0) stretch[m] = (fk - f0) / double(frame_end[m] - f0);
+  }
+  const int last = frame_end[targets - 1];
+  if (last <= f0) return;
+  // The fixed cameras with a view at every frame from f0 to last.
+  std::map<std::string, std::vector<long>> rig_views;
+  for (size_t v = 0; v < data_->views().size(); ++v) {
+    std::vector<long>& r = rig_views[data_->views()[v].rig];
+    r.resize(size_t(F), -1);
+    r[size_t(std::clamp(data_->views()[v].frame, 0, F - 1))] = long(v);
+  }
+  DiffFrame<float> frame;
+  evaluate_params(params_, double(f0) / (F - 1), &frame);
+  const size_t N = frame.size();
+  std::vector<Mat3d> A(D * 2, Mat3d::Zero());
+  std::vector<Vec3d> b(D * 2, Vec3d::Zero());
+  std::vector<float> depth(N);
+  std::vector<double> nearest(D, 1e300);  // distance to the nearest camera that follows it
+  for (const auto& [rig, vs] : rig_views) {
+    bool complete = true;
+    for (int f = f0; f <= last; ++f) complete = complete && vs[size_t(f)] >= 0;
+    if (!complete) continue;
+    const Camera& cam = data_->views()[size_t(vs[size_t(f0)])].camera;
+    for (int f = f0 + 1; f <= last; ++f) {
+      const Camera& c = data_->views()[size_t(vs[size_t(f)])].camera;
+      complete = complete && c.width == cam.width && c.height == cam.height && (c.R - cam.R).norm() < 1e-9 && (c.t - cam.t).norm() < 1e-9;
+    }
+    if (!complete) continue;
+    const int W = cam.width, H = cam.height;
+    // What the camera sees at f0: expected depth through the model.
+    for (size_t g = 0; g < N; ++g)
+      depth[g] = float((cam.R * Vec3d(frame.means[3 * g], frame.means[3 * g + 1], frame.means[3 * g + 2]) + cam.t).z());
+    DiffRenderOptions ro;
+    ro.features = depth.data();
+    ro.feature_channels = 1;
+    ro.threads = options_.threads;
+    DiffRasterizer<float> ras;
+    ras.forward(frame, cam, ro);
+    std::vector<FlowField> forward, backward;
+    for (int f = f0; f < last; ++f) {
+      const std::vector<float> a = data_->image(size_t(vs[size_t(f)])), c = data_->image(size_t(vs[size_t(f + 1)]));
+      forward.push_back(optical_flow(a, c, W, H));
+      backward.push_back(optical_flow(c, a, W, H));
+    }
+    for (size_t j = 0; j < D; ++j) {
+      const uint32_t g = params_.dynamic_ids[j];
+      const Vec3d p(frame.means[3 * g], frame.means[3 * g + 1], frame.means[3 * g + 2]);
+      const Vec3d q = cam.R * p + cam.t;
+      if (q.z() <= 1e-6) continue;
+      const double x = cam.fx * q.x() / q.z() + cam.cx, y = cam.fy * q.y() / q.z() + cam.cy;
+      if (!(x >= 0 && y >= 0 && x < W && y < H)) continue;
+      const size_t px = size_t(y) * size_t(W) + size_t(x);
+      const float alpha = ras.alpha()[px];
+      if (alpha < 0.5f) continue;
+      // Only the front surface: a Gaussian behind what the pixel shows does not move with its flow.
+      const double size = std::max({frame.scales[3 * g], frame.scales[3 * g + 1], frame.scales[3 * g + 2]});
+      if (q.z() > ras.features()[px] / alpha * 1.05 + 3.0 * size) continue;
+      Eigen::Matrix<double, 2, 3> J;
+      J << cam.fx / q.z(), 0, -cam.fx * q.x() / (q.z() * q.z()), 0, cam.fy / q.z(), -cam.fy * q.y() / (q.z() * q.z());
+      J = J * cam.R;
+      for (int m = 0; m < targets; ++m) {
+        if (frame_end[m] <= f0) continue;
+        const auto to = chain_flow(forward, backward, x, y, size_t(frame_end[m] - f0), options_.flow_tolerance);
+        if (!to) continue;
+        const Eigen::Vector2d d = Eigen::Vector2d(to->first - x, to->second - y) * stretch[m];
+        nearest[j] = std::min(nearest[j], q.z());
+        A[j * 2 + size_t(m)] += J.transpose() * J;
+        b[j * 2 + size_t(m)] += J.transpose() * d;
+      }
+    }
+  }
+  // Least squares per Gaussian and key.
+  const size_t Ks = size_t(K);
+  bool any = false;
+  for (size_t j = 0; j < D; ++j) {
+    const uint32_t g = params_.dynamic_ids[j];
+    const Vec3d p(frame.means[3 * g], frame.means[3 * g + 1], frame.means[3 * g + 2]);
+    for (int m = 0; m < targets; ++m) {
+      const Mat3d& a = A[j * 2 + size_t(m)];
+      const double tr = a.trace();
+      if (!(tr > 0)) continue;
+      ++flow_tried_;
+      // Ridge at 1% of the mean eigenvalue: directions the cameras barely constrain (depth from
+      // nearby cameras, where flow noise of 0.2 px is metres) stay put.
+      const Vec3d step = (a + 0.01 * tr / 3.0 * Mat3d::Identity()).ldlt().solve(b[j * 2 + size_t(m)]);
+      // A step of half the viewing distance or more is a flow error, not motion.
+      if (!step.allFinite() || step.norm() > 0.5 * nearest[j]) continue;
+      float* key = &params_.key_positions[(j * Ks + size_t(k1 + m)) * 3];
+      for (int c = 0; c < 3; ++c) key[c] = float(p[c] + step[c]);
+      ++flow_placed_;
+      any = true;
+    }
+  }
+  if (!any) return;
+  // Later keys continue the placed ones; the optimiser's moments restart for every key moved.
+  if (k1 + targets < K) extrapolate_keys(params_, k1 + targets, float(options_.extrapolate_min_step));
+  auto clear_from = [&](ModelParams<float>& m) {
+    for (size_t j = 0; j < m.dynamic_count(); ++j)
+      std::fill(m.key_positions.begin() + (j * Ks + size_t(k1)) * 3, m.key_positions.begin() + (j + 1) * Ks * 3, 0.0f);
+  };
+  clear_from(adam_m_);
+  clear_from(adam_v_);
+}
+
 void Trainer::motion_sparsity_step(double key_lr) {
   // An L1 step per key value towards the mean of its Gaussian's keys, τ = sparsity × the
   // learning rate. Adam moves a value by about lr × |m̂|/√v̂ per step: a key that follows
@@ -603,6 +731,9 @@ void Trainer::adam_step() {
   // their initial rate while the time window grows, then decay over the remaining iterations.
   auto decayed = [&](double frac) {
     frac = std::clamp(frac, 0.0, 1.0);
+    // A zero rate (frozen positions) has no logarithm: interpolate linearly then.
+    if (!(options_.position_lr_init > 0 && options_.position_lr_final > 0))
+      return (options_.position_lr_init * (1 - frac) + options_.position_lr_final * frac) * double(extent_);
     return std::exp(std::log(options_.position_lr_init) * (1 - frac) + std::log(options_.position_lr_final) * frac) * double(extent_);
   };
   const double pos_lr = decayed(double(iteration_) / std::max(1, options_.iterations));
@@ -754,25 +885,29 @@ ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Ro
 
 size_t Trainer::fold_unchanging() {
   if (change_masks_.empty() || params_.dynamic_count() == 0) return 0;
+  std::vector<uint8_t> fold(params_.size(), 0);
+  for (uint32_t g : params_.dynamic_ids) fold[g] = !on_change_[g];
+  return make_static(fold);
+}
+
+size_t Trainer::make_static(const std::vector<uint8_t>& flags) {
   std::vector<Row> rows;
   rows.reserve(params_.size());
-  std::vector<uint8_t> moving(params_.size(), 0);
-  for (uint32_t g : params_.dynamic_ids) moving[g] = 1;
-  size_t folded = 0;
+  size_t made = 0;
   for (uint32_t g = 0; g < params_.size(); ++g) {
     Row r{g, false, false};
-    r.make_static = moving[g] && !on_change_[g];
-    folded += r.make_static;
+    r.make_static = flags[g] != 0;
+    made += r.make_static;
     rows.push_back(r);
   }
-  if (folded == 0) return 0;
+  if (made == 0) return 0;
   params_ = gather_rows(params_, rows, false);
   adam_m_ = gather_rows(adam_m_, rows, true);
   adam_v_ = gather_rows(adam_v_, rows, true);
   std::vector<uint32_t> src;
   for (const Row& r : rows) src.push_back(r.src);
   carry(src);
-  return folded;
+  return made;
 }
 
 size_t Trainer::freeze_still() {
@@ -801,25 +936,7 @@ size_t Trainer::freeze_still() {
       freeze[g] = still;
     }
   });
-  std::vector<Row> rows;
-  rows.reserve(n);
-  size_t frozen = 0;
-  for (uint32_t g = 0; g < n; ++g) {
-    Row r{g, false, false};
-    r.make_static = freeze[g];
-    frozen += freeze[g];
-    rows.push_back(r);
-  }
-  if (frozen == 0) return 0;
-  params_ = gather_rows(params_, rows, false);
-  adam_m_ = gather_rows(adam_m_, rows, true);
-  adam_v_ = gather_rows(adam_v_, rows, true);
-  {
-    std::vector<uint32_t> src;
-    for (const Row& r : rows) src.push_back(r.src);
-    carry(src);
-  }
-  return frozen;
+  return make_static(freeze);
 }
 
 size_t Trainer::promote_static() {

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "fillgs/camera.hpp"
+#include "fillgs/flow.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/image_io.hpp"
 #include "fillgs/raster_grad.hpp"
@@ -209,4 +210,128 @@ TEST_CASE("static_first puts static Gaussians first and keeps every Gaussian as 
     CHECK(b.opacities[2] == a.opacities[0]);
   }
   CHECK(back.sh == c.sh);
+}
+
+namespace {
+
+/// A smooth texture (sums of sines, no repetition within the image) shifted by (dx, dy).
+std::vector<float> textured(int W, int H, double dx, double dy) {
+  std::vector<float> im(size_t(W) * size_t(H) * 3);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const double u = x + 0.5 - dx, v = y + 0.5 - dy;
+      const double l = 0.5 + 0.2 * std::sin(0.31 * u + 0.7 * std::sin(0.11 * v)) + 0.15 * std::sin(0.23 * v - 0.4 * std::cos(0.07 * u)) +
+                       0.1 * std::sin(0.05 * u * 0.9 + 0.13 * v);
+      for (int c = 0; c < 3; ++c) im[(size_t(y) * size_t(W) + size_t(x)) * 3 + size_t(c)] = float(l);
+    }
+  return im;
+}
+
+}  // namespace
+
+TEST_CASE("optical flow recovers a known shift and chains it", "[motion][flow]") {
+  const int W = 120, H = 90;
+  const std::vector<float> a = textured(W, H, 0, 0), b = textured(W, H, 3, -2), c = textured(W, H, 5, -1);
+  const FlowField ab = optical_flow(a, b, W, H), bc = optical_flow(b, c, W, H);
+  const FlowField ba = optical_flow(b, a, W, H), cb = optical_flow(c, b, W, H);
+  // Interior pixels (away from what enters or leaves the image): the true shift.
+  double worst = 0;
+  for (int y = 15; y < H - 15; y += 5)
+    for (int x = 15; x < W - 15; x += 5) {
+      double u, v;
+      ab.sample(x + 0.5, y + 0.5, u, v);
+      worst = std::max(worst, std::hypot(u - 3, v + 2));
+    }
+  CHECK(worst < 0.3);
+  // Chained over two steps: (3, −2) then (2, 1).
+  const auto to = chain_flow({ab, bc}, {ba, cb}, 60.0, 45.0, 2);
+  REQUIRE(to.has_value());
+  CHECK(to->first == Approx(65.0).margin(0.4));
+  CHECK(to->second == Approx(44.0).margin(0.4));
+  // A point carried out of the image has no answer; so does one whose backward flow disagrees.
+  CHECK_FALSE(chain_flow({ab}, {ba}, W - 1.0, 45.0, 1).has_value());
+  CHECK_FALSE(chain_flow({ab}, {ab}, 60.0, 45.0, 1).has_value());
+  // Bilinear sampling of a known field, corner convention: centres at i + 0.5.
+  FlowField f;
+  f.width = 2, f.height = 1;
+  f.uv = {0, 0, 2, 4};
+  double u, v;
+  f.sample(1.0, 0.5, u, v);
+  CHECK(u == Approx(1.0));
+  CHECK(v == Approx(2.0));
+  CHECK_THROWS(optical_flow(a, b, W, H + 1));
+}
+
+TEST_CASE("keys placed by optical flow follow a moving plane and leave the wall still", "[motion][flow][train]") {
+  // A textured plane 3 m away moving 0.1 m per frame along x in front of a textured wall at
+  // 5 m; two fixed cameras 0.3 m apart, 7 frames. With every learning rate at 0, the only
+  // thing that moves a key is its placement by flow when the window leaves frame 0.
+  const int W = 64, H = 48, F = 7;
+  auto texture = [](double x, double y, double k) {
+    return Vec3f(float(0.5 + 0.3 * std::sin(k * 9.0 * x + 3.0 * std::sin(5.0 * y))), float(0.5 + 0.3 * std::sin(k * 7.0 * y + 2.0 * x)),
+                 float(0.5 + 0.2 * std::cos(k * 5.0 * (x + y))));
+  };
+  auto scene = [&](double shift) {
+    GaussianCloud c;
+    for (int i = -30; i <= 30; ++i)
+      for (int j = -22; j <= 22; ++j) add_gaussian(c, Vec3f(0.05f * i, 0.05f * j, 5.0f), 0.05f, 3.0f, texture(0.05 * i, 0.05 * j, 1.0));
+    for (int i = -8; i <= 8; ++i)
+      for (int j = -8; j <= 8; ++j)
+        add_gaussian(c, Vec3f(float(0.03 * i + shift), float(0.03 * j), 3.0f), 0.03f, 3.0f, texture(0.03 * i, 0.03 * j, 2.0));
+    return c;
+  };
+  const size_t wall = 61 * 45;
+  const std::string d = scratch("flowkeys");
+  std::vector<Camera> rig = {axis_camera(W, H, 60), axis_camera(W, H, 60)};
+  rig[0].name = "a";
+  rig[1].name = "b";
+  rig[1].t = Vec3d(-0.3, 0, 0);
+  write_transforms_json(join_path(d, "rig.json"), rig);
+  for (int f = 0; f < F; ++f) {
+    const GaussianCloud s = scene(0.1 * f);
+    for (const Camera& c : rig) {
+      const RenderOutput r = render(evaluate(s, 0.0), c, RenderOptions{});
+      Image im(W, H, 3);
+      im.pixels = r.rgb;
+      write_image(join_path(d, "images/" + c.name + "/" + std::to_string(100 + f) + ".png"), im);
+    }
+  }
+  const Dataset data = Dataset::load(join_path(d, "images"), join_path(d, "rig.json"));
+  TrainOptions o = TrainOptions::scaled(700);
+  o.time_ramp = 0.7;  // 490 iterations, 70 per frame
+  o.position_lr_init = o.position_lr_final = 0;
+  o.scaling_lr = o.rotation_lr = o.opacity_lr = o.feature_lr = 0;
+  o.densify_from = 1000000;
+  o.opacity_reset_interval = 0;
+  o.threads = 2;
+  const GaussianCloud first = scene(0.0);
+  Trainer t(data, params_from_cloud<float>(first), o);
+  REQUIRE(t.params().key_count == 3);  // keys at frames 0, 3, 6
+  t.run(70, null_progress());
+  CHECK(t.flow_placed().first == 0);
+  t.run(71, null_progress());  // the window reaches frame 1: keys 1 and 2 are placed
+  CHECK(t.flow_placed().first > 0);
+  const ModelParams<float>& p = t.params();
+  REQUIRE(p.dynamic_count() == first.size());
+  std::vector<double> plane_dx, plane_off, wall_move;
+  for (size_t j = 0; j < p.dynamic_count(); ++j) {
+    const uint32_t g = p.dynamic_ids[j];
+    const Vec3f k0 = Eigen::Map<const Vec3f>(&p.key_positions[(j * 3 + 0) * 3]), k1 = Eigen::Map<const Vec3f>(&p.key_positions[(j * 3 + 1) * 3]);
+    if (g < wall) {
+      wall_move.push_back((k1 - k0).norm());
+    } else {
+      // Only plane Gaussians that stay in both views for three frames.
+      if (std::fabs(k0.x()) > 0.12 || std::fabs(k0.y()) > 0.2) continue;
+      plane_dx.push_back(k1.x() - k0.x());
+      plane_off.push_back(std::hypot(k1.y() - k0.y(), k1.z() - k0.z()));
+    }
+  }
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + ptrdiff_t(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  REQUIRE(plane_dx.size() > 20);
+  CHECK(median(plane_dx) == Approx(0.3).margin(0.03));  // 3 frames × 0.1 m
+  CHECK(median(plane_off) < 0.05);
+  CHECK(median(wall_move) < 0.01);
 }

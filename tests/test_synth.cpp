@@ -12,6 +12,17 @@ using namespace fillgs::test;
 
 namespace {
 
+/// The kitchen scene before a rig, at a test-sized resolution.
+SynthOptions kitchen(const std::string& rig, int frames, int width, int height, double spacing) {
+  SynthOptions o;
+  o.rig = rig;
+  o.frames = frames;
+  o.width = width;
+  o.height = height;
+  o.spacing = spacing;
+  return o;
+}
+
 float chair_max_weight(const RenderOutput& r, const SynthScene& s) {
   float m = 0;
   for (uint32_t g : s.moving_ids) m = std::max(m, r.max_weight[g]);
@@ -133,12 +144,7 @@ TEST_CASE("the N3V rig table is the real COLMAP model, and placing it keeps ever
 }
 
 TEST_CASE("the N3V split follows the paper's rule", "[synth][rigs]") {
-  SynthOptions o;
-  o.rig = "n3v";
-  o.frames = 2;
-  o.width = 32;
-  o.height = 24;
-  o.spacing = 0.08;
+  const SynthOptions o = kitchen("n3v", 2, 32, 24, 0.08);
   const SynthScene s = make_synthetic_scene(o);
   REQUIRE(s.train.size() == 21);
   CHECK(s.options.variant == "kitchen");
@@ -173,12 +179,7 @@ TEST_CASE("the N3V split follows the paper's rule", "[synth][rigs]") {
 }
 
 TEST_CASE("kitchen: the walker and the box move, the pillar hides the walker from some cameras part of the time", "[synth]") {
-  SynthOptions o;
-  o.rig = "n3v";
-  o.frames = 11;
-  o.width = 80;
-  o.height = 60;
-  o.spacing = 0.04;
+  const SynthOptions o = kitchen("n3v", 11, 80, 60, 0.04);
   const SynthScene s = make_synthetic_scene(o);
   CHECK(s.scene.dynamic_ids == s.moving_ids);
   const FrameGaussians a = evaluate(s.scene, 0.0), z = evaluate(s.scene, 1.0);
@@ -205,12 +206,7 @@ TEST_CASE("kitchen: the walker and the box move, the pillar hides the walker fro
 }
 
 TEST_CASE("technicolor rig: a 4x4 grid facing the kitchen, with its split", "[synth][rigs]") {
-  SynthOptions o;
-  o.rig = "technicolor";
-  o.frames = 2;
-  o.width = 48;
-  o.height = 26;
-  o.spacing = 0.08;
+  const SynthOptions o = kitchen("technicolor", 2, 48, 26, 0.08);
   const SynthScene s = make_synthetic_scene(o);
   REQUIRE(s.train.size() == 16);
   CHECK(s.train[5].centre().x() - s.train[4].centre().x() == Approx(0.2));

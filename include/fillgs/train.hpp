@@ -6,11 +6,14 @@
 //
 // Motion (MotionLearning):
 //  * `all` (default): every Gaussian carries keys while it trains — positions, rotations and,
-//    with keyed_opacity, opacities — so anything can move from the first iteration on. A
-//    sparsity prior (an L1 proximal step after every Adam step, pulling each key towards the
-//    mean of its Gaussian's trained keys) makes the keys of still Gaussians exactly equal, and
-//    the written model folds those back into static Gaussians (partition_static_dynamic): the
-//    output carries no motion for what does not move.
+//    with keyed_opacity, opacities — so anything can move from the first iteration on. Motion
+//    is kept only where the images show it (motion_where_images_change): at every
+//    densification step keyed Gaussians that never landed on a changing pixel are made
+//    static, and the written model folds the remaining ones whose keys stay within
+//    still_distance / `still` into static Gaussians (fold_still_keys, then
+//    partition_static_dynamic): the output carries no motion for what does not move. An
+//    optional L1 prior on key-to-key steps (motion_sparsity, off by default) pulls still
+//    keys together during training.
 //  * `promote` (the earlier behaviour): every Gaussian starts static. The mean gradient of
 //    each static Gaussian is accumulated in `time_bins` bins of time; a static Gaussian
 //    becomes keyframed at a densification step when its screen-space gradient is above the
@@ -124,6 +127,7 @@ struct TrainOptions {
   bool keyed_opacity = true;    ///< an opacity logit per key for moving Gaussians
   double time_ramp = 0.7;       ///< fraction of the iterations over which the time window grows (0: none)
   double frontier_share = 0.5;  ///< while it grows: share of iterations on its newest frames
+  double densify_after_ramp = 0.1;  ///< densification goes on at least this fraction of the iterations after the ramp
   int frontier_frames = 2;
   double key_lr_scale = 3.0;    ///< key position learning rate / position learning rate
   double extrapolate_min_step = 0.5;  ///< keys continue a motion only of at least this × the Gaussian's size per key
@@ -137,6 +141,13 @@ struct TrainOptions {
   bool motion_where_images_change = true;
   double change_threshold = 0.1;
   int change_dilation = 2;
+  /// Keys where the images say the content goes: whenever the time window enters a new key
+  /// interval, the next two keys of every moving Gaussian are placed by following its
+  /// projection through the optical flow of every fixed camera that sees it (front surface,
+  /// forward–backward consistent flow; least squares over the cameras, no depth change from
+  /// a single camera). Gaussians no camera follows keep the constant-velocity keys.
+  bool flow_keys = true;
+  double flow_tolerance = 1.0;  ///< forward–backward disagreement allowed per frame step (px)
   double motion_sparsity = 0.0;  ///< L1 step on the key-to-key steps (shrink_key_deviations), × the key learning rate (0: off)
   /// The written model folds Gaussians whose keys change less than this into static ones;
   /// the position tolerance is a fraction of the camera extent.
@@ -206,6 +217,8 @@ class Trainer {
   int window_last_frame(int iteration) const;
   /// How many Gaussians were made static again when the window reached the whole video.
   size_t frozen() const { return frozen_; }
+  /// Key placements made by optical flow so far (flow_keys), and how many were tried.
+  std::pair<size_t, size_t> flow_placed() const { return {flow_placed_, flow_tried_}; }
   /// Per view, the share of its pixels that change over the video (−1: no fixed camera).
   std::vector<double> changing_share() const;
   /// The trained model as a cloud (keys that never moved folded back into static Gaussians).
@@ -217,9 +230,12 @@ class Trainer {
   size_t promote_static();
   size_t freeze_still();
   size_t fold_unchanging();
+  /// Makes the flagged keyed Gaussians static (their key means), carrying every per-Gaussian state.
+  size_t make_static(const std::vector<uint8_t>& flags);
   void build_change_masks();
   void carry(const std::vector<uint32_t>& sources);
   void enter_key_interval();
+  void place_keys_by_flow(int from_frame);
   void motion_sparsity_step(double key_lr);
   int key_interval_of_frame(int frame) const;
   void raise_sh_degree();
@@ -242,6 +258,7 @@ class Trainer {
   std::vector<float> loss_history_;
   std::vector<DensifyRecord> densify_log_;
   size_t frozen_ = 0;
+  size_t flow_placed_ = 0, flow_tried_ = 0;
   std::vector<uint8_t> seen_;  // Gaussians the current iteration's view renders
   // Motion where the images change: per view the index of its camera's mask (−1: none),
   // the masks ([H][W], 1 = changing), and per Gaussian whether it has been on one.

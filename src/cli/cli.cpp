@@ -252,7 +252,7 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
          {"images", "cameras", "points", "iterations", "out", "train-cameras", "resume", "checkpoint-every", "seed", "threads",
           "key-interval", "max-gaussians", "sh-degree", "test-images", "test-cameras", "background", "motion", "time-ramp",
           "key-lr-scale", "motion-sparsity"},
-         {"quiet", "static-only", "no-keyed-opacity"});
+         {"quiet", "static-only", "no-keyed-opacity", "no-flow-keys"});
   const auto t0 = Clock::now();
   const std::string out_dir = a.require("out");
   const std::string cameras = a.require("cameras");
@@ -272,6 +272,7 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   o.allow_dynamic = !a.flag("static-only");
   o.motion = motion_learning_from_string(a.get("motion", to_string(o.motion)));
   o.keyed_opacity = !a.flag("no-keyed-opacity");
+  o.flow_keys = !a.flag("no-flow-keys");
   o.time_ramp = a.number("time-ramp", o.time_ramp);
   if (!(o.time_ramp >= 0 && o.time_ramp < 1)) throw_error("fillgs train: --time-ramp must be in [0, 1)");
   o.key_lr_scale = a.number("key-lr-scale", o.key_lr_scale);
@@ -328,7 +329,8 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   j["moving_gaussians"] = model.dynamic_count();
   j["final_loss_ema"] = trainer->status().loss;
   j["motion"] = {{"learning", to_string(o.motion)}, {"keyed_opacity", o.keyed_opacity}, {"time_ramp", o.time_ramp},
-                 {"key_lr_scale", o.key_lr_scale}, {"motion_sparsity", o.motion_sparsity}, {"key_interval_frames", o.key_interval_frames}};
+                 {"key_lr_scale", o.key_lr_scale}, {"motion_sparsity", o.motion_sparsity}, {"key_interval_frames", o.key_interval_frames},
+                 {"flow_keys", o.flow_keys}, {"keys_placed_by_flow", trainer->flow_placed().first}};
   nlohmann::json dens = nlohmann::json::array();
   for (const DensifyRecord& r : trainer->densify_log())
     dens.push_back({{"iteration", r.iteration}, {"gaussians", r.gaussians}, {"keyed", r.dynamic}, {"promoted", r.promoted},
@@ -373,7 +375,7 @@ void print_help(std::ostream& out) {
          "  train --images DIR --cameras C --out DIR [--points P] [--iterations N] [--train-cameras a,b]\n"
          "         [--resume CKPT] [--checkpoint-every N] [--seed n] [--key-interval F] [--max-gaussians N]\n"
          "         [--sh-degree D] [--test-cameras C --test-images DIR] [--static-only] [--background r,g,b]\n"
-         "         [--motion all|promote] [--time-ramp r] [--key-lr-scale s] [--motion-sparsity s] [--no-keyed-opacity]\n"
+         "         [--motion all|promote] [--time-ramp r] [--key-lr-scale s] [--motion-sparsity s] [--no-keyed-opacity] [--no-flow-keys]\n"
          "                                            train a 4D Gaussian model from multi-view video\n"
          "  explore --scene S --cameras C --out DIR   the exploration grid: exploration.vdb, exploration.png\n"
          "         [--divisions n] [--occupancy-alpha a] [--frames F]\n"
