@@ -79,6 +79,7 @@ MotionConfig parse_config(const std::string& spec, int iterations) {
     else if (k == "pgrad") c.options.promote_grad_scale = std::stod(v);
     else if (k == "change") c.options.motion_where_images_change = v != "0";
     else if (k == "flow") c.options.flow_keys = v != "0";
+    else if (k == "flowc") c.options.flow_changing_only = v != "0";
     else if (k == "dafter") c.options.densify_after_ramp = std::stod(v);
     else throw_error("bench motion: unknown key '", k, "'");
   }

@@ -626,6 +626,8 @@ void Trainer::place_keys_by_flow(int f0) {
     }
     if (!complete) continue;
     const int W = cam.width, H = cam.height;
+    const int mask = options_.flow_changing_only ? view_mask_[size_t(vs[size_t(f0)])] : -1;
+    const std::vector<uint8_t>* changing = mask >= 0 ? &change_masks_[size_t(mask)] : nullptr;
     // What the camera sees at f0: expected depth through the model.
     for (size_t g = 0; g < N; ++g)
       depth[g] = float((cam.R * Vec3d(frame.means[3 * g], frame.means[3 * g + 1], frame.means[3 * g + 2]) + cam.t).z());
@@ -649,6 +651,8 @@ void Trainer::place_keys_by_flow(int f0) {
       const double x = cam.fx * q.x() / q.z() + cam.cx, y = cam.fy * q.y() / q.z() + cam.cy;
       if (!(x >= 0 && y >= 0 && x < W && y < H)) continue;
       const size_t px = size_t(y) * size_t(W) + size_t(x);
+      // Only where this camera's images change: still content keeps the keys it trained.
+      if (changing && !(*changing)[px]) continue;
       const float alpha = ras.alpha()[px];
       if (alpha < 0.5f) continue;
       // Only the front surface: a Gaussian behind what the pixel shows does not move with its flow.

@@ -147,6 +147,7 @@ struct TrainOptions {
   /// forward–backward consistent flow; least squares over the cameras, no depth change from
   /// a single camera). Gaussians no camera follows keep the constant-velocity keys.
   bool flow_keys = true;
+  bool flow_changing_only = true;  ///< follow a Gaussian only from cameras where it sits on a changing pixel
   double flow_tolerance = 1.0;  ///< forward–backward disagreement allowed per frame step (px)
   double motion_sparsity = 0.0;  ///< L1 step on the key-to-key steps (shrink_key_deviations), × the key learning rate (0: off)
   /// The written model folds Gaussians whose keys change less than this into static ones;
