@@ -885,6 +885,18 @@ ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Ro
   return q;
 }
 
+/// Applies the rows to a model and to its two Adam moments; returns the source of every row
+/// (for the per-Gaussian state the trainer carries).
+std::vector<uint32_t> gather_all(const std::vector<Row>& rows, ModelParams<float>& params, ModelParams<float>& m, ModelParams<float>& v) {
+  params = gather_rows(params, rows, false);
+  m = gather_rows(m, rows, true);
+  v = gather_rows(v, rows, true);
+  std::vector<uint32_t> src;
+  src.reserve(rows.size());
+  for (const Row& r : rows) src.push_back(r.src);
+  return src;
+}
+
 }  // namespace
 
 size_t Trainer::fold_unchanging() {
@@ -905,12 +917,7 @@ size_t Trainer::make_static(const std::vector<uint8_t>& flags) {
     rows.push_back(r);
   }
   if (made == 0) return 0;
-  params_ = gather_rows(params_, rows, false);
-  adam_m_ = gather_rows(adam_m_, rows, true);
-  adam_v_ = gather_rows(adam_v_, rows, true);
-  std::vector<uint32_t> src;
-  for (const Row& r : rows) src.push_back(r.src);
-  carry(src);
+  carry(gather_all(rows, params_, adam_m_, adam_v_));
   return made;
 }
 
@@ -974,10 +981,8 @@ size_t Trainer::promote_static() {
     rows.push_back(r);
   }
   if (promoted == 0) return 0;
-  params_ = gather_rows(params_, rows, false);
-  adam_m_ = gather_rows(adam_m_, rows, true);
-  adam_v_ = gather_rows(adam_v_, rows, true);
-  // Statistics rows are unchanged (same order, same count).
+  // Same order, same count: the carried state and the statistics rows are unchanged.
+  carry(gather_all(rows, params_, adam_m_, adam_v_));
   return promoted;
 }
 
@@ -1050,14 +1055,7 @@ void Trainer::densify_and_prune(bool prune_big, DensifyRecord* record) {
     }
   }
   // Dynamic ids must stay ascending: rows are in an order where every row's id is its index.
-  params_ = gather_rows(params_, rows, false);
-  adam_m_ = gather_rows(adam_m_, rows, true);
-  adam_v_ = gather_rows(adam_v_, rows, true);
-  {
-    std::vector<uint32_t> src;
-    for (const Row& r : rows) src.push_back(r.src);
-    carry(src);
-  }
+  carry(gather_all(rows, params_, adam_m_, adam_v_));
   reset_stats();
 }
 
