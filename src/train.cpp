@@ -343,6 +343,7 @@ Trainer::Trainer(const Dataset& data, ModelParams<float> initial, const TrainOpt
   // late (from behind an occluder, or moving in) needs Gaussians of its own.
   if (options_.allow_dynamic && options_.time_ramp > 0 && data.frames() > 1)
     options_.densify_until = std::max(options_.densify_until, int(std::lround((options_.time_ramp + options_.densify_after_ramp) * options_.iterations)));
+  find_fixed_rigs();
   build_change_masks();
   // Gaussians that move in the model given (fine-tuning) keep their right to move.
   on_change_.assign(params_.size(), change_masks_.empty() ? 1 : 0);
@@ -365,22 +366,41 @@ Trainer::Trainer(const Dataset& data, ModelParams<float> initial, const TrainOpt
   reset_stats();
 }
 
+void Trainer::find_fixed_rigs() {
+  // Views of each rig camera by frame; a camera counts when it holds one pose and size in
+  // every view it has.
+  std::map<std::string, std::vector<long>> by_rig;
+  const int F = std::max(1, data_->frames());
+  for (size_t v = 0; v < data_->views().size(); ++v) {
+    std::vector<long>& r = by_rig[data_->views()[v].rig];
+    r.resize(size_t(F), -1);
+    r[size_t(std::clamp(data_->views()[v].frame, 0, F - 1))] = long(v);
+  }
+  fixed_rigs_.clear();
+  for (const auto& [rig, frames] : by_rig) {
+    const Camera* c0 = nullptr;
+    bool fixed = true;
+    for (long v : frames) {
+      if (v < 0) continue;
+      const Camera& c = data_->views()[size_t(v)].camera;
+      if (!c0) c0 = &c;
+      fixed = fixed && c.width == c0->width && c.height == c0->height && (c.R - c0->R).norm() < 1e-9 && (c.t - c0->t).norm() < 1e-9;
+    }
+    if (fixed && c0) fixed_rigs_.push_back(frames);
+  }
+}
+
 void Trainer::build_change_masks() {
   view_mask_.assign(data_->views().size(), -1);
   change_masks_.clear();
   if (!options_.motion_where_images_change || data_->frames() < 3) return;
-  // Views of each rig camera; a camera counts when it holds one pose over 3 or more frames.
-  std::map<std::string, std::vector<size_t>> by_rig;
-  for (size_t v = 0; v < data_->views().size(); ++v) by_rig[data_->views()[v].rig].push_back(v);
-  for (const auto& [rig, vs] : by_rig) {
+  // A fixed camera over 3 or more frames.
+  for (const std::vector<long>& frames : fixed_rigs_) {
+    std::vector<size_t> vs;
+    for (long v : frames)
+      if (v >= 0) vs.push_back(size_t(v));
     if (vs.size() < 3) continue;
     const Camera& c0 = data_->views()[vs[0]].camera;
-    bool fixed = true;
-    for (size_t v : vs) {
-      const Camera& c = data_->views()[v].camera;
-      fixed = fixed && c.width == c0.width && c.height == c0.height && (c.R - c0.R).norm() < 1e-9 && (c.t - c0.t).norm() < 1e-9;
-    }
-    if (!fixed) continue;
     const size_t P = size_t(c0.width) * size_t(c0.height);
     std::vector<float> lo(P * 3, 1e9f), hi(P * 3, -1e9f);
     for (size_t v : vs) {
@@ -515,11 +535,9 @@ void Trainer::step() {
   const int bin = std::clamp(int(view.camera.time / window_end * B), 0, B - 1);
   std::vector<uint8_t> moving(params_.size(), 0);
   for (uint32_t g : params_.dynamic_ids) moving[g] = 1;
-  seen_.assign(params_.size(), 0);
   const std::vector<uint8_t>* change = !refined && view_mask_[v] >= 0 ? &change_masks_[size_t(view_mask_[v])] : nullptr;
   for (size_t g = 0; g < params_.size(); ++g) {
     if (ras.radii()[g] <= 0) continue;
-    seen_[g] = 1;
     if (change && !on_change_[g]) {
       const Vec3d px = view.camera.project(Vec3d(frame.means[3 * g], frame.means[3 * g + 1], frame.means[3 * g + 2]));
       const int x = int(std::floor(px.x())), y = int(std::floor(px.y()));
@@ -569,17 +587,18 @@ void Trainer::enter_key_interval() {
   const int i = key_interval_of_frame(window_last_frame(iteration_));
   if (i < 1 || params_.dynamic_count() == 0) return;
   extrapolate_keys(params_, i + 1, float(options_.extrapolate_min_step));
-  const size_t K = size_t(params_.key_count);
-  auto clear_from = [&](ModelParams<float>& m) {
-    for (size_t j = 0; j < m.dynamic_count(); ++j) {
-      std::fill(m.key_positions.begin() + (j * K + size_t(i) + 1) * 3, m.key_positions.begin() + (j + 1) * K * 3, 0.0f);
-      std::fill(m.key_rotations.begin() + (j * K + size_t(i) + 1) * 4, m.key_rotations.begin() + (j + 1) * K * 4, 0.0f);
-      if (m.keyed_opacity)
-        std::fill(m.key_opacity_logits.begin() + j * K + size_t(i) + 1, m.key_opacity_logits.begin() + (j + 1) * K, 0.0f);
+  restart_key_moments(i + 1, false);
+}
+
+void Trainer::restart_key_moments(int from, bool positions_only) {
+  const size_t K = size_t(params_.key_count), k0 = size_t(from);
+  for (ModelParams<float>* m : {&adam_m_, &adam_v_})
+    for (size_t j = 0; j < m->dynamic_count(); ++j) {
+      std::fill(m->key_positions.begin() + (j * K + k0) * 3, m->key_positions.begin() + (j + 1) * K * 3, 0.0f);
+      if (positions_only) continue;
+      std::fill(m->key_rotations.begin() + (j * K + k0) * 4, m->key_rotations.begin() + (j + 1) * K * 4, 0.0f);
+      if (m->keyed_opacity) std::fill(m->key_opacity_logits.begin() + j * K + k0, m->key_opacity_logits.begin() + (j + 1) * K, 0.0f);
     }
-  };
-  clear_from(adam_m_);
-  clear_from(adam_v_);
 }
 
 void Trainer::place_keys_by_flow(int f0) {
@@ -601,13 +620,6 @@ void Trainer::place_keys_by_flow(int f0) {
   }
   const int last = frame_end[targets - 1];
   if (last <= f0) return;
-  // The fixed cameras with a view at every frame from f0 to last.
-  std::map<std::string, std::vector<long>> rig_views;
-  for (size_t v = 0; v < data_->views().size(); ++v) {
-    std::vector<long>& r = rig_views[data_->views()[v].rig];
-    r.resize(size_t(F), -1);
-    r[size_t(std::clamp(data_->views()[v].frame, 0, F - 1))] = long(v);
-  }
   DiffFrame<float> frame;
   evaluate_params(params_, double(f0) / (F - 1), &frame);
   const size_t N = frame.size();
@@ -615,16 +627,11 @@ void Trainer::place_keys_by_flow(int f0) {
   std::vector<Vec3d> b(D * 2, Vec3d::Zero());
   std::vector<float> depth(N);
   std::vector<double> nearest(D, 1e300);  // distance to the nearest camera that follows it
-  for (const auto& [rig, vs] : rig_views) {
+  for (const std::vector<long>& vs : fixed_rigs_) {  // the fixed cameras with a view at every frame from f0 to last
     bool complete = true;
     for (int f = f0; f <= last; ++f) complete = complete && vs[size_t(f)] >= 0;
     if (!complete) continue;
     const Camera& cam = data_->views()[size_t(vs[size_t(f0)])].camera;
-    for (int f = f0 + 1; f <= last; ++f) {
-      const Camera& c = data_->views()[size_t(vs[size_t(f)])].camera;
-      complete = complete && c.width == cam.width && c.height == cam.height && (c.R - cam.R).norm() < 1e-9 && (c.t - cam.t).norm() < 1e-9;
-    }
-    if (!complete) continue;
     const int W = cam.width, H = cam.height;
     const int mask = options_.flow_changing_only ? view_mask_[size_t(vs[size_t(f0)])] : -1;
     const std::vector<uint8_t>* changing = mask >= 0 ? &change_masks_[size_t(mask)] : nullptr;
@@ -697,12 +704,7 @@ void Trainer::place_keys_by_flow(int f0) {
   if (!any) return;
   // Later keys continue the placed ones; the optimiser's moments restart for every key moved.
   if (k1 + targets < K) extrapolate_keys(params_, k1 + targets, float(options_.extrapolate_min_step));
-  auto clear_from = [&](ModelParams<float>& m) {
-    for (size_t j = 0; j < m.dynamic_count(); ++j)
-      std::fill(m.key_positions.begin() + (j * Ks + size_t(k1)) * 3, m.key_positions.begin() + (j + 1) * Ks * 3, 0.0f);
-  };
-  clear_from(adam_m_);
-  clear_from(adam_v_);
+  restart_key_moments(k1, true);
 }
 
 void Trainer::motion_sparsity_step(double key_lr) {

@@ -233,10 +233,13 @@ class Trainer {
   size_t fold_unchanging();
   /// Makes the flagged keyed Gaussians static (their key means), carrying every per-Gaussian state.
   size_t make_static(const std::vector<uint8_t>& flags);
+  void find_fixed_rigs();
   void build_change_masks();
   void carry(const std::vector<uint32_t>& sources);
   void enter_key_interval();
   void place_keys_by_flow(int from_frame);
+  /// Zeroes the Adam moments of keys `from` on (positions only, or every keyed value).
+  void restart_key_moments(int from, bool positions_only);
   void motion_sparsity_step(double key_lr);
   int key_interval_of_frame(int frame) const;
   void raise_sh_degree();
@@ -260,7 +263,8 @@ class Trainer {
   std::vector<DensifyRecord> densify_log_;
   size_t frozen_ = 0;
   size_t flow_placed_ = 0, flow_tried_ = 0;
-  std::vector<uint8_t> seen_;  // Gaussians the current iteration's view renders
+  // Per rig camera that keeps one pose, its view at every frame (−1: none).
+  std::vector<std::vector<long>> fixed_rigs_;
   // Motion where the images change: per view the index of its camera's mask (−1: none),
   // the masks ([H][W], 1 = changing), and per Gaussian whether it has been on one.
   std::vector<int> view_mask_;
