@@ -20,15 +20,38 @@ using namespace fillgs::bench;
 
 namespace {
 
-double time_views(const FrameGaussians& g, const std::vector<Camera>& cams, int threads, size_t* rendered) {
+struct Timing {
+  double ms = 0;             ///< per frame
+  size_t rendered = 0;       ///< Gaussians with radius > 0, per frame
+  uint64_t box_pixels = 0;   ///< Gaussian-pixel pairs evaluated, per frame
+};
+
+Timing time_views(const FrameGaussians& g, const std::vector<Camera>& cams, int threads, Kernel kernel) {
   RenderOptions o;
   o.threads = threads;
+  o.kernel = kernel;
   render(g, cams[0], o);  // warm-up (allocations, thread pool)
   const auto t0 = std::chrono::steady_clock::now();
-  size_t total = 0;
-  for (const Camera& c : cams) total += render(g, c, o).rendered;
-  *rendered = total / cams.size();
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / cams.size();
+  Timing t;
+  for (const Camera& c : cams) {
+    const RenderOutput r = render(g, c, o);
+    t.rendered += r.rendered / cams.size();
+    t.box_pixels += r.box_pixels / cams.size();
+  }
+  t.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / double(cams.size());
+  return t;
+}
+
+/// The core's clock as the kernel reports it (first "cpu MHz" of /proc/cpuinfo), GHz; 0 if unknown.
+double clock_ghz() {
+  std::FILE* f = std::fopen("/proc/cpuinfo", "r");
+  if (!f) return 0;
+  char line[256];
+  double mhz = 0;
+  while (std::fgets(line, sizeof line, f))
+    if (std::sscanf(line, "cpu MHz : %lf", &mhz) == 1) break;
+  std::fclose(f);
+  return mhz / 1000.0;
 }
 
 }  // namespace
@@ -46,21 +69,36 @@ int bench_render(const std::vector<std::string>& args) {
   if (!std::filesystem::exists(scene)) throw_error(scene, ": missing (set FILLGS_SHARED_DATA to the shared data folder)");
   const GaussianCloud cloud = read_scene(scene);
   const FrameGaussians g = evaluate(cloud, 0.0);
-  const int all = tbb::info::default_concurrency();
-  std::printf("scene %s: %zu Gaussians, SH degree %d; threads available: %d\n", scene.c_str(), cloud.size(), cloud.sh_degree, all);
-  std::printf("%-10s %8s %12s %12s %14s %9s\n", "size", "threads", "ms/frame", "visible", "Gaussians/s", "speed-up");
+  const int all = std::min(2, tbb::info::default_concurrency());
+  std::printf("scene %s: %zu Gaussians, SH degree %d; vector kernel on %s\n\n", scene.c_str(), cloud.size(), cloud.sh_degree,
+              simd_target());
+  std::printf("| size | kernel | threads | ms/frame | speed-up vs scalar | visible | Gaussian-pixel evaluations/s per core |\n"
+              "|---|---|---|---|---|---|---|\n");
   struct Size { int w, h; };
   const std::vector<Size> sizes = smoke ? std::vector<Size>{{160, 120}} : std::vector<Size>{{1352, 1014}, {640, 480}};
   if (smoke) views = 2;
+  double best_rate = 0;
   for (const Size& s : sizes) {
     const auto cams = orbit(cloud, views, s.w, s.h);
-    size_t vis1 = 0, visn = 0;
-    const double ms1 = time_views(g, cams, 1, &vis1);
-    const double msn = time_views(g, cams, all, &visn);
-    char label[32];
-    std::snprintf(label, sizeof label, "%dx%d", s.w, s.h);
-    std::printf("%-10s %8d %12.1f %12zu %14.3g %9s\n", label, 1, ms1, vis1, cloud.size() / (ms1 / 1000.0), "1.00");
-    std::printf("%-10s %8d %12.1f %12zu %14.3g %9.2f\n", label, all, msn, visn, cloud.size() / (msn / 1000.0), ms1 / msn);
+    for (int threads : {1, all}) {
+      const Timing ref = time_views(g, cams, threads, Kernel::Scalar);
+      const Timing vec = time_views(g, cams, threads, Kernel::Simd);
+      for (const auto& [name, t] : {std::pair<const char*, const Timing&>{"scalar", ref}, {"simd", vec}}) {
+        const double rate = double(t.box_pixels) / (t.ms / 1000.0) / threads;
+        if (std::string(name) == "simd") best_rate = std::max(best_rate, rate);
+        std::printf("| %dx%d | %s | %d | %.1f | %.2f | %zu | %.3g |\n", s.w, s.h, name, threads, t.ms, ref.ms / t.ms, t.rendered, rate);
+      }
+      if (threads == all) break;
+    }
+  }
+  // The bound: one evaluation (dx, dy, the conic's quadratic, exp, α, the tests, T and three
+  // channel FMAs) is about 30 vector operations in the kernel's loop, one per lane per cycle.
+  const double ghz = clock_ghz();
+  const int lanes = std::string(simd_target()).rfind("AVX3", 0) == 0 ? 16 : std::string(simd_target()) == "AVX2" ? 8 : 4;
+  if (ghz > 0) {
+    const double peak = lanes * ghz * 1e9 / 30.0;
+    std::printf("\nbound: %d lanes x %.2f GHz / 30 operations = %.3g evaluations/s per core; the best measured (whole frame: "
+                "projection, SH, binning and blend) is %.0f%% of it\n", lanes, ghz, peak, 100.0 * best_rate / peak);
   }
   return 0;
 }

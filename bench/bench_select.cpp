@@ -275,6 +275,14 @@ int bench_select(const std::vector<std::string>& args) {
     o.render_scale = 1.0;
     const PriorityScores full = exploration_priority(s.input(), o);
     std::printf("| 1 | 1 (reference) | %zu | %.2f | 1.00x | 1.000 |\n", full.views.size(), full.seconds);
+    {  // the same priority with the scalar tile kernel: the vector kernel's ratio
+      set_default_kernel(Kernel::Scalar);
+      const PriorityScores scalar = exploration_priority(s.input(), o);
+      set_default_kernel(Kernel::Simd);
+      std::printf("| 1 | 1, scalar kernel | %zu | %.2f | %.2fx (vector kernel %.2fx faster; %.3f s per view scalar, %.3f simd) | %.3f |\n",
+                  scalar.views.size(), scalar.seconds, scalar.seconds / full.seconds, scalar.seconds / full.seconds,
+                  scalar.seconds / double(scalar.views.size()), full.seconds / double(full.views.size()), captured(full, scalar, 20));
+    }
     for (const auto& [stride, scale] : std::vector<std::pair<int, double>>{{1, 0.5}, {1, 0.25}, {2, 0.5}, {3, 0.5}, {5, 0.5}}) {
       o.time_stride = stride;
       o.render_scale = scale;

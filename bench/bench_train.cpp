@@ -44,41 +44,64 @@ GaussianCloud subsample(const GaussianCloud& c, size_t n) {
   return s;
 }
 
-void speed(bool smoke) {
+/// One training iteration's rasterization, stage by stage, with one kernel.
+struct IterationTimes {
+  double forward = 0, loss = 0, backward = 0;
+  double total() const { return forward + loss + backward; }
+};
+
+IterationTimes time_iterations(const DiffFrame<float>& df, const std::vector<Camera>& cams, Kernel kernel) {
+  const int w = cams[0].width, h = cams[0].height;
+  std::vector<float> target(size_t(w) * h * 3, 0.5f), dimg(target.size());
+  set_default_kernel(kernel);  // the loss's blur follows the process default
+  DiffRenderOptions dro;
+  dro.threads = 2;
+  dro.kernel = kernel;
+  IterationTimes t;
+  for (size_t v = 0; v <= cams.size(); ++v) {  // view 0 twice: the first is a warm-up
+    const Camera& cam = cams[v == 0 ? 0 : v - 1];
+    DiffRasterizer<float> r;
+    auto t0 = Clock::now();
+    r.forward(df, cam, dro);
+    const double f = seconds_since(t0);
+    t0 = Clock::now();
+    photometric_loss<float>(r.image().data(), target.data(), w, h, nullptr, 0.2, dimg.data());
+    const double l = seconds_since(t0);
+    DiffFrameGrad<float> g;
+    t0 = Clock::now();
+    r.backward(dimg.data(), nullptr, nullptr, &g);
+    const double b = seconds_since(t0);
+    if (v > 0) t.forward += f / cams.size(), t.loss += l / cams.size(), t.backward += b / cams.size();
+  }
+  set_default_kernel(Kernel::Simd);
+  return t;
+}
+
+void speed(bool smoke, size_t only_count, int only_width, int only_height) {
   const GaussianCloud full = read_scene(bench::shared_data() + "/scenes/guitar.ply");
-  std::printf("\n## Training iteration speed (guitar.ply subsets, 2 threads): forward render vs forward + loss + backward\n\n");
-  std::printf("| Gaussians | resolution | forward ms | fwd+loss+bwd ms | ratio | iterations/s |\n|---|---|---|---|---|---|\n");
-  const std::vector<size_t> counts = smoke ? std::vector<size_t>{5000} : std::vector<size_t>{10000, 45000, full.size()};
-  const std::vector<std::pair<int, int>> sizes =
+  std::printf("\n## Training iteration speed (guitar.ply subsets, 2 threads, vector kernel on %s): "
+              "forward + L1/D-SSIM loss + backward, against the scalar kernel in the same run\n\n", simd_target());
+  std::printf("| Gaussians | resolution | scalar ms (fwd / loss / bwd) | simd ms (fwd / loss / bwd) | speed-up | iterations/s scalar | iterations/s simd |\n"
+              "|---|---|---|---|---|---|---|\n");
+  std::vector<size_t> counts = smoke ? std::vector<size_t>{5000} : std::vector<size_t>{10000, 45000, full.size()};
+  if (only_count) counts = {std::min(only_count, full.size())};
+  std::vector<std::pair<int, int>> sizes =
       smoke ? std::vector<std::pair<int, int>>{{160, 120}} : std::vector<std::pair<int, int>>{{338, 253}, {676, 507}, {1352, 1014}};
+  if (only_width) sizes = {{only_width, only_height}};
   const int reps = smoke ? 1 : 5;
   for (size_t n : counts) {
     const GaussianCloud c = subsample(full, n);
-    const FrameGaussians fg = evaluate(c, 0.0);
     const ModelParams<float> p = params_from_cloud<float>(c);
     DiffFrame<float> df;
     evaluate_params(p, 0.0, &df);
     for (auto [w, h] : sizes) {
       const std::vector<Camera> cams = bench::orbit(c, reps, w, h);
-      RenderOptions ro;
-      ro.threads = 2;
-      render(fg, cams[0], ro);  // warm-up
-      auto t0 = Clock::now();
-      for (const Camera& cam : cams) render(fg, cam, ro);
-      const double fwd = seconds_since(t0) / reps;
-      std::vector<float> target(size_t(w) * h * 3, 0.5f), dimg(target.size());
-      DiffRenderOptions dro;
-      dro.threads = 2;
-      t0 = Clock::now();
-      for (const Camera& cam : cams) {
-        DiffRasterizer<float> r;
-        r.forward(df, cam, dro);
-        photometric_loss<float>(r.image().data(), target.data(), w, h, nullptr, 0.2, dimg.data());
-        DiffFrameGrad<float> g;
-        r.backward(dimg.data(), nullptr, nullptr, &g);
-      }
-      const double both = seconds_since(t0) / reps;
-      std::printf("| %zu | %dx%d | %.1f | %.1f | %.2f | %.1f |\n", c.size(), w, h, fwd * 1e3, both * 1e3, both / fwd, 1.0 / both);
+      const IterationTimes ref = time_iterations(df, cams, Kernel::Scalar);
+      const IterationTimes vec = time_iterations(df, cams, Kernel::Simd);
+      std::printf("| %zu | %dx%d | %.1f (%.1f / %.1f / %.1f) | %.1f (%.1f / %.1f / %.1f) | %.2f | %.1f | %.1f |\n", c.size(), w, h,
+                  ref.total() * 1e3, ref.forward * 1e3, ref.loss * 1e3, ref.backward * 1e3, vec.total() * 1e3, vec.forward * 1e3,
+                  vec.loss * 1e3, vec.backward * 1e3, ref.total() / vec.total(), 1.0 / ref.total(), 1.0 / vec.total());
+      std::fflush(stdout);
     }
   }
 }
@@ -160,14 +183,18 @@ void quality(bool smoke, const std::string& out) {
 int bench_train(const std::vector<std::string>& args) {
   bool smoke = false;
   std::string out = "bench/results/train", only;
+  size_t count = 0;  // --gaussians N: one subset only
+  int width = 0, height = 0;  // --resolution WxH: one size only
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--smoke") smoke = true;
     else if (args[i] == "--out" && i + 1 < args.size()) out = args[++i];
     else if (args[i] == "--only" && i + 1 < args.size()) only = args[++i];
+    else if (args[i] == "--gaussians" && i + 1 < args.size()) count = size_t(std::stoul(args[++i]));
+    else if (args[i] == "--resolution" && i + 1 < args.size() && std::sscanf(args[i + 1].c_str(), "%dx%d", &width, &height) == 2 && width > 0 && height > 0) ++i;
     else throw_error("bench train: unknown argument '", args[i], "'");
   }
   make_directories(out);
-  if (only.empty() || only == "speed") speed(smoke);
+  if (only.empty() || only == "speed") speed(smoke, count, width, height);
   if (only.empty() || only == "quality") quality(smoke, out);
   return 0;
 }

@@ -15,6 +15,7 @@ packages=(
   catch2                   # Catch2 2.13
   libtbb-dev
   nlohmann-json3-dev
+  libhwy-dev               # Google Highway: portable SIMD with run-time dispatch
 )
 
 missing=()

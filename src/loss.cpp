@@ -6,6 +6,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
+
+#include "fillgs/raster.hpp"
+#include "image/blur.hpp"
 
 namespace fillgs {
 
@@ -46,10 +50,25 @@ void blur_pass(const std::vector<Real>& in, int W, int H, bool along_x, std::vec
   });
 }
 
-/// Separable 11×11 Gaussian filter with zero padding, one plane.
+/// Scratch planes of the SSIM, kept per thread so that a training iteration does not map
+/// and fault in fresh pages for every plane (at 676×507 that was a third of the loss).
 template <typename Real>
-void blur(const std::vector<Real>& in, int W, int H, std::vector<Real>& out) {
-  std::vector<Real> tmp;
+struct SsimScratch {
+  std::vector<Real> tmp, xx, yy, xy, mx, my, sxx, syy, sxy, dmu, dvar, dcov, g1, g2, g3;
+};
+
+/// Separable 11×11 Gaussian filter with zero padding, one plane: the vector kernel for
+/// float unless the scalar reference is selected (raster.hpp, Kernel).
+template <typename Real>
+void blur(const std::vector<Real>& in, int W, int H, std::vector<Real>& tmp, std::vector<Real>& out) {
+  if constexpr (std::is_same_v<Real, float>) {
+    if (resolve_kernel(Kernel::Default) == Kernel::Simd) {
+      tmp.resize(in.size());
+      out.resize(in.size());
+      image::blur11_simd(in.data(), W, H, tmp.data(), out.data());
+      return;
+    }
+  }
   blur_pass(in, W, H, true, tmp);
   blur_pass(tmp, W, H, false, out);
 }
@@ -59,17 +78,18 @@ void blur(const std::vector<Real>& in, int W, int H, std::vector<Real>& out) {
 template <typename Real>
 double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W, int H, const std::vector<Real>* coef,
                   std::vector<Real>* grad) {
+  static thread_local SsimScratch<Real> w;
   const size_t n = x.size();
-  std::vector<Real> xx(n), yy(n), xy(n);
-  for (size_t i = 0; i < n; ++i) xx[i] = x[i] * x[i], yy[i] = y[i] * y[i], xy[i] = x[i] * y[i];
-  std::vector<Real> mx, my, sxx, syy, sxy;
-  blur(x, W, H, mx);
-  blur(y, W, H, my);
-  blur(xx, W, H, sxx);
-  blur(yy, W, H, syy);
-  blur(xy, W, H, sxy);
+  w.xx.resize(n), w.yy.resize(n), w.xy.resize(n);
+  for (size_t i = 0; i < n; ++i) w.xx[i] = x[i] * x[i], w.yy[i] = y[i] * y[i], w.xy[i] = x[i] * y[i];
+  const std::vector<Real>&mx = w.mx, &my = w.my, &sxx = w.sxx, &syy = w.syy, &sxy = w.sxy;
+  blur(x, W, H, w.tmp, w.mx);
+  blur(y, W, H, w.tmp, w.my);
+  blur(w.xx, W, H, w.tmp, w.sxx);
+  blur(w.yy, W, H, w.tmp, w.syy);
+  blur(w.xy, W, H, w.tmp, w.sxy);
   double total = 0;
-  std::vector<Real> dmu, dvar, dcov;
+  std::vector<Real>&dmu = w.dmu, &dvar = w.dvar, &dcov = w.dcov;
   if (grad) dmu.resize(n), dvar.resize(n), dcov.resize(n);
   for (size_t i = 0; i < n; ++i) {
     const Real vx = sxx[i] - mx[i] * mx[i], vy = syy[i] - my[i] * my[i], cxy = sxy[i] - mx[i] * my[i];
@@ -86,16 +106,13 @@ double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W,
   }
   if (grad) {
     // x enters μx, σx² = G*(x²) − μx², σxy = G*(xy) − μxμy; G is symmetric.
-    std::vector<Real> t1(n), t2(n);
-    for (size_t i = 0; i < n; ++i) {
-      t1[i] = dmu[i] - Real(2) * dvar[i] * mx[i] - dcov[i] * my[i];
-    }
-    std::vector<Real> g1, g2, g3;
-    blur(t1, W, H, g1);
-    blur(dvar, W, H, g2);
-    blur(dcov, W, H, g3);
+    std::vector<Real>& t1 = w.xx;  // x² is no longer needed
+    for (size_t i = 0; i < n; ++i) t1[i] = dmu[i] - Real(2) * dvar[i] * mx[i] - dcov[i] * my[i];
+    blur(t1, W, H, w.tmp, w.g1);
+    blur(dvar, W, H, w.tmp, w.g2);
+    blur(dcov, W, H, w.tmp, w.g3);
     grad->resize(n);
-    for (size_t i = 0; i < n; ++i) (*grad)[i] = g1[i] + Real(2) * x[i] * g2[i] + y[i] * g3[i];
+    for (size_t i = 0; i < n; ++i) (*grad)[i] = w.g1[i] + Real(2) * x[i] * w.g2[i] + y[i] * w.g3[i];
   }
   return total;
 }
@@ -116,7 +133,8 @@ LossValue photometric_loss(const Real* render, const float* target, int W, int H
   }
   lv.l1 = l1 / double(n);
   double s = 0;
-  std::vector<Real> x(P), y(P), coef(P), g;
+  static thread_local std::vector<Real> x, y, coef, g;  // reused planes (see SsimScratch)
+  x.resize(P), y.resize(P), coef.resize(P);
   for (size_t i = 0; i < P; ++i) coef[i] = weights ? weights[i] : Real(1);
   for (int c = 0; c < 3; ++c) {
     for (size_t i = 0; i < P; ++i) x[i] = render[i * 3 + c], y[i] = Real(target[i * 3 + c]);

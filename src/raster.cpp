@@ -5,12 +5,15 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstring>
 #include <numeric>
 
 #include "fillgs/error.hpp"
 #include "fillgs/sh.hpp"
 #include "raster_internal.hpp"
+#include "render/tile_kernel.hpp"
 
 namespace fillgs {
 
@@ -56,6 +59,32 @@ bool splat_footprint(const SplatProjection<double>& p, const Camera& cam, Projec
   return true;
 }
 
+/// Sorts a tile's keys (depth bits above the visible index, indices already ascending) by
+/// depth, ties by index: a least-significant-digit radix sort on the depth's 32 bits, which
+/// is stable and so keeps the index order; bytes that every key shares are skipped (depths
+/// of one tile usually share the top one). Short lists use a comparison sort.
+void sort_by_depth(uint64_t* keys, size_t n, std::vector<uint64_t>* scratch) {
+  if (n < 96) {
+    std::sort(keys, keys + n);
+    return;
+  }
+  scratch->resize(n);
+  uint64_t *from = keys, *to = scratch->data();
+  uint32_t counts[4][256] = {};
+  for (size_t i = 0; i < n; ++i)
+    for (int d = 0; d < 4; ++d) ++counts[d][(keys[i] >> (32 + 8 * d)) & 0xff];
+  for (int d = 0; d < 4; ++d) {
+    const uint32_t* c = counts[d];
+    if (c[(from[0] >> (32 + 8 * d)) & 0xff] == n) continue;  // one value of this byte: nothing to do
+    uint32_t offset[256];
+    uint32_t sum = 0;
+    for (int v = 0; v < 256; ++v) offset[v] = sum, sum += c[v];
+    for (size_t i = 0; i < n; ++i) to[offset[(from[i] >> (32 + 8 * d)) & 0xff]++] = from[i];
+    std::swap(from, to);
+  }
+  if (from != keys) std::copy(from, from + n, keys);
+}
+
 TileBins bin_tiles(const std::vector<ProjectedGaussian>& proj, const std::vector<uint32_t>& visible, int W, int H) {
   TileBins b;
   b.grid_x = (W + kTileSize - 1) / kTileSize;
@@ -63,51 +92,79 @@ TileBins bin_tiles(const std::vector<ProjectedGaussian>& proj, const std::vector
   const int gx = b.grid_x;
   const size_t tiles = size_t(b.grid_x) * b.grid_y;
   const size_t V = visible.size();
-  // Serial scatter keeps the order deterministic.
-  b.start.assign(tiles + 1, 0);
-  for (size_t i = 0; i < V; ++i) {
-    const ProjectedGaussian& p = proj[visible[i]];
-    for (int ty = p.rect_min[1]; ty < p.rect_max[1]; ++ty)
-      for (int tx = p.rect_min[0]; tx < p.rect_max[0]; ++tx) ++b.start[size_t(ty) * gx + tx + 1];
-  }
-  std::partial_sum(b.start.begin(), b.start.end(), b.start.begin());
-  struct Key {
-    float depth;
-    uint32_t index;
-  };
-  std::vector<Key> keys(b.start[tiles]);
-  {
-    std::vector<uint64_t> fill(b.start.begin(), b.start.end() - 1);
-    for (size_t i = 0; i < V; ++i) {
+  // A counting sort by tile over blocks of Gaussians, in parallel: block k's pairs of tile t
+  // go after blocks 0..k−1's, so each tile lists its Gaussians in visible order whatever
+  // the thread count; then each tile sorts by (depth, index).
+  const size_t blocks = std::clamp<size_t>(V / 4096, 1, 64), per_block = (V + blocks - 1) / blocks;
+  std::vector<uint32_t> counts(blocks * tiles, 0);  // [block][tile]
+  auto for_each_pair = [&](size_t block, auto&& visit) {
+    for (size_t i = block * per_block; i < std::min(V, (block + 1) * per_block); ++i) {
       const ProjectedGaussian& p = proj[visible[i]];
       for (int ty = p.rect_min[1]; ty < p.rect_max[1]; ++ty)
-        for (int tx = p.rect_min[0]; tx < p.rect_max[0]; ++tx) keys[fill[size_t(ty) * gx + tx]++] = {p.depth, uint32_t(i)};
+        for (int tx = p.rect_min[0]; tx < p.rect_max[0]; ++tx) visit(size_t(ty) * gx + tx, i, p.depth);
     }
+  };
+  tbb::parallel_for(size_t(0), blocks, [&](size_t k) {
+    uint32_t* c = &counts[k * tiles];
+    for_each_pair(k, [&](size_t t, size_t, float) { ++c[t]; });
+  });
+  b.start.assign(tiles + 1, 0);
+  std::vector<uint64_t> cursor(blocks * tiles);  // where block k writes its next pair of tile t
+  uint64_t at = 0;
+  for (size_t t = 0; t < tiles; ++t) {
+    b.start[t] = at;
+    for (size_t k = 0; k < blocks; ++k) cursor[k * tiles + t] = at, at += counts[k * tiles + t];
   }
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t t = r.begin(); t < r.end(); ++t)
-      std::sort(keys.begin() + b.start[t], keys.begin() + b.start[t + 1], [](const Key& x, const Key& y) {
-        return x.depth < y.depth || (x.depth == y.depth && x.index < y.index);
-      });
+  b.start[tiles] = at;
+  // Key: the depth's bits (positive floats order like their bits) above the visible index.
+  std::vector<uint64_t> keys(at);
+  tbb::parallel_for(size_t(0), blocks, [&](size_t k) {
+    uint64_t* cur = &cursor[k * tiles];
+    for_each_pair(k, [&](size_t t, size_t i, float depth) {
+      uint32_t bits;
+      std::memcpy(&bits, &depth, sizeof bits);
+      keys[cur[t]++] = (uint64_t(bits) << 32) | uint32_t(i);
+    });
   });
   b.entries.resize(keys.size());
-  for (size_t e = 0; e < keys.size(); ++e) b.entries[e] = keys[e].index;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
+    std::vector<uint64_t> scratch;
+    for (size_t t = r.begin(); t < r.end(); ++t) {
+      uint64_t* first = keys.data() + b.start[t];
+      sort_by_depth(first, size_t(b.start[t + 1] - b.start[t]), &scratch);
+      for (uint64_t e = b.start[t]; e < b.start[t + 1]; ++e) b.entries[e] = uint32_t(keys[e]);
+    }
+  });
   return b;
 }
 
 }  // namespace internal
 
 namespace {
-
-struct Splat {
-  Vec2f mean;
-  Vec3f conic;
-  float opacity;
-  float half_w, half_h;  // pixel half-extent of the region where α can reach 1/255
-  float depth;
-};
-
+std::atomic<Kernel> g_default_kernel{Kernel::Simd};
 }  // namespace
+
+void set_default_kernel(Kernel kernel) {
+  FILLGS_CHECK(kernel != Kernel::Default);
+  g_default_kernel.store(kernel);
+}
+
+Kernel resolve_kernel(Kernel kernel) { return kernel == Kernel::Default ? g_default_kernel.load() : kernel; }
+
+Kernel parse_kernel(const std::string& name) {
+  if (name == "simd") return Kernel::Simd;
+  if (name == "scalar") return Kernel::Scalar;
+  throw_error("unknown kernel '", name, "' (simd or scalar)");
+}
+
+const char* kernel_name(Kernel kernel) {
+  switch (resolve_kernel(kernel)) {
+    case Kernel::Scalar: return "scalar";
+    default: return "simd";
+  }
+}
+
+const char* simd_target() { return tiles::simd_target_name(); }
 
 RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOptions& opt) {
   const int W = cam.width, H = cam.height;
@@ -118,6 +175,7 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
   const int C = (opt.rgb ? 3 : 0) + (opt.depth ? 1 : 0) + F;
   const int depth_channel = opt.rgb ? 3 : 0;
   const int feature_channel = depth_channel + (opt.depth ? 1 : 0);
+  const bool simd = resolve_kernel(opt.kernel) == Kernel::Simd;
 
   RenderOutput out;
   out.width = W;
@@ -139,21 +197,19 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
     const size_t V = visible.size();
 
     // ---- per-visible splat data and blended channels ----
-    std::vector<Splat> splats(V);
-    std::vector<float> chan(V * size_t(C));
+    std::vector<float> splat(V * 6), extent(V * 2), chan(V * size_t(C));
     const Vec3f campos = cam.centre().cast<float>();
     const int K = (G.sh_degree + 1) * (G.sh_degree + 1);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 1024), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         const uint32_t g = visible[i];
         const ProjectedGaussian& p = proj[g];
-        Splat& s = splats[i];
-        s.mean = p.mean;
-        s.conic = p.conic;
-        s.opacity = G.opacities[g];
-        s.depth = p.depth;
-        // α ≥ 1/255 needs dᵀΣ⁻¹d ≤ 2 ln(255 o); bound that ellipse, plus a pixel of margin.
-        internal::alpha_extent(s.opacity, p.cov2d[0], p.cov2d[2], &s.half_w, &s.half_h);
+        float* sd = &splat[6 * i];
+        sd[0] = p.mean.x();
+        sd[1] = p.mean.y();
+        for (int k = 0; k < 3; ++k) sd[2 + k] = p.conic[k];
+        sd[5] = G.opacities[g];
+        internal::alpha_extent(sd[5], p.cov2d[0], p.cov2d[2], &extent[2 * i], &extent[2 * i + 1]);
         float* ch = &chan[i * size_t(C)];
         if (opt.rgb) {
           Vec3f dir = G.means[g] - campos;
@@ -168,12 +224,12 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
         for (int f = 0; f < F; ++f) ch[feature_channel + f] = opt.features[size_t(g) * F + f];
       }
     });
+    const tiles::TileSplats<float> splats{splat.data(), extent.data(), chan.data(), C};
 
     // ---- bin into tiles, front to back per tile ----
     const internal::TileBins bins = internal::bin_tiles(proj, visible, W, H);
     const int gx = bins.grid_x;
     const size_t tiles = size_t(bins.grid_x) * bins.grid_y;
-    const std::vector<uint64_t>& tile_start = bins.start;
     out.tile_entries = bins.entries.size();
 
     // ---- blend ----
@@ -183,74 +239,43 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
     out.alpha.assign(size_t(W) * H, 0.0f);
     std::vector<float> entry_max;  // per tile entry: max α·T, reduced per Gaussian below
     if (opt.max_weights) entry_max.assign(bins.entries.size(), 0.0f);
-    // Contributors are gathered per tile, then laid out in pixel order.
-    std::vector<std::vector<uint32_t>> tile_ids(opt.contributors ? tiles : 0);
-    std::vector<std::vector<float>> tile_w(opt.contributors ? tiles : 0);
-    std::vector<std::vector<uint16_t>> tile_px(opt.contributors ? tiles : 0);
+    std::vector<tiles::TileContributors> tile_contrib(opt.contributors ? tiles : 0);
+    std::vector<uint64_t> tile_box_pixels(tiles, 0);
 
     tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
-      constexpr int P = kTileSize * kTileSize;
-      float T[P];
-      bool done[P];
-      std::vector<float> acc(size_t(P) * C);
+      alignas(64) float T[tiles::kTilePixels];
+      std::vector<float> acc(size_t(tiles::kTilePixels) * std::max(C, 1));
       for (size_t t = r.begin(); t < r.end(); ++t) {
-        const int x0 = int(t % gx) * kTileSize, y0 = int(t / gx) * kTileSize;
-        const int x1 = std::min(x0 + kTileSize, W), y1 = std::min(y0 + kTileSize, H);
-        const int tw = x1 - x0, th = y1 - y0, npix = tw * th;
-        std::fill(T, T + P, 1.0f);
-        std::fill(done, done + P, false);
-        std::fill(acc.begin(), acc.end(), 0.0f);
-        int n_done = 0;
-        for (uint64_t e = tile_start[t]; e < tile_start[t + 1] && n_done < npix; ++e) {
-          const uint32_t i = bins.entries[e];
-          const Splat& s = splats[i];
-          const float* ch = &chan[size_t(i) * C];
-          int px0, px1, py0, py1;
-          internal::pixel_box(s.mean.x(), s.mean.y(), s.half_w, s.half_h, x0, y0, x1, y1, &px0, &px1, &py0, &py1);
-          float emax = 0.0f;
-          for (int py = py0; py <= py1; ++py) {
-            for (int px = px0; px <= px1; ++px) {
-              const int l = (py - y0) * kTileSize + (px - x0);
-              if (done[l]) continue;
-              const float dx = s.mean.x() - float(px), dy = s.mean.y() - float(py);
-              const float power = -0.5f * (s.conic[0] * dx * dx + s.conic[2] * dy * dy) - s.conic[1] * dx * dy;
-              if (power > 0.0f) continue;
-              const float alpha = std::min(kMaxAlpha, s.opacity * std::exp(power));
-              if (alpha < kMinAlpha) continue;
-              const float test_T = T[l] * (1.0f - alpha);
-              if (test_T < kMinTransmittance) {
-                done[l] = true;
-                ++n_done;
-                continue;
-              }
-              const float w = alpha * T[l];
-              float* a = &acc[size_t(l) * C];
-              for (int k = 0; k < C; ++k) a[k] += ch[k] * w;
-              T[l] = test_T;
-              if (w > emax) emax = w;
-              if (opt.contributors) {
-                tile_ids[t].push_back(visible[i]);
-                tile_w[t].push_back(w);
-                tile_px[t].push_back(uint16_t(l));
-              }
-            }
-          }
-          if (opt.max_weights) entry_max[e] = emax;
-        }
-        for (int py = y0; py < y1; ++py)
-          for (int px = x0; px < x1; ++px) {
-            const int l = (py - y0) * kTileSize + (px - x0);
+        tiles::TileWork work;
+        work.x0 = int(t % gx) * kTileSize, work.y0 = int(t / gx) * kTileSize;
+        work.x1 = std::min(work.x0 + kTileSize, W), work.y1 = std::min(work.y0 + kTileSize, H);
+        work.entries = bins.entries.data() + bins.start[t];
+        work.count = uint32_t(bins.start[t + 1] - bins.start[t]);
+        tiles::TileForward<float> fwd;
+        fwd.T = T;
+        fwd.acc = acc.data();
+        if (opt.max_weights) fwd.entry_max = entry_max.data() + bins.start[t];
+        if (opt.contributors) fwd.contributors = &tile_contrib[t];
+        fwd.box_pixels = &tile_box_pixels[t];
+        if (simd)
+          tiles::forward_tile_simd(splats, work, fwd);
+        else
+          tiles::forward_tile_scalar(splats, work, fwd);
+        for (int py = work.y0; py < work.y1; ++py)
+          for (int px = work.x0; px < work.x1; ++px) {
+            const int l = (py - work.y0) * kTileSize + (px - work.x0);
             const size_t o = size_t(py) * W + px;
-            const float* a = &acc[size_t(l) * C];
+            auto a = [&](int c) { return acc[size_t(c) * tiles::kTilePixels + l]; };
             if (opt.rgb)
-              for (int k = 0; k < 3; ++k) out.rgb[o * 3 + k] = a[k] + T[l] * opt.background[k];
-            if (opt.depth) out.depth[o] = a[depth_channel];
-            for (int f = 0; f < F; ++f) out.features[o * F + f] = a[feature_channel + f];
+              for (int k = 0; k < 3; ++k) out.rgb[o * 3 + k] = a(k) + T[l] * opt.background[k];
+            if (opt.depth) out.depth[o] = a(depth_channel);
+            for (int f = 0; f < F; ++f) out.features[o * F + f] = a(feature_channel + f);
             out.alpha[o] = 1.0f - T[l];
           }
       }
     });
 
+    out.box_pixels = std::accumulate(tile_box_pixels.begin(), tile_box_pixels.end(), uint64_t(0));
     if (opt.max_weights) {
       out.max_weight.assign(N, 0.0f);
       for (size_t e = 0; e < bins.entries.size(); ++e) {
@@ -261,22 +286,23 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
     if (opt.contributors) {
       ContributorLists& cl = out.contributors;
       cl.offsets.assign(size_t(W) * H + 1, 0);
-      for (size_t t = 0; t < tiles; ++t) {
+      auto pixel_of = [&](size_t t, uint16_t l) {
         const int x0 = int(t % gx) * kTileSize, y0 = int(t / gx) * kTileSize;
-        for (uint16_t l : tile_px[t]) ++cl.offsets[size_t(y0 + l / kTileSize) * W + x0 + l % kTileSize + 1];
-      }
+        return size_t(y0 + l / kTileSize) * W + x0 + l % kTileSize;
+      };
+      for (size_t t = 0; t < tiles; ++t)
+        for (uint16_t l : tile_contrib[t].pixel) ++cl.offsets[pixel_of(t, l) + 1];
       std::partial_sum(cl.offsets.begin(), cl.offsets.end(), cl.offsets.begin());
       cl.ids.resize(cl.offsets.back());
       cl.weights.resize(cl.offsets.back());
       std::vector<uint64_t> fill(cl.offsets.begin(), cl.offsets.end() - 1);
-      // Within a tile, entries were appended front to back per pixel, so pixel order is kept.
+      // Within a tile, pairs were appended front to back per pixel, so pixel order is kept.
       for (size_t t = 0; t < tiles; ++t) {
-        const int x0 = int(t % gx) * kTileSize, y0 = int(t / gx) * kTileSize;
-        for (size_t k = 0; k < tile_px[t].size(); ++k) {
-          const uint16_t l = tile_px[t][k];
-          const uint64_t at = fill[size_t(y0 + l / kTileSize) * W + x0 + l % kTileSize]++;
-          cl.ids[at] = tile_ids[t][k];
-          cl.weights[at] = tile_w[t][k];
+        const tiles::TileContributors& tc = tile_contrib[t];
+        for (size_t k = 0; k < tc.pixel.size(); ++k) {
+          const uint64_t at = fill[pixel_of(t, tc.pixel[k])]++;
+          cl.ids[at] = visible[tc.entry[k]];
+          cl.weights[at] = tc.weight[k];
         }
       }
     }

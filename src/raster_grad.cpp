@@ -6,10 +6,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 #include "fillgs/error.hpp"
 #include "fillgs/sh.hpp"
 #include "raster_internal.hpp"
+#include "render/tile_kernel.hpp"
 
 namespace fillgs {
 
@@ -257,56 +259,31 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
     final_T_.assign(size_t(W) * H, Real(1));
     last_entry_.assign(size_t(W) * H, 0);
 
+    const tiles::TileSplats<Real> splats{splat_data_.data(), half_extent_.data(), colour_.data(), C};
+    const bool simd = uses_simd();
     tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
-      constexpr int P = kTileSize * kTileSize;
-      Real T[P];
-      bool done[P];
-      uint32_t last[P];
-      std::vector<Real> acc(size_t(P) * C);
+      alignas(64) Real T[tiles::kTilePixels];
+      uint32_t last[tiles::kTilePixels];
+      std::vector<Real> acc(size_t(tiles::kTilePixels) * C);
       for (size_t t = r.begin(); t < r.end(); ++t) {
-        const int x0 = int(t % grid_x_) * kTileSize, y0 = int(t / grid_x_) * kTileSize;
-        const int x1 = std::min(x0 + kTileSize, W), y1 = std::min(y0 + kTileSize, H);
-        const int npix = (x1 - x0) * (y1 - y0);
-        std::fill(T, T + P, Real(1));
-        std::fill(done, done + P, false);
-        std::fill(last, last + P, 0u);
-        std::fill(acc.begin(), acc.end(), Real(0));
-        int n_done = 0;
-        for (uint64_t e = tile_start_[t]; e < tile_start_[t + 1] && n_done < npix; ++e) {
-          const uint32_t i = keys_[e];
-          const Real* sd = &splat_data_[6 * i];
-          const Real* ch = &colour_[size_t(i) * C];
-          int px0, px1, py0, py1;
-          internal::pixel_box(float(sd[0]), float(sd[1]), half_extent_[2 * i], half_extent_[2 * i + 1], x0, y0, x1, y1, &px0, &px1, &py0, &py1);
-          for (int py = py0; py <= py1; ++py)
-            for (int px = px0; px <= px1; ++px) {
-              const int l = (py - y0) * kTileSize + (px - x0);
-              if (done[l]) continue;
-              const Real dx = sd[0] - Real(px), dy = sd[1] - Real(py);
-              const Real power = Real(-0.5) * (sd[2] * dx * dx + sd[4] * dy * dy) - sd[3] * dx * dy;
-              if (power > Real(0)) continue;
-              const Real alpha = std::min(Real(kMaxAlpha), sd[5] * std::exp(power));
-              if (alpha < Real(kMinAlpha)) continue;
-              const Real test_T = T[l] * (Real(1) - alpha);
-              if (test_T < Real(kMinTransmittance)) {
-                done[l] = true;
-                ++n_done;
-                continue;
-              }
-              const Real w = alpha * T[l];
-              Real* a = &acc[size_t(l) * C];
-              for (int k = 0; k < C; ++k) a[k] += ch[k] * w;
-              T[l] = test_T;
-              last[l] = uint32_t(e - tile_start_[t] + 1);
-            }
+        const tiles::TileWork work = tile_work(t);
+        tiles::TileForward<Real> fwd;
+        fwd.T = T;
+        fwd.acc = acc.data();
+        fwd.last = last;
+        if constexpr (std::is_same_v<Real, float>) {
+          if (simd) tiles::forward_tile_simd(splats, work, fwd);
+          else tiles::forward_tile_scalar(splats, work, fwd);
+        } else {
+          tiles::forward_tile_scalar(splats, work, fwd);
         }
-        for (int py = y0; py < y1; ++py)
-          for (int px = x0; px < x1; ++px) {
-            const int l = (py - y0) * kTileSize + (px - x0);
+        for (int py = work.y0; py < work.y1; ++py)
+          for (int px = work.x0; px < work.x1; ++px) {
+            const int l = (py - work.y0) * kTileSize + (px - work.x0);
             const size_t o = size_t(py) * W + px;
-            const Real* a = &acc[size_t(l) * C];
-            for (int k = 0; k < 3; ++k) image_[o * 3 + k] = a[k] + T[l] * Real(opt.background[k]);
-            for (int f = 0; f < F; ++f) features_[o * F + f] = a[3 + f];
+            auto a = [&](int c) { return acc[size_t(c) * tiles::kTilePixels + l]; };
+            for (int k = 0; k < 3; ++k) image_[o * 3 + k] = a(k) + T[l] * Real(opt.background[k]);
+            for (int f = 0; f < F; ++f) features_[o * F + f] = a(3 + f);
             alpha_[o] = Real(1) - T[l];
             final_T_[o] = T[l];
             last_entry_[o] = last[l];
@@ -314,6 +291,21 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
       }
     });
   });
+}
+
+template <typename Real>
+tiles::TileWork DiffRasterizer<Real>::tile_work(size_t t) const {
+  tiles::TileWork work;
+  work.x0 = int(t % grid_x_) * kTileSize, work.y0 = int(t / grid_x_) * kTileSize;
+  work.x1 = std::min(work.x0 + kTileSize, width_), work.y1 = std::min(work.y0 + kTileSize, height_);
+  work.entries = keys_.data() + tile_start_[t];
+  work.count = uint32_t(tile_start_[t + 1] - tile_start_[t]);
+  return work;
+}
+
+template <typename Real>
+bool DiffRasterizer<Real>::uses_simd() const {
+  return std::is_same_v<Real, float> && resolve_kernel(options_.kernel) == Kernel::Simd;
 }
 
 // ---------------------------------------------------------------------------------
@@ -392,6 +384,49 @@ void DiffRasterizer<Real>::backward_tiles(MakeVisitor&& make_visitor) const {
 }
 
 template <typename Real>
+void DiffRasterizer<Real>::backward_tiles_simd(const Real* dL_dimage, const Real* dL_dfeatures, const Real* pixel_weights,
+                                              Real* records) const {
+  if constexpr (std::is_same_v<Real, float>) {
+    const int W = width_, C = channels_, F = C - 3, R = 6 + C;
+    const size_t tiles = tile_start_.empty() ? 0 : tile_start_.size() - 1;
+    const tiles::TileSplats<float> splats{splat_data_.data(), half_extent_.data(), colour_.data(), C};
+    tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+    arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
+        alignas(64) float final_T[tiles::kTilePixels];
+        alignas(64) uint32_t last[tiles::kTilePixels];
+        std::vector<float> dpix(size_t(C) * tiles::kTilePixels);
+        for (size_t t = r.begin(); t < r.end(); ++t) {
+          const tiles::TileWork work = tile_work(t);
+          // Tile-local, planar copies; pixels outside the image were never reached.
+          std::fill(final_T, final_T + tiles::kTilePixels, 1.0f);
+          std::fill(last, last + tiles::kTilePixels, 0u);
+          std::fill(dpix.begin(), dpix.end(), 0.0f);
+          for (int py = work.y0; py < work.y1; ++py)
+            for (int px = work.x0; px < work.x1; ++px) {
+              const int l = (py - work.y0) * kTileSize + (px - work.x0);
+              const size_t o = size_t(py) * W + px;
+              final_T[l] = final_T_[o];
+              last[l] = last_entry_[o];
+              const float wpx = pixel_weights ? pixel_weights[o] : 1.0f;
+              for (int c = 0; c < 3; ++c) dpix[size_t(c) * tiles::kTilePixels + l] = dL_dimage[o * 3 + c] * wpx;
+              if (dL_dfeatures)
+                for (int f = 0; f < F; ++f) dpix[size_t(3 + f) * tiles::kTilePixels + l] = dL_dfeatures[o * F + f] * wpx;
+            }
+          tiles::TileBackward io;
+          io.final_T = final_T;
+          io.last = last;
+          io.dpix = dpix.data();
+          for (int c = 0; c < 3; ++c) io.background[c] = options_.background[c];
+          io.records = records + tile_start_[t] * R;
+          tiles::backward_tile_simd(splats, work, io);
+        }
+      });
+    });
+  }
+}
+
+template <typename Real>
 void DiffRasterizer<Real>::backward(const Real* dL_dimage, const Real* dL_dfeatures, const Real* pixel_weights,
                                    DiffFrameGrad<Real>* grad) const {
   FILLGS_CHECK(frame_ != nullptr);
@@ -444,7 +479,15 @@ void DiffRasterizer<Real>::backward(const Real* dL_dimage, const Real* dL_dfeatu
     void end(size_t e) { std::copy(acc, acc + R, records + e * R); }
   };
   FILLGS_CHECK(C <= 64);
-  backward_tiles([&] { return Visitor{this, dL_dimage, dL_dfeatures, pixel_weights, records.data(), bg, C, F, R, {}}; });
+  if constexpr (std::is_same_v<Real, float>) {
+    if (uses_simd()) {
+      backward_tiles_simd(dL_dimage, dL_dfeatures, pixel_weights, records.data());
+    } else {
+      backward_tiles([&] { return Visitor{this, dL_dimage, dL_dfeatures, pixel_weights, records.data(), bg, C, F, R, {}}; });
+    }
+  } else {
+    backward_tiles([&] { return Visitor{this, dL_dimage, dL_dfeatures, pixel_weights, records.data(), bg, C, F, R, {}}; });
+  }
 
   // Reduce per Gaussian in tile order (deterministic for any thread count).
   std::vector<Real> sums(V * size_t(R), Real(0));

@@ -8,6 +8,7 @@
 // Any per-Gaussian feature can be blended like colour. Threads over tiles (TBB); the result
 // does not depend on the thread count, bit for bit.
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "fillgs/camera.hpp"
@@ -21,6 +22,18 @@ constexpr float kMaxAlpha = 0.99f;
 constexpr float kMinTransmittance = 1e-4f;
 constexpr float kNearPlane = 0.2f;
 constexpr float kDilation = 0.3f;
+
+/// Which implementation of the tile kernel blends (src/render/tile_kernel.hpp): the vector
+/// one (Google Highway, the instruction set chosen at run time) or the scalar reference it
+/// is measured and tested against. `Default` follows set_default_kernel() (the CLI's
+/// `--kernel`, initially Simd). Double-precision rendering is always scalar.
+enum class Kernel : uint8_t { Default, Simd, Scalar };
+void set_default_kernel(Kernel kernel);  ///< Default is not a valid argument
+Kernel resolve_kernel(Kernel kernel);    ///< Default → the process default
+Kernel parse_kernel(const std::string& name);  ///< "simd" | "scalar"; throws otherwise
+const char* kernel_name(Kernel kernel);
+/// The instruction set the vector kernel uses on this machine (e.g. "AVX3", "AVX2").
+const char* simd_target();
 
 /// A Gaussian's screen-space footprint, as the 3DGS preprocess computes it.
 struct ProjectedGaussian {
@@ -55,6 +68,7 @@ struct RenderOptions {
   bool max_weights = false;   ///< per-Gaussian maximum α·T over all pixels
   Vec3f background = Vec3f::Zero();
   int threads = 0;            ///< 0: all available
+  Kernel kernel = Kernel::Default;
 };
 
 struct RenderOutput {
@@ -68,6 +82,7 @@ struct RenderOutput {
   std::vector<int> radii;         ///< [N], 0 where culled
   size_t rendered = 0;            ///< Gaussians with radius > 0
   size_t tile_entries = 0;        ///< Gaussian-tile pairs sorted
+  uint64_t box_pixels = 0;        ///< Gaussian-pixel pairs in the α boxes the blend visited (the work)
 };
 
 /// Renders Gaussians (as evaluated at one time) into a camera.

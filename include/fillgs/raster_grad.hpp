@@ -22,6 +22,9 @@
 #include "fillgs/raster.hpp"
 
 namespace fillgs {
+namespace tiles {
+struct TileWork;
+}
 
 /// Gaussians at one time, activated, as flat arrays of any scalar type.
 template <typename Real>
@@ -71,6 +74,7 @@ struct DiffRenderOptions {
   const float* features = nullptr;  ///< optional [N][feature_channels] blended like colour (background 0)
   int feature_channels = 0;
   int threads = 0;                  ///< 0: all available
+  Kernel kernel = Kernel::Default;  ///< the vector kernel applies to float only
 };
 
 /// Differentiable rendering of one view. Usage: forward(), read image(), compute dL/dimage,
@@ -103,6 +107,11 @@ class DiffRasterizer {
   /// pair state, channels) and end(entry).
   template <typename MakeVisitor>
   void backward_tiles(MakeVisitor&& make_visitor) const;
+  /// The vector backward (float): gradient records of every tile entry.
+  void backward_tiles_simd(const Real* dL_dimage, const Real* dL_dfeatures, const Real* pixel_weights,
+                           Real* records) const;
+  tiles::TileWork tile_work(size_t tile) const;
+  bool uses_simd() const;
 
   const DiffFrame<Real>* frame_ = nullptr;
   Camera camera_;

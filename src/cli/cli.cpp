@@ -405,13 +405,35 @@ void print_help(std::ostream& out) {
          "                --stg-color auto|sigmoid|clamp|none --static-threshold v\n"
          "camera options: --camera-format auto|colmap|llff|transforms|3dgs|technicolor --width W --height H\n"
          "                --llff-downscale s\n"
-         "common:         --quiet (no progress bar)\n";
+         "common:         --quiet (no progress bar)\n"
+         "                --kernel simd|scalar (the tile kernel: vector, default, or the scalar reference)\n";
 }
 
 }  // namespace
 
-int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+/// `--kernel simd|scalar`, accepted by every command: which tile kernel renders, trains and
+/// blurs the loss for this invocation (raster.hpp, Kernel). Removed from the arguments here.
+class KernelChoice {
+ public:
+  explicit KernelChoice(std::vector<std::string>* args) {
+    for (size_t i = 1; i < args->size(); ++i) {
+      if ((*args)[i] != "--kernel") continue;
+      if (i + 1 >= args->size()) throw_error("fillgs ", (*args)[0], ": --kernel needs a value (simd or scalar)");
+      set_default_kernel(parse_kernel((*args)[i + 1]));
+      args->erase(args->begin() + long(i), args->begin() + long(i) + 2);
+      break;
+    }
+  }
+  ~KernelChoice() { set_default_kernel(previous_); }
+
+ private:
+  Kernel previous_ = resolve_kernel(Kernel::Default);
+};
+
+int run(const std::vector<std::string>& all_args, std::ostream& out, std::ostream& err) {
   try {
+    std::vector<std::string> args = all_args;
+    const KernelChoice kernel(&args);
     if (args.empty() || args[0] == "help" || args[0] == "--help" || args[0] == "-h") {
       print_help(out);
       return args.empty() ? 2 : 0;
