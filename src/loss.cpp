@@ -50,6 +50,19 @@ void blur_pass(const std::vector<Real>& in, int W, int H, bool along_x, std::vec
   });
 }
 
+/// Σ over [0, n) of body(begin, end) (each returning its range's sum), in parallel over
+/// fixed chunks whose sums are added in order: the same result for any thread count.
+template <typename Body>
+double chunked_sum(size_t n, Body&& body) {
+  constexpr size_t kChunk = 16384;
+  const size_t chunks = (n + kChunk - 1) / kChunk;
+  std::vector<double> partial(chunks, 0.0);
+  tbb::parallel_for(size_t(0), chunks, [&](size_t k) { partial[k] = body(k * kChunk, std::min(n, (k + 1) * kChunk)); });
+  double total = 0;
+  for (double v : partial) total += v;
+  return total;
+}
+
 /// Scratch planes of the SSIM, kept per thread so that a training iteration does not map
 /// and fault in fresh pages for every plane (at 676×507 that was a third of the loss).
 template <typename Real>
@@ -78,25 +91,32 @@ void blur(const std::vector<Real>& in, int W, int H, std::vector<Real>& tmp, std
 template <typename Real>
 double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W, int H, const std::vector<Real>* coef,
                   std::vector<Real>* grad) {
-  static thread_local SsimScratch<Real> w;
+  // The calling thread's scratch, by reference: inside the parallel loops below the name of
+  // a thread_local would denote each worker's own instance.
+  static thread_local SsimScratch<Real> scratch;
+  SsimScratch<Real>& w = scratch;
   const size_t n = x.size();
   w.xx.resize(n), w.yy.resize(n), w.xy.resize(n);
-  for (size_t i = 0; i < n; ++i) w.xx[i] = x[i] * x[i], w.yy[i] = y[i] * y[i], w.xy[i] = x[i] * y[i];
+  chunked_sum(n, [&](size_t i0, size_t i1) {
+    for (size_t i = i0; i < i1; ++i) w.xx[i] = x[i] * x[i], w.yy[i] = y[i] * y[i], w.xy[i] = x[i] * y[i];
+    return 0.0;
+  });
   const std::vector<Real>&mx = w.mx, &my = w.my, &sxx = w.sxx, &syy = w.syy, &sxy = w.sxy;
   blur(x, W, H, w.tmp, w.mx);
   blur(y, W, H, w.tmp, w.my);
   blur(w.xx, W, H, w.tmp, w.sxx);
   blur(w.yy, W, H, w.tmp, w.syy);
   blur(w.xy, W, H, w.tmp, w.sxy);
-  double total = 0;
   std::vector<Real>&dmu = w.dmu, &dvar = w.dvar, &dcov = w.dcov;
   if (grad) dmu.resize(n), dvar.resize(n), dcov.resize(n);
-  for (size_t i = 0; i < n; ++i) {
+  const double total = chunked_sum(n, [&](size_t i0, size_t i1) {
+  double sum = 0;
+  for (size_t i = i0; i < i1; ++i) {
     const Real vx = sxx[i] - mx[i] * mx[i], vy = syy[i] - my[i] * my[i], cxy = sxy[i] - mx[i] * my[i];
     const Real a1 = Real(2) * mx[i] * my[i] + Real(kC1), a2 = Real(2) * cxy + Real(kC2);
     const Real b1 = mx[i] * mx[i] + my[i] * my[i] + Real(kC1), b2 = vx + vy + Real(kC2);
     const Real s = a1 * a2 / (b1 * b2);
-    total += double(coef ? (*coef)[i] * s : s);
+    sum += double(coef ? (*coef)[i] * s : s);
     if (grad) {
       const Real c = (*coef)[i];
       dmu[i] = c * (Real(2) * my[i] * a2 / (b1 * b2) - s * Real(2) * mx[i] / b1);
@@ -104,15 +124,23 @@ double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W,
       dcov[i] = c * (Real(2) * a1 / (b1 * b2));
     }
   }
+  return sum;
+  });
   if (grad) {
     // x enters μx, σx² = G*(x²) − μx², σxy = G*(xy) − μxμy; G is symmetric.
     std::vector<Real>& t1 = w.xx;  // x² is no longer needed
-    for (size_t i = 0; i < n; ++i) t1[i] = dmu[i] - Real(2) * dvar[i] * mx[i] - dcov[i] * my[i];
+    chunked_sum(n, [&](size_t i0, size_t i1) {
+      for (size_t i = i0; i < i1; ++i) t1[i] = dmu[i] - Real(2) * dvar[i] * mx[i] - dcov[i] * my[i];
+      return 0.0;
+    });
     blur(t1, W, H, w.tmp, w.g1);
     blur(dvar, W, H, w.tmp, w.g2);
     blur(dcov, W, H, w.tmp, w.g3);
     grad->resize(n);
-    for (size_t i = 0; i < n; ++i) (*grad)[i] = w.g1[i] + Real(2) * x[i] * w.g2[i] + y[i] * w.g3[i];
+    chunked_sum(n, [&](size_t i0, size_t i1) {
+      for (size_t i = i0; i < i1; ++i) (*grad)[i] = w.g1[i] + Real(2) * x[i] * w.g2[i] + y[i] * w.g3[i];
+      return 0.0;
+    });
   }
   return total;
 }
@@ -124,23 +152,33 @@ LossValue photometric_loss(const Real* render, const float* target, int W, int H
                            double lambda, Real* grad) {
   const size_t P = size_t(W) * H, n = P * 3;
   LossValue lv;
-  double l1 = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const Real d = render[i] - Real(target[i]);
-    const Real w = weights ? weights[i / 3] : Real(1);
-    l1 += double(w * std::abs(d));
-    if (grad) grad[i] = Real((1.0 - lambda) / double(n)) * w * (d > Real(0) ? Real(1) : d < Real(0) ? Real(-1) : Real(0));
-  }
+  const double l1 = chunked_sum(P, [&](size_t p0, size_t p1) {
+    double sum = 0;
+    for (size_t i = 3 * p0; i < 3 * p1; ++i) {
+      const Real d = render[i] - Real(target[i]);
+      const Real w = weights ? weights[i / 3] : Real(1);
+      sum += double(w * std::abs(d));
+      if (grad) grad[i] = Real((1.0 - lambda) / double(n)) * w * (d > Real(0) ? Real(1) : d < Real(0) ? Real(-1) : Real(0));
+    }
+    return sum;
+  });
   lv.l1 = l1 / double(n);
   double s = 0;
-  static thread_local std::vector<Real> x, y, coef, g;  // reused planes (see SsimScratch)
+  static thread_local std::vector<Real> planes[4];  // reused (see SsimScratch); by reference below
+  std::vector<Real>&x = planes[0], &y = planes[1], &coef = planes[2], &g = planes[3];
   x.resize(P), y.resize(P), coef.resize(P);
   for (size_t i = 0; i < P; ++i) coef[i] = weights ? weights[i] : Real(1);
   for (int c = 0; c < 3; ++c) {
-    for (size_t i = 0; i < P; ++i) x[i] = render[i * 3 + c], y[i] = Real(target[i * 3 + c]);
+    chunked_sum(P, [&](size_t p0, size_t p1) {
+      for (size_t i = p0; i < p1; ++i) x[i] = render[i * 3 + c], y[i] = Real(target[i * 3 + c]);
+      return 0.0;
+    });
     s += ssim_plane(x, y, W, H, &coef, grad ? &g : nullptr);
     if (grad)
-      for (size_t i = 0; i < P; ++i) grad[i * 3 + c] -= Real(lambda / double(n)) * g[i];
+      chunked_sum(P, [&](size_t p0, size_t p1) {
+        for (size_t i = p0; i < p1; ++i) grad[i * 3 + c] -= Real(lambda / double(n)) * g[i];
+        return 0.0;
+      });
   }
   lv.ssim = s / double(n);
   // Weighted 1 − SSIM: mean of w·(1 − S) = mean(w) − mean(w·S).

@@ -1,9 +1,9 @@
-// The vector tile kernel: the scalar kernel's math (tile_kernel.cpp) on a row of the tile
-// per instruction. Compiled once per instruction set by Google Highway (foreach_target)
+// The vector tile kernel: the scalar kernel's math (tile_kernel.cpp) on a block of the
+// tile per instruction. Compiled once per instruction set by Google Highway (foreach_target)
 // and dispatched at run time, so one binary uses AVX-512 where the machine has it.
 //
-// Lanes are pixels of one tile row; a lane is live when its pixel lies in the splat's
-// box, has not saturated (forward) or was reached by the forward (backward). Lanes that
+// Lanes are a block of tile pixels (BlockLayout); a lane is live when its pixel lies in
+// the splat's box, has not saturated (forward) or was reached by the forward (backward). Lanes that
 // are not live compute but never store. Per-entry sums are reduced across lanes in a
 // fixed order, so results do not depend on the thread count.
 #undef HWY_TARGET_INCLUDE
@@ -50,84 +50,115 @@ HWY_INLINE V ExpNonPositive(DF d, V x) {
   return hn::BitCast(d, bits);
 }
 
-/// A splat's box in tile-local pixels, and the test that skips the box's rows the α ≥ 1/255
-/// ellipse misses; false when the box misses the tile.
+/// Lanes are a block of the tile: kBlockW columns × (lanes / kBlockW) rows (4×4 with
+/// AVX-512, 4×2 with AVX2, 4×1 with SSE4), so a small splat takes a few blocks where it
+/// took one instruction per row. Tile-local arrays inside the kernel are block-major
+/// (block b's lanes at b·lanes …); they are converted from and to the row-major layout of
+/// the interface once per tile.
+struct BlockLayout {
+  int lanes, bw, bh, blocks_x;  // lanes per block, block width and height, blocks per tile row
+  BlockLayout() : lanes(int(hn::Lanes(D()))), bw(std::min(4, lanes)), bh(lanes / bw), blocks_x(kTileSize / bw) {}
+  /// Row-major tile pixel of lane j of the block at (bx, by).
+  int pixel(int bx, int by, int j) const { return (by * bh + j / bw) * kTileSize + bx * bw + j % bw; }
+  int base(int bx, int by) const { return (by * blocks_x + bx) * lanes; }
+  /// Block-major copy of row-major planes (count planes of kTilePixels), and back.
+  template <typename T>
+  void to_blocks(const T* rows, T* blocks, int planes) const {
+    for (int p = 0; p < planes; ++p)
+      for (int by = 0; by < kTileSize / bh; ++by)
+        for (int bx = 0; bx < blocks_x; ++bx)
+          for (int j = 0; j < lanes; ++j)
+            blocks[p * kTilePixels + base(bx, by) + j] = rows[p * kTilePixels + pixel(bx, by, j)];
+  }
+  template <typename T>
+  void to_rows(const T* blocks, T* rows, int planes) const {
+    for (int p = 0; p < planes; ++p)
+      for (int by = 0; by < kTileSize / bh; ++by)
+        for (int bx = 0; bx < blocks_x; ++bx)
+          for (int j = 0; j < lanes; ++j)
+            rows[p * kTilePixels + pixel(bx, by, j)] = blocks[p * kTilePixels + base(bx, by) + j];
+  }
+};
+
+/// A splat's pixels in a tile: its box (raster_internal.hpp's pixel_box, which bounds the
+/// α ≥ 1/255 ellipse with a pixel of margin) cut to the ellipse's own bounding box. Along x
+/// the ellipse dᵀΣ⁻¹d ≤ r² spans |dx| ≤ r / sqrt(a − b²/c), along y |dy| ≤ r / sqrt(c − b²/a),
+/// with r² = 2 ln(255 o); r² is loosened by 0.1% so that rounding never cuts a pixel the
+/// scalar kernel would blend. False when nothing is left.
 struct LocalBox {
   int lx0, lx1, ly0, ly1;
-  // Row test: along a row at offset dy, the quadratic dᵀΣ⁻¹d is at least (c − b²/a)·dy², and
-  // α ≥ 1/255 needs it ≤ 2 ln(255 o). The box bounds the ellipse with a pixel of margin on
-  // each side; the test removes those rows (a third of a small splat's). Loosened by 0.1%
-  // so that rounding never drops a row the scalar kernel would blend.
-  float row_q = 0, row_limit = 0;
-  bool row_empty(float dy) const { return dy * dy * row_q > row_limit; }
+  uint64_t box_pixels;  // pixels of pixel_box's box before the cut (the scalar kernel's work)
 };
 inline bool local_box(const TileSplats<float>& S, uint32_t i, const TileWork& t, LocalBox* b) {
   const float* sd = &S.splat[6 * size_t(i)];
   int px0, px1, py0, py1;
   internal::pixel_box(sd[0], sd[1], S.extent[2 * i], S.extent[2 * i + 1], t.x0, t.y0, t.x1, t.y1, &px0, &px1, &py0, &py1);
-  b->lx0 = px0 - t.x0, b->lx1 = px1 - t.x0, b->ly0 = py0 - t.y0, b->ly1 = py1 - t.y0;
+  b->box_pixels = px0 <= px1 && py0 <= py1 ? uint64_t(px1 - px0 + 1) * uint64_t(py1 - py0 + 1) : 0;
   const float a = sd[2], bb = sd[3], c = sd[4];
-  if (a > 0.0f && sd[5] > 0.0f) {
-    b->row_q = c - bb * bb / a;
-    b->row_limit = 2.0f * std::log(std::max(255.0f * sd[5], 1.0f)) * 1.001f + 1e-3f;
-  } else {
-    b->row_q = 0.0f, b->row_limit = 1.0f;  // never skips
+  const float qx = a - bb * bb / c, qy = c - bb * bb / a;
+  if (a > 0.0f && c > 0.0f && qx > 0.0f && qy > 0.0f && sd[5] > 0.0f) {
+    const float r2 = 2.0f * std::log(std::max(255.0f * sd[5], 1.0f)) * 1.001f + 1e-3f;
+    const float hx = std::sqrt(r2 / qx), hy = std::sqrt(r2 / qy);
+    px0 = std::max(px0, int(std::ceil(sd[0] - hx)));
+    px1 = std::min(px1, int(std::floor(sd[0] + hx)));
+    py0 = std::max(py0, int(std::ceil(sd[1] - hy)));
+    py1 = std::min(py1, int(std::floor(sd[1] + hy)));
   }
+  b->lx0 = px0 - t.x0, b->lx1 = px1 - t.x0, b->ly0 = py0 - t.y0, b->ly1 = py1 - t.y0;
   return px0 <= px1 && py0 <= py1;
 }
 
-/// One splat broadcast to the lanes: the geometry both passes evaluate, row by row.
+/// One splat broadcast to the lanes: the geometry both passes evaluate, block by block.
 struct SplatLanes {
-  hn::Vec<D> mx, ca, cb, cc, opacity;
-  hn::Vec<DI> box_lo, box_hi, x0;  // integer lanes compare strictly only (Highway 1.0)
-  hn::Vec<D> cdy2, bdy, dy;        // the current row's terms
+  hn::Vec<D> mx, my, ca, cb, cc, opacity;
+  hn::Vec<DI> x_lo, x_hi, y_lo, y_hi;  // integer lanes compare strictly only (Highway 1.0)
   SplatLanes(const float* sd, const LocalBox& b, const TileWork& tile)
-      : mx(hn::Set(D(), sd[0])), ca(hn::Set(D(), sd[2])), cb(hn::Set(D(), sd[3])), cc(hn::Set(D(), sd[4])),
-        opacity(hn::Set(D(), sd[5])), box_lo(hn::Set(DI(), b.lx0 - 1)), box_hi(hn::Set(DI(), b.lx1 + 1)),
-        x0(hn::Set(DI(), tile.x0)), cdy2(hn::Zero(D())), bdy(hn::Zero(D())), dy(hn::Zero(D())) {}
-  void set_row(float dy_row) {
-    dy = hn::Set(D(), dy_row);
-    cdy2 = hn::Mul(cc, hn::Mul(dy, dy));
-    bdy = hn::Mul(cb, dy);
+      : mx(hn::Set(D(), sd[0] - float(tile.x0))), my(hn::Set(D(), sd[1] - float(tile.y0))), ca(hn::Set(D(), sd[2])),
+        cb(hn::Set(D(), sd[3])), cc(hn::Set(D(), sd[4])), opacity(hn::Set(D(), sd[5])), x_lo(hn::Set(DI(), b.lx0 - 1)),
+        x_hi(hn::Set(DI(), b.lx1 + 1)), y_lo(hn::Set(DI(), b.ly0 - 1)), y_hi(hn::Set(DI(), b.ly1 + 1)) {}
+  hn::Mask<DI> in_box(hn::Vec<DI> lx, hn::Vec<DI> ly) const {
+    return hn::And(hn::And(hn::Gt(lx, x_lo), hn::Lt(lx, x_hi)), hn::And(hn::Gt(ly, y_lo), hn::Lt(ly, y_hi)));
   }
-  /// Tile-local columns lx inside the box.
-  hn::Mask<DI> in_box(hn::Vec<DI> lx) const { return hn::And(hn::Gt(lx, box_lo), hn::Lt(lx, box_hi)); }
-  /// Mean minus pixel along x, as the scalar kernel computes it.
-  hn::Vec<D> dx(hn::Vec<DI> lx) const { return hn::Sub(mx, hn::ConvertTo(D(), hn::Add(lx, x0))); }
-  /// −½ dᵀΣ⁻¹d.
-  hn::Vec<D> power(hn::Vec<D> dxv) const {
-    return hn::NegMulAdd(bdy, dxv, hn::Mul(hn::Set(D(), -0.5f), hn::MulAdd(hn::Mul(ca, dxv), dxv, cdy2)));
+  /// −½ dᵀΣ⁻¹d for offsets mean − pixel (tile-local: exact in float for tile offsets < 2^24).
+  hn::Vec<D> power(hn::Vec<D> dx, hn::Vec<D> dy) const {
+    const auto quad = hn::MulAdd(hn::Mul(ca, dx), dx, hn::Mul(hn::Mul(cc, dy), dy));
+    return hn::NegMulAdd(hn::Mul(cb, dx), dy, hn::Mul(hn::Set(D(), -0.5f), quad));
   }
 };
 
-/// Visits the box's rows the splat's ellipse reaches, a row chunk at a time:
-/// visit(l, lx) with l the chunk's first tile-local pixel and lx its lanes' columns.
+/// Visits the blocks of a splat's box: visit(l, lx, ly, dx, dy) with l the block's first
+/// (block-major) index, lx/ly its lanes' tile-local columns and rows, dx/dy mean − pixel.
 template <class Visit>
-HWY_INLINE void for_each_chunk(const LocalBox& b, float mean_y, const TileWork& tile, SplatLanes& g, Visit&& visit) {
+HWY_INLINE void for_each_block(const BlockLayout& L, const LocalBox& b, const SplatLanes& g, Visit&& visit) {
   const DI di;
-  const int N = int(hn::Lanes(D()));
-  const auto iota = hn::Iota(di, 0);
-  for (int ly = b.ly0; ly <= b.ly1; ++ly) {
-    const float dy_row = mean_y - float(tile.y0 + ly);
-    if (b.row_empty(dy_row)) continue;
-    g.set_row(dy_row);
-    for (int cx = (b.lx0 / N) * N; cx <= b.lx1; cx += N) visit(ly * kTileSize + cx, hn::Add(hn::Set(di, cx), iota));
+  const D d;
+  HWY_ALIGN int32_t col[kTileSize], row[kTileSize];
+  for (int j = 0; j < L.lanes; ++j) col[j] = j % L.bw, row[j] = j / L.bw;
+  const auto lane_col = hn::Load(di, col), lane_row = hn::Load(di, row);
+  for (int by = b.ly0 / L.bh; by <= b.ly1 / L.bh; ++by) {
+    const auto ly = hn::Add(hn::Set(di, by * L.bh), lane_row);
+    const auto dy = hn::Sub(g.my, hn::ConvertTo(d, ly));
+    for (int bx = b.lx0 / L.bw; bx <= b.lx1 / L.bw; ++bx) {
+      const auto lx = hn::Add(hn::Set(di, bx * L.bw), lane_col);
+      visit(L.base(bx, by), lx, ly, hn::Sub(g.mx, hn::ConvertTo(d, lx)), dy);
+    }
   }
 }
 
 void ForwardTile(const TileSplats<float>& S, const TileWork& tile, const TileForward<float>& out) {
   const D d;
   const DI di;
-  const int N = int(hn::Lanes(d));
+  const BlockLayout L;
+  const int N = L.lanes;
   const int C = S.C;
   const int npix = (tile.x1 - tile.x0) * (tile.y1 - tile.y0);
-  HWY_ALIGN int32_t done[kTilePixels];
-  HWY_ALIGN float wbuf[kTileSize];
-  std::fill(out.T, out.T + kTilePixels, 1.0f);
-  std::fill(out.acc, out.acc + size_t(C) * kTilePixels, 0.0f);
+  HWY_ALIGN int32_t done[kTilePixels], last[kTilePixels];
+  HWY_ALIGN float T[kTilePixels], wbuf[kTileSize];
+  HWY_ALIGN int32_t lxbuf[kTileSize], lybuf[kTileSize];
+  std::vector<float> acc(size_t(C) * kTilePixels, 0.0f);  // block-major
+  std::fill(T, T + kTilePixels, 1.0f);
   std::fill(done, done + kTilePixels, 0);
-  if (out.last) std::fill(out.last, out.last + kTilePixels, 0u);
-  int32_t* last = reinterpret_cast<int32_t*>(out.last);
+  std::fill(last, last + kTilePixels, 0);
   const auto zero = hn::Zero(d), one = hn::Set(d, 1.0f);
   const auto max_alpha = hn::Set(d, kMaxAlpha), min_alpha = hn::Set(d, kMinAlpha), min_T = hn::Set(d, kMinTransmittance);
   int n_done = 0;
@@ -138,64 +169,73 @@ void ForwardTile(const TileSplats<float>& S, const TileWork& tile, const TileFor
     }
     const uint32_t i = tile.entries[k];
     LocalBox b;
-    if (!local_box(S, i, tile, &b)) {
+    const bool inside = local_box(S, i, tile, &b);
+    if (out.box_pixels) *out.box_pixels += b.box_pixels;
+    if (!inside) {
       if (out.entry_max) out.entry_max[k] = 0.0f;
       continue;
     }
-    if (out.box_pixels) *out.box_pixels += uint64_t(b.lx1 - b.lx0 + 1) * uint64_t(b.ly1 - b.ly0 + 1);
-    const float* sd = &S.splat[6 * size_t(i)];
     const float* ch = &S.channels[size_t(i) * C];
-    SplatLanes g(sd, b, tile);
+    const SplatLanes g(&S.splat[6 * size_t(i)], b, tile);
     const auto entry = hn::Set(di, int32_t(k + 1));
     auto emax = zero;
-    for_each_chunk(b, sd[1], tile, g, [&](int l, hn::Vec<DI> lx) {
-        auto live = hn::RebindMask(d, hn::And(g.in_box(lx), hn::Eq(hn::LoadU(di, done + l), hn::Zero(di))));
-        if (hn::AllFalse(d, live)) return;
-        const auto power = g.power(g.dx(lx));
-        const auto alpha = hn::Min(max_alpha, hn::Mul(g.opacity, ExpNonPositive(d, hn::Min(power, zero))));
-        // No branch on the exp's result: lanes that fail only stop storing (a mispredicted
-        // branch here costs more than the stores it would save).
-        live = hn::And(live, hn::And(hn::Le(power, zero), hn::Ge(alpha, min_alpha)));
-        const auto T = hn::LoadU(d, out.T + l);
-        const auto test_T = hn::Mul(T, hn::Sub(one, alpha));
-        const auto stop = hn::And(live, hn::Lt(test_T, min_T));
-        if (!hn::AllFalse(d, stop)) {
-          n_done += int(hn::CountTrue(d, stop));
-          hn::StoreU(hn::Or(hn::LoadU(di, done + l), hn::VecFromMask(di, hn::RebindMask(di, stop))), di, done + l);
-        }
-        const auto accept = hn::AndNot(stop, live);
-        const auto w = hn::IfThenElseZero(accept, hn::Mul(alpha, T));
-        for (int c = 0; c < C; ++c) {
-          float* a = out.acc + size_t(c) * kTilePixels + l;
-          hn::StoreU(hn::MulAdd(hn::Set(d, ch[c]), w, hn::LoadU(d, a)), d, a);
-        }
-        hn::StoreU(hn::IfThenElse(accept, test_T, T), d, out.T + l);
-        if (last) hn::StoreU(hn::IfThenElse(hn::RebindMask(di, accept), entry, hn::LoadU(di, last + l)), di, last + l);
-        emax = hn::Max(emax, w);
-        if (out.contributors) {
-          hn::Store(w, d, wbuf);
-          for (int j = 0; j < N; ++j)
-            if (wbuf[j] > 0.0f) {
-              out.contributors->entry.push_back(i);
-              out.contributors->weight.push_back(wbuf[j]);
-              out.contributors->pixel.push_back(uint16_t(l + j));
-            }
-        }
+    for_each_block(L, b, g, [&](int l, hn::Vec<DI> lx, hn::Vec<DI> ly, hn::Vec<D> dx, hn::Vec<D> dy) {
+      auto live = hn::RebindMask(d, hn::And(g.in_box(lx, ly), hn::Eq(hn::LoadU(di, done + l), hn::Zero(di))));
+      if (hn::AllFalse(d, live)) return;
+      const auto power = g.power(dx, dy);
+      const auto alpha = hn::Min(max_alpha, hn::Mul(g.opacity, ExpNonPositive(d, hn::Min(power, zero))));
+      // No branch on the exp's result: lanes that fail only stop storing (a mispredicted
+      // branch here costs more than the stores it would save).
+      live = hn::And(live, hn::And(hn::Le(power, zero), hn::Ge(alpha, min_alpha)));
+      const auto Tv = hn::LoadU(d, T + l);
+      const auto test_T = hn::Mul(Tv, hn::Sub(one, alpha));
+      const auto stop = hn::And(live, hn::Lt(test_T, min_T));
+      if (!hn::AllFalse(d, stop)) {
+        n_done += int(hn::CountTrue(d, stop));
+        hn::StoreU(hn::Or(hn::LoadU(di, done + l), hn::VecFromMask(di, hn::RebindMask(di, stop))), di, done + l);
+      }
+      const auto accept = hn::AndNot(stop, live);
+      const auto w = hn::IfThenElseZero(accept, hn::Mul(alpha, Tv));
+      for (int c = 0; c < C; ++c) {
+        float* a = acc.data() + size_t(c) * kTilePixels + l;
+        hn::StoreU(hn::MulAdd(hn::Set(d, ch[c]), w, hn::LoadU(d, a)), d, a);
+      }
+      hn::StoreU(hn::IfThenElse(accept, test_T, Tv), d, T + l);
+      hn::StoreU(hn::IfThenElse(hn::RebindMask(di, accept), entry, hn::LoadU(di, last + l)), di, last + l);
+      emax = hn::Max(emax, w);
+      if (out.contributors) {
+        hn::StoreU(w, d, wbuf);
+        hn::StoreU(lx, di, lxbuf);
+        hn::StoreU(ly, di, lybuf);
+        for (int j = 0; j < N; ++j)
+          if (wbuf[j] > 0.0f) {
+            out.contributors->entry.push_back(i);
+            out.contributors->weight.push_back(wbuf[j]);
+            out.contributors->pixel.push_back(uint16_t(lybuf[j] * kTileSize + lxbuf[j]));
+          }
+      }
     });
     if (out.entry_max) out.entry_max[k] = hn::GetLane(hn::MaxOfLanes(d, emax));
   }
+  L.to_rows(T, out.T, 1);
+  L.to_rows(acc.data(), out.acc, C);
+  if (out.last) L.to_rows(reinterpret_cast<const uint32_t*>(last), out.last, 1);
 }
 
 void BackwardTile(const TileSplats<float>& S, const TileWork& tile, const TileBackward& io) {
   const D d;
   const DI di;
-  const int N = int(hn::Lanes(d));
+  const BlockLayout L;
+  const int N = L.lanes;
   const int C = S.C, R = 6 + C;
-  HWY_ALIGN float T[kTilePixels];
-  std::copy(io.final_T, io.final_T + kTilePixels, T);
-  std::vector<float> behind(size_t(C) * kTilePixels, 0.0f);
+  HWY_ALIGN float T[kTilePixels], final_T[kTilePixels];
+  HWY_ALIGN int32_t last[kTilePixels];
+  L.to_blocks(io.final_T, final_T, 1);
+  std::copy(final_T, final_T + kTilePixels, T);
+  L.to_blocks(reinterpret_cast<const int32_t*>(io.last), last, 1);
+  std::vector<float> dpix(size_t(C) * kTilePixels), behind(size_t(C) * kTilePixels, 0.0f);  // block-major
+  L.to_blocks(io.dpix, dpix.data(), C);
   std::vector<float> channel_acc(size_t(C) * N);  // per channel, lanes
-  const int32_t* last = reinterpret_cast<const int32_t*>(io.last);
   const auto zero = hn::Zero(d), one = hn::Set(d, 1.0f), minus_half = hn::Set(d, -0.5f);
   const auto max_alpha = hn::Set(d, kMaxAlpha), min_alpha = hn::Set(d, kMinAlpha);
   for (uint32_t k = tile.count; k-- > 0;) {
@@ -206,51 +246,49 @@ void BackwardTile(const TileSplats<float>& S, const TileWork& tile, const TileBa
       std::fill(rec, rec + R, 0.0f);
       continue;
     }
-    const float* sd = &S.splat[6 * size_t(i)];
     const float* ch = &S.channels[size_t(i) * C];
-    SplatLanes g(sd, b, tile);
+    const SplatLanes g(&S.splat[6 * size_t(i)], b, tile);
     const auto entry = hn::Set(di, int32_t(k));
     auto g_u = zero, g_v = zero, g_a = zero, g_b = zero, g_c = zero, g_o = zero;
     std::fill(channel_acc.begin(), channel_acc.end(), 0.0f);
-    for_each_chunk(b, sd[1], tile, g, [&](int l, hn::Vec<DI> lx) {
-        // Reached by the forward: entries [0, last) of the tile were blended at this pixel.
-        auto live = hn::RebindMask(d, hn::And(g.in_box(lx), hn::Lt(entry, hn::LoadU(di, last + l))));
-        if (hn::AllFalse(d, live)) return;
-        const auto dx = g.dx(lx);
-        const auto power = g.power(dx);
-        const auto gauss = ExpNonPositive(d, hn::Min(power, zero));
-        const auto oG = hn::Mul(g.opacity, gauss);
-        const auto alpha = hn::Min(max_alpha, oG);
-        live = hn::And(live, hn::And(hn::Le(power, zero), hn::Ge(alpha, min_alpha)));
-        const auto transparency = hn::Sub(one, alpha);
-        const auto inv_transparency = hn::Div(one, transparency);  // one division for T and the background
-        const auto T_here = hn::LoadU(d, T + l);
-        const auto T_front = hn::Mul(T_here, inv_transparency);  // transmittance in front of this Gaussian
-        hn::StoreU(hn::IfThenElse(live, T_front, T_here), d, T + l);
-        const auto w = hn::IfThenElseZero(live, hn::Mul(alpha, T_front));
-        auto dL_dalpha = zero, bg_dot = zero;
-        for (int c = 0; c < C; ++c) {
-          const auto dpix = hn::LoadU(d, io.dpix + size_t(c) * kTilePixels + l);
-          float* ca_c = channel_acc.data() + size_t(c) * N;
-          hn::StoreU(hn::MulAdd(w, dpix, hn::LoadU(d, ca_c)), d, ca_c);
-          float* bp = behind.data() + size_t(c) * kTilePixels + l;
-          const auto bh = hn::LoadU(d, bp), chv = hn::Set(d, ch[c]);
-          dL_dalpha = hn::MulAdd(hn::Sub(chv, bh), dpix, dL_dalpha);
-          hn::StoreU(hn::IfThenElse(live, hn::MulAdd(alpha, chv, hn::Mul(transparency, bh)), bh), d, bp);
-          if (c < 3) bg_dot = hn::MulAdd(hn::Set(d, io.background[c]), dpix, bg_dot);
-        }
-        const auto bg_term = hn::Neg(hn::Mul(hn::LoadU(d, io.final_T + l), inv_transparency));
-        dL_dalpha = hn::MulAdd(bg_term, bg_dot, hn::Mul(dL_dalpha, T_front));
-        // α clamped at 0.99: no gradient through the opacity or the Gaussian's shape.
-        dL_dalpha = hn::IfThenElseZero(hn::AndNot(hn::Gt(oG, max_alpha), live), dL_dalpha);
-        g_o = hn::MulAdd(gauss, dL_dalpha, g_o);
-        const auto dp = hn::Mul(alpha, dL_dalpha);  // dL/dpower
-        g_u = hn::NegMulAdd(dp, hn::MulAdd(g.ca, dx, g.bdy), g_u);
-        g_v = hn::NegMulAdd(dp, hn::MulAdd(g.cb, dx, hn::Mul(g.cc, g.dy)), g_v);
-        const auto half_dp = hn::Mul(minus_half, dp);
-        g_a = hn::MulAdd(half_dp, hn::Mul(dx, dx), g_a);
-        g_b = hn::NegMulAdd(dp, hn::Mul(dx, g.dy), g_b);
-        g_c = hn::MulAdd(half_dp, hn::Mul(g.dy, g.dy), g_c);
+    for_each_block(L, b, g, [&](int l, hn::Vec<DI> lx, hn::Vec<DI> ly, hn::Vec<D> dx, hn::Vec<D> dy) {
+      // Reached by the forward: entries [0, last) of the tile were blended at this pixel.
+      auto live = hn::RebindMask(d, hn::And(g.in_box(lx, ly), hn::Lt(entry, hn::LoadU(di, last + l))));
+      if (hn::AllFalse(d, live)) return;
+      const auto power = g.power(dx, dy);
+      const auto gauss = ExpNonPositive(d, hn::Min(power, zero));
+      const auto oG = hn::Mul(g.opacity, gauss);
+      const auto alpha = hn::Min(max_alpha, oG);
+      live = hn::And(live, hn::And(hn::Le(power, zero), hn::Ge(alpha, min_alpha)));
+      const auto transparency = hn::Sub(one, alpha);
+      const auto inv_transparency = hn::Div(one, transparency);  // one division for T and the background
+      const auto T_here = hn::LoadU(d, T + l);
+      const auto T_front = hn::Mul(T_here, inv_transparency);  // transmittance in front of this Gaussian
+      hn::StoreU(hn::IfThenElse(live, T_front, T_here), d, T + l);
+      const auto w = hn::IfThenElseZero(live, hn::Mul(alpha, T_front));
+      auto dL_dalpha = zero, bg_dot = zero;
+      for (int c = 0; c < C; ++c) {
+        const auto dp_c = hn::LoadU(d, dpix.data() + size_t(c) * kTilePixels + l);
+        float* ca_c = channel_acc.data() + size_t(c) * N;
+        hn::StoreU(hn::MulAdd(w, dp_c, hn::LoadU(d, ca_c)), d, ca_c);
+        float* bp = behind.data() + size_t(c) * kTilePixels + l;
+        const auto bh = hn::LoadU(d, bp), chv = hn::Set(d, ch[c]);
+        dL_dalpha = hn::MulAdd(hn::Sub(chv, bh), dp_c, dL_dalpha);
+        hn::StoreU(hn::IfThenElse(live, hn::MulAdd(alpha, chv, hn::Mul(transparency, bh)), bh), d, bp);
+        if (c < 3) bg_dot = hn::MulAdd(hn::Set(d, io.background[c]), dp_c, bg_dot);
+      }
+      const auto bg_term = hn::Neg(hn::Mul(hn::LoadU(d, final_T + l), inv_transparency));
+      dL_dalpha = hn::MulAdd(bg_term, bg_dot, hn::Mul(dL_dalpha, T_front));
+      // α clamped at 0.99: no gradient through the opacity or the Gaussian's shape.
+      dL_dalpha = hn::IfThenElseZero(hn::AndNot(hn::Gt(oG, max_alpha), live), dL_dalpha);
+      g_o = hn::MulAdd(gauss, dL_dalpha, g_o);
+      const auto dp = hn::Mul(alpha, dL_dalpha);  // dL/dpower
+      g_u = hn::NegMulAdd(dp, hn::MulAdd(g.ca, dx, hn::Mul(g.cb, dy)), g_u);
+      g_v = hn::NegMulAdd(dp, hn::MulAdd(g.cb, dx, hn::Mul(g.cc, dy)), g_v);
+      const auto half_dp = hn::Mul(minus_half, dp);
+      g_a = hn::MulAdd(half_dp, hn::Mul(dx, dx), g_a);
+      g_b = hn::NegMulAdd(dp, hn::Mul(dx, dy), g_b);
+      g_c = hn::MulAdd(half_dp, hn::Mul(dy, dy), g_c);
     });
     rec[0] = hn::GetLane(hn::SumOfLanes(d, g_u));
     rec[1] = hn::GetLane(hn::SumOfLanes(d, g_v));
