@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "fillgs/error.hpp"
+#include "motion_keys.hpp"
 
 namespace fillgs {
 
@@ -133,9 +134,8 @@ KeyPosition locate_key(const KeyframedMotion& k, double t) {
     const int i = std::clamp(int(std::floor(u)), 1, K - 3);
     return {i, float(u - i), u};
   }
-  const double uc = std::clamp(u, 0.0, double(K - 1));
-  const int i = std::min(int(std::floor(uc)), K - 2);
-  return {i, float(uc - i), u};
+  const keys::KeySpot ks = keys::key_spot(k.first_key_time, k.key_spacing, K, t);
+  return {ks.i, float(ks.s), u};
 }
 
 float pchip_tangent(float prev, float cur, float next) {
@@ -154,15 +154,15 @@ Vec3f interpolate_position(const KeyframedMotion& k, const float* P, const KeyPo
   const float s = kp.s;
   if (k.position_interp == KeyInterp::Linear) return p0 + s * (p1 - p0);
   const Vec3f pm = key(kp.i - 1), p2 = key(kp.i + 2);
+  if (k.position_interp == KeyInterp::CatmullRom) {  // the trainable path's weights (motion_keys.hpp)
+    float w[4];
+    keys::catmull_rom_weights(s, w);
+    return w[0] * pm + w[1] * p0 + w[2] * p1 + w[3] * p2;
+  }
   Vec3f m0, m1;
-  if (k.position_interp == KeyInterp::CatmullRom) {
-    m0 = 0.5f * (p1 - pm);
-    m1 = 0.5f * (p2 - p0);
-  } else {
-    for (int c = 0; c < 3; ++c) {
-      m0[c] = pchip_tangent(pm[c], p0[c], p1[c]);
-      m1[c] = pchip_tangent(p0[c], p1[c], p2[c]);
-    }
+  for (int c = 0; c < 3; ++c) {
+    m0[c] = pchip_tangent(pm[c], p0[c], p1[c]);
+    m1[c] = pchip_tangent(p0[c], p1[c], p2[c]);
   }
   const float s2 = s * s, s3 = s2 * s;
   const float h00 = 2 * s3 - 3 * s2 + 1, h10 = s3 - 2 * s2 + s, h01 = -2 * s3 + 3 * s2, h11 = s3 - s2;
@@ -193,8 +193,12 @@ DynamicState evaluate_keyframed(const GaussianCloud& c, size_t j, double t) {
     const float* Q = &k.rotations[j * K * 4];
     const Vec4f q0(Q[4 * kp.i], Q[4 * kp.i + 1], Q[4 * kp.i + 2], Q[4 * kp.i + 3]);
     const Vec4f q1(Q[4 * i1], Q[4 * i1 + 1], Q[4 * i1 + 2], Q[4 * i1 + 3]);
-    st.rotation = k.ex4dgs_edges ? slerp_ex4dgs(q0, q1, kp.s)
-                                 : slerp_shortest(normalize_quat(q0), normalize_quat(q1), kp.s);
+    if (k.ex4dgs_edges) {
+      st.rotation = slerp_ex4dgs(q0, q1, kp.s);
+    } else {  // the trainable path's slerp (motion_keys.hpp)
+      keys::Slerp<float> slerp;
+      slerp.forward(q0.data(), q1.data(), kp.s, st.rotation.data());
+    }
   } else {
     st.rotation = normalize_quat(c.rotations[g]);
   }

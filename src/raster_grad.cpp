@@ -20,28 +20,41 @@ namespace fillgs {
 
 template <typename Real>
 SplatProjection<Real> project_splat(const Real* mean, const Real* scale, const Real* rotation, const Camera& cam) {
-  using V3 = Eigen::Matrix<Real, 3, 1>;
-  using M3 = Eigen::Matrix<Real, 3, 3>;
   SplatProjection<Real> out;
-  const M3 W = cam.R.cast<Real>();
-  const V3 p = W * V3(mean[0], mean[1], mean[2]) + cam.t.cast<Real>();
-  if (!(p.z() > Real(kNearPlane))) return out;
-  const M3 Rg = quat_to_matrix<Real>(Eigen::Matrix<Real, 4, 1>(rotation[0], rotation[1], rotation[2], rotation[3]));
-  const V3 s2 = V3(scale[0], scale[1], scale[2]).array().square();
-  const M3 cov3 = Rg * s2.asDiagonal() * Rg.transpose();
-  const Real fx = Real(cam.fx), fy = Real(cam.fy);
+  // Written out rather than with Eigen products: this runs for every Gaussian of every
+  // render (the priority renders 15 views per viewpoint), and Σ2 = (T·M)(T·M)ᵀ with
+  // M = R·S and T = J·W takes half the operations of T·(R S² Rᵀ)·Tᵀ.
+  Real W[3][3];
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) W[r][c] = Real(cam.R(r, c));
+  Real p[3];
+  for (int r = 0; r < 3; ++r) p[r] = W[r][0] * mean[0] + W[r][1] * mean[1] + W[r][2] * mean[2] + Real(cam.t[r]);
+  if (!(p[2] > Real(kNearPlane))) return out;
+  const Real qw = rotation[0], qx = rotation[1], qy = rotation[2], qz = rotation[3];
+  const Real R[3][3] = {{Real(1) - Real(2) * (qy * qy + qz * qz), Real(2) * (qx * qy - qw * qz), Real(2) * (qx * qz + qw * qy)},
+                        {Real(2) * (qx * qy + qw * qz), Real(1) - Real(2) * (qx * qx + qz * qz), Real(2) * (qy * qz - qw * qx)},
+                        {Real(2) * (qx * qz - qw * qy), Real(2) * (qy * qz + qw * qx), Real(1) - Real(2) * (qx * qx + qy * qy)}};
+  const Real fx = Real(cam.fx), fy = Real(cam.fy), z = p[2];
   const Real limx = Real(1.3) * Real(cam.width / (2.0 * cam.fx)), limy = Real(1.3) * Real(cam.height / (2.0 * cam.fy));
-  const Real tx = std::clamp(p.x() / p.z(), -limx, limx) * p.z();
-  const Real ty = std::clamp(p.y() / p.z(), -limy, limy) * p.z();
-  Eigen::Matrix<Real, 2, 3> J;
-  J << fx / p.z(), Real(0), -(fx * tx) / (p.z() * p.z()), Real(0), fy / p.z(), -(fy * ty) / (p.z() * p.z());
-  const Eigen::Matrix<Real, 2, 3> T = J * W;
-  const Eigen::Matrix<Real, 2, 2> cov = T * cov3 * T.transpose();
-  const Real a = cov(0, 0) + Real(kDilation), b = cov(0, 1), c = cov(1, 1) + Real(kDilation);
+  const Real tx = std::clamp(p[0] / z, -limx, limx) * z;
+  const Real ty = std::clamp(p[1] / z, -limy, limy) * z;
+  // T = J·W, J = [[fx/z, 0, −fx·tx/z²], [0, fy/z, −fy·ty/z²]].
+  const Real j00 = fx / z, j02 = -(fx * tx) / (z * z), j11 = fy / z, j12 = -(fy * ty) / (z * z);
+  Real T0[3], T1[3];
+  for (int c = 0; c < 3; ++c) T0[c] = j00 * W[0][c] + j02 * W[2][c], T1[c] = j11 * W[1][c] + j12 * W[2][c];
+  // U = T·R·S (2×3); Σ2 = U Uᵀ.
+  Real U0[3], U1[3];
+  for (int k = 0; k < 3; ++k) {
+    U0[k] = (T0[0] * R[0][k] + T0[1] * R[1][k] + T0[2] * R[2][k]) * scale[k];
+    U1[k] = (T1[0] * R[0][k] + T1[1] * R[1][k] + T1[2] * R[2][k]) * scale[k];
+  }
+  const Real a = U0[0] * U0[0] + U0[1] * U0[1] + U0[2] * U0[2] + Real(kDilation);
+  const Real b = U0[0] * U1[0] + U0[1] * U1[1] + U0[2] * U1[2];
+  const Real c = U1[0] * U1[0] + U1[1] * U1[1] + U1[2] * U1[2] + Real(kDilation);
   const Real det = a * c - b * b;
   if (!(det > Real(0)) || !std::isfinite(det)) return out;
-  out.u = fx * p.x() / p.z() + Real(cam.cx) - Real(0.5);
-  out.v = fy * p.y() / p.z() + Real(cam.cy) - Real(0.5);
+  out.u = fx * p[0] / z + Real(cam.cx) - Real(0.5);
+  out.v = fy * p[1] / z + Real(cam.cy) - Real(0.5);
   if (!std::isfinite(out.u) || !std::isfinite(out.v)) return out;
   out.cov[0] = a;
   out.cov[1] = b;
@@ -49,7 +62,7 @@ SplatProjection<Real> project_splat(const Real* mean, const Real* scale, const R
   out.conic[0] = c / det;
   out.conic[1] = -b / det;
   out.conic[2] = a / det;
-  out.depth = p.z();
+  out.depth = z;
   out.valid = true;
   return out;
 }
@@ -311,74 +324,19 @@ bool DiffRasterizer<Real>::uses_simd() const {
 // ---------------------------------------------------------------------------------
 // Backward: tiles back to front, recovering T by division like the CUDA backward.
 
-namespace {
-
-/// One accepted (Gaussian, pixel) pair met back to front, with what both passes need.
-template <typename Real>
-struct Pair {
-  Real dx, dy;        // mean minus pixel
-  Real gauss;         // exp(power)
-  Real alpha;
-  bool clamped;       // α hit 0.99: no gradient through o or G
-  Real T;             // transmittance in front of this Gaussian
-  const Real* behind; // per channel: colour blended behind it, relative to T·(1−α)
-  Real bg_term;       // −T_final / (1 − α), times the background in the caller
-};
-
-}  // namespace
-
 template <typename Real>
 template <typename MakeVisitor>
 void DiffRasterizer<Real>::backward_tiles(MakeVisitor&& make_visitor) const {
-  const int W = width_, H = height_, C = channels_;
   const size_t tiles = tile_start_.empty() ? 0 : tile_start_.size() - 1;
+  const tiles::TileSplats<Real> splats{splat_data_.data(), half_extent_.data(), colour_.data(), channels_};
   tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
-      constexpr int P = kTileSize * kTileSize;
-      Real T[P];
-      std::vector<Real> behind(size_t(P) * C);
       auto visitor = make_visitor();
-      for (size_t t = r.begin(); t < r.end(); ++t) {
-        const int x0 = int(t % grid_x_) * kTileSize, y0 = int(t / grid_x_) * kTileSize;
-        const int x1 = std::min(x0 + kTileSize, W), y1 = std::min(y0 + kTileSize, H);
-        for (int py = y0; py < y1; ++py)
-          for (int px = x0; px < x1; ++px) T[(py - y0) * kTileSize + (px - x0)] = final_T_[size_t(py) * W + px];
-        std::fill(behind.begin(), behind.end(), Real(0));
-        for (uint64_t e = tile_start_[t + 1]; e-- > tile_start_[t];) {
-          const uint32_t i = keys_[e];
-          const uint32_t local = uint32_t(e - tile_start_[t]);
-          const Real* sd = &splat_data_[6 * i];
-          const Real* ch = &colour_[size_t(i) * C];
-          int px0, px1, py0, py1;
-          internal::pixel_box(float(sd[0]), float(sd[1]), half_extent_[2 * i], half_extent_[2 * i + 1], x0, y0, x1, y1, &px0, &px1, &py0, &py1);
-          visitor.begin(e, i);
-          for (int py = py0; py <= py1; ++py)
-            for (int px = px0; px <= px1; ++px) {
-              const size_t o = size_t(py) * W + px;
-              if (local >= last_entry_[o]) continue;  // the forward stopped this pixel before it
-              const int l = (py - y0) * kTileSize + (px - x0);
-              Pair<Real> pr;
-              pr.dx = sd[0] - Real(px);
-              pr.dy = sd[1] - Real(py);
-              const Real power = Real(-0.5) * (sd[2] * pr.dx * pr.dx + sd[4] * pr.dy * pr.dy) - sd[3] * pr.dx * pr.dy;
-              if (power > Real(0)) continue;
-              pr.gauss = std::exp(power);
-              const Real oG = sd[5] * pr.gauss;
-              pr.alpha = std::min(Real(kMaxAlpha), oG);
-              if (pr.alpha < Real(kMinAlpha)) continue;
-              pr.clamped = oG > Real(kMaxAlpha);
-              pr.T = T[l] / (Real(1) - pr.alpha);
-              T[l] = pr.T;
-              Real* b = &behind[size_t(l) * C];
-              pr.behind = b;
-              pr.bg_term = -final_T_[o] / (Real(1) - pr.alpha);
-              visitor.pair(o, pr, ch);
-              for (int k = 0; k < C; ++k) b[k] = pr.alpha * ch[k] + (Real(1) - pr.alpha) * b[k];
-            }
-          visitor.end(e);
-        }
-      }
+      tiles::BackwardScratch<Real> scratch;
+      for (size_t t = r.begin(); t < r.end(); ++t)
+        tiles::backward_tile_scalar(splats, tile_work(t), final_T_.data(), last_entry_.data(), width_, &scratch, visitor,
+                                     tile_start_[t]);
     });
   });
 }
@@ -454,7 +412,7 @@ void DiffRasterizer<Real>::backward(const Real* dL_dimage, const Real* dL_dfeatu
       sd = &self->splat_data_[6 * i];
       std::fill(acc, acc + R, Real(0));
     }
-    void pair(size_t o, const Pair<Real>& pr, const Real* ch) {
+    void pair(size_t o, const tiles::BlendPair<Real>& pr, const Real* ch) {
       const Real wpx = weights ? weights[o] : Real(1);
       Real dpix[64];
       for (int c = 0; c < 3; ++c) dpix[c] = dimg[o * 3 + c] * wpx;
@@ -585,7 +543,7 @@ void DiffRasterizer<Real>::accumulate_fisher(FisherDiagonal* fisher) const {
       sd = &self->splat_data_[6 * i];
       std::fill(acc, acc + P, 0.0);
     }
-    void pair(size_t, const Pair<Real>& pr, const Real* ch) {
+    void pair(size_t, const tiles::BlendPair<Real>& pr, const Real* ch) {
       const double o = double(sd[5]);
       const double* J = &jac[size_t(vis) * 50];
       for (int c = 0; c < 3; ++c) {

@@ -8,6 +8,7 @@
 
 #include "fillgs/error.hpp"
 #include "fillgs/scene_io.hpp"
+#include "motion_keys.hpp"
 
 namespace fillgs {
 
@@ -45,119 +46,11 @@ std::vector<const std::vector<Real>*> ModelParams<Real>::arrays() const {
 
 namespace {
 
-/// y = x / |x| (identity quaternion for a zero vector, as normalize_quat).
-template <typename Real>
-void normalize4(const Real* x, Real* y) {
-  const Real n = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]);
-  if (!(n > Real(1e-30)) || !std::isfinite(n)) {
-    y[0] = Real(1), y[1] = y[2] = y[3] = Real(0);
-    return;
-  }
-  for (int k = 0; k < 4; ++k) y[k] = x[k] / n;
-}
-
-/// dL/dx of y = x/|x| given dL/dy, added into gx.
-template <typename Real>
-void normalize4_backward(const Real* x, const Real* gy, Real* gx) {
-  const Real n = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2] + x[3] * x[3]);
-  if (!(n > Real(1e-30)) || !std::isfinite(n)) return;
-  Real y[4], dot = 0;
-  for (int k = 0; k < 4; ++k) y[k] = x[k] / n, dot += gy[k] * y[k];
-  for (int k = 0; k < 4; ++k) gx[k] += (gy[k] - dot * y[k]) / n;
-}
-
-/// Where t falls among the keys: interval start i and position s in it (fillgs convention).
-struct KeySpot {
-  int i = 0;
-  double s = 0.0;
-};
-
-template <typename Real>
-KeySpot key_spot(const ModelParams<Real>& p, double t) {
-  const int K = p.key_count;
-  if (K <= 1) return {};
-  const double u = std::clamp((t - p.first_key_time) / p.key_spacing, 0.0, double(K - 1));
-  const int i = std::min(int(std::floor(u)), K - 2);
-  return {i, u - i};
-}
-
-/// Catmull-Rom weights of keys i−1, i, i+1, i+2 (end keys repeated) at position s.
-template <typename Real>
-void catmull_rom_weights(Real s, Real w[4]) {
-  const Real s2 = s * s, s3 = s2 * s;
-  const Real h00 = Real(2) * s3 - Real(3) * s2 + Real(1), h10 = s3 - Real(2) * s2 + s;
-  const Real h01 = Real(-2) * s3 + Real(3) * s2, h11 = s3 - s2;
-  w[0] = Real(-0.5) * h10;
-  w[1] = h00 - Real(0.5) * h11;
-  w[2] = h01 + Real(0.5) * h10;
-  w[3] = Real(0.5) * h11;
-}
-
-/// The interval of time t and the Catmull-Rom weights of its four keys.
-template <typename Real>
-struct KeyWeights {
-  KeySpot spot;
-  Real w[4];
-  int next;  // the interval's second key
-  KeyWeights(const ModelParams<Real>& p, double t) : spot(key_spot(p, t)), next(std::min(spot.i + 1, p.key_count - 1)) {
-    catmull_rom_weights(Real(spot.s), w);
-  }
-};
-
-/// Shortest-arc slerp of normalised keys, exactly slerp_shortest's rule (normalised lerp
-/// above a dot of 0.9995), with its backward.
-template <typename Real>
-struct Slerp {
-  Real q0[4], q1[4];  // normalised keys; q1 sign-flipped onto q0's hemisphere
-  bool flipped = false, linear = false;
-  Real s = 0, w = 0, raw[4];
-  void forward(const Real* k0, const Real* k1, Real s_in, Real* out) {
-    s = s_in;
-    normalize4(k0, q0);
-    normalize4(k1, q1);
-    Real d = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3];
-    if (d < Real(0)) {
-      for (Real& c : q1) c = -c;
-      d = -d;
-      flipped = true;
-    }
-    if (d > Real(0.9995)) {
-      linear = true;
-      for (int k = 0; k < 4; ++k) raw[k] = q0[k] + s * (q1[k] - q0[k]);
-    } else {
-      w = std::acos(std::min(d, Real(1)));
-      const Real sw = std::sin(w);
-      const Real a = std::sin((Real(1) - s) * w) / sw, b = std::sin(s * w) / sw;
-      for (int k = 0; k < 4; ++k) raw[k] = a * q0[k] + b * q1[k];
-    }
-    normalize4(raw, out);
-  }
-  /// Adds dL/dk0, dL/dk1 (raw keys) for dL/dout.
-  void backward(const Real* k0, const Real* k1, const Real* g_out, Real* g_k0, Real* g_k1) const {
-    Real g_raw[4] = {0, 0, 0, 0}, g0[4] = {0, 0, 0, 0}, g1[4] = {0, 0, 0, 0};
-    normalize4_backward(raw, g_out, g_raw);
-    if (linear) {
-      for (int k = 0; k < 4; ++k) g0[k] = (Real(1) - s) * g_raw[k], g1[k] = s * g_raw[k];
-    } else {
-      const Real sw = std::sin(w), cw = std::cos(w);
-      const Real sa = std::sin((Real(1) - s) * w), sb = std::sin(s * w);
-      const Real a = sa / sw, b = sb / sw;
-      const Real da = ((Real(1) - s) * std::cos((Real(1) - s) * w) * sw - sa * cw) / (sw * sw);
-      const Real db = (s * std::cos(s * w) * sw - sb * cw) / (sw * sw);
-      Real gw = 0;
-      for (int k = 0; k < 4; ++k) gw += g_raw[k] * (da * q0[k] + db * q1[k]);
-      const Real gd = gw * (Real(-1) / sw);  // w = acos(d)
-      for (int k = 0; k < 4; ++k) {
-        g0[k] = a * g_raw[k] + gd * q1[k];
-        g1[k] = b * g_raw[k] + gd * q0[k];
-      }
-    }
-    if (flipped)
-      for (Real& c : g1) c = -c;
-    normalize4_backward(k0, g0, g_k0);
-    normalize4_backward(k1, g1, g_k1);
-  }
-};
+using keys::KeySpot;
+using keys::KeyWeights;
+using keys::normalize4;
+using keys::normalize4_backward;
+using keys::Slerp;
 
 }  // namespace
 
@@ -387,7 +280,7 @@ void evaluate_params(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
     }
   });
   if (M == 0) return;
-  const KeyWeights<Real> kw(p, t);
+  const KeyWeights<Real> kw(p.first_key_time, p.key_spacing, p.key_count, t);
   const KeySpot& ks = kw.spot;
   const Real* w = kw.w;
   const int i1 = kw.next;
@@ -445,7 +338,7 @@ void evaluate_params_backward(const ModelParams<Real>& p, double t, const DiffFr
     }
   });
   if (M == 0) return;
-  const KeyWeights<Real> kw(p, t);
+  const KeyWeights<Real> kw(p.first_key_time, p.key_spacing, p.key_count, t);
   const KeySpot& ks = kw.spot;
   const Real* w = kw.w;
   const int i1 = kw.next;

@@ -6,8 +6,9 @@
 // Motion: static Gaussians have no motion parameters. Moving ones carry keyframed
 // positions and rotations (keys k at t = first_key_time + k·key_spacing, Catmull-Rom
 // positions with repeated end keys, shortest-arc slerp of normalised key quaternions —
-// fillgs' KeyframedMotion convention, so a model converts to and from GaussianCloud
-// without change), and optionally keyed log-scales and opacity logits (linear).
+// fillgs' KeyframedMotion convention, evaluated by the same code as evaluate(t):
+// src/motion_keys.hpp — so a model converts to and from GaussianCloud without change),
+// and optionally keyed log-scales and opacity logits (linear).
 // The same struct holds gradients and Adam moments (same layout).
 #include <cstdint>
 #include <vector>

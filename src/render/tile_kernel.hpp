@@ -12,10 +12,13 @@
 //    tests/test_tile_kernel.cpp).
 // Tile-local arrays are planar: pixel l = ly·16 + lx of the tile; channel k of pixel l at
 // acc[k·256 + l]. Pixels of an edge tile outside the image are never touched.
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
 #include "fillgs/raster.hpp"
+#include "raster_internal.hpp"
 
 namespace fillgs::tiles {
 
@@ -66,6 +69,34 @@ struct TileBackward {
   float* records = nullptr;
 };
 
+/// One accepted (Gaussian, pixel) pair met back to front, with what a backward needs.
+template <typename Real>
+struct BlendPair {
+  Real dx, dy;          ///< mean minus pixel
+  Real gauss;           ///< exp(power)
+  Real alpha;
+  bool clamped;         ///< α hit 0.99: no gradient through o or G
+  Real T;               ///< transmittance in front of this Gaussian
+  const Real* behind;   ///< per channel: colour blended behind it, relative to T·(1−α)
+  Real bg_term;         ///< −T_final / (1 − α), times the background in the caller
+};
+
+/// Per-thread scratch of the scalar backward.
+template <typename Real>
+struct BackwardScratch {
+  std::vector<Real> T, behind;
+};
+
+/// The reference backward of one tile (the scalar kernel): visits its accepted pairs back to
+/// front, recovering T by division like the CUDA backward. `final_T` and `last` are the
+/// forward's per-pixel arrays over the whole image (row stride `width`). The visitor gets
+/// begin(entry index in the tile list's global numbering, visible index), pair(image pixel,
+/// BlendPair, channels) and end(entry) — the gradient records and the Fisher diagonal are
+/// two visitors (raster_grad.cpp).
+template <typename Real, typename Visitor>
+void backward_tile_scalar(const TileSplats<Real>& S, const TileWork& tile, const Real* final_T, const uint32_t* last,
+                          int width, BackwardScratch<Real>* scratch, Visitor& visitor, uint64_t first_entry);
+
 /// The reference forward blend of one tile (the scalar kernel).
 template <typename Real>
 void forward_tile_scalar(const TileSplats<Real>& splats, const TileWork& tile, const TileForward<Real>& out);
@@ -81,5 +112,52 @@ const char* simd_target_name();
 
 /// max |exp_simd(x) − exp(x)| / exp(x) over `count` points spread on [lo, 0] (tests, README).
 double simd_exp_max_relative_error(float lo, int count);
+
+// ---- the scalar backward's definition (a template over the visitor) ----
+
+template <typename Real, typename Visitor>
+void backward_tile_scalar(const TileSplats<Real>& S, const TileWork& tile, const Real* final_T, const uint32_t* last,
+                          int width, BackwardScratch<Real>* scratch, Visitor& visitor, uint64_t first_entry) {
+  const int C = S.C;
+  std::vector<Real>& T = scratch->T;
+  std::vector<Real>& behind = scratch->behind;
+  T.assign(kTilePixels, Real(1));
+  behind.assign(size_t(kTilePixels) * C, Real(0));
+  for (int py = tile.y0; py < tile.y1; ++py)
+    for (int px = tile.x0; px < tile.x1; ++px) T[(py - tile.y0) * kTileSize + (px - tile.x0)] = final_T[size_t(py) * width + px];
+  for (uint32_t k = tile.count; k-- > 0;) {
+    const uint32_t i = tile.entries[k];
+    const Real* sd = &S.splat[6 * size_t(i)];
+    const Real* ch = &S.channels[size_t(i) * C];
+    int px0, px1, py0, py1;
+    internal::pixel_box(float(sd[0]), float(sd[1]), S.extent[2 * i], S.extent[2 * i + 1], tile.x0, tile.y0, tile.x1,
+                        tile.y1, &px0, &px1, &py0, &py1);
+    visitor.begin(first_entry + k, i);
+    for (int py = py0; py <= py1; ++py)
+      for (int px = px0; px <= px1; ++px) {
+        const size_t o = size_t(py) * width + px;
+        if (k >= last[o]) continue;  // the forward stopped this pixel before it
+        const int l = (py - tile.y0) * kTileSize + (px - tile.x0);
+        BlendPair<Real> pr;
+        pr.dx = sd[0] - Real(px);
+        pr.dy = sd[1] - Real(py);
+        const Real power = Real(-0.5) * (sd[2] * pr.dx * pr.dx + sd[4] * pr.dy * pr.dy) - sd[3] * pr.dx * pr.dy;
+        if (power > Real(0)) continue;
+        pr.gauss = std::exp(power);
+        const Real oG = sd[5] * pr.gauss;
+        pr.alpha = std::min(Real(kMaxAlpha), oG);
+        if (pr.alpha < Real(kMinAlpha)) continue;
+        pr.clamped = oG > Real(kMaxAlpha);
+        pr.T = T[l] / (Real(1) - pr.alpha);
+        T[l] = pr.T;
+        Real* b = &behind[size_t(l) * C];
+        pr.behind = b;
+        pr.bg_term = -final_T[o] / (Real(1) - pr.alpha);
+        visitor.pair(o, pr, ch);
+        for (int c = 0; c < C; ++c) b[c] = pr.alpha * ch[c] + (Real(1) - pr.alpha) * b[c];
+      }
+    visitor.end(first_entry + k);
+  }
+}
 
 }  // namespace fillgs::tiles
