@@ -24,22 +24,18 @@ void forward_tile_scalar(const TileSplats<Real>& S, const TileWork& tile, const 
       break;
     }
     const uint32_t i = tile.entries[k];
-    const Real* sd = &S.splat[6 * size_t(i)];
-    const Real* ch = &S.channels[size_t(i) * C];
-    int px0, px1, py0, py1;
-    internal::pixel_box(float(sd[0]), float(sd[1]), S.extent[2 * i], S.extent[2 * i + 1], tile.x0, tile.y0, tile.x1,
-                        tile.y1, &px0, &px1, &py0, &py1);
-    if (out.box_pixels && px0 <= px1 && py0 <= py1) *out.box_pixels += uint64_t(px1 - px0 + 1) * uint64_t(py1 - py0 + 1);
+    const ScalarEntry<Real> en(S, tile, i);
+    const Real* ch = en.ch;
+    if (out.box_pixels && en.px0 <= en.px1 && en.py0 <= en.py1)
+      *out.box_pixels += uint64_t(en.px1 - en.px0 + 1) * uint64_t(en.py1 - en.py0 + 1);
     float emax = 0.0f;
-    for (int py = py0; py <= py1; ++py)
-      for (int px = px0; px <= px1; ++px) {
+    for (int py = en.py0; py <= en.py1; ++py)
+      for (int px = en.px0; px <= en.px1; ++px) {
         const int l = (py - tile.y0) * kTileSize + (px - tile.x0);
         if (done[l]) continue;
-        const Real dx = sd[0] - Real(px), dy = sd[1] - Real(py);
-        const Real power = Real(-0.5) * (sd[2] * dx * dx + sd[4] * dy * dy) - sd[3] * dx * dy;
-        if (power > Real(0)) continue;
-        const Real alpha = std::min(Real(kMaxAlpha), sd[5] * std::exp(power));
-        if (alpha < Real(kMinAlpha)) continue;
+        BlendPair<Real> pr;
+        if (!en.pair(px, py, &pr)) continue;
+        const Real alpha = pr.alpha;
         const Real test_T = out.T[l] * (Real(1) - alpha);
         if (test_T < Real(kMinTransmittance)) {
           done[l] = true;

@@ -81,6 +81,32 @@ struct BlendPair {
   Real bg_term;         ///< −T_final / (1 − α), times the background in the caller
 };
 
+/// A tile entry as the scalar kernel reads it: the splat, its channels and its pixel box.
+template <typename Real>
+struct ScalarEntry {
+  const Real* sd;  ///< u, v, conic a b c, opacity
+  const Real* ch;
+  int px0, px1, py0, py1;
+  ScalarEntry(const TileSplats<Real>& S, const TileWork& tile, uint32_t i)
+      : sd(&S.splat[6 * size_t(i)]), ch(&S.channels[size_t(i) * S.C]) {
+    internal::pixel_box(float(sd[0]), float(sd[1]), S.extent[2 * i], S.extent[2 * i + 1], tile.x0, tile.y0, tile.x1,
+                        tile.y1, &px0, &px1, &py0, &py1);
+  }
+  /// The pair with pixel (px, py) by raster.hpp's rule: offsets, exp(power), α and its clamp;
+  /// false when the pair is skipped (power > 0 or α < 1/255).
+  bool pair(int px, int py, BlendPair<Real>* pr) const {
+    pr->dx = sd[0] - Real(px);
+    pr->dy = sd[1] - Real(py);
+    const Real power = Real(-0.5) * (sd[2] * pr->dx * pr->dx + sd[4] * pr->dy * pr->dy) - sd[3] * pr->dx * pr->dy;
+    if (power > Real(0)) return false;
+    pr->gauss = std::exp(power);
+    const Real oG = sd[5] * pr->gauss;
+    pr->alpha = std::min(Real(kMaxAlpha), oG);
+    pr->clamped = oG > Real(kMaxAlpha);
+    return pr->alpha >= Real(kMinAlpha);
+  }
+};
+
 /// Per-thread scratch of the scalar backward.
 template <typename Real>
 struct BackwardScratch {
@@ -127,27 +153,16 @@ void backward_tile_scalar(const TileSplats<Real>& S, const TileWork& tile, const
     for (int px = tile.x0; px < tile.x1; ++px) T[(py - tile.y0) * kTileSize + (px - tile.x0)] = final_T[size_t(py) * width + px];
   for (uint32_t k = tile.count; k-- > 0;) {
     const uint32_t i = tile.entries[k];
-    const Real* sd = &S.splat[6 * size_t(i)];
-    const Real* ch = &S.channels[size_t(i) * C];
-    int px0, px1, py0, py1;
-    internal::pixel_box(float(sd[0]), float(sd[1]), S.extent[2 * i], S.extent[2 * i + 1], tile.x0, tile.y0, tile.x1,
-                        tile.y1, &px0, &px1, &py0, &py1);
+    const ScalarEntry<Real> en(S, tile, i);
+    const Real* ch = en.ch;
     visitor.begin(first_entry + k, i);
-    for (int py = py0; py <= py1; ++py)
-      for (int px = px0; px <= px1; ++px) {
+    for (int py = en.py0; py <= en.py1; ++py)
+      for (int px = en.px0; px <= en.px1; ++px) {
         const size_t o = size_t(py) * width + px;
         if (k >= last[o]) continue;  // the forward stopped this pixel before it
         const int l = (py - tile.y0) * kTileSize + (px - tile.x0);
         BlendPair<Real> pr;
-        pr.dx = sd[0] - Real(px);
-        pr.dy = sd[1] - Real(py);
-        const Real power = Real(-0.5) * (sd[2] * pr.dx * pr.dx + sd[4] * pr.dy * pr.dy) - sd[3] * pr.dx * pr.dy;
-        if (power > Real(0)) continue;
-        pr.gauss = std::exp(power);
-        const Real oG = sd[5] * pr.gauss;
-        pr.alpha = std::min(Real(kMaxAlpha), oG);
-        if (pr.alpha < Real(kMinAlpha)) continue;
-        pr.clamped = oG > Real(kMaxAlpha);
+        if (!en.pair(px, py, &pr)) continue;
         pr.T = T[l] / (Real(1) - pr.alpha);
         T[l] = pr.T;
         Real* b = &behind[size_t(l) * C];

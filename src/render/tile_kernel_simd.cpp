@@ -61,23 +61,21 @@ struct BlockLayout {
   /// Row-major tile pixel of lane j of the block at (bx, by).
   int pixel(int bx, int by, int j) const { return (by * bh + j / bw) * kTileSize + bx * bw + j % bw; }
   int base(int bx, int by) const { return (by * blocks_x + bx) * lanes; }
-  /// Block-major copy of row-major planes (count planes of kTilePixels), and back.
+  /// Block-major copy of row-major planes (`planes` planes of kTilePixels), or back.
   template <typename T>
-  void to_blocks(const T* rows, T* blocks, int planes) const {
+  void convert(const T* from, T* to, int planes, bool to_blocks) const {
     for (int p = 0; p < planes; ++p)
       for (int by = 0; by < kTileSize / bh; ++by)
         for (int bx = 0; bx < blocks_x; ++bx)
-          for (int j = 0; j < lanes; ++j)
-            blocks[p * kTilePixels + base(bx, by) + j] = rows[p * kTilePixels + pixel(bx, by, j)];
+          for (int j = 0; j < lanes; ++j) {
+            const int row_major = p * kTilePixels + pixel(bx, by, j), block_major = p * kTilePixels + base(bx, by) + j;
+            to[to_blocks ? block_major : row_major] = from[to_blocks ? row_major : block_major];
+          }
   }
   template <typename T>
-  void to_rows(const T* blocks, T* rows, int planes) const {
-    for (int p = 0; p < planes; ++p)
-      for (int by = 0; by < kTileSize / bh; ++by)
-        for (int bx = 0; bx < blocks_x; ++bx)
-          for (int j = 0; j < lanes; ++j)
-            rows[p * kTilePixels + pixel(bx, by, j)] = blocks[p * kTilePixels + base(bx, by) + j];
-  }
+  void to_blocks(const T* rows, T* blocks, int planes) const { convert(rows, blocks, planes, true); }
+  template <typename T>
+  void to_rows(const T* blocks, T* rows, int planes) const { convert(blocks, rows, planes, false); }
 };
 
 /// A splat's pixels in a tile: its box (raster_internal.hpp's pixel_box, which bounds the
