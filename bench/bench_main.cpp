@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "fillgs/error.hpp"
+#include "fillgs/memory.hpp"
 
 int bench_render(const std::vector<std::string>& args);
 int bench_visibility(const std::vector<std::string>& args);
@@ -14,6 +15,7 @@ int bench_select(const std::vector<std::string>& args);
 int bench_motion(const std::vector<std::string>& args);
 
 int main(int argc, char** argv) {
+  fillgs::keep_freed_memory();
   if (argc < 2) {
     std::cerr << "usage: fillgs_bench render [--smoke] [--scene PLY] [--frames N]\n"
                  "       fillgs_bench visibility [--smoke] [--out DIR] [--only synthetic|guitar|million]\n"

@@ -1,8 +1,10 @@
 #include <iostream>
 
 #include "fillgs/cli.hpp"
+#include "fillgs/memory.hpp"
 
 int main(int argc, char** argv) {
+  fillgs::keep_freed_memory();
   std::vector<std::string> args(argv + 1, argv + argc);
   return fillgs::cli::run(args, std::cout, std::cerr);
 }
