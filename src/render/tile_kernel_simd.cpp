@@ -78,11 +78,12 @@ struct BlockLayout {
   void to_rows(const T* blocks, T* rows, int planes) const { convert(blocks, rows, planes, false); }
 };
 
-/// A splat's pixels in a tile: its box (raster_internal.hpp's pixel_box, which bounds the
-/// α ≥ 1/255 ellipse with a pixel of margin) cut to the ellipse's own bounding box. Along x
-/// the ellipse dᵀΣ⁻¹d ≤ r² spans |dx| ≤ r / sqrt(a − b²/c), along y |dy| ≤ r / sqrt(c − b²/a),
-/// with r² = 2 ln(255 o); r² is loosened by 0.1% so that rounding never cuts a pixel the
-/// scalar kernel would blend. False when nothing is left.
+/// A splat's pixels in a tile: the α ≥ 1/255 ellipse's own bounding box. pixel_box
+/// (raster_internal.hpp) bounds it with a pixel of margin on each side: alpha_extent's
+/// half-width is sqrt(r²·Σxx) + 1, and sqrt(r²·Σxx) is exactly the ellipse's half-width
+/// (r² = 2 ln(255 o)). The cut drops that margin, loosened by 0.05% (r² by 0.1%) and 1e-3 px
+/// so that rounding never drops a pixel the scalar kernel would blend. False when nothing
+/// is left.
 struct LocalBox {
   int lx0, lx1, ly0, ly1;
   uint64_t box_pixels;  // pixels of pixel_box's box before the cut (the scalar kernel's work)
@@ -92,16 +93,11 @@ inline bool local_box(const TileSplats<float>& S, uint32_t i, const TileWork& t,
   int px0, px1, py0, py1;
   internal::pixel_box(sd[0], sd[1], S.extent[2 * i], S.extent[2 * i + 1], t.x0, t.y0, t.x1, t.y1, &px0, &px1, &py0, &py1);
   b->box_pixels = px0 <= px1 && py0 <= py1 ? uint64_t(px1 - px0 + 1) * uint64_t(py1 - py0 + 1) : 0;
-  const float a = sd[2], bb = sd[3], c = sd[4];
-  const float qx = a - bb * bb / c, qy = c - bb * bb / a;
-  if (a > 0.0f && c > 0.0f && qx > 0.0f && qy > 0.0f && sd[5] > 0.0f) {
-    const float r2 = 2.0f * std::log(std::max(255.0f * sd[5], 1.0f)) * 1.001f + 1e-3f;
-    const float hx = std::sqrt(r2 / qx), hy = std::sqrt(r2 / qy);
-    px0 = std::max(px0, int(std::ceil(sd[0] - hx)));
-    px1 = std::min(px1, int(std::floor(sd[0] + hx)));
-    py0 = std::max(py0, int(std::ceil(sd[1] - hy)));
-    py1 = std::min(py1, int(std::floor(sd[1] + hy)));
-  }
+  const float hx = (S.extent[2 * i] - 1.0f) * 1.0005f + 1e-3f, hy = (S.extent[2 * i + 1] - 1.0f) * 1.0005f + 1e-3f;
+  px0 = std::max(px0, int(std::ceil(sd[0] - hx)));
+  px1 = std::min(px1, int(std::floor(sd[0] + hx)));
+  py0 = std::max(py0, int(std::ceil(sd[1] - hy)));
+  py1 = std::min(py1, int(std::floor(sd[1] + hy)));
   b->lx0 = px0 - t.x0, b->lx1 = px1 - t.x0, b->ly0 = py0 - t.y0, b->ly1 = py1 - t.y0;
   return px0 <= px1 && py0 <= py1;
 }
