@@ -13,6 +13,7 @@
 #include "fillgs/error.hpp"
 #include "fillgs/sh.hpp"
 #include "raster_internal.hpp"
+#include "render/preprocess.hpp"
 #include "render/tile_kernel.hpp"
 
 namespace fillgs {
@@ -184,46 +185,25 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
 
   tbb::task_arena arena(opt.threads > 0 ? opt.threads : tbb::task_arena::automatic);
   arena.execute([&] {
-    // ---- preprocess: project every Gaussian ----
-    std::vector<ProjectedGaussian> proj(N);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 1024), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t g = r.begin(); g < r.end(); ++g)
-        if (project_gaussian(G.means[g], G.scales[g], G.rotations[g], cam, &proj[g])) out.radii[g] = proj[g].radius;
-    });
+    // ---- preprocess: project every Gaussian, set up the visible ones ----
+    static_assert(sizeof(Vec3f) == 3 * sizeof(float) && sizeof(Vec4f) == 4 * sizeof(float), "packed Eigen vectors");
+    tiles::SplatSource<float> source;
+    source.count = N;
+    source.sh_degree = G.sh_degree;
+    source.means = G.means.empty() ? nullptr : G.means[0].data();
+    source.scales = G.scales.empty() ? nullptr : G.scales[0].data();
+    source.rotations = G.rotations.empty() ? nullptr : G.rotations[0].data();
+    source.opacities = G.opacities.data();
+    source.sh = opt.rgb ? G.sh : nullptr;
+    std::vector<ProjectedGaussian> proj;
     std::vector<uint32_t> visible;
-    for (uint32_t g = 0; g < N; ++g)
-      if (out.radii[g] > 0 && G.opacities[g] >= kMinAlpha) visible.push_back(g);
+    std::vector<float> splat, extent, chan;
+    tiles::prepare_splats(source, cam, C, tiles::SplatSetup<float>{&out.radii, &proj, &visible, &splat, &extent, &chan},
+                          [&](size_t, uint32_t g, const ProjectedGaussian& p, float* ch) {
+                            if (opt.depth) ch[depth_channel] = p.depth;
+                            for (int f = 0; f < F; ++f) ch[feature_channel + f] = opt.features[size_t(g) * F + f];
+                          });
     out.rendered = size_t(std::count_if(out.radii.begin(), out.radii.end(), [](int r) { return r > 0; }));
-    const size_t V = visible.size();
-
-    // ---- per-visible splat data and blended channels ----
-    std::vector<float> splat(V * 6), extent(V * 2), chan(V * size_t(C));
-    const Vec3f campos = cam.centre().cast<float>();
-    const int K = (G.sh_degree + 1) * (G.sh_degree + 1);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 1024), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i < r.end(); ++i) {
-        const uint32_t g = visible[i];
-        const ProjectedGaussian& p = proj[g];
-        float* sd = &splat[6 * i];
-        sd[0] = p.mean.x();
-        sd[1] = p.mean.y();
-        for (int k = 0; k < 3; ++k) sd[2 + k] = p.conic[k];
-        sd[5] = G.opacities[g];
-        internal::alpha_extent(sd[5], p.cov2d[0], p.cov2d[2], &extent[2 * i], &extent[2 * i + 1]);
-        float* ch = &chan[i * size_t(C)];
-        if (opt.rgb) {
-          Vec3f dir = G.means[g] - campos;
-          const float len = dir.norm();
-          dir = len > 0.0f ? Vec3f(dir / len) : Vec3f(0, 0, 1);
-          const Vec3f rgb = sh_to_rgb(G.sh_degree, G.sh + size_t(g) * K * 3, dir);
-          ch[0] = rgb[0];
-          ch[1] = rgb[1];
-          ch[2] = rgb[2];
-        }
-        if (opt.depth) ch[depth_channel] = p.depth;
-        for (int f = 0; f < F; ++f) ch[feature_channel + f] = opt.features[size_t(g) * F + f];
-      }
-    });
     const tiles::TileSplats<float> splats{splat.data(), extent.data(), chan.data(), C};
 
     // ---- bin into tiles, front to back per tile ----

@@ -11,6 +11,7 @@
 #include "fillgs/error.hpp"
 #include "fillgs/sh.hpp"
 #include "raster_internal.hpp"
+#include "render/preprocess.hpp"
 #include "render/tile_kernel.hpp"
 
 namespace fillgs {
@@ -169,20 +170,6 @@ struct Dual3 {
   }
 };
 
-/// Direction from the camera centre to a mean, unit; the forward's rule for a zero vector.
-template <typename Real>
-void view_direction(const Real* mean, const Real* centre, Real dir[3], Real* length) {
-  for (int k = 0; k < 3; ++k) dir[k] = mean[k] - centre[k];
-  const Real len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-  *length = len;
-  if (len > Real(0)) {
-    for (int k = 0; k < 3; ++k) dir[k] /= len;
-  } else {
-    dir[0] = dir[1] = Real(0);
-    dir[2] = Real(1);
-  }
-}
-
 }  // namespace
 
 // ---------------------------------------------------------------------------------
@@ -202,63 +189,23 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
   const int F = opt.feature_channels;
   const int C = 3 + F;
   channels_ = C;
-  const int K = (G.sh_degree + 1) * (G.sh_degree + 1);
-  radii_.assign(N, 0);
 
   tbb::task_arena arena(opt.threads > 0 ? opt.threads : tbb::task_arena::automatic);
   arena.execute([&] {
-    std::vector<ProjectedGaussian> proj(N);
-    std::vector<SplatProjection<double>> exact(N);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 1024), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t g = r.begin(); g < r.end(); ++g) {
-        double m[3], s[3], q[4];
-        for (int k = 0; k < 3; ++k) m[k] = double(G.means[3 * g + k]), s[k] = double(G.scales[3 * g + k]);
-        for (int k = 0; k < 4; ++k) q[k] = double(G.rotations[4 * g + k]);
-        exact[g] = project_splat<double>(m, s, q, cam);
-        if (internal::splat_footprint(exact[g], cam, &proj[g])) radii_[g] = proj[g].radius;
-      }
-    });
-    visible_.clear();
-    for (uint32_t g = 0; g < N; ++g)
-      if (radii_[g] > 0 && G.opacities[g] >= Real(kMinAlpha)) visible_.push_back(g);
-    const size_t V = visible_.size();
-
-    splat_data_.assign(V * 6, Real(0));
-    colour_.assign(V * size_t(C), Real(0));
-    colour_clamped_.assign(V, 0);
-    half_extent_.assign(V * 2, 0.0f);
-    const Vec3d centre = cam.centre();
-    const Real campos[3] = {Real(centre.x()), Real(centre.y()), Real(centre.z())};
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 1024), [&](const tbb::blocked_range<size_t>& r) {
-      Real Y[16];
-      for (size_t i = r.begin(); i < r.end(); ++i) {
-        const uint32_t g = visible_[i];
-        const SplatProjection<double>& p = exact[g];
-        Real* sd = &splat_data_[6 * i];
-        // Real = float rounds exactly as the forward renderer stores its splats.
-        sd[0] = Real(p.u);
-        sd[1] = Real(p.v);
-        for (int k = 0; k < 3; ++k) sd[2 + k] = Real(p.conic[k]);
-        sd[5] = G.opacities[g];
-        internal::alpha_extent(float(G.opacities[g]), float(p.cov[0]), float(p.cov[2]), &half_extent_[2 * i],
-                               &half_extent_[2 * i + 1]);
-        Real dir[3], len;
-        view_direction(&G.means[3 * g], campos, dir, &len);
-        sh_basis_generic<Real>(G.sh_degree, dir[0], dir[1], dir[2], Y);
-        const Real* coeffs = G.sh + size_t(g) * K * 3;
-        Real* ch = &colour_[i * size_t(C)];
-        for (int c = 0; c < 3; ++c) {
-          Real v = Real(0.5);
-          for (int k = 0; k < K; ++k) v += Y[k] * coeffs[3 * k + c];
-          if (v < Real(0)) {
-            v = Real(0);
-            colour_clamped_[i] |= uint8_t(1u << c);
-          }
-          ch[c] = v;
-        }
-        for (int f = 0; f < F; ++f) ch[3 + f] = Real(opt.features[size_t(g) * F + f]);
-      }
-    });
+    tiles::SplatSource<Real> source;
+    source.count = N;
+    source.sh_degree = G.sh_degree;
+    source.means = G.means.data();
+    source.scales = G.scales.data();
+    source.rotations = G.rotations.data();
+    source.opacities = G.opacities.data();
+    source.sh = G.sh;
+    std::vector<ProjectedGaussian> proj;
+    tiles::prepare_splats(source, cam, C,
+                          tiles::SplatSetup<Real>{&radii_, &proj, &visible_, &splat_data_, &half_extent_, &colour_, &colour_clamped_},
+                          [&](size_t, uint32_t g, const ProjectedGaussian&, Real* ch) {
+                            for (int f = 0; f < F; ++f) ch[3 + f] = Real(opt.features[size_t(g) * F + f]);
+                          });
 
     internal::TileBins bins = internal::bin_tiles(proj, visible_, W, H);
     grid_x_ = bins.grid_x;
@@ -479,7 +426,7 @@ void DiffRasterizer<Real>::backward(const Real* dL_dimage, const Real* dL_dfeatu
         const Real gcol[3] = {colour_clamped_[i] & 1 ? Real(0) : s[6], colour_clamped_[i] & 2 ? Real(0) : s[7],
                               colour_clamped_[i] & 4 ? Real(0) : s[8]};
         Real dir[3], len;
-        view_direction(&G.means[3 * g], campos, dir, &len);
+        tiles::view_direction(&G.means[3 * g], campos, dir, &len);
         Dual3<Real> dx(0), dy(0), dz(0), Y[16];
         dx.v = dir[0], dy.v = dir[1], dz.v = dir[2];
         dx.d[0] = dy.d[1] = dz.d[2] = Real(1);

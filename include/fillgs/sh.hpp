@@ -41,6 +41,27 @@ void sh_basis_generic(int degree, const T& x, const T& y, const T& z, T* Y) {
 
 void sh_basis(int degree, const Vec3f& dir, float* out);
 
+/// Colour along unit direction (x, y, z) from [(degree+1)²][3] coefficients: Σ_k Y_k c_k + 0.5,
+/// clamped below at 0 like 3DGS. Returns a bit per channel that was clamped (no gradient
+/// flows through it). The one colour rule of both rasterizers.
+template <typename Real>
+unsigned sh_colour(int degree, const Real* coeffs, Real x, Real y, Real z, Real rgb[3]) {
+  Real Y[16];
+  sh_basis_generic<Real>(degree, x, y, z, Y);
+  const int K = (degree + 1) * (degree + 1);
+  unsigned clamped = 0;
+  for (int c = 0; c < 3; ++c) {
+    Real v = Real(0.5);
+    for (int k = 0; k < K; ++k) v += Y[k] * coeffs[3 * k + c];
+    if (v < Real(0)) {
+      v = Real(0);
+      clamped |= 1u << c;
+    }
+    rgb[c] = v;
+  }
+  return clamped;
+}
+
 /// Colour of one Gaussian seen along unit direction `dir` (mean minus camera centre).
 /// `coeffs` holds [(degree+1)²][3] coefficients. No upper clamp, like 3DGS.
 Vec3f sh_to_rgb(int degree, const float* coeffs, const Vec3f& dir);

@@ -6,10 +6,11 @@
 // Two implementations of the same math (raster.hpp, clamp for clamp):
 //  * `Kernel::Scalar` — one pixel at a time, templated on the scalar (float trains, double
 //    checks gradients); the reference every benchmark measures the vector path against;
-//  * `Kernel::Simd` — float only, a row of the tile per instruction (16 lanes with
-//    AVX-512, 8 with AVX2, 4 with SSE4/NEON; chosen at run time by Google Highway), with
-//    an exp of 14 instructions (relative error ≤ 2.5e-7 on [−87, 0], measured in
-//    tests/test_tile_kernel.cpp).
+//  * `Kernel::Simd` — float only, a block of the tile per instruction (4×4 pixels with
+//    AVX-512, 4×2 with AVX2, 4×1 with SSE4/NEON; chosen at run time by Google Highway),
+//    with an exp of 14 instructions (relative error ≤ 2.5e-7 on [−87, 0], measured in
+//    tests/test_tile_kernel.cpp) and the channel count a template parameter for 1, 3 and
+//    4 channels (a feature, RGB, RGB + depth).
 // Tile-local arrays are planar: pixel l = ly·16 + lx of the tile; channel k of pixel l at
 // acc[k·256 + l]. Pixels of an edge tile outside the image are never touched.
 #include <algorithm>

@@ -139,12 +139,15 @@ HWY_INLINE void for_each_block(const BlockLayout& L, const LocalBox& b, const Sp
   }
 }
 
-void ForwardTile(const TileSplats<float>& S, const TileWork& tile, const TileForward<float>& out) {
+/// The forward for kC channels (0: S.C at run time; 1, 3 and 4 — a feature, RGB, RGB and
+/// depth — unroll the channel loop).
+template <int kC>
+void ForwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileForward<float>& out) {
   const D d;
   const DI di;
   const BlockLayout L;
   const int N = L.lanes;
-  const int C = S.C;
+  const int C = kC ? kC : S.C;
   const int npix = (tile.x1 - tile.x0) * (tile.y1 - tile.y0);
   HWY_ALIGN int32_t done[kTilePixels], last[kTilePixels];
   HWY_ALIGN float T[kTilePixels], wbuf[kTileSize];
@@ -216,12 +219,14 @@ void ForwardTile(const TileSplats<float>& S, const TileWork& tile, const TileFor
   if (out.last) L.to_rows(reinterpret_cast<const uint32_t*>(last), out.last, 1);
 }
 
-void BackwardTile(const TileSplats<float>& S, const TileWork& tile, const TileBackward& io) {
+/// The backward for kC channels (0: S.C at run time; 3 and 4 unroll the channel loop).
+template <int kC>
+void BackwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileBackward& io) {
   const D d;
   const DI di;
   const BlockLayout L;
   const int N = L.lanes;
-  const int C = S.C, R = 6 + C;
+  const int C = kC ? kC : S.C, R = 6 + C;
   HWY_ALIGN float T[kTilePixels], final_T[kTilePixels];
   HWY_ALIGN int32_t last[kTilePixels];
   L.to_blocks(io.final_T, final_T, 1);
@@ -291,6 +296,23 @@ void BackwardTile(const TileSplats<float>& S, const TileWork& tile, const TileBa
     rec[4] = hn::GetLane(hn::SumOfLanes(d, g_c));
     rec[5] = hn::GetLane(hn::SumOfLanes(d, g_o));
     for (int c = 0; c < C; ++c) rec[6 + c] = hn::GetLane(hn::SumOfLanes(d, hn::LoadU(d, channel_acc.data() + size_t(c) * N)));
+  }
+}
+
+void ForwardTile(const TileSplats<float>& S, const TileWork& tile, const TileForward<float>& out) {
+  switch (S.C) {
+    case 1: return ForwardTileC<1>(S, tile, out);
+    case 3: return ForwardTileC<3>(S, tile, out);
+    case 4: return ForwardTileC<4>(S, tile, out);
+    default: return ForwardTileC<0>(S, tile, out);
+  }
+}
+
+void BackwardTile(const TileSplats<float>& S, const TileWork& tile, const TileBackward& io) {
+  switch (S.C) {
+    case 3: return BackwardTileC<3>(S, tile, io);
+    case 4: return BackwardTileC<4>(S, tile, io);
+    default: return BackwardTileC<0>(S, tile, io);
   }
 }
 
