@@ -96,7 +96,7 @@ void prepare_splats(const SplatSource<Real>& G, const Camera& cam, int C, const 
       sd[5] = G.opacities[g];
       internal::alpha_extent(float(G.opacities[g]), float(p.cov[0]), float(p.cov[2]), &(*out.extent)[2 * i],
                              &(*out.extent)[2 * i + 1]);
-      Real* ch = &(*out.channels)[i * size_t(C)];
+      Real* ch = out.channels->data() + i * size_t(C);  // C may be 0 (alpha only): no element access
       if (G.sh) {
         Real dir[3], len;
         view_direction(&G.means[3 * g], campos, dir, &len);
