@@ -1,6 +1,7 @@
 #pragma once
-// Pieces of the rasterizer shared by the forward renderer (raster.cpp) and the
-// differentiable one (raster_grad.cpp), so that both cull, bin and order identically.
+// Pieces of the rasterizer shared by the forward renderer (raster.cpp), the differentiable
+// one (raster_grad.cpp) and the tile kernel (src/render/), so that all cull, bin and order
+// identically. bin_tiles lives in src/render/binning.cpp.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>

@@ -15,6 +15,9 @@
 // differences. Tiles are processed in parallel; per-Gaussian sums are reduced in tile
 // order afterwards, so results are bit-identical for any thread count. Memory is bounded
 // by the number of Gaussian-tile pairs (one gradient record each), never per pixel lists.
+// The blend and its backward are the tile kernel's (src/render/tile_kernel.hpp): the
+// vector kernel for float unless `DiffRenderOptions::kernel` (or --kernel) picks the scalar
+// one; double always runs the scalar kernel, and the Fisher diagonal always does.
 #include <cstdint>
 #include <vector>
 
