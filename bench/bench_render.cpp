@@ -91,14 +91,17 @@ int bench_render(const std::vector<std::string>& args) {
       if (threads == all) break;
     }
   }
-  // The bound: one evaluation (dx, dy, the conic's quadratic, exp, α, the tests, T and three
-  // channel FMAs) is about 30 vector operations in the kernel's loop, one per lane per cycle.
+  // The bound: the arithmetic of one evaluation in the kernel's loop, counted from
+  // tile_kernel_simd.cpp — offsets 2, the conic's quadratic and −½ 7, clamp 1, exp 14,
+  // α = min(0.99, o·e) 2, the three tests 3, T·(1−α) 2, w = α·T 1, three channel FMAs 3:
+  // 35 operations, at one per lane per cycle.
+  constexpr int kOperations = 35;
   const double ghz = clock_ghz();
-  const int lanes = std::string(simd_target()).rfind("AVX3", 0) == 0 ? 16 : std::string(simd_target()) == "AVX2" ? 8 : 4;
+  const int lanes = simd_lanes();
   if (ghz > 0) {
-    const double peak = lanes * ghz * 1e9 / 30.0;
-    std::printf("\nbound: %d lanes x %.2f GHz / 30 operations = %.3g evaluations/s per core; the best measured (whole frame: "
-                "projection, SH, binning and blend) is %.0f%% of it\n", lanes, ghz, peak, 100.0 * best_rate / peak);
+    const double peak = lanes * ghz * 1e9 / kOperations;
+    std::printf("\nbound: %d lanes x %.2f GHz / %d operations = %.3g evaluations/s per core; the best measured (whole frame: "
+                "projection, SH, binning and blend) is %.0f%% of it\n", lanes, ghz, kOperations, peak, 100.0 * best_rate / peak);
   }
   return 0;
 }

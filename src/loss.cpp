@@ -15,25 +15,12 @@ namespace fillgs {
 
 namespace {
 
-constexpr int kWindow = 11;
-constexpr double kSigma = 1.5;
 constexpr double kC1 = 0.01 * 0.01, kC2 = 0.03 * 0.03;
-
-template <typename Real>
-struct Window {
-  Real w[kWindow];
-  Window() {
-    double sum = 0;
-    double v[kWindow];
-    for (int i = 0; i < kWindow; ++i) v[i] = std::exp(-double((i - 5) * (i - 5)) / (2 * kSigma * kSigma)), sum += v[i];
-    for (int i = 0; i < kWindow; ++i) w[i] = Real(v[i] / sum);
-  }
-};
 
 /// One 11-tap pass of the window along x (along_x) or y, zero padding.
 template <typename Real>
 void blur_pass(const std::vector<Real>& in, int W, int H, bool along_x, std::vector<Real>& out) {
-  static const Window<Real> win;
+  const Real* w = image::ssim_window<Real>();
   out.resize(in.size());
   const int len = along_x ? W : H;
   const size_t step = along_x ? 1 : size_t(W);
@@ -43,28 +30,36 @@ void blur_pass(const std::vector<Real>& in, int W, int H, bool along_x, std::vec
         const int at = along_x ? x : y;
         const size_t o = size_t(y) * W + x;
         Real s = 0;
-        for (int k = std::max(0, 5 - at); k < kWindow && at + k - 5 < len; ++k)
-          s += win.w[k] * in[o + (ptrdiff_t(k) - 5) * ptrdiff_t(step)];
+        for (int k = std::max(0, 5 - at); k < image::kBlurTaps && at + k - 5 < len; ++k)
+          s += w[k] * in[o + (ptrdiff_t(k) - 5) * ptrdiff_t(step)];
         out[o] = s;
       }
   });
 }
 
-/// Σ over [0, n) of body(begin, end) (each returning its range's sum), in parallel over
-/// fixed chunks whose sums are added in order: the same result for any thread count.
+constexpr size_t kChunk = 16384;  // pixels per parallel chunk of the per-pixel loops
+
+/// body(begin, end) over fixed chunks of [0, n), in parallel.
+template <typename Body>
+void chunked_for(size_t n, Body&& body) {
+  tbb::parallel_for(size_t(0), (n + kChunk - 1) / kChunk, [&](size_t k) { body(k * kChunk, std::min(n, (k + 1) * kChunk)); });
+}
+
+/// Σ over [0, n) of body(begin, end) (each returning its range's sum), the chunks' sums
+/// added in order: the same result for any thread count.
 template <typename Body>
 double chunked_sum(size_t n, Body&& body) {
-  constexpr size_t kChunk = 16384;
-  const size_t chunks = (n + kChunk - 1) / kChunk;
-  std::vector<double> partial(chunks, 0.0);
-  tbb::parallel_for(size_t(0), chunks, [&](size_t k) { partial[k] = body(k * kChunk, std::min(n, (k + 1) * kChunk)); });
+  std::vector<double> partial((n + kChunk - 1) / kChunk, 0.0);
+  chunked_for(n, [&](size_t i0, size_t i1) { partial[i0 / kChunk] = body(i0, i1); });
   double total = 0;
   for (double v : partial) total += v;
   return total;
 }
 
-/// Scratch planes of the SSIM, kept per thread so that a training iteration does not map
-/// and fault in fresh pages for every plane (at 676×507 that was a third of the loss).
+/// Scratch planes of the SSIM, kept per thread so that a training iteration does not
+/// allocate and zero ~15 fresh planes per channel: at 676×507 the loss took 28 → 16 ms
+/// with them (fresh pages faulted in), and still 13.2 → 11.2 ms once the executables keep
+/// freed memory (`fillgs_bench train --only speed --gaussians 100000 --resolution 676x507`).
 template <typename Real>
 struct SsimScratch {
   std::vector<Real> tmp, xx, yy, xy, mx, my, sxx, syy, sxy, dmu, dvar, dcov, g1, g2, g3;
@@ -97,9 +92,8 @@ double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W,
   SsimScratch<Real>& w = scratch;
   const size_t n = x.size();
   w.xx.resize(n), w.yy.resize(n), w.xy.resize(n);
-  chunked_sum(n, [&](size_t i0, size_t i1) {
+  chunked_for(n, [&](size_t i0, size_t i1) {
     for (size_t i = i0; i < i1; ++i) w.xx[i] = x[i] * x[i], w.yy[i] = y[i] * y[i], w.xy[i] = x[i] * y[i];
-    return 0.0;
   });
   const std::vector<Real>&mx = w.mx, &my = w.my, &sxx = w.sxx, &syy = w.syy, &sxy = w.sxy;
   blur(x, W, H, w.tmp, w.mx);
@@ -110,36 +104,34 @@ double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W,
   std::vector<Real>&dmu = w.dmu, &dvar = w.dvar, &dcov = w.dcov;
   if (grad) dmu.resize(n), dvar.resize(n), dcov.resize(n);
   const double total = chunked_sum(n, [&](size_t i0, size_t i1) {
-  double sum = 0;
-  for (size_t i = i0; i < i1; ++i) {
-    const Real vx = sxx[i] - mx[i] * mx[i], vy = syy[i] - my[i] * my[i], cxy = sxy[i] - mx[i] * my[i];
-    const Real a1 = Real(2) * mx[i] * my[i] + Real(kC1), a2 = Real(2) * cxy + Real(kC2);
-    const Real b1 = mx[i] * mx[i] + my[i] * my[i] + Real(kC1), b2 = vx + vy + Real(kC2);
-    const Real s = a1 * a2 / (b1 * b2);
-    sum += double(coef ? (*coef)[i] * s : s);
-    if (grad) {
-      const Real c = (*coef)[i];
-      dmu[i] = c * (Real(2) * my[i] * a2 / (b1 * b2) - s * Real(2) * mx[i] / b1);
-      dvar[i] = c * (-s / b2);
-      dcov[i] = c * (Real(2) * a1 / (b1 * b2));
+    double sum = 0;
+    for (size_t i = i0; i < i1; ++i) {
+      const Real vx = sxx[i] - mx[i] * mx[i], vy = syy[i] - my[i] * my[i], cxy = sxy[i] - mx[i] * my[i];
+      const Real a1 = Real(2) * mx[i] * my[i] + Real(kC1), a2 = Real(2) * cxy + Real(kC2);
+      const Real b1 = mx[i] * mx[i] + my[i] * my[i] + Real(kC1), b2 = vx + vy + Real(kC2);
+      const Real s = a1 * a2 / (b1 * b2);
+      sum += double(coef ? (*coef)[i] * s : s);
+      if (grad) {
+        const Real c = (*coef)[i];
+        dmu[i] = c * (Real(2) * my[i] * a2 / (b1 * b2) - s * Real(2) * mx[i] / b1);
+        dvar[i] = c * (-s / b2);
+        dcov[i] = c * (Real(2) * a1 / (b1 * b2));
+      }
     }
-  }
-  return sum;
+    return sum;
   });
   if (grad) {
     // x enters μx, σx² = G*(x²) − μx², σxy = G*(xy) − μxμy; G is symmetric.
     std::vector<Real>& t1 = w.xx;  // x² is no longer needed
-    chunked_sum(n, [&](size_t i0, size_t i1) {
+    chunked_for(n, [&](size_t i0, size_t i1) {
       for (size_t i = i0; i < i1; ++i) t1[i] = dmu[i] - Real(2) * dvar[i] * mx[i] - dcov[i] * my[i];
-      return 0.0;
     });
     blur(t1, W, H, w.tmp, w.g1);
     blur(dvar, W, H, w.tmp, w.g2);
     blur(dcov, W, H, w.tmp, w.g3);
     grad->resize(n);
-    chunked_sum(n, [&](size_t i0, size_t i1) {
+    chunked_for(n, [&](size_t i0, size_t i1) {
       for (size_t i = i0; i < i1; ++i) (*grad)[i] = w.g1[i] + Real(2) * x[i] * w.g2[i] + y[i] * w.g3[i];
-      return 0.0;
     });
   }
   return total;
@@ -169,15 +161,13 @@ LossValue photometric_loss(const Real* render, const float* target, int W, int H
   x.resize(P), y.resize(P), coef.resize(P);
   for (size_t i = 0; i < P; ++i) coef[i] = weights ? weights[i] : Real(1);
   for (int c = 0; c < 3; ++c) {
-    chunked_sum(P, [&](size_t p0, size_t p1) {
+    chunked_for(P, [&](size_t p0, size_t p1) {
       for (size_t i = p0; i < p1; ++i) x[i] = render[i * 3 + c], y[i] = Real(target[i * 3 + c]);
-      return 0.0;
     });
     s += ssim_plane(x, y, W, H, &coef, grad ? &g : nullptr);
     if (grad)
-      chunked_sum(P, [&](size_t p0, size_t p1) {
+      chunked_for(P, [&](size_t p0, size_t p1) {
         for (size_t i = p0; i < p1; ++i) grad[i * 3 + c] -= Real(lambda / double(n)) * g[i];
-        return 0.0;
       });
   }
   lv.ssim = s / double(n);

@@ -10,7 +10,6 @@
 #include <numeric>
 
 #include "fillgs/error.hpp"
-#include "fillgs/sh.hpp"
 #include "raster_internal.hpp"
 #include "render/preprocess.hpp"
 #include "render/tile_kernel.hpp"
@@ -78,14 +77,11 @@ Kernel parse_kernel(const std::string& name) {
   throw_error("unknown kernel '", name, "' (simd or scalar)");
 }
 
-const char* kernel_name(Kernel kernel) {
-  switch (resolve_kernel(kernel)) {
-    case Kernel::Scalar: return "scalar";
-    default: return "simd";
-  }
-}
+const char* kernel_name(Kernel kernel) { return resolve_kernel(kernel) == Kernel::Scalar ? "scalar" : "simd"; }
 
 const char* simd_target() { return tiles::simd_target_name(); }
+
+int simd_lanes() { return tiles::simd_lane_count(); }
 
 RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOptions& opt) {
   const int W = cam.width, H = cam.height;
@@ -146,21 +142,14 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
       alignas(64) float T[tiles::kTilePixels];
       std::vector<float> acc(size_t(tiles::kTilePixels) * std::max(C, 1));
       for (size_t t = r.begin(); t < r.end(); ++t) {
-        tiles::TileWork work;
-        work.x0 = int(t % gx) * kTileSize, work.y0 = int(t / gx) * kTileSize;
-        work.x1 = std::min(work.x0 + kTileSize, W), work.y1 = std::min(work.y0 + kTileSize, H);
-        work.entries = bins.entries.data() + bins.start[t];
-        work.count = uint32_t(bins.start[t + 1] - bins.start[t]);
+        const tiles::TileWork work = tiles::tile_work(gx, bins.start.data(), bins.entries.data(), t, W, H);
         tiles::TileForward<float> fwd;
         fwd.T = T;
         fwd.acc = acc.data();
         if (opt.max_weights) fwd.entry_max = entry_max.data() + bins.start[t];
         if (opt.contributors) fwd.contributors = &tile_contrib[t];
         fwd.box_pixels = &tile_box_pixels[t];
-        if (simd)
-          tiles::forward_tile_simd(splats, work, fwd);
-        else
-          tiles::forward_tile_scalar(splats, work, fwd);
+        tiles::forward_tile(simd, splats, work, fwd);
         for (int py = work.y0; py < work.y1; ++py)
           for (int px = work.x0; px < work.x1; ++px) {
             const int l = (py - work.y0) * kTileSize + (px - work.x0);

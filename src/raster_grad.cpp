@@ -231,12 +231,7 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
         fwd.T = T;
         fwd.acc = acc.data();
         fwd.last = last;
-        if constexpr (std::is_same_v<Real, float>) {
-          if (simd) tiles::forward_tile_simd(splats, work, fwd);
-          else tiles::forward_tile_scalar(splats, work, fwd);
-        } else {
-          tiles::forward_tile_scalar(splats, work, fwd);
-        }
+        tiles::forward_tile(simd, splats, work, fwd);
         for (int py = work.y0; py < work.y1; ++py)
           for (int px = work.x0; px < work.x1; ++px) {
             const int l = (py - work.y0) * kTileSize + (px - work.x0);
@@ -255,12 +250,7 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
 
 template <typename Real>
 tiles::TileWork DiffRasterizer<Real>::tile_work(size_t t) const {
-  tiles::TileWork work;
-  work.x0 = int(t % grid_x_) * kTileSize, work.y0 = int(t / grid_x_) * kTileSize;
-  work.x1 = std::min(work.x0 + kTileSize, width_), work.y1 = std::min(work.y0 + kTileSize, height_);
-  work.entries = keys_.data() + tile_start_[t];
-  work.count = uint32_t(tile_start_[t + 1] - tile_start_[t]);
-  return work;
+  return tiles::tile_work(grid_x_, tile_start_.data(), keys_.data(), t, width_, height_);
 }
 
 template <typename Real>

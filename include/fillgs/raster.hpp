@@ -31,9 +31,11 @@ enum class Kernel : uint8_t { Default, Simd, Scalar };
 void set_default_kernel(Kernel kernel);  ///< Default is not a valid argument
 Kernel resolve_kernel(Kernel kernel);    ///< Default → the process default
 Kernel parse_kernel(const std::string& name);  ///< "simd" | "scalar"; throws otherwise
-const char* kernel_name(Kernel kernel);
+const char* kernel_name(Kernel kernel);        ///< "simd" | "scalar" (Default resolved)
 /// The instruction set the vector kernel uses on this machine (e.g. "AVX3", "AVX2").
 const char* simd_target();
+/// Floats per vector instruction of the vector kernel on this machine (16 with AVX-512).
+int simd_lanes();
 
 /// A Gaussian's screen-space footprint, as the 3DGS preprocess computes it.
 struct ProjectedGaussian {

@@ -145,6 +145,7 @@ int cmd_render(const std::vector<std::string>& args, std::ostream& out, std::ost
   s["channel"] = channel;
   s["seconds"] = {{"load", load_s}, {"render", render_s}, {"total", seconds_since(t0)}};
   s["ms_per_view"] = cams.empty() ? 0.0 : 1000.0 * render_s / cams.size();
+  s["kernel"] = {{"name", kernel_name(Kernel::Default)}, {"instruction_set", simd_target()}};
   s["views"] = views;
   write_file_atomically(join_path(out_dir, "summary.json"), s.dump(2) + "\n");
   out << "rendered " << cams.size() << " views (" << channel << ") into " << out_dir << ": "

@@ -1,13 +1,27 @@
 #pragma once
 // The SSIM window as a separable filter: 11 taps, σ = 1.5, zero padding (PyTorch conv2d
-// with padding 5, as the 3DGS loss). The vector path (Google Highway, instruction set
-// chosen at run time); the scalar reference is the loop in loss.cpp.
+// with padding 5, as the 3DGS loss). The window is defined here once; the vector blur
+// (Google Highway, instruction set chosen at run time) is blur_simd.cpp, the scalar
+// reference the loop in loss.cpp.
+#include <cmath>
+
 namespace fillgs::image {
 
 constexpr int kBlurTaps = 11;
 
-/// The normalised window, tap k at offset k − 5.
-const float* blur_window();
+/// The normalised window in Real (computed in double), tap k at offset k − 5.
+template <typename Real>
+const Real* ssim_window() {
+  static const struct Window {
+    Real w[kBlurTaps];
+    Window() {
+      double v[kBlurTaps], sum = 0;
+      for (int i = 0; i < kBlurTaps; ++i) v[i] = std::exp(-double((i - 5) * (i - 5)) / (2 * 1.5 * 1.5)), sum += v[i];
+      for (int i = 0; i < kBlurTaps; ++i) w[i] = Real(v[i] / sum);
+    }
+  } window;
+  return window.w;
+}
 
 /// out = window ⊛ in along x then y, one [H][W] plane; `scratch` holds W·H floats.
 /// Threads over rows (TBB, the caller's arena); the result does not depend on them.

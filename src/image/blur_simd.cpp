@@ -71,20 +71,8 @@ namespace fillgs::image {
 HWY_EXPORT(BlurRows);
 HWY_EXPORT(BlurColumns);
 
-const float* blur_window() {
-  static const struct Window {
-    float w[kBlurTaps];
-    Window() {
-      double v[kBlurTaps], sum = 0;
-      for (int i = 0; i < kBlurTaps; ++i) v[i] = std::exp(-double((i - 5) * (i - 5)) / (2 * 1.5 * 1.5)), sum += v[i];
-      for (int i = 0; i < kBlurTaps; ++i) w[i] = float(v[i] / sum);
-    }
-  } window;
-  return window.w;
-}
-
 void blur11_simd(const float* in, int W, int H, float* scratch, float* out) {
-  const float* w = blur_window();
+  const float* w = ssim_window<float>();
   const int grain = std::max(1, 16384 / std::max(1, W));
   tbb::parallel_for(tbb::blocked_range<int>(0, H, grain), [&](const tbb::blocked_range<int>& r) {
     HWY_DYNAMIC_DISPATCH(BlurRows)(w, in, W, r.begin(), r.end(), scratch);

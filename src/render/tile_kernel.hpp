@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 
 #include "fillgs/raster.hpp"
@@ -46,8 +47,17 @@ struct TileContributors {
   std::vector<uint32_t> entry;   ///< visible index
   std::vector<float> weight;     ///< α·T
   std::vector<uint16_t> pixel;   ///< tile-local pixel
-  void clear() { entry.clear(), weight.clear(), pixel.clear(); }
 };
+
+/// Tile t of a binning (grid_x tiles per row, entries of tile t at [start[t], start[t+1])).
+inline TileWork tile_work(int grid_x, const uint64_t* start, const uint32_t* entries, size_t t, int width, int height) {
+  TileWork w;
+  w.x0 = int(t % size_t(grid_x)) * kTileSize, w.y0 = int(t / size_t(grid_x)) * kTileSize;
+  w.x1 = std::min(w.x0 + kTileSize, width), w.y1 = std::min(w.y0 + kTileSize, height);
+  w.entries = entries + start[t];
+  w.count = uint32_t(start[t + 1] - start[t]);
+  return w;
+}
 
 /// What a forward pass over one tile writes (every array tile-local, planar).
 template <typename Real>
@@ -131,11 +141,22 @@ void forward_tile_scalar(const TileSplats<Real>& splats, const TileWork& tile, c
 /// The vector forward blend of one tile (same outputs within the exp approximation).
 void forward_tile_simd(const TileSplats<float>& splats, const TileWork& tile, const TileForward<float>& out);
 
+/// The forward blend of one tile with the kernel asked for (double: always scalar).
+template <typename Real>
+void forward_tile(bool simd, const TileSplats<Real>& splats, const TileWork& tile, const TileForward<Real>& out) {
+  if constexpr (std::is_same_v<Real, float>) {
+    if (simd) return forward_tile_simd(splats, tile, out);
+  }
+  forward_tile_scalar(splats, tile, out);
+}
+
 /// The vector backward of one tile: per-entry gradient records, back to front.
 void backward_tile_simd(const TileSplats<float>& splats, const TileWork& tile, const TileBackward& io);
 
 /// The instruction set the vector kernel runs with on this machine ("AVX3", "AVX2", ...).
 const char* simd_target_name();
+/// Its lanes per instruction (the floats of one tile block).
+int simd_lane_count();
 
 /// max |exp_simd(x) − exp(x)| / exp(x) over `count` points spread on [lo, 0] (tests, README).
 double simd_exp_max_relative_error(float lo, int count);

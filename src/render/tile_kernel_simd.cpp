@@ -50,14 +50,17 @@ HWY_INLINE V ExpNonPositive(DF d, V x) {
   return hn::BitCast(d, bits);
 }
 
-/// Lanes are a block of the tile: kBlockW columns × (lanes / kBlockW) rows (4×4 with
+/// Lanes are a block of the tile: bw columns × bh = lanes / bw rows (4×4 with
 /// AVX-512, 4×2 with AVX2, 4×1 with SSE4), so a small splat takes a few blocks where it
 /// took one instruction per row. Tile-local arrays inside the kernel are block-major
 /// (block b's lanes at b·lanes …); they are converted from and to the row-major layout of
 /// the interface once per tile.
 struct BlockLayout {
   int lanes, bw, bh, blocks_x;  // lanes per block, block width and height, blocks per tile row
-  BlockLayout() : lanes(int(hn::Lanes(D()))), bw(std::min(4, lanes)), bh(lanes / bw), blocks_x(kTileSize / bw) {}
+  HWY_ALIGN int32_t col[kTileSize], row[kTileSize];  // each lane's column and row in its block
+  BlockLayout() : lanes(int(hn::Lanes(D()))), bw(std::min(4, lanes)), bh(lanes / bw), blocks_x(kTileSize / bw) {
+    for (int j = 0; j < lanes; ++j) col[j] = j % bw, row[j] = j / bw;
+  }
   /// Row-major tile pixel of lane j of the block at (bx, by).
   int pixel(int bx, int by, int j) const { return (by * bh + j / bw) * kTileSize + bx * bw + j % bw; }
   int base(int bx, int by) const { return (by * blocks_x + bx) * lanes; }
@@ -126,9 +129,7 @@ template <class Visit>
 HWY_INLINE void for_each_block(const BlockLayout& L, const LocalBox& b, const SplatLanes& g, Visit&& visit) {
   const DI di;
   const D d;
-  HWY_ALIGN int32_t col[kTileSize], row[kTileSize];
-  for (int j = 0; j < L.lanes; ++j) col[j] = j % L.bw, row[j] = j / L.bw;
-  const auto lane_col = hn::Load(di, col), lane_row = hn::Load(di, row);
+  const auto lane_col = hn::Load(di, L.col), lane_row = hn::Load(di, L.row);
   for (int by = b.ly0 / L.bh; by <= b.ly1 / L.bh; ++by) {
     const auto ly = hn::Add(hn::Set(di, by * L.bh), lane_row);
     const auto dy = hn::Sub(g.my, hn::ConvertTo(d, ly));
@@ -334,6 +335,8 @@ double ExpMaxRelativeError(float lo, int count) {
 
 const char* TargetName() { return hwy::TargetName(HWY_TARGET); }
 
+int LaneCount() { return int(hn::Lanes(D())); }
+
 }  // namespace HWY_NAMESPACE
 }  // namespace fillgs::tiles
 HWY_AFTER_NAMESPACE();
@@ -345,6 +348,7 @@ HWY_EXPORT(ForwardTile);
 HWY_EXPORT(BackwardTile);
 HWY_EXPORT(ExpMaxRelativeError);
 HWY_EXPORT(TargetName);
+HWY_EXPORT(LaneCount);
 
 void forward_tile_simd(const TileSplats<float>& splats, const TileWork& tile, const TileForward<float>& out) {
   HWY_DYNAMIC_DISPATCH(ForwardTile)(splats, tile, out);
@@ -357,6 +361,8 @@ void backward_tile_simd(const TileSplats<float>& splats, const TileWork& tile, c
 double simd_exp_max_relative_error(float lo, int count) { return HWY_DYNAMIC_DISPATCH(ExpMaxRelativeError)(lo, count); }
 
 const char* simd_target_name() { return HWY_DYNAMIC_DISPATCH(TargetName)(); }
+
+int simd_lane_count() { return HWY_DYNAMIC_DISPATCH(LaneCount)(); }
 
 }  // namespace fillgs::tiles
 #endif
