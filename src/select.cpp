@@ -212,6 +212,22 @@ std::vector<Camera> Trajectory::views() const {
 
 // ------------------------------------------------------------------ deficiency field
 
+const char* to_string(Covisibility c) {
+  switch (c) {
+    case Covisibility::Paper: return "paper";
+    case Covisibility::StaticCount: return "static-count";
+    case Covisibility::Density: return "density";
+  }
+  return "?";
+}
+
+Covisibility parse_covisibility(const std::string& name) {
+  for (Covisibility c : {Covisibility::Paper, Covisibility::StaticCount, Covisibility::Density})
+    if (name == to_string(c)) return c;
+  throw_error("unknown co-visibility rule \"", name, "\" (paper, static-count, density)");
+}
+
+
 DeficiencyField::DeficiencyField(ObservationTables tables, float quantile) : tables_(std::move(tables)) {
   dynamic_index_.assign(tables_.gaussians, -1);
   for (size_t j = 0; j < tables_.dynamic_ids.size(); ++j) dynamic_index_[tables_.dynamic_ids[j]] = int32_t(j);
@@ -240,6 +256,21 @@ std::vector<float> DeficiencyField::values(int f, CandidateScore score) const {
     case CandidateScore::CountOnly:
       for (size_t g = 0; g < N; ++g) v[g] = 1.0f / (1.0f + float(tables_.counts[size_t(f) * N + g]));
       break;
+  }
+  return v;
+}
+
+std::vector<float> DeficiencyField::covisibility(int f, Covisibility rule) const {
+  if (rule == Covisibility::Paper) return values(f, CandidateScore::Deficiency);
+  const size_t N = tables_.gaussians, M = tables_.dynamic_ids.size();
+  const uint16_t* C = tables_.counts.data() + size_t(f) * N;
+  std::vector<float> v(N);
+  for (size_t g = 0; g < N; ++g) v[g] = 1.0f / (1.0f + float(C[g]));  // static: the observation density
+  for (size_t j = 0; j < M; ++j) {
+    const uint32_t g = tables_.dynamic_ids[j];
+    v[g] = rule == Covisibility::StaticCount
+               ? std::min(1.0f, tables_.dynamic_deficiency[size_t(f) * M + j] / scale_)
+               : std::min(1.0f, (1.0f + tables_.dynamic_speed[size_t(f) * M + j] / speed_scale_) * v[g]);
   }
   return v;
 }

@@ -265,14 +265,7 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
   }
   if (use_covis) {
     if (!ctx.deficiency) throw_error("weights: the co-visibility weight needs the deficiency tables");
-    std::vector<float> v = ctx.deficiency->values(f, CandidateScore::Deficiency);
-    if (o.static_count) {
-      const std::vector<float> density = ctx.deficiency->values(f, CandidateScore::CountOnly);  // 1 / (1 + C)
-      std::vector<uint8_t> moving(v.size(), 0);
-      for (uint32_t g : ctx.deficiency->tables().dynamic_ids) moving[g] = 1;
-      for (size_t g = 0; g < v.size(); ++g)
-        if (!moving[g]) v[g] = density[g];
-    }
+    const std::vector<float> v = ctx.deficiency->covisibility(f, o.covisibility);
     w.covisibility = render_value_map(frame, camera, v.data(), ctx.threads);
   }
 

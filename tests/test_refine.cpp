@@ -296,7 +296,7 @@ TEST_CASE("weights: co-visibility is D-hat (1 on an unseen moving Gaussian, 0 on
   CHECK(w.weight == w.covisibility);
   // With the density option, static content weighs 1 / (1 + C) = 1 here (nothing sees it).
   MaskOptions dense;
-  dense.static_count = true;
+  dense.covisibility = Covisibility::StaticCount;
   const ViewWeights wd = compute_weights(ctx, refined, view, Weighting::NoConsistency, dense);
   CHECK(wd.covisibility[static_px] == Approx(r.alpha[static_px]).margin(1e-4));
   CHECK(wd.covisibility[moving_px] == Approx(r.alpha[moving_px]).margin(1e-4));

@@ -380,3 +380,33 @@ TEST_CASE("fillgs explore and fillgs select write their outputs and bad input wr
   CHECK(e4.str().find("transforms_train.json") != std::string::npos);
   CHECK_FALSE(std::filesystem::exists(join_path(dir, "bad")));
 }
+
+TEST_CASE("co-visibility rules: paper D-hat, static count, motion-discounted density (hand-made tables)", "[select][weights]") {
+  // One frame, four Gaussians: g0 static seen 2 times; g1 moving at s = 2 seen once; g2
+  // moving at s = 1 seen 3 times; g3 moving at s = 1 never seen. D = s / (1 + C) =
+  // {-, 1, 0.25, 1}: D_q (0.99 over D > 0) = 1; s_q (0.99 over s > 0) = 2.
+  ObservationTables t;
+  t.times = {0.0};
+  t.gaussians = 4;
+  t.dynamic_ids = {1, 2, 3};
+  t.counts = {2, 1, 3, 0};
+  t.dynamic_speed = {2.0f, 1.0f, 1.0f};
+  t.dynamic_deficiency = {1.0f, 0.25f, 1.0f};
+  DeficiencyField field(t, 0.99f);
+  using V = std::vector<float>;
+  auto near = [](const V& a, const V& b) {
+    bool ok = a.size() == b.size();
+    for (size_t i = 0; ok && i < a.size(); ++i) ok = std::abs(a[i] - b[i]) < 1e-6f;
+    return ok;
+  };
+  CHECK(near(field.covisibility(0, Covisibility::Paper), V{0.0f, 1.0f, 0.25f, 1.0f}));
+  CHECK(near(field.covisibility(0, Covisibility::StaticCount), V{1.0f / 3, 1.0f, 0.25f, 1.0f}));
+  // (1 + s / s_q) / (1 + C), at most 1: g1 (1 + 1) / 2, g2 (1 + 0.5) / 4, g3 1.5 -> 1.
+  CHECK(near(field.covisibility(0, Covisibility::Density), V{1.0f / 3, 1.0f, 0.375f, 1.0f}));
+  // A virtual view that sees g0 and g2 counts as one more observation of both.
+  field.observe(0, {0, 2});
+  CHECK(near(field.covisibility(0, Covisibility::Density), V{0.25f, 1.0f, 0.3f, 1.0f}));
+  CHECK(near(field.covisibility(0, Covisibility::Paper), V{0.0f, 1.0f, 0.2f, 1.0f}));
+  for (const char* name : {"paper", "static-count", "density"}) CHECK(to_string(parse_covisibility(name)) == std::string(name));
+  CHECK_THROWS(parse_covisibility("zero"));
+}

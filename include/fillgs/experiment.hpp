@@ -65,7 +65,8 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& op
 /// What a configuration does with the backbone.
 enum class RunKind {
   Finetune,   ///< select, refine (oracle), weight, fine-tune
-  TestViews,  ///< upper.test-views: fine-tune on clean ground truth at every test camera and frame, weight 1
+  TestViews,  ///< upper.test-views: fine-tune on clean ground truth at every test camera and frame, weight 1,
+              ///< drawn as often as the real views
   Dense,      ///< upper.dense: a backbone trained on every camera of the scene's rig
 };
 

@@ -43,6 +43,22 @@ Strategy parse_strategy(const std::string& name);
 
 /// What a candidate's rendered map holds per Gaussian (the paper's score and its ablations).
 enum class CandidateScore { Deficiency, CountOnly, SpeedOnly };
+
+/// How the co-visibility weight turns the observation tables into a per-Gaussian value
+/// (rendered like colour). s: speed, C: observation count at the view's frame (the
+/// training cameras and the virtual views chosen so far), D = s / (1 + C).
+enum class Covisibility {
+  Paper,        ///< D̂ = min(1, D / D_q), D_q the quantile of D over the scene (static: 0)
+  StaticCount,  ///< Paper for moving Gaussians, 1 / (1 + C) for static ones (fillgs)
+  /// min(1, (1 + s / s_q) / (1 + C)), s_q the quantile of the moving Gaussians' speeds:
+  /// observation density discounted by motion (fillgs). Static content seen by n cameras
+  /// weighs 1 / (1 + n); a Gaussian moving at s_q counts as half as observed; content no
+  /// camera sees weighs 1.
+  Density,
+};
+const char* to_string(Covisibility c);
+Covisibility parse_covisibility(const std::string& name);  ///< paper | static-count | density
+
 /// How candidate maps are rendered: rays through the Embree proxies every `stride`
 /// pixels, or the rasterizer at full resolution.
 enum class MapRenderer { Raytraced, Raster };
@@ -188,6 +204,8 @@ class DeficiencyField {
   float scale() const { return scale_; }
   /// D̂ (or the ablation's value) for all N Gaussians at frame f.
   std::vector<float> values(int frame, CandidateScore score) const;
+  /// The co-visibility weight's per-Gaussian value at frame f (weights.hpp, Covisibility).
+  std::vector<float> covisibility(int frame, Covisibility rule) const;
   /// Counts one more observation of `visible` at frame f and updates D there.
   void observe(int frame, const std::vector<uint32_t>& visible);
 

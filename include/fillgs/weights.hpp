@@ -56,11 +56,7 @@ struct MaskOptions {
   /// External maps: `<external_dir>/<name>` (8/16-bit grey, same size) for a refined view
   /// named `name` (the refined image's path relative to the refined root).
   std::string external_dir;
-  /// Co-visibility of static Gaussians: 0 (the paper's D = s / (1 + C) with s = 0) or, with
-  /// this set, 1 / (1 + C) — the observation density alone (an option fillgs adds: a
-  /// model whose moving Gaussians are misplaced otherwise gives the true moving object's
-  /// pixels, drawn over static content, no weight at all).
-  bool static_count = false;
+  Covisibility covisibility = Covisibility::Paper;
 };
 
 /// Expected depth Σ α·T·z / α of a render, 0 where α < min_alpha.

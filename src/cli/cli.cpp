@@ -392,7 +392,7 @@ void print_help(std::ostream& out) {
          "         [--refiner identity|oracle|external] [--refiner-command 'cmd {in} {out}'] [--refiner-timeout s]\n"
          "         [--truth SCENE --artifact-strength a --support observed|full --support-window w]\n"
          "         [--confidence DIR] [--mask depth-warp|sweep]\n"
-         "         [--covis-static zero|count] [--mask-sigma s] [--refined-share p] [selection flags]\n"
+         "         [--covis paper|static-count|density] [--mask-sigma s] [--refined-share p] [selection flags]\n"
          "                                            fine-tune with refined virtual views; weightings: fillgs none\n"
          "                                            no-consistency no-covisibility 3dgs-enhancer exploregs ua-4dgs\n"
          "  eval --model M --images DIR --cameras C1[,C2] [--splits n1,n2] [--select-cameras a,b] [--truth SCENE]\n"

@@ -64,7 +64,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
   Args a("finetune", args, 1,
          merge({"model", "images", "cameras", "out", "train-cameras", "iterations", "select-every", "trajectories", "strategy", "weighting",
                 "refiner", "refiner-command", "refiner-timeout", "truth", "artifact-strength", "confidence", "seed", "threads",
-                "time-stride", "refined-share", "mask-sigma", "mask", "covis-static", "support", "support-window"},
+                "time-stride", "refined-share", "mask-sigma", "mask", "covis", "support", "support-window"},
                kSceneOptions),
          kFinetuneFlags);
   const auto t0 = Clock::now();
@@ -87,9 +87,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
   o.weighting = parse_weighting(a.get("weighting", "fillgs"));
   o.mask.sigma = a.number("mask-sigma", o.mask.sigma);
   o.mask.method = parse_mask_method(a.get("mask", "depth-warp"));
-  const std::string cs = a.get("covis-static", "zero");
-  if (cs != "zero" && cs != "count") throw_error("fillgs finetune: --covis-static must be zero or count (got \"", cs, "\")");
-  o.mask.static_count = cs == "count";
+  o.mask.covisibility = parse_covisibility(a.get("covis", "paper"));
   if (a.has("confidence")) {
     o.mask.method = MaskMethod::External;
     o.mask.external_dir = a.get("confidence");
