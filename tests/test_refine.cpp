@@ -706,3 +706,37 @@ TEST_CASE("fillgs run: the whole pipeline prints its comparison and writes its r
   }
   CHECK(pictures == 2);
 }
+
+TEST_CASE("bench report: FillGS paired against each method by seed (hand-made results)", "[refine][bench]") {
+  auto result = [](const std::string& id, uint64_t seed, double interp, double extrap) {
+    RunResult r;
+    r.id = id;
+    r.variant = "n3v";
+    r.seed = seed;
+    r.interpolation.psnr = interp;
+    r.interpolation.psnr_moving = interp - 5;
+    r.extrapolation.psnr = extrap;
+    r.extrapolation.psnr_moving = extrap - 1;
+    return r;
+  };
+  const std::vector<RunResult> results = {
+      result("backbone", 1, 18, 12),       result("fillgs", 1, 20, 13),        result("fillgs", 2, 21, 14),
+      result("interpolation", 1, 19, 13.5), result("interpolation", 2, 21.5, 13), result("random", 3, 25, 25),  // no fillgs at seed 3
+      result("fillgs@full", 1, 22, 15),    result("random@full", 1, 21, 16)};
+  const std::vector<PairedDifference> d = paired_differences(results);
+  REQUIRE(d.size() == 2);
+  // interpolation: differences (1, -0.5) and (-0.5, 1): mean 0.25, sd 0.75 * sqrt(2).
+  CHECK(d[0].id == "interpolation");
+  CHECK(d[0].seeds == 2);
+  CHECK(d[0].mean[0] == Approx(0.25));
+  CHECK(d[0].sd[0] == Approx(0.75 * std::sqrt(2.0)));
+  CHECK(d[0].mean[1] == Approx(0.25));
+  CHECK(d[0].mean[2] == Approx(0.25));
+  CHECK(d[0].sd[2] == Approx(0.75 * std::sqrt(2.0)));
+  // The second support pairs with its own FillGS run.
+  CHECK(d[1].id == "random@full");
+  CHECK(d[1].seeds == 1);
+  CHECK(d[1].mean[0] == Approx(1.0));
+  CHECK(d[1].mean[2] == Approx(-1.0));
+  CHECK(d[1].sd[0] == 0.0);
+}

@@ -123,8 +123,22 @@ RunResult load_result(const std::string& path);
 /// standard_configs (backbone first).
 std::vector<RunResult> collect_results(const std::string& root);
 
+/// `reference` minus another configuration, paired by scene and seed: the way to read a
+/// comparison whose spread between seeds is larger than the differences between methods.
+struct PairedDifference {
+  std::string variant, id, group;
+  int seeds = 0;  ///< seeds where both ran
+  /// interpolation PSNR, its moving region, extrapolation PSNR, its moving region (dB)
+  double mean[4] = {}, sd[4] = {};
+};
+
+/// For every configuration but the reference (and the backbone): `reference` − it, over
+/// the seeds both have in the same scene. A configuration run with the second oracle
+/// support ("random@full") is paired with the reference of that support ("fillgs@full").
+std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& results, const std::string& reference = "fillgs");
+
 /// results.csv (every run), results.md (mean ± standard deviation over seeds per scene,
-/// shaped like the paper's tables), psnr_interpolation.png, psnr_extrapolation.png,
+/// shaped like the paper's tables, FillGS paired against each method), psnr_interpolation.png, psnr_extrapolation.png,
 /// budget.png, time_per_phase.png.
 void write_bench_report(const std::string& root, const std::vector<RunResult>& results);
 
