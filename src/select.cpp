@@ -146,9 +146,11 @@ std::vector<Camera> global_candidates(const Camera& start, const std::vector<Cam
     if (d > 1e-9 * std::max(1.0, start.centre().norm())) near.emplace_back(d, i);
   }
   std::sort(near.begin(), near.end());
-  if (near.size() < 2) return {};
-  const Camera& a = training[near[0].second];
-  const Camera& b = training[near[1].second];
+  if (near.empty()) return {};
+  // Two training cameras (the paper's setting): the start and its one neighbour span the box
+  // and the directions. More: the start's two nearest neighbours.
+  const Camera& a = near.size() >= 2 ? training[near[0].second] : start;
+  const Camera& b = near.size() >= 2 ? training[near[1].second] : training[near[0].second];
   Box3 box{start.centre(), start.centre()};
   box.extend(a.centre());
   box.extend(b.centre());

@@ -214,6 +214,29 @@ TEST_CASE("candidates: global candidates lie in free voxels of the grown box and
   }
 }
 
+TEST_CASE("candidates: with two training cameras the start and the other one span the global box", "[select]") {
+  // The paper's setting: two cameras. The start's only neighbour is the other camera; the
+  // candidates lie in the grown box of the two and look between them.
+  const Fixture& fx = fixture();
+  const Camera& start = fx.synth.train[5];
+  const Camera& other = fx.synth.train[6];
+  const double grow = 3 * fx.grid.step();
+  std::mt19937_64 rng(5);
+  const std::vector<Camera> g = global_candidates(start, {start, other}, fx.grid, 12, grow, rng);
+  REQUIRE(g.size() == 12);
+  Box3 box{start.centre(), start.centre()};
+  box.extend(other.centre());
+  const Vec3d pad = Vec3d::Constant(grow) + 0.5 * fx.grid.voxel_size();
+  auto angle = [](const Mat3d& x, const Mat3d& y) { return Eigen::AngleAxisd(x * y.transpose()).angle(); };
+  for (const Camera& c : g) {
+    CHECK(fx.grid.is_free(c.centre()));
+    CHECK(((c.centre() - box.lo).array() >= -pad.array()).all());
+    CHECK(((c.centre() - box.hi).array() <= pad.array()).all());
+    CHECK(angle(start.R, c.R) + angle(c.R, other.R) == Approx(angle(start.R, other.R)).margin(1e-9));
+  }
+  CHECK(global_candidates(start, {start}, fx.grid, 12, grow, rng).empty());
+}
+
 TEST_CASE("selection: D falls where a trajectory looked and the next trajectory starts elsewhere", "[select]") {
   const Fixture& fx = fixture();
   SelectOptions o = small_options(Strategy::FillGS, 2);

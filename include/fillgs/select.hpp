@@ -179,7 +179,9 @@ std::vector<Camera> local_candidates(const Camera& current, const std::vector<Ca
 /// §3's global candidates: `count` points drawn among the free voxels of the box spanned by
 /// `start` and its two nearest cameras in `training` (ignoring any at its centre), grown by
 /// `grow` on every side; each looks in the direction slerped between those two cameras by
-/// distance (all the way to a's when at a). Intrinsics of `start`.
+/// distance (all the way to a's when at a). With one other camera (two training cameras),
+/// the two are `start` and that camera; with none, there are no global candidates.
+/// Intrinsics of `start`.
 std::vector<Camera> global_candidates(const Camera& start, const std::vector<Camera>& training, const ExplorationGrid& grid, int count,
                                       double grow, std::mt19937_64& rng);
 
