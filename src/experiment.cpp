@@ -441,6 +441,13 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   r.seconds_train = fr.seconds_train;
   r.seconds_total = seconds_since(t0);
   write_fillgs_ply(join_path(dir, "model.ply"), fr.model, F);
+  if (!fr.virtual_views.empty()) {
+    // Where the strategy looked: the refined views, and their top view over the split.
+    write_transforms_json(join_path(dir, "virtual_views.json"), fr.virtual_views);
+    write_split_picture(p.synth, join_path(dir, "views.png"), fr.virtual_views,
+                        c.id + ": " + std::to_string(fr.virtual_views.size()) + " virtual views (" + p.options.scene_name() + ", seed " +
+                            std::to_string(p.options.seed) + ")");
+  }
   save_result(result_path, r);
   log << c.id << ": interpolation " << fmt(r.interpolation.psnr) << " dB (moving " << fmt(r.interpolation.psnr_moving) << "), extrapolation "
       << fmt(r.extrapolation.psnr) << " dB (moving " << fmt(r.extrapolation.psnr_moving) << "), train " << fmt(r.train.psnr) << " dB; "

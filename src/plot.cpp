@@ -263,14 +263,20 @@ void write_split_png(const std::string& path, const std::vector<Vec3f>& static_p
     if (inside(p)) cv::circle(img, to_px(p.x(), p.y()), 1, cv::Scalar(190, 190, 190), cv::FILLED);
   for (const Vec3f& p : moving_points)
     if (inside(p)) cv::circle(img, to_px(p.x(), p.y()), 1, cv::Scalar(40, 140, 250), cv::FILLED);
-  // Roles: 0 training (red), 1 interpolation (blue), 2 extrapolation (purple), else grey.
-  const cv::Scalar colours[] = {{30, 30, 220}, {220, 110, 30}, {160, 40, 120}, {150, 150, 150}};
+  // Roles: 0 training (red), 1 interpolation (blue), 2 extrapolation (purple), 3 grey, 4 virtual (green).
+  const cv::Scalar colours[] = {{30, 30, 220}, {220, 110, 30}, {160, 40, 120}, {150, 150, 150}, {60, 170, 40}};
   const double arrow = 0.05 * std::max(x1 - x0, y1 - y0);
+  bool any_virtual = false;
   for (size_t i = 0; i < cameras.size(); ++i) {
-    const cv::Scalar c = colours[std::clamp(roles[i], 0, 3)];
+    const int role = std::clamp(roles[i], 0, 4);
+    const cv::Scalar c = colours[role];
     const Vec3d o = cameras[i].centre(), f = cameras[i].R.row(2).transpose();
     cv::line(img, to_px(o.x(), o.y()), to_px(o.x() + arrow * f.x(), o.y() + arrow * f.y()), c, 1, cv::LINE_AA);
-    cv::circle(img, to_px(o.x(), o.y()), roles[i] == 0 ? 5 : 4, c, cv::FILLED, cv::LINE_AA);
+    cv::circle(img, to_px(o.x(), o.y()), role == 0 ? 5 : role == 4 ? 2 : 4, c, cv::FILLED, cv::LINE_AA);
+    if (role == 4) {
+      any_virtual = true;
+      continue;
+    }
     // Names vertical, beside the camera away from where it looks (below the rig for the
     // lower cameras of a two-row rig, above for the others), so that neighbours do not overlap.
     double zmax = -1e30;
@@ -280,12 +286,13 @@ void write_split_png(const std::string& path, const std::vector<Vec3f>& static_p
     text_vertical(img, cameras[i].name, cv::Point(int(at.x), int(at.y) + (lower ? 30 : -34)), 0.36, c);
   }
   text(img, title, cv::Point(margin, 22), 0.55);
-  const char* names[] = {"training", "interpolation", "extrapolation", "other"};
+  const char* names[] = {"training", "interpolation", "extrapolation", "other", "virtual views"};
   int x = margin;
-  for (int r = 0; r < 4; ++r) {
+  for (int r = 0; r < (any_virtual ? 5 : 4); ++r) {
     cv::circle(img, cv::Point(x + 5, H - legend / 2), 5, colours[r], cv::FILLED, cv::LINE_AA);
     text(img, names[r], cv::Point(x + 14, H - legend / 2 + 5), 0.42);
-    x += 130;
+    int base = 0;
+    x += 14 + cv::getTextSize(names[r], kFont, 0.42, 1, &base).width + 22;
   }
   cv::circle(img, cv::Point(x + 5, H - legend / 2), 3, cv::Scalar(40, 140, 250), cv::FILLED);
   text(img, "moving content, all frames", cv::Point(x + 14, H - legend / 2 + 5), 0.42);

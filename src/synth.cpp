@@ -482,7 +482,7 @@ std::vector<Camera> cameras_over_time(const std::vector<Camera>& rig, int frames
   return out;
 }
 
-void write_split_picture(const SynthScene& s, const std::string& path) {
+void write_split_picture(const SynthScene& s, const std::string& path, const std::vector<Camera>& virtual_views, const std::string& title) {
   std::vector<Camera> cams;
   std::vector<int> roles;
   auto role_of = [&](const std::string& n) {
@@ -509,9 +509,12 @@ void write_split_picture(const SynthScene& s, const std::string& path) {
     const FrameGaussians& g = ev.evaluate(double(f) / (F - 1));
     for (size_t k = 0; k < s.moving_ids.size(); k += 5) moving.push_back(g.means[s.moving_ids[k]]);
   }
+  for (const Camera& v : virtual_views) cams.push_back(v), roles.push_back(4);
   write_split_png(path, still, moving, cams, roles,
-                  "split of the " + s.options.scene_name() + " scene: train " + std::to_string(s.split.train.size()) + ", interpolation " +
-                      std::to_string(s.split.interpolation.size()) + ", extrapolation " + std::to_string(s.split.extrapolation.size()));
+                  !title.empty() ? title
+                                 : "split of the " + s.options.scene_name() + " scene: train " + std::to_string(s.split.train.size()) +
+                                       ", interpolation " + std::to_string(s.split.interpolation.size()) + ", extrapolation " +
+                                       std::to_string(s.split.extrapolation.size()));
 }
 
 void write_synthetic_scene(const SynthScene& s, const std::string& dir, Progress& progress, int threads) {

@@ -545,6 +545,11 @@ TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refi
   CHECK(fg.support_share > 0.0);
   CHECK(fg.support_share <= 1.0);
   CHECK(fs::exists(join_path(dir, "n3v_s1/runs/fillgs/work/refined/r0_t00/support")));
+  // Where it looked: every refined view in virtual_views.json, and their top view.
+  CHECK(read_cameras(join_path(dir, "n3v_s1/runs/fillgs/virtual_views.json")).size() == fg.views_added);
+  CHECK(fs::exists(join_path(dir, "n3v_s1/runs/fillgs/views.png")));
+  // FillGS paired against the others in the report.
+  CHECK(read_file(join_path(dir, "results.md")).find("| n3v | random | strategy |") != std::string::npos);
   for (const char* f : {"results.md", "psnr_interpolation.png", "psnr_extrapolation.png", "time_per_phase.png"}) CHECK(fs::exists(join_path(dir, f)));
   // Interrupted: the last run's result is missing. The rerun reuses the scene, the backbone
   // and the finished runs, recomputes only the missing one, and gets the same numbers.

@@ -31,8 +31,8 @@ struct ScatterSeries {
 void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>& series, const PlotLabels& labels, bool log_x);
 
 /// Top view (z up) of a rig's split: static points grey, moving points orange, cameras
-/// coloured by role (0 training red, 1 interpolation blue, 2 extrapolation purple, other
-/// grey) with their viewing direction and name.
+/// coloured by role (0 training red, 1 interpolation blue, 2 extrapolation purple, 3 other
+/// grey) with their viewing direction and name; role 4: a virtual view (green, unnamed).
 void write_split_png(const std::string& path, const std::vector<Vec3f>& static_points, const std::vector<Vec3f>& moving_points,
                      const std::vector<Camera>& cameras, const std::vector<int>& roles, const std::string& title);
 

@@ -87,8 +87,10 @@ std::vector<Camera> cameras_over_time(const std::vector<Camera>& rig, int frames
 /// frame, points.ply (pseudo SfM points, see pseudo_sfm_points), synth.json describing
 /// the scene and its split, and split.png (write_split_picture).
 /// Top view of the scene with its split: training cameras red, interpolation blue,
-/// extrapolation purple, the others grey; static content grey, moving content orange.
-void write_split_picture(const SynthScene& scene, const std::string& path);
+/// extrapolation purple, the others grey; static content grey, moving content orange;
+/// `virtual_views` (a strategy's choice) green. An empty title describes the split.
+void write_split_picture(const SynthScene& scene, const std::string& path, const std::vector<Camera>& virtual_views = {},
+                         const std::string& title = "");
 
 void write_synthetic_scene(const SynthScene& scene, const std::string& out_dir, Progress& progress, int threads = 0);
 
