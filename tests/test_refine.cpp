@@ -698,7 +698,7 @@ TEST_CASE("fillgs run: the whole pipeline prints its comparison and writes its r
   const std::string log = out.str();
   INFO(log << err.str());
   // The table: backbone, the control, FillGS and the baseline, each with both splits.
-  for (const char* row : {"\nbackbone ", "\nno-refinement ", "\nfillgs ", "\ninterpolation "}) CHECK(log.find(row) != std::string::npos);
+  for (const char* row : {"\nbackbone ", "\nno-refinement ", "\nfillgs ", "\ncoverage4d "}) CHECK(log.find(row) != std::string::npos);
   CHECK(log.find("interp PSNR (moving)") != std::string::npos);
   const std::string report = read_file(join_path(dir, "report.md"));
   CHECK(report.find("| fillgs |") != std::string::npos);

@@ -306,7 +306,7 @@ int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   Args a("run", args, 1, {"out", "threads", "baseline", "scene", "support"}, {"quiet", "smoke"});
   const auto t0 = Clock::now();
   const std::string dir = a.get("out", "fillgs_run");
-  const std::string baseline = a.get("baseline", "interpolation");
+  const std::string baseline = a.get("baseline", "coverage4d");
   const Strategy baseline_strategy = parse_strategy(baseline);
   if (baseline_strategy == Strategy::FillGS) throw_error("fillgs run: --baseline must be another strategy than fillgs");
   const OracleSupport support = parse_oracle_support(a.get("support", "observed"));
