@@ -309,7 +309,8 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
     for (Weighting w : {Weighting::None, Weighting::NoConsistency, Weighting::NoCovisibility, Weighting::Enhancer3DGS, Weighting::ExploreGS,
                         Weighting::UA4DGS})
       add(std::string("fillgs.w-") + to_string(w), "weighting", Strategy::FillGS, w, strength, 5);
-    // fillgs's own options beyond the paper: model-independent sweep matching, density weight on static content.
+    // fillgs's own options beyond the paper: model-independent sweep matching, co-visibility rules
+    // that weigh static content by its observation density (static-count, density).
     add("fillgs.m-sweep", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.method = MaskMethod::Sweep;
     add("fillgs.covis-static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.covisibility =
         Covisibility::StaticCount;
