@@ -142,6 +142,15 @@ GaussianCloud train_backbone(const Dataset& data, const std::string& points, con
   return trainer.model();
 }
 
+/// Mean and sample standard deviation of values added one at a time.
+struct Moments {
+  double sum = 0, squares = 0;
+  int n = 0;
+  void add(double x) { sum += x, squares += x * x, ++n; }
+  double mean() const { return sum / n; }
+  double sd() const { return n > 1 ? std::sqrt(std::max(0.0, (squares - sum * sum / n) / (n - 1))) : 0.0; }
+};
+
 }  // namespace
 
 void save_result(const std::string& path, const RunResult& r) { write_file_atomically(path, result_json(r).dump(1) + "\n"); }
@@ -463,7 +472,7 @@ std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& r
     return std::array<double, 4>{r.interpolation.psnr, r.interpolation.psnr_moving, r.extrapolation.psnr, r.extrapolation.psnr_moving};
   };
   std::vector<PairedDifference> out;
-  std::vector<std::array<double, 4>> sums, squares;
+  std::vector<std::array<Moments, 4>> moments;  // per entry of out
   for (const RunResult& r : results) {
     if (r.id == "backbone") continue;
     const size_t at = r.id.find('@');
@@ -475,20 +484,16 @@ std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& r
     auto it = std::find_if(out.begin(), out.end(), [&](const PairedDifference& d) { return d.id == r.id && d.variant == r.variant; });
     if (it == out.end()) {
       out.push_back({r.variant, r.id, r.group});
-      sums.push_back({}), squares.push_back({});
+      moments.emplace_back();
       it = out.end() - 1;
     }
-    const size_t k = size_t(it - out.begin());
     const std::array<double, 4> a = values(*ref), b = values(r);
-    for (size_t j = 0; j < 4; ++j) sums[k][j] += a[j] - b[j], squares[k][j] += (a[j] - b[j]) * (a[j] - b[j]);
-    it->seeds += 1;
+    std::array<Moments, 4>& m = moments[size_t(it - out.begin())];
+    for (size_t j = 0; j < 4; ++j) m[j].add(a[j] - b[j]);
   }
   for (size_t k = 0; k < out.size(); ++k) {
-    const double n = out[k].seeds;
-    for (size_t j = 0; j < 4; ++j) {
-      out[k].mean[j] = sums[k][j] / n;
-      out[k].sd[j] = n > 1 ? std::sqrt(std::max(0.0, (squares[k][j] - sums[k][j] * sums[k][j] / n) / (n - 1))) : 0.0;
-    }
+    out[k].seeds = moments[k][0].n;
+    for (size_t j = 0; j < 4; ++j) out[k].mean[j] = moments[k][j].mean(), out[k].sd[j] = moments[k][j].sd();
   }
   return out;
 }
@@ -511,19 +516,23 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   struct Mean {
     std::string id, group, variant, support;
     int n = 0;
-    double v[kValues] = {}, v2[kValues] = {};
+    Moments v[kValues];
     double t[5] = {};
-    double mean(int k) const { return v[k] / n; }
-    double sd(int k) const { return n > 1 ? std::sqrt(std::max(0.0, (v2[k] - v[k] * v[k] / n) / (n - 1))) : 0.0; }
+    double mean(int k) const { return v[k].mean(); }
+    double sd(int k) const { return v[k].sd(); }
   };
   std::vector<Mean> means;
   for (const RunResult& r : results) {
     auto it = std::find_if(means.begin(), means.end(), [&](const Mean& m) { return m.id == r.id && m.variant == r.variant; });
-    if (it == means.end()) means.push_back({r.id, r.group, r.variant, r.support}), it = means.end() - 1;
+    if (it == means.end()) {
+      means.emplace_back();
+      means.back().id = r.id, means.back().group = r.group, means.back().variant = r.variant, means.back().support = r.support;
+      it = means.end() - 1;
+    }
     const double x[kValues] = {r.interpolation.psnr, r.interpolation.ssim, r.interpolation.psnr_moving, r.extrapolation.psnr,
                                r.extrapolation.ssim,  r.extrapolation.psnr_moving, r.train.psnr, r.mean_weight, double(r.trajectories),
                                r.support_share};
-    for (int k = 0; k < kValues; ++k) it->v[k] += x[k], it->v2[k] += x[k] * x[k];
+    for (int k = 0; k < kValues; ++k) it->v[k].add(x[k]);
     const double sec[5] = {r.seconds_select, r.seconds_refine, r.seconds_weights, r.seconds_train, r.seconds_eval};
     for (int k = 0; k < 5; ++k) it->t[k] += sec[k];
     it->n += 1;
