@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "fillgs/camera.hpp"
@@ -27,7 +28,8 @@ CameraFormat parse_camera_format(const std::string& n) {
   if (n == "transforms" || n == "nerf") return CameraFormat::Transforms;
   if (n == "3dgs") return CameraFormat::GaussianJson;
   if (n == "technicolor") return CameraFormat::Technicolor;
-  throw_error("unknown camera format '", n, "' (expected auto, colmap, llff, transforms, 3dgs or technicolor)");
+  if (n == "d3dgs" || n == "panoptic") return CameraFormat::D3dgs;
+  throw_error("unknown camera format '", n, "' (expected auto, colmap, llff, transforms, 3dgs, technicolor or d3dgs)");
 }
 
 const char* to_string(CameraFormat f) {
@@ -38,6 +40,7 @@ const char* to_string(CameraFormat f) {
     case CameraFormat::Transforms: return "transforms";
     case CameraFormat::GaussianJson: return "3dgs";
     case CameraFormat::Technicolor: return "technicolor";
+    case CameraFormat::D3dgs: return "d3dgs";
   }
   return "?";
 }
@@ -458,6 +461,91 @@ std::vector<Camera> read_technicolor(const std::string& path, const CameraReadOp
   return cams;
 }
 
+// ---------------------------------------------------------------- Dynamic 3D Gaussians (Panoptic)
+
+/// train_meta.json / test_meta.json: w, h, and per frame f and slot i k[f][i] (3×3),
+/// w2c[f][i] (4×4, OpenCV axes), fn[f][i] (image path under ims/), cam_id[f][i]. One camera
+/// per (frame, slot), named "<cam_id>/<frame:06d>", time f / (F − 1), image path fn. K is
+/// taken as fillgs's corner convention, as Dynamic 3D Gaussians' renderer uses it (its
+/// projection puts the ray through (cx, cy) at pixel coordinate cx − ½ of a grid whose first
+/// pixel centre is 0).
+std::vector<Camera> read_d3dgs_meta(const std::string& path) {
+  const json root = parse_json_file(path);
+  if (!root.is_object()) throw_error(path, ": a Dynamic 3D Gaussians meta file must be an object");
+  for (const char* key : {"w", "h", "k", "w2c", "fn", "cam_id"})
+    if (!root.contains(key)) throw_error(path, ": no '", key, "' (a Dynamic 3D Gaussians meta file has w, h, k, w2c, fn, cam_id)");
+  const double w = json_number(root, path, "the file", "w"), h = json_number(root, path, "the file", "h");
+  if (w < 1 || h < 1 || w > 65536 || h > 65536 || w != std::floor(w) || h != std::floor(h))
+    throw_error(path, ": image size ", w, "x", h, " is not a positive whole number of pixels");
+  const json &K = root["k"], &W2C = root["w2c"], &FN = root["fn"], &ID = root["cam_id"];
+  for (const auto& [name, list] : {std::pair<const char*, const json*>{"k", &K}, {"w2c", &W2C}, {"fn", &FN}, {"cam_id", &ID}})
+    if (!list->is_array() || list->empty()) throw_error(path, ": '", name, "' is not a non-empty list of frames");
+  const size_t F = FN.size();
+  if (K.size() != F || W2C.size() != F || ID.size() != F)
+    throw_error(path, ": the lists disagree on the number of frames (k ", K.size(), ", w2c ", W2C.size(), ", fn ", F, ", cam_id ", ID.size(), ")");
+  auto id_of = [&](const json& v, const std::string& el) -> std::string {
+    if (v.is_number_integer()) return std::to_string(v.get<long long>());
+    if (v.is_string() && !v.get<std::string>().empty()) return v.get<std::string>();
+    throw_error(path, ": ", el, " is not a camera id (an integer or a name)");
+  };
+  std::vector<std::string> ids0;
+  std::vector<Camera> cams;
+  for (size_t f = 0; f < F; ++f) {
+    const std::string fe = "frame " + std::to_string(f);
+    if (!FN[f].is_array() || !K[f].is_array() || !W2C[f].is_array() || !ID[f].is_array())
+      throw_error(path, ": ", fe, ": k, w2c, fn and cam_id must each hold a list of cameras");
+    const size_t n = FN[f].size();
+    if (K[f].size() != n || W2C[f].size() != n || ID[f].size() != n)
+      throw_error(path, ": ", fe, ": the lists disagree on the number of cameras (k ", K[f].size(), ", w2c ", W2C[f].size(), ", fn ", n,
+                  ", cam_id ", ID[f].size(), ")");
+    std::vector<std::string> ids;
+    for (size_t i = 0; i < n; ++i) ids.push_back(id_of(ID[f][i], fe + " cam_id[" + std::to_string(i) + "]"));
+    if (f == 0) {
+      ids0 = ids;
+      if (std::set<std::string>(ids.begin(), ids.end()).size() != ids.size()) throw_error(path, ": frame 0 names a camera twice");
+    } else if (ids != ids0) {
+      throw_error(path, ": ", fe, " has other cameras than frame 0 (", n, " against ", ids0.size(),
+                  "); every camera needs every frame");
+    }
+    for (size_t i = 0; i < n; ++i) {
+      const std::string el = fe + " camera " + ids[i];
+      auto matrix = [&](const json& m, int rows, int cols, const char* what) {
+        Eigen::MatrixXd out(rows, cols);
+        if (!m.is_array() || m.size() != size_t(rows)) throw_error(path, ": ", el, ": ", what, " is not ", rows, "x", cols);
+        for (int r = 0; r < rows; ++r) {
+          if (!m[size_t(r)].is_array() || m[size_t(r)].size() != size_t(cols)) throw_error(path, ": ", el, ": ", what, " is not ", rows, "x", cols);
+          for (int c = 0; c < cols; ++c) {
+            const json& x = m[size_t(r)][size_t(c)];
+            if (!x.is_number() || !std::isfinite(x.get<double>())) throw_error(path, ": ", el, ": ", what, "[", r, "][", c, "] is not a finite number");
+            out(r, c) = x.get<double>();
+          }
+        }
+        return out;
+      };
+      const Eigen::MatrixXd k = matrix(K[f][i], 3, 3, "k"), m = matrix(W2C[f][i], 4, 4, "w2c");
+      Camera c;
+      c.width = int(w), c.height = int(h);
+      c.fx = k(0, 0), c.fy = k(1, 1), c.cx = k(0, 2), c.cy = k(1, 2);
+      if (!(c.fx > 0 && c.fy > 0) || std::abs(k(0, 1)) > 1e-9 * c.fx || k(1, 0) != 0 || k(2, 0) != 0 || k(2, 1) != 0 || k(2, 2) != 1)
+        throw_error(path, ": ", el, ": k is not a pinhole intrinsic matrix [fx 0 cx; 0 fy cy; 0 0 1]");
+      c.R = m.block<3, 3>(0, 0);
+      c.t = m.block<3, 1>(0, 3);
+      if ((c.R * c.R.transpose() - Mat3d::Identity()).norm() > 1e-4 || c.R.determinant() < 0 || m(3, 0) != 0 || m(3, 1) != 0 || m(3, 2) != 0 ||
+          m(3, 3) != 1)
+        throw_error(path, ": ", el, ": w2c is not a rigid world-to-camera matrix [R t; 0 0 0 1]");
+      if (!FN[f][i].is_string() || FN[f][i].get<std::string>().empty()) throw_error(path, ": ", el, ": fn is not a file name");
+      c.image_path = FN[f][i].get<std::string>();
+      char frame[16];
+      std::snprintf(frame, sizeof frame, "%06zu", f);
+      c.name = ids[i] + "/" + frame;
+      c.time = F > 1 ? double(f) / double(F - 1) : 0.0;
+      check_finite_camera(path, el, c);
+      cams.push_back(c);
+    }
+  }
+  return cams;
+}
+
 }  // namespace
 
 CameraFormat detect_camera_format(const std::string& path) {
@@ -468,6 +556,8 @@ CameraFormat detect_camera_format(const std::string& path) {
   const std::string name = p.filename().string(), ext = p.extension().string();
   if (name == "cameras.txt" || name == "images.txt" || name == "cameras.bin" || name == "images.bin") return CameraFormat::Colmap;
   if (ext == ".npy") return CameraFormat::Llff;
+  // Dynamic 3D Gaussians names its camera files train_meta.json and test_meta.json.
+  if (name.size() > 10 && name.compare(name.size() - 10, 10, "_meta.json") == 0) return CameraFormat::D3dgs;
   if (ext == ".json") {
     std::ifstream in(path);
     char ch = 0;
@@ -487,6 +577,7 @@ std::vector<Camera> read_cameras(const std::string& path, const CameraReadOption
     case CameraFormat::Transforms: cams = read_transforms(path, opt); break;
     case CameraFormat::GaussianJson: cams = read_gaussian_json(path); break;
     case CameraFormat::Technicolor: cams = read_technicolor(path, opt); break;
+    case CameraFormat::D3dgs: cams = read_d3dgs_meta(path); break;
     case CameraFormat::Auto: break;
   }
   if (cams.empty()) throw_error(path, ": no cameras");

@@ -84,8 +84,9 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
     m.psnr += psnr(out.rgb.data(), target.data(), W, H, 3);
     m.ssim += ssim(out.rgb.data(), target.data(), W, H, 3);
     if (lpips) m.lpips += lpips->distance(out.rgb.data(), target.data(), W, H);
-    if (o.truth) {
-      const std::vector<unsigned char> mask = moving_region(*o.truth, view.camera, o.threads);
+    if (o.truth || split.has_masks()) {
+      // The moving region: the truth's moving Gaussians, else the dataset's foreground masks.
+      const std::vector<unsigned char> mask = o.truth ? moving_region(*o.truth, view.camera, o.threads) : split.mask(v);
       for (size_t p = 0; p < mask.size(); ++p) {
         if (!mask[p]) continue;
         ++m.moving_pixels;
@@ -111,7 +112,7 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
     m.psnr /= double(m.views), m.ssim /= double(m.views);
     if (lpips) m.lpips /= double(m.views);
   }
-  if (o.truth && m.moving_pixels > 0) {
+  if (m.moving_pixels > 0) {
     const double mse = moving_se / (3.0 * double(m.moving_pixels));
     m.psnr_moving = mse > 0 ? 10.0 * std::log10(1.0 / mse) : std::numeric_limits<double>::infinity();
   }

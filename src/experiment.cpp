@@ -371,7 +371,19 @@ RunResult evaluate_model(const PreparedScene& p, const GaussianCloud& model, con
 
 RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneOptions& base, Progress& progress, std::ostream& log) {
   const std::string dir = join_path(join_path(p.dir, "runs"), c.id);
-  const std::string result_path = join_path(dir, "result.json");
+  const std::string result_path = join_path(dir, "result.json"), schedule_path = join_path(dir, "schedule.json");
+  // The fine-tuning schedule a run was made with: a folder is resumed only with the same one.
+  const json schedule = c.kind == RunKind::Dense ? json{{"backbone_iterations", p.options.backbone_iterations}}
+                                                 : json{{"iterations", base.iterations},
+                                                        {"select_every", base.select_every},
+                                                        {"position_lr", base.train.position_lr_init},
+                                                        {"key_lr_scale", base.train.key_lr_scale}};
+  if (fs::exists(result_path) && fs::exists(schedule_path)) {
+    const json old = json::parse(read_file(schedule_path));
+    if (old != schedule)
+      throw_error(schedule_path, ": run ", c.id, " was made with another fine-tuning schedule (", old.dump(), ", now ", schedule.dump(),
+                  "); use another --out");
+  }
   if (fs::exists(result_path)) {
     RunResult r = load_result(result_path);
     log << c.id << ": reused " << result_path << "\n";
@@ -379,6 +391,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   }
   const auto t0 = Clock::now();
   make_directories(dir);
+  write_file_atomically(schedule_path, schedule.dump() + "\n");
   const int F = p.options.frames;
   if (c.kind == RunKind::Dense) {
     // Every camera of the rig, trained like the backbone.

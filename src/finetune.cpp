@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -37,10 +38,14 @@ FinetuneOptions FinetuneOptions::paper() {
   return o;
 }
 
-TrainOptions fine_tune_schedule(int iterations) {
+TrainOptions fine_tune_schedule(int iterations, const MotionRates& rates) {
+  if (!(rates.position_lr > 0 && std::isfinite(rates.position_lr)) || !(rates.key_lr_scale > 0 && std::isfinite(rates.key_lr_scale)))
+    throw_error("finetune: the position learning rate and the key learning-rate scale must be positive numbers (got ", rates.position_lr, ", ",
+                rates.key_lr_scale, ")");
   TrainOptions t = TrainOptions::scaled(iterations);
-  t.position_lr_init = 1.6e-5;
-  t.position_lr_final = 1.6e-6;
+  t.position_lr_init = rates.position_lr;
+  t.position_lr_final = rates.position_lr / 10;
+  t.key_lr_scale = rates.key_lr_scale;
   t.opacity_reset_interval = 0;
   t.time_ramp = 0.0;  // the model already covers the whole video
   t.densify_from = std::max(1, iterations / 20);

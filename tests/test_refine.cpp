@@ -577,6 +577,15 @@ TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refi
   std::ostringstream o3, e3;
   CHECK(cli::run({"bench", "--smoke", "--out", dir, "--frames", "5", "--configs", "fillgs", "--quiet"}, o3, e3) == 1);
   CHECK(e3.str().find("made with other options") != std::string::npos);
+  // A finished run is not reused under another fine-tuning schedule (the earlier motion rates).
+  std::ostringstream o4, e4;
+  CHECK(cli::run({"bench", "--smoke", "--out", dir, "--configs", "fillgs", "--motion-rates", "gentle", "--quiet"}, o4, e4) == 1);
+  const std::string refused = e4.str();
+  CHECK(refused.find("fillgs/schedule.json: run fillgs was made with another fine-tuning schedule") != std::string::npos);
+  CHECK(std::count(refused.begin(), refused.end(), '\n') == 1);
+  std::ostringstream o5, e5;
+  CHECK(cli::run({"bench", "--smoke", "--out", dir, "--configs", "fillgs", "--position-lr", "-1", "--quiet"}, o5, e5) == 1);
+  CHECK(e5.str().find("--position-lr and --key-lr-scale must be positive") != std::string::npos);
 }
 
 // ---------------------------------------------------------------------------------

@@ -35,8 +35,8 @@ struct Camera {
   void set_fov_x(double fov_x, int w, int h);
 };
 
-enum class CameraFormat { Auto, Colmap, Llff, Transforms, GaussianJson, Technicolor };
-CameraFormat parse_camera_format(const std::string& name);  ///< auto colmap llff transforms 3dgs technicolor
+enum class CameraFormat { Auto, Colmap, Llff, Transforms, GaussianJson, Technicolor, D3dgs };
+CameraFormat parse_camera_format(const std::string& name);  ///< auto colmap llff transforms 3dgs technicolor d3dgs
 const char* to_string(CameraFormat f);
 
 struct CameraReadOptions {
@@ -51,7 +51,8 @@ struct CameraReadOptions {
 /// Reads cameras, detecting the format from the path unless told:
 /// a directory or cameras.txt/images.txt/*.bin → COLMAP; *.npy → LLFF;
 /// *.json holding a list → 3DGS cameras.json, an object with frames → transforms;
-/// *.txt other than COLMAP's → Technicolor cameras_parameters.txt.
+/// *.txt other than COLMAP's → Technicolor cameras_parameters.txt; *_meta.json → Dynamic 3D
+/// Gaussians (CMU Panoptic): a camera per frame and camera, "<cam_id>/<frame:06d>", timed.
 std::vector<Camera> read_cameras(const std::string& path, const CameraReadOptions& options = {});
 CameraFormat detect_camera_format(const std::string& path);
 

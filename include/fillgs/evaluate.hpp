@@ -5,8 +5,9 @@
 // PSNR and SSIM are means over views (each view's PSNR first, as 3DGS reports it). The
 // moving-region PSNR pools the squared error of every moving pixel of the split before
 // taking the PSNR (a view may have no moving pixel). The moving region of a view is where
-// the ground truth's moving Gaussians make up at least half of the rendered opacity, so it
-// needs the ground-truth scene (synthetic data); without one it is not computed.
+// the ground truth's moving Gaussians make up at least half of the rendered opacity
+// (synthetic data); without a ground-truth scene it is the dataset's foreground masks where
+// it has them (real video, e.g. Panoptic's seg/: "foreground PSNR"), else not computed.
 //
 // LPIPS network contract: an ONNX file with two inputs named `in0` and `in1`, each
 // 1×3×H×W float RGB in [−1, 1], returning the distance as the first value of its output

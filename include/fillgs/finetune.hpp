@@ -20,8 +20,8 @@
 namespace fillgs {
 
 struct FinetuneOptions {
-  int iterations = 1200;
-  int select_every = 400;     ///< M: a selection round at iterations 0, M, 2M, ... (< iterations)
+  int iterations = 2400;
+  int select_every = 800;     ///< M: a selection round at iterations 0, M, 2M, ... (< iterations)
   int trajectories = 5;       ///< K per round
   SelectOptions select;       ///< strategy and its knobs (trajectories is overridden by K)
   Weighting weighting = Weighting::FillGS;
@@ -37,10 +37,23 @@ struct FinetuneOptions {
   static FinetuneOptions paper();
 };
 
+/// How fast fine-tuning moves Gaussians: the initial position learning rate (× the scene
+/// extent, decaying to a tenth of it over the run) and the keys' rate as a multiple of it.
+/// The default, `repair`, is training's initial rate with keys ×10: what repairing motion
+/// from new views takes (the upper bound upper.test-views came within 0.4 / 1.5 dB of the
+/// dense model's moving-region PSNR with it, 4.5 / 6.3 dB short before; README, "What
+/// limited the upper bound"). `gentle()` continues where training ended (its final rate
+/// ×10, keys ×3), the earlier default.
+struct MotionRates {
+  double position_lr = 1.6e-4;
+  double key_lr_scale = 10.0;
+  static MotionRates gentle() { return {1.6e-5, 3.0}; }
+};
+
 /// The training schedule for fine-tuning a trained model for `iterations`: the 3DGS one
-/// scaled, position learning rate starting where a trained model's ended (×10), no
-/// opacity reset (it would erase the trained model), densification over the first 60%.
-TrainOptions fine_tune_schedule(int iterations);
+/// scaled, positions and keys at `rates`, no opacity reset (it would erase the trained
+/// model), densification over the first 60%.
+TrainOptions fine_tune_schedule(int iterations, const MotionRates& rates = {});
 
 struct FinetuneRound {
   int iteration = 0;

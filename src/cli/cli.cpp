@@ -15,6 +15,7 @@
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/image_io.hpp"
+#include "fillgs/init.hpp"
 #include "fillgs/observe_io.hpp"
 #include "fillgs/raster.hpp"
 #include "fillgs/scene_io.hpp"
@@ -250,15 +251,15 @@ int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::os
 
 int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("train", args, 1,
-         {"images", "cameras", "points", "iterations", "out", "train-cameras", "resume", "checkpoint-every", "seed", "threads",
-          "key-interval", "max-gaussians", "sh-degree", "test-images", "test-cameras", "background", "motion", "time-ramp",
-          "key-lr-scale", "motion-sparsity"},
+         merge({"images", "cameras", "points", "iterations", "out", "train-cameras", "resume", "checkpoint-every", "seed", "threads",
+                "key-interval", "max-gaussians", "sh-degree", "test-images", "test-cameras", "background", "motion", "time-ramp",
+                "key-lr-scale", "motion-sparsity", "init", "init-points"},
+               kDatasetOptions),
          {"quiet", "static-only", "no-keyed-opacity", "no-flow-keys"});
   const auto t0 = Clock::now();
   const std::string out_dir = a.require("out");
   const std::string cameras = a.require("cameras");
-  DatasetOptions dopt;
-  dopt.cameras = split_commas(a.get("train-cameras"));
+  const DatasetOptions dopt = dataset_options(a, "train-cameras");
   const Dataset data = Dataset::load(a.require("images"), cameras, dopt);
   const int iterations = a.integer("iterations", 3000);
   if (iterations < 1) throw_error("fillgs train: --iterations must be at least 1");
@@ -288,21 +289,42 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   }
   // Test split (optional): loaded before anything is written, so bad input writes nothing.
   std::unique_ptr<Dataset> test;
-  if (a.has("test-cameras")) test = std::make_unique<Dataset>(Dataset::load(a.get("test-images", a.get("images")), a.get("test-cameras")));
+  if (a.has("test-cameras")) test = std::make_unique<Dataset>(Dataset::load(a.get("test-images", a.get("images")), a.get("test-cameras"), dataset_options(a, "")));
 
   std::unique_ptr<Trainer> trainer;
+  PointSet init_points;  // written beside the model when made from the views
   if (a.has("resume")) {
     trainer = std::make_unique<Trainer>(Trainer::resume(data, a.get("resume"), o));
   } else {
+    // Initial points: --points, else points.ply beside the cameras, else from the views
+    // (init.hpp: random points the first frame's cameras see, plus the foreground's visual
+    // hull when the dataset has masks); --init picks explicitly.
     std::string points = a.get("points");
-    if (points.empty()) {
-      const std::string beside = join_path(std::filesystem::path(cameras).parent_path().string(), "points.ply");
-      if (!std::filesystem::exists(beside)) throw_error("fillgs train: missing --points (no points.ply beside ", cameras, ")");
-      points = beside;
+    const std::string beside = join_path(std::filesystem::path(cameras).parent_path().string(), "points.ply");
+    if (points.empty() && std::filesystem::exists(beside)) points = beside;
+    const std::string init = a.get("init", points.empty() ? "random+carve" : "points");
+    if (init == "points") {
+      if (points.empty()) throw_error("fillgs train: --init points needs --points (no points.ply beside ", cameras, ")");
+      trainer = std::make_unique<Trainer>(data, init_from_points(read_points(points)), o);
+    } else if (init == "random" || init == "random+carve") {
+      ViewInitOptions vo;
+      vo.method = init == "random" ? ViewInit::Random : ViewInit::RandomAndCarve;
+      vo.random_points = size_t(a.integer("init-points", int(vo.random_points)));
+      vo.seed = o.seed;
+      const ViewInitResult vi = points_from_views(data, vo);
+      out << "initial points from the first frame's views: " << vi.random << " random in the cameras' common volume"
+          << (vo.method == ViewInit::RandomAndCarve ? ", " + std::to_string(vi.carved) + " carved from the foreground masks" +
+                                                          (data.has_masks() ? "" : " (no masks)")
+                                                    : "")
+          << "\n";
+      init_points = vi.points;
+      trainer = std::make_unique<Trainer>(data, init_from_points(vi.points), o);
+    } else {
+      throw_error("fillgs train: unknown --init \"", init, "\" (points, random, random+carve)");
     }
-    trainer = std::make_unique<Trainer>(data, init_from_points(read_points(points)), o);
   }
   make_directories(join_path(out_dir, "checkpoints"));
+  if (!init_points.positions.empty()) write_points_ply(join_path(out_dir, "init_points.ply"), init_points);
   out << "training on " << data.views().size() << " views (" << data.rigs().size() << " cameras x " << data.frames() << " frames), "
       << trainer->params().size() << " initial Gaussians, " << iterations << " iterations\n";
   TerminalProgress progress(err, progress_enabled(a));
@@ -393,19 +415,23 @@ void print_help(std::ostream& out) {
          "         [--truth SCENE --artifact-strength a --support observed|full --support-window w]\n"
          "         [--confidence DIR] [--mask depth-warp|sweep]\n"
          "         [--covis paper|static-count|density] [--mask-sigma s] [--refined-share p] [selection flags]\n"
+         "         [--motion-rates repair|gentle] [--position-lr LR] [--key-lr-scale k]\n"
          "                                            fine-tune with refined virtual views; weightings: fillgs none\n"
          "                                            no-consistency no-covisibility 3dgs-enhancer exploregs ua-4dgs\n"
          "  eval --model M --images DIR --cameras C1[,C2] [--splits n1,n2] [--select-cameras a,b] [--truth SCENE]\n"
          "         [--lpips NET.onnx] [--out DIR] [--stride k]     PSNR, SSIM, moving-region PSNR per split\n"
          "  bench [--out DIR] [--scenes n3v,technicolor,chair,orbit,lift] [--seeds 1,2,3] [--only GROUPS] [--configs IDS]\n"
          "         [--support observed|full|both] [--iterations N] [--backbone-iterations N] [--width W --height H --frames F]\n"
-         "         [--artifact-strength a] [--baseline-weighting NAME] [--smoke]   the paper's comparison (resumable)\n"
-         "  run [--out DIR] [--scene NAME] [--baseline NAME] [--support observed|full] [--smoke]\n"
+         "         [--artifact-strength a] [--baseline-weighting NAME] [--motion-rates repair|gentle] [--position-lr LR]\n"
+         "         [--key-lr-scale k] [--smoke]                the paper's comparison (resumable)\n"
+         "  run [--out DIR] [--scene NAME] [--baseline NAME] [--support observed|full] [--motion-rates repair|gentle] [--smoke]\n"
          "                                            the whole pipeline on the built-in scene, with a report\n\n"
          "scene options:  --scene-format auto|3dgs|stg|ex4dgs|fillgs --duration F (Ex4DGS) --stg-duration F\n"
          "                --stg-color auto|sigmoid|clamp|none --static-threshold v\n"
-         "camera options: --camera-format auto|colmap|llff|transforms|3dgs|technicolor --width W --height H\n"
+         "camera options: --camera-format auto|colmap|llff|transforms|3dgs|technicolor|d3dgs --width W --height H\n"
          "                --llff-downscale s\n"
+         "image options:  --frames first:last:step (Python's slice; the frames kept become the video)\n"
+         "                --downscale k (k×k block average; train, finetune, eval)\n"
          "common:         --quiet (no progress bar)\n"
          "                --kernel simd|scalar (the tile kernel: vector, default, or the scalar reference)\n";
 }

@@ -44,6 +44,19 @@ void apply_select_flags(const Args& a, SelectOptions& s) {
   if (a.flag("speed-only")) s.score = CandidateScore::SpeedOnly;
 }
 
+/// --motion-rates repair|gentle, --position-lr LR, --key-lr-scale k: how fast fine-tuning
+/// moves Gaussians (finetune.hpp, MotionRates); the two numbers override the preset.
+const std::set<std::string> kMotionRateOptions = {"motion-rates", "position-lr", "key-lr-scale"};
+MotionRates motion_rates(const Args& a) {
+  const std::string preset = a.get("motion-rates", "repair");
+  if (preset != "repair" && preset != "gentle") throw_error("fillgs ", a.command(), ": unknown --motion-rates \"", preset, "\" (repair, gentle)");
+  MotionRates r = preset == "gentle" ? MotionRates::gentle() : MotionRates();
+  r.position_lr = a.number("position-lr", r.position_lr);
+  r.key_lr_scale = a.number("key-lr-scale", r.key_lr_scale);
+  if (!(r.position_lr > 0) || !(r.key_lr_scale > 0)) throw_error("fillgs ", a.command(), ": --position-lr and --key-lr-scale must be positive");
+  return r;
+}
+
 std::string fixed(double x, int digits = 2) {
   if (!std::isfinite(x)) return "-";
   char b[32];
@@ -65,13 +78,11 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
          merge({"model", "images", "cameras", "out", "train-cameras", "iterations", "select-every", "trajectories", "strategy", "weighting",
                 "refiner", "refiner-command", "refiner-timeout", "truth", "artifact-strength", "confidence", "seed", "threads",
                 "time-stride", "refined-share", "mask-sigma", "mask", "covis", "support", "support-window"},
-               kSceneOptions),
+               merge(merge(kSceneOptions, kMotionRateOptions), kDatasetOptions)),
          kFinetuneFlags);
   const auto t0 = Clock::now();
   const std::string out_dir = a.require("out");
-  DatasetOptions dopt;
-  dopt.cameras = split_commas(a.get("train-cameras"));
-  const Dataset data = Dataset::load(a.require("images"), a.require("cameras"), dopt);
+  const Dataset data = Dataset::load(a.require("images"), a.require("cameras"), dataset_options(a, "train-cameras"));
   const GaussianCloud model = read_scene(a.require("model"), scene_options(a));
   FinetuneOptions o = a.flag("paper-schedule") ? FinetuneOptions::paper() : FinetuneOptions();
   o.iterations = a.integer("iterations", o.iterations);
@@ -79,7 +90,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
   o.trajectories = a.integer("trajectories", o.trajectories);
   if (o.iterations < 1 || o.select_every < 1 || o.trajectories < 0)
     throw_error("fillgs finetune: --iterations and --select-every must be at least 1, --trajectories at least 0");
-  o.train = fine_tune_schedule(o.iterations);
+  o.train = fine_tune_schedule(o.iterations, motion_rates(a));
   o.train.seed = uint64_t(a.integer("seed", 1));
   o.train.refined_share = a.number("refined-share", o.train.refined_share);
   if (!(o.train.refined_share >= 0 && o.train.refined_share <= 1)) throw_error("fillgs finetune: --refined-share must be in [0, 1]");
@@ -160,7 +171,9 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
 // ------------------------------------------------------------------ eval
 
 int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("eval", args, 1, merge({"model", "images", "cameras", "splits", "select-cameras", "truth", "lpips", "out", "stride", "threads"}, kSceneOptions),
+  Args a("eval", args, 1,
+         merge(merge({"model", "images", "cameras", "splits", "select-cameras", "truth", "lpips", "out", "stride", "threads"}, kSceneOptions),
+               kDatasetOptions),
          {"quiet", "no-renders"});
   const GaussianCloud model = read_scene(a.require("model"), scene_options(a));
   const std::vector<std::string> files = split_commas(a.require("cameras"));
@@ -168,8 +181,7 @@ int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostre
   if (names.empty())
     for (const std::string& f : files) names.push_back(fs::path(f).stem().string());
   if (names.size() != files.size()) throw_error("fillgs eval: ", names.size(), " --splits names for ", files.size(), " camera files");
-  DatasetOptions dopt;
-  dopt.cameras = split_commas(a.get("select-cameras"));
+  const DatasetOptions dopt = dataset_options(a, "select-cameras");
   std::vector<Dataset> splits;
   for (const std::string& f : files) splits.push_back(Dataset::load(a.require("images"), f, dopt));
   std::unique_ptr<GaussianCloud> truth;
@@ -198,7 +210,8 @@ int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostre
     make_directories(out_dir);
     write_file_atomically(join_path(out_dir, "metrics.json"), j.dump(2) + "\n");
   }
-  if (!truth) out << "(moving-region PSNR needs --truth SCENE: the ground truth with its moving Gaussians)\n";
+  if (!truth && !std::any_of(splits.begin(), splits.end(), [](const Dataset& d) { return d.has_masks(); }))
+    out << "(moving-region PSNR needs --truth SCENE, the ground truth with its moving Gaussians, or foreground masks in seg/ beside the cameras)\n";
   return 0;
 }
 
@@ -224,7 +237,7 @@ BenchSetup bench_setup(const Args& a, bool smoke) {
   f.iterations = a.integer("iterations", smoke ? 60 : f.iterations);
   f.select_every = a.integer("select-every", smoke ? 30 : f.select_every);
   if (f.iterations < 1 || f.select_every < 1 || e.backbone_iterations < 1) throw_error("fillgs ", a.command(), ": iteration counts must be at least 1");
-  f.train = fine_tune_schedule(f.iterations);
+  f.train = fine_tune_schedule(f.iterations, motion_rates(a));
   f.threads = e.threads;
   f.select.time_stride = a.integer("time-stride", 1);
   f.select.seed = 1;
@@ -240,8 +253,9 @@ std::vector<OracleSupport> parse_supports(const std::string& s) {
 
 int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("bench", args, 1,
-         {"out", "scenes", "variants", "seeds", "only", "configs", "iterations", "select-every", "backbone-iterations", "width", "height", "frames",
-          "artifact-strength", "baseline-weighting", "threads", "time-stride", "support"},
+         merge({"out", "scenes", "variants", "seeds", "only", "configs", "iterations", "select-every", "backbone-iterations", "width", "height",
+                "frames", "artifact-strength", "baseline-weighting", "threads", "time-stride", "support"},
+               kMotionRateOptions),
          {"quiet", "smoke"});
   const bool smoke = a.flag("smoke");
   const std::string root = a.get("out", "fillgs_bench");
@@ -303,7 +317,7 @@ int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostr
 // ------------------------------------------------------------------ run
 
 int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("run", args, 1, {"out", "threads", "baseline", "scene", "support"}, {"quiet", "smoke"});
+  Args a("run", args, 1, merge({"out", "threads", "baseline", "scene", "support"}, kMotionRateOptions), {"quiet", "smoke"});
   const auto t0 = Clock::now();
   const std::string dir = a.get("out", "fillgs_run");
   const std::string baseline = a.get("baseline", "coverage4d");

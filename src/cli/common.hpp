@@ -16,6 +16,7 @@
 #include "fillgs/error.hpp"
 #include "fillgs/scene_io.hpp"
 #include "fillgs/timing.hpp"
+#include "fillgs/train.hpp"
 #include "fillgs/visibility.hpp"
 
 namespace fillgs::cli {
@@ -159,6 +160,17 @@ inline std::vector<std::string> split_commas(const std::string& s) {
   while (std::getline(ss, item, ','))
     if (!item.empty()) out.push_back(item);
   return out;
+}
+
+/// --frames first:last:step and --downscale k for the commands that read images.
+inline const std::set<std::string> kDatasetOptions = {"frames", "downscale"};
+inline DatasetOptions dataset_options(const Args& a, const std::string& cameras_key) {
+  DatasetOptions o;
+  o.cameras = split_commas(a.get(cameras_key));
+  o.frames = FrameRange::parse(a.get("frames"));
+  o.downscale = a.integer("downscale", 1);
+  if (o.downscale < 1) throw_error("fillgs ", a.command(), ": --downscale must be at least 1");
+  return o;
 }
 
 }  // namespace fillgs::cli
