@@ -79,8 +79,23 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
   for (size_t v = 0; v < split.views().size(); v += step) {
     const TrainView& view = split.views()[v];
     const int W = view.camera.width, H = view.camera.height;
-    const RenderOutput out = render(ev.evaluate(view.camera.time), view.camera, ro);
+    RenderOutput out = render(ev.evaluate(view.camera.time), view.camera, ro);
     const std::vector<float> target = split.image(v);
+    for (const ColourCorrection& c : o.colour)
+      if (c.rig == view.rig)
+        for (size_t p = 0; p < out.rgb.size(); p += 3)
+          for (int ch = 0; ch < 3; ++ch) out.rgb[p + size_t(ch)] = c.gain[ch] * out.rgb[p + size_t(ch)] + c.offset[ch];
+    if (o.ls_gain) {
+      // Per channel, the gain that best maps the render onto the image (least squares).
+      std::vector<float> gained = out.rgb;
+      for (int ch = 0; ch < 3; ++ch) {
+        double rt = 0, rr = 0;
+        for (size_t p = size_t(ch); p < gained.size(); p += 3) rt += double(gained[p]) * target[p], rr += double(gained[p]) * gained[p];
+        const float g = rr > 0 ? float(rt / rr) : 1.0f;
+        for (size_t p = size_t(ch); p < gained.size(); p += 3) gained[p] *= g;
+      }
+      m.psnr_ls_gain = (m.views ? m.psnr_ls_gain : 0.0) + psnr(gained.data(), target.data(), W, H, 3);
+    }
     m.psnr += psnr(out.rgb.data(), target.data(), W, H, 3);
     m.ssim += ssim(out.rgb.data(), target.data(), W, H, 3);
     if (lpips) m.lpips += lpips->distance(out.rgb.data(), target.data(), W, H);
@@ -110,6 +125,7 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
   progress.finish();
   if (m.views) {
     m.psnr /= double(m.views), m.ssim /= double(m.views);
+    if (o.ls_gain) m.psnr_ls_gain /= double(m.views);
     if (lpips) m.lpips /= double(m.views);
   }
   if (m.moving_pixels > 0) {

@@ -1,5 +1,7 @@
 #include "fillgs/train.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -320,6 +322,39 @@ std::pair<Vec3f, float> Dataset::camera_extent() const {
   return {c.cast<float>(), float(std::max(r, 1e-6) * 1.1)};
 }
 
+void write_colour_correction(const std::string& path, const std::vector<ColourCorrection>& corrections) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const ColourCorrection& c : corrections)
+    j[c.rig] = {{"gain", {c.gain[0], c.gain[1], c.gain[2]}}, {"offset", {c.offset[0], c.offset[1], c.offset[2]}}};
+  write_file_atomically(path, j.dump(1) + "\n");
+}
+
+std::vector<ColourCorrection> read_colour_correction(const std::string& path) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(read_file(path));
+  } catch (const nlohmann::json::parse_error& e) {
+    throw_error(path, ": invalid JSON (", e.what(), ")");
+  }
+  if (!j.is_object()) throw_error(path, ": colour corrections must be an object of cameras");
+  std::vector<ColourCorrection> out;
+  for (const auto& [rig, e] : j.items()) {
+    ColourCorrection c;
+    c.rig = rig;
+    for (const char* key : {"gain", "offset"}) {
+      if (!e.is_object() || !e.contains(key) || !e[key].is_array() || e[key].size() != 3)
+        throw_error(path, ": camera '", rig, "' needs '", key, "' as three numbers");
+      for (int k = 0; k < 3; ++k) {
+        const nlohmann::json& x = e[key][size_t(k)];
+        if (!x.is_number() || !std::isfinite(x.get<double>())) throw_error(path, ": camera '", rig, "' ", key, "[", k, "] is not a finite number");
+        (std::string(key) == "gain" ? c.gain : c.offset)[k] = x.get<float>();
+      }
+    }
+    out.push_back(c);
+  }
+  return out;
+}
+
 // ---------------------------------------------------------------------------------
 // Points and initialisation
 
@@ -511,6 +546,12 @@ Trainer::Trainer(const Dataset& data, ModelParams<float> initial, const TrainOpt
     options_.densify_until = std::max(options_.densify_until, int(std::lround((options_.time_ramp + options_.densify_after_ramp) * options_.iterations)));
   find_fixed_rigs();
   build_change_masks();
+  for (const std::string& rig : data.rigs()) colour_.push_back({rig, Vec3f::Ones(), Vec3f::Zero()});
+  colour_m_.assign(colour_.size(), {});
+  colour_v_.assign(colour_.size(), {});
+  colour_steps_.assign(colour_.size(), 0);
+  for (const TrainView& v : data.views())
+    view_rig_.push_back(int(std::find(data.rigs().begin(), data.rigs().end(), v.rig) - data.rigs().begin()));
   // Gaussians that move in the model given (fine-tuning) keep their right to move.
   on_change_.assign(params_.size(), change_masks_.empty() ? 1 : 0);
   for (uint32_t g : params_.dynamic_ids) on_change_[g] = 1;
@@ -687,7 +728,16 @@ void Trainer::step() {
   ras.forward(frame, view.camera, ro);
   const int W = view.camera.width, H = view.camera.height;
   std::vector<float> dimg(size_t(W) * H * 3);
-  const LossValue lv = photometric_loss<float>(ras.image().data(), target.data(), W, H, loss_weights, options_.lambda_dssim, dimg.data());
+  // A real view of a corrected camera is compared as gain ⊙ render + offset.
+  std::vector<float> corrected;
+  int colour_rig = -1;
+  if (!refined && options_.colour_correction) {
+    corrected = ras.image();
+    colour_rig = correct_colour(v, corrected);
+  }
+  const float* rendered = colour_rig >= 0 ? corrected.data() : ras.image().data();
+  const LossValue lv = photometric_loss<float>(rendered, target.data(), W, H, loss_weights, options_.lambda_dssim, dimg.data());
+  if (colour_rig >= 0) colour_backward(colour_rig, ras.image(), dimg.data());
   DiffFrameGrad<float> fg;
   ras.backward(dimg.data(), nullptr, nullptr, &fg);
   grad_.set_zeros_like(params_);
@@ -737,7 +787,7 @@ void Trainer::step() {
     reset_opacity();
 
   // Running status.
-  const double p = std::min(99.0, psnr(ras.image().data(), target.data(), W, H, 3));
+  const double p = std::min(99.0, psnr(rendered, target.data(), W, H, 3));
   const double a = status_.iteration == 0 ? 1.0 : 0.05;
   status_.loss = (1 - a) * status_.loss + a * lv.total;
   status_.psnr = (1 - a) * status_.psnr + a * p;
@@ -892,6 +942,39 @@ void Trainer::add_refined(std::vector<RefinedView> views) {
     if (v.rgb.size() != P * 3 || v.weight.size() != P)
       throw_error("refined view ", v.camera.name, ": image or weights do not match its ", v.camera.width, "x", v.camera.height, " camera");
     refined_.push_back(std::move(v));
+  }
+}
+
+int Trainer::correct_colour(size_t view, std::vector<float>& image) const {
+  const int r = view_rig_.at(view);
+  if (r <= 0) return -1;  // the reference camera (and a view of no rig)
+  const ColourCorrection& c = colour_[size_t(r)];
+  for (size_t p = 0; p < image.size(); p += 3)
+    for (int ch = 0; ch < 3; ++ch) image[p + size_t(ch)] = c.gain[ch] * image[p + size_t(ch)] + c.offset[ch];
+  return r;
+}
+
+void Trainer::colour_backward(int rig, const std::vector<float>& render, float* dimg) {
+  ColourCorrection& c = colour_[size_t(rig)];
+  double g[6] = {0, 0, 0, 0, 0, 0};
+  for (size_t p = 0; p < render.size(); p += 3)
+    for (int ch = 0; ch < 3; ++ch) {
+      const double d = dimg[p + size_t(ch)];
+      g[ch] += d * render[p + size_t(ch)];
+      g[3 + ch] += d;
+      dimg[p + size_t(ch)] = float(d * c.gain[ch]);
+    }
+  // Adam on the six values, its own step count per camera.
+  constexpr double b1 = 0.9, b2 = 0.999, eps = 1e-15;
+  const int t = ++colour_steps_[size_t(rig)];
+  const double c1 = 1.0 - std::pow(b1, t), c2 = 1.0 - std::pow(b2, t);
+  std::array<float, 6>&m = colour_m_[size_t(rig)], &v = colour_v_[size_t(rig)];
+  for (int k = 0; k < 6; ++k) {
+    m[size_t(k)] = float(b1 * m[size_t(k)] + (1 - b1) * g[k]);
+    v[size_t(k)] = float(b2 * v[size_t(k)] + (1 - b2) * g[k] * g[k]);
+    const double step = options_.colour_lr * (m[size_t(k)] / c1) / (std::sqrt(v[size_t(k)] / c2) + eps);
+    if (k < 3) c.gain[k] = float(c.gain[k] - step);
+    else c.offset[k - 3] = float(c.offset[k - 3] - step);
   }
 }
 
@@ -1385,6 +1468,16 @@ void Trainer::save_checkpoint(const std::string& path) const {
   w.vec(on_change_);
   w.pod(status_.loss);
   w.pod(status_.psnr);
+  // Colour corrections (a trailing section; checkpoints without it restart at identity).
+  std::vector<float> colour;
+  for (size_t r = 0; r < colour_.size(); ++r) {
+    for (int k = 0; k < 3; ++k) colour.push_back(colour_[r].gain[k]);
+    for (int k = 0; k < 3; ++k) colour.push_back(colour_[r].offset[k]);
+    colour.insert(colour.end(), colour_m_[r].begin(), colour_m_[r].end());
+    colour.insert(colour.end(), colour_v_[r].begin(), colour_v_[r].end());
+    colour.push_back(float(colour_steps_[r]));
+  }
+  w.vec(colour);
   write_file_atomically(path, w.bytes);
 }
 
@@ -1416,6 +1509,18 @@ Trainer Trainer::resume(const Dataset& data, const std::string& path, const Trai
   t.on_change_ = r.vec<uint8_t>();
   t.status_.loss = r.pod<double>();
   t.status_.psnr = r.pod<double>();
+  if (r.at < bytes.size()) {
+    const std::vector<float> colour = r.vec<float>();
+    if (colour.size() != t.colour_.size() * 19) throw_error(path, ": the colour corrections are for ", colour.size() / 19, " cameras, the dataset has ", t.colour_.size());
+    for (size_t c = 0; c < t.colour_.size(); ++c) {
+      const float* x = &colour[c * 19];
+      t.colour_[c].gain = Vec3f(x[0], x[1], x[2]);
+      t.colour_[c].offset = Vec3f(x[3], x[4], x[5]);
+      std::copy(x + 6, x + 12, t.colour_m_[c].begin());
+      std::copy(x + 12, x + 18, t.colour_v_[c].begin());
+      t.colour_steps_[c] = int(x[18]);
+    }
+  }
   t.status_.iteration = it;
   t.status_.gaussians = t.params_.size();
   t.status_.dynamic = t.params_.dynamic_count();

@@ -209,3 +209,46 @@ TEST_CASE("fillgs train: bad input gives one line, a non-zero exit and writes no
     REQUIRE(fs::exists(out + "/" + f));
   REQUIRE(o.find("2 cameras x 4 frames") != std::string::npos);
 }
+
+TEST_CASE("colour correction: a camera whose images were scaled and shifted gets that gain and offset back", "[train]") {
+  // Two cameras of the tiny scene; the second one's images become gain ⊙ image + offset.
+  const std::string src = tiny_synth_dir(), dir = scratch("colour_correction");
+  fs::copy(src, dir, fs::copy_options::recursive | fs::copy_options::overwrite_existing);
+  DatasetOptions two;
+  const Dataset all = Dataset::load(dir + "/images", dir + "/transforms_train.json");
+  two.cameras = {all.rigs()[0], all.rigs()[1]};
+  const Vec3f gain(0.8f, 0.9f, 0.7f), offset(0.05f, 0.02f, 0.1f);
+  for (const TrainView& v : all.views()) {
+    if (v.rig != two.cameras[1]) continue;
+    Image im = read_image(v.image_path);
+    for (size_t p = 0; p < im.pixels.size(); ++p) im.pixels[p] = gain[int(p % 3)] * im.pixels[p] + offset[int(p % 3)];
+    write_image(v.image_path, im);
+  }
+  const Dataset data = Dataset::load(dir + "/images", dir + "/transforms_train.json", two);
+  REQUIRE(data.rigs() == two.cameras);
+  TrainOptions o = TrainOptions::scaled(600);
+  o.threads = 2;
+  o.colour_correction = true;
+  // View-dependent colour (SH degree > 0) could explain part of a camera's tint as well;
+  // with view-independent colour the correction must explain it all.
+  o.max_sh_degree = 0;
+  Trainer t(data, init_from_points(read_points(dir + "/points.ply")), o);
+  t.run(600, null_progress());
+  const std::vector<ColourCorrection>& c = t.colour_correction();
+  REQUIRE(c.size() == 2);
+  CHECK(c[0].gain == Vec3f::Ones());  // the reference camera
+  CHECK(c[0].offset == Vec3f::Zero());
+  for (int ch = 0; ch < 3; ++ch) {
+    INFO("channel " << ch << ": gain " << c[1].gain[ch] << " (true " << gain[ch] << "), offset " << c[1].offset[ch] << " (true " << offset[ch] << ")");
+    CHECK(std::abs(c[1].gain[ch] - gain[ch]) < 0.05f);
+    CHECK(std::abs(c[1].offset[ch] - offset[ch]) < 0.03f);
+  }
+  // Written and read back; a bad file is named.
+  write_colour_correction(dir + "/cc.json", c);
+  const std::vector<ColourCorrection> back = read_colour_correction(dir + "/cc.json");
+  REQUIRE(back.size() == 2);
+  CHECK(back[1].rig == c[1].rig);
+  CHECK((back[1].gain - c[1].gain).norm() < 1e-6f);
+  std::ofstream(dir + "/bad.json") << R"({"cam00": {"gain": [1, 1], "offset": [0, 0, 0]}})";
+  REQUIRE_THROWS_WITH(read_colour_correction(dir + "/bad.json"), Catch::Contains("bad.json: camera 'cam00' needs 'gain' as three numbers"));
+}

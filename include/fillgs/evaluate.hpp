@@ -29,6 +29,12 @@ struct EvalOptions {
   const GaussianCloud* truth = nullptr;   ///< for the moving region (synthetic scenes)
   std::string lpips_onnx;                 ///< empty: no LPIPS
   std::string save_dir;                   ///< non-empty: renders written here as <view name>.png
+  /// Learned colour corrections (train --colour-correction): applied to the renders of the
+  /// views of the cameras they name; held-out cameras have none and are evaluated as rendered.
+  std::vector<ColourCorrection> colour;
+  /// Also the PSNR after a per-image, per-channel least-squares gain g = Σ r·t / Σ r² on the
+  /// render (how some papers evaluate held-out cameras of a real rig): psnr_ls_gain.
+  bool ls_gain = false;
 };
 
 struct SplitMetrics {
@@ -38,6 +44,7 @@ struct SplitMetrics {
   double psnr_moving = std::numeric_limits<double>::quiet_NaN();
   size_t moving_pixels = 0;
   double lpips = std::numeric_limits<double>::quiet_NaN();
+  double psnr_ls_gain = std::numeric_limits<double>::quiet_NaN();  ///< EvalOptions::ls_gain
   double seconds = 0;
 };
 

@@ -26,6 +26,7 @@
 // Gaussian that tracks its content up to now starts the next interval where the content
 // goes. Key position learning rates stay at their initial value until the ramp ends, then
 // decay like the position one.
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -188,6 +189,12 @@ struct TrainOptions {
   double promote_grad_scale = 1.0;  ///< promotion needs this × the densification gradient threshold
   int promote_min_samples = 3;  ///< views per time bin before a bin counts
   int checkpoint_interval = 0;  ///< 0: only at the end
+  /// Real rigs differ in exposure and white balance per camera: learn, per rig camera, an
+  /// affine colour correction gain ⊙ render + offset applied before the loss on its real
+  /// views (refined views have none). The dataset's first camera is the reference (held at
+  /// identity), which fixes the gauge between the corrections and the Gaussians' colours.
+  bool colour_correction = false;
+  double colour_lr = 5e-3;
   /// Fine-tuning: probability that an iteration trains on a refined view (once any were
   /// added) instead of a real one. Refined views would otherwise outnumber real ones on a
   /// sparse rig (20 trajectories × 9 views against 2 cameras × 30 frames).
@@ -203,6 +210,16 @@ struct TrainStatus {
   double iterations_per_second = 0;
   int window_frames = 0;      ///< frames in the trained time window (all once the ramp ends)
 };
+
+/// A rig camera's learned colour correction: its real images ≈ gain ⊙ render + offset.
+struct ColourCorrection {
+  std::string rig;
+  Vec3f gain = Vec3f::Ones(), offset = Vec3f::Zero();
+};
+/// Writes / reads `{"<rig>": {"gain": [r, g, b], "offset": [r, g, b]}, ...}` (atomically;
+/// one error naming the file and the camera on bad input).
+void write_colour_correction(const std::string& path, const std::vector<ColourCorrection>& corrections);
+std::vector<ColourCorrection> read_colour_correction(const std::string& path);
 
 /// What a densification step did (for diagnostics and summaries).
 struct DensifyRecord {
@@ -253,8 +270,15 @@ class Trainer {
   std::vector<double> changing_share() const;
   /// The trained model as a cloud (keys that never moved folded back into static Gaussians).
   GaussianCloud model() const;
+  /// Per rig camera (Dataset::rigs order) its colour correction; identity when off.
+  const std::vector<ColourCorrection>& colour_correction() const { return colour_; }
 
  private:
+  /// Applies the view's colour correction to `image` in place and returns the rig's index
+  /// when it has a learned one (−1: none).
+  int correct_colour(size_t view, std::vector<float>& image) const;
+  /// Gradient of the corrected image → the correction's Adam step, and `dimg` → the render's.
+  void colour_backward(int rig, const std::vector<float>& render, float* dimg);
   void adam_step();
   void densify_and_prune(bool prune_big, DensifyRecord* record);
   size_t promote_static();
@@ -300,6 +324,11 @@ class Trainer {
   std::vector<std::vector<uint8_t>> change_masks_;
   std::vector<uint8_t> on_change_;
   std::vector<RefinedView> refined_;
+  // Colour correction per rig camera: value, Adam moments ([6]: gain rgb, offset rgb), steps.
+  std::vector<ColourCorrection> colour_;
+  std::vector<std::array<float, 6>> colour_m_, colour_v_;
+  std::vector<int> colour_steps_;
+  std::vector<int> view_rig_;  // per view, its rig's index in Dataset::rigs
   std::vector<size_t> views_by_frame_;  // view indices sorted by frame
   std::vector<size_t> frame_begin_;     // [F + 1] offsets into views_by_frame_
 };

@@ -255,7 +255,7 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
                 "key-interval", "max-gaussians", "sh-degree", "test-images", "test-cameras", "background", "motion", "time-ramp",
                 "key-lr-scale", "motion-sparsity", "init", "init-points"},
                kDatasetOptions),
-         {"quiet", "static-only", "no-keyed-opacity", "no-flow-keys"});
+         {"quiet", "static-only", "no-keyed-opacity", "no-flow-keys", "colour-correction"});
   const auto t0 = Clock::now();
   const std::string out_dir = a.require("out");
   const std::string cameras = a.require("cameras");
@@ -282,6 +282,7 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   o.motion_sparsity = a.number("motion-sparsity", o.motion_sparsity);
   if (!(o.motion_sparsity >= 0)) throw_error("fillgs train: --motion-sparsity must be at least 0");
   o.checkpoint_interval = a.integer("checkpoint-every", std::max(1, iterations / 5));
+  o.colour_correction = a.flag("colour-correction");
   if (a.has("background")) {
     const std::vector<std::string> c = split_commas(a.get("background"));
     if (c.size() != 3) throw_error("fillgs train: --background needs r,g,b");
@@ -342,6 +343,17 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   const GaussianCloud model = trainer->model();
   write_fillgs_ply(join_path(out_dir, "model.ply"), model, data.frames());
   write_3dgs_ply(join_path(out_dir, "frame0_3dgs.ply"), model, 0.0);
+  if (o.colour_correction) {
+    write_colour_correction(join_path(out_dir, "colour_correction.json"), trainer->colour_correction());
+    out << "colour correction per camera (gain r,g,b / offset r,g,b; " << data.rigs()[0] << " is the reference):";
+    for (const ColourCorrection& c : trainer->colour_correction()) {
+      char line[160];
+      std::snprintf(line, sizeof line, " %s %.3f,%.3f,%.3f/%+.3f,%+.3f,%+.3f;", c.rig.c_str(), c.gain[0], c.gain[1], c.gain[2], c.offset[0],
+                    c.offset[1], c.offset[2]);
+      out << line;
+    }
+    out << "\n";
+  }
   nlohmann::json j;
   j["iterations"] = trainer->iteration();
   j["seconds"] = train_seconds;
@@ -399,6 +411,7 @@ void print_help(std::ostream& out) {
          "         [--resume CKPT] [--checkpoint-every N] [--seed n] [--key-interval F] [--max-gaussians N]\n"
          "         [--sh-degree D] [--test-cameras C --test-images DIR] [--static-only] [--background r,g,b]\n"
          "         [--motion all|promote] [--time-ramp r] [--key-lr-scale s] [--motion-sparsity s] [--no-keyed-opacity] [--no-flow-keys]\n"
+         "         [--init points|random|random+carve] [--init-points N] [--colour-correction]\n"
          "                                            train a 4D Gaussian model from multi-view video\n"
          "  explore --scene S --cameras C --out DIR   the exploration grid: exploration.vdb, exploration.png\n"
          "         [--divisions n] [--occupancy-alpha a] [--frames F]\n"
@@ -419,6 +432,7 @@ void print_help(std::ostream& out) {
          "                                            fine-tune with refined virtual views; weightings: fillgs none\n"
          "                                            no-consistency no-covisibility 3dgs-enhancer exploregs ua-4dgs\n"
          "  eval --model M --images DIR --cameras C1[,C2] [--splits n1,n2] [--select-cameras a,b] [--truth SCENE]\n"
+         "         [--colour-correction colour_correction.json] [--ls-gain]\n"
          "         [--lpips NET.onnx] [--out DIR] [--stride k]     PSNR, SSIM, moving-region PSNR per split\n"
          "  bench [--out DIR] [--scenes n3v,technicolor,chair,orbit,lift] [--seeds 1,2,3] [--only GROUPS] [--configs IDS]\n"
          "         [--support observed|full|both] [--iterations N] [--backbone-iterations N] [--width W --height H --frames F]\n"

@@ -172,9 +172,10 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
 
 int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("eval", args, 1,
-         merge(merge({"model", "images", "cameras", "splits", "select-cameras", "truth", "lpips", "out", "stride", "threads"}, kSceneOptions),
+         merge(merge({"model", "images", "cameras", "splits", "select-cameras", "truth", "lpips", "out", "stride", "threads", "colour-correction"},
+                     kSceneOptions),
                kDatasetOptions),
-         {"quiet", "no-renders"});
+         {"quiet", "no-renders", "ls-gain"});
   const GaussianCloud model = read_scene(a.require("model"), scene_options(a));
   const std::vector<std::string> files = split_commas(a.require("cameras"));
   std::vector<std::string> names = split_commas(a.get("splits"));
@@ -191,20 +192,23 @@ int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostre
   eo.threads = a.integer("threads", 0);
   eo.truth = truth.get();
   eo.lpips_onnx = a.get("lpips");
+  if (a.has("colour-correction")) eo.colour = read_colour_correction(a.get("colour-correction"));
+  eo.ls_gain = a.flag("ls-gain");
   if (!eo.lpips_onnx.empty() && !fs::exists(eo.lpips_onnx)) throw_error("fillgs eval: --lpips ", eo.lpips_onnx, " does not exist");
   const std::string out_dir = a.get("out");
   TerminalProgress progress(err, progress_enabled(a));
   json j = json::object();
-  out << "split            views   PSNR    SSIM   moving PSNR" << (eo.lpips_onnx.empty() ? "" : "   LPIPS") << "\n";
+  out << "split            views   PSNR    SSIM   moving PSNR" << (eo.lpips_onnx.empty() ? "" : "   LPIPS")
+      << (eo.ls_gain ? "   PSNR (least-squares gain per image)" : "") << "\n";
   for (size_t k = 0; k < splits.size(); ++k) {
     eo.save_dir = out_dir.empty() || a.flag("no-renders") ? "" : join_path(join_path(out_dir, "renders"), names[k]);
     const SplitMetrics m = evaluate_split(model, splits[k], names[k], eo, progress);
     char line[200];
     std::snprintf(line, sizeof line, "%-16s %5zu  %6.2f  %6.4f  %11s", names[k].c_str(), m.views, m.psnr, m.ssim, fixed(m.psnr_moving).c_str());
-    out << line << (eo.lpips_onnx.empty() ? "" : "   " + fixed(m.lpips, 4)) << "\n";
+    out << line << (eo.lpips_onnx.empty() ? "" : "   " + fixed(m.lpips, 4)) << (eo.ls_gain ? "   " + fixed(m.psnr_ls_gain) : "") << "\n";
     auto num = [](double x) { return std::isfinite(x) ? json(x) : json(nullptr); };
     j[names[k]] = {{"views", m.views}, {"psnr", m.psnr}, {"ssim", m.ssim}, {"psnr_moving", num(m.psnr_moving)},
-                   {"moving_pixels", m.moving_pixels}, {"lpips", num(m.lpips)}};
+                   {"moving_pixels", m.moving_pixels}, {"lpips", num(m.lpips)}, {"psnr_ls_gain", num(m.psnr_ls_gain)}};
   }
   if (!out_dir.empty()) {
     make_directories(out_dir);
