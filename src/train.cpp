@@ -40,23 +40,10 @@ std::string rig_of(const std::string& name) {
   return slash == std::string::npos ? name : name.substr(0, slash);
 }
 
-/// The first `channels` channels of `im` as 8-bit, averaged over k×k blocks (the last
-/// W mod k columns and H mod k rows dropped).
+/// The first `channels` channels of `im` as 8-bit, averaged over k×k blocks.
 std::vector<uint8_t> block_average(const Image& im, int channels, int k) {
-  const int W = im.width / k, H = im.height / k;
-  if (W < 1 || H < 1) throw_error("--downscale ", k, " leaves no pixel of a ", im.width, "x", im.height, " image");
-  std::vector<uint8_t> out(size_t(W) * size_t(H) * size_t(channels));
-  const float norm = 255.0f / float(k * k);
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      for (int c = 0; c < channels; ++c) {
-        float sum = 0;
-        for (int dy = 0; dy < k; ++dy)
-          for (int dx = 0; dx < k; ++dx)
-            sum += std::clamp(im.pixels[(size_t(y * k + dy) * size_t(im.width) + size_t(x * k + dx)) * size_t(im.channels) + size_t(c)], 0.0f, 1.0f);
-        out[(size_t(y) * size_t(W) + size_t(x)) * size_t(channels) + size_t(c)] = uint8_t(std::lround(sum * norm));
-      }
-  return out;
+  const int order[3] = {0, 1, 2};
+  return block_average_u8(im.pixels.data(), im.width, im.height, im.channels, channels, order, k, 255.0f);
 }
 
 /// The camera of an image downscaled by k (block_average).

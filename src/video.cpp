@@ -49,22 +49,6 @@ VideoInfo probe_video(const std::string& path) {
   return v;
 }
 
-std::vector<uint8_t> block_average_u8(const uint8_t* src, int width, int height, int source_channels, int channels, const int* order, int k) {
-  const int W = width / k, H = height / k;
-  if (W < 1 || H < 1) throw_error("--downscale ", k, " leaves no pixel of a ", width, "x", height, " image");
-  std::vector<uint8_t> out(size_t(W) * size_t(H) * size_t(channels));
-  const double norm = 1.0 / double(k * k);
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      for (int c = 0; c < channels; ++c) {
-        unsigned sum = 0;
-        for (int dy = 0; dy < k; ++dy)
-          for (int dx = 0; dx < k; ++dx) sum += src[(size_t(y * k + dy) * size_t(width) + size_t(x * k + dx)) * size_t(source_channels) + size_t(order[c])];
-        out[(size_t(y) * size_t(W) + size_t(x)) * size_t(channels) + size_t(c)] = uint8_t(std::lround(sum * norm));
-      }
-  return out;
-}
-
 std::vector<std::vector<uint8_t>> decode_video_frames(const std::string& path, const std::vector<int>& frames, int k, int width, int height) {
   std::vector<std::vector<uint8_t>> out;
   if (frames.empty()) return out;
@@ -80,7 +64,7 @@ std::vector<std::vector<uint8_t>> decode_video_frames(const std::string& path, c
     if (m.cols != width || m.rows != height || m.type() != CV_8UC3)
       throw_error(path, ": frame ", f, " is ", m.cols, "x", m.rows, " (", m.channels(), " channels), but its camera is ", width, "x", height, " RGB");
     if (!m.isContinuous()) m = m.clone();
-    out.push_back(block_average_u8(m.ptr<uint8_t>(), m.cols, m.rows, 3, 3, bgr_to_rgb, k));
+    out.push_back(block_average_u8(m.ptr<uint8_t>(), m.cols, m.rows, 3, 3, bgr_to_rgb, k, 1.0f));
     ++next;
   }
   return out;

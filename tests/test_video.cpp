@@ -30,6 +30,15 @@ using Vec2d = Eigen::Vector2d;
 
 std::string panoptic() { return shared_data() + "/video/panoptic_basketball"; }
 
+/// The Panoptic training cameras named (all if none), the frames of `range`, downscaled by k.
+Dataset load_panoptic(const std::vector<std::string>& cameras, const std::string& range, int k) {
+  DatasetOptions o;
+  o.cameras = cameras;
+  o.frames = FrameRange::parse(range);
+  o.downscale = k;
+  return Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o);
+}
+
 /// The 3×4 projection K [R | t] of a camera, from its fields.
 Eigen::Matrix<double, 3, 4> projection(const Camera& c) {
   Mat3d K;
@@ -112,9 +121,7 @@ TEST_CASE("d3dgs reader: every Panoptic camera and frame, with the meta file's m
 }
 
 TEST_CASE("Panoptic: the 27 cameras' foreground masks carve one visual hull that projects back onto each mask", "[video]") {
-  DatasetOptions o;
-  o.frames = FrameRange::parse("0:1");
-  const Dataset d = Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o);
+  const Dataset d = load_panoptic({}, "0:1", 1);
   REQUIRE(d.views().size() == 27);
   REQUIRE(d.frames() == 1);
   REQUIRE(d.has_masks());
@@ -209,11 +216,7 @@ TEST_CASE("Panoptic: the 27 cameras' foreground masks carve one visual hull that
 }
 
 TEST_CASE("datasets: --frames keeps a slice of the video, --downscale averages k×k blocks", "[video]") {
-  DatasetOptions o;
-  o.cameras = {"1", "5"};
-  o.frames = FrameRange::parse("0:150:50");
-  o.downscale = 4;
-  const Dataset d = Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o);
+  const Dataset d = load_panoptic({"1", "5"}, "0:150:50", 4);
   REQUIRE(d.views().size() == 6);
   CHECK(d.frames() == 3);
   const Camera full = read_cameras(panoptic() + "/train_meta.json")[50 * 27 + 4];  // camera 5 at frame 50
@@ -311,11 +314,7 @@ TEST_CASE("initialisation: the centre of interest of cameras looking at one poin
 }
 
 TEST_CASE("initialisation from the views: random points both cameras see, and the masks' visual hull", "[video][init]") {
-  DatasetOptions o;
-  o.cameras = {"5", "6"};
-  o.frames = FrameRange::parse("0:2");
-  o.downscale = 4;
-  const Dataset d = Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o);
+  const Dataset d = load_panoptic({"5", "6"}, "0:2", 4);
   ViewInitOptions vo;
   vo.random_points = 2000;
   vo.carve_cells = 64;
