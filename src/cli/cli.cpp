@@ -383,7 +383,9 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
     j["test_views"] = te.views;
     out << ", test PSNR " << te.psnr << " dB over " << te.views << " views";
   }
-  out << " -> " << out_dir << "\n";
+  // Peak resident memory of the whole run (images held 8-bit, the model, the optimiser).
+  j["peak_memory_bytes"] = peak_memory_bytes();
+  out << ", peak memory " << (peak_memory_bytes() >> 20) << " MB -> " << out_dir << "\n";
   ScatterSeries loss{"loss", {}, {}, {}};
   const std::vector<float>& h = trainer->loss_history();
   const size_t every = std::max<size_t>(1, h.size() / 400);
