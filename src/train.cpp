@@ -220,6 +220,7 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
   }
   if (d.views_.empty()) throw_error(cameras_path, ": no training views");
   d.keep_frames(opt.frames, &mask_rel, cameras_path);
+  if (!opt.monocular_cycle.empty()) d.keep_cycle(opt.monocular_cycle, &mask_rel, cameras_path);
   for (const TrainView& v : d.views_)
     if (std::find(d.rigs_.begin(), d.rigs_.end(), v.rig) == d.rigs_.end()) d.rigs_.push_back(v.rig);
   // Foreground masks where a seg/ folder stands beside the camera file.
@@ -291,6 +292,21 @@ void Dataset::keep_frames(const FrameRange& range, std::vector<std::string>* per
   views_ = std::move(kept);
   if (per_view) *per_view = std::move(kept_side);
   frames_ = n;
+}
+
+void Dataset::keep_cycle(const std::vector<std::string>& cycle, std::vector<std::string>* per_view, const std::string& source) {
+  for (const std::string& c : cycle)
+    if (std::none_of(views_.begin(), views_.end(), [&](const TrainView& v) { return v.rig == c; }))
+      throw_error(source, ": --monocular-cycle names camera '", c, "', which the dataset does not have");
+  std::vector<TrainView> kept;
+  std::vector<std::string> kept_side;
+  for (size_t i = 0; i < views_.size(); ++i) {
+    if (views_[i].rig != cycle[size_t(views_[i].frame) % cycle.size()]) continue;
+    kept.push_back(views_[i]);
+    if (per_view) kept_side.push_back((*per_view)[i]);
+  }
+  views_ = std::move(kept);
+  if (per_view) *per_view = std::move(kept_side);
 }
 
 std::vector<float> Dataset::image(size_t view) const {

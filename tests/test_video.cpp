@@ -454,3 +454,25 @@ TEST_CASE("Technicolor: cameras_parameters.txt and the frames as its preprocessi
   CHECK(error_of([&] { Dataset::load(dir, join_path(dir, "cameras_parameters.txt")); }).find("camera 'cam02' has no images") !=
         std::string::npos);
 }
+
+TEST_CASE("monocular video (--monocular-cycle): one view per frame, cycling through the cameras named", "[video]") {
+  DatasetOptions o;
+  o.frames = FrameRange::parse("0:14:2");  // 7 frames: source frames 0, 2, …, 12
+  o.downscale = 8;
+  o.monocular_cycle = {"3", "1", "8"};
+  const Dataset d = Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o);
+  REQUIRE(d.views().size() == 7);
+  CHECK(d.frames() == 7);
+  for (size_t i = 0; i < d.views().size(); ++i) {
+    const TrainView& v = d.views()[i];
+    CHECK(v.rig == o.monocular_cycle[size_t(v.frame) % 3]);
+    CHECK(v.source_frame == 2 * v.frame);
+  }
+  std::vector<int> frames;
+  for (const TrainView& v : d.views()) frames.push_back(v.frame);
+  std::sort(frames.begin(), frames.end());
+  CHECK(frames == std::vector<int>{0, 1, 2, 3, 4, 5, 6});
+  o.monocular_cycle = {"3", "10"};  // camera 10 is not in the capture
+  CHECK(error_of([&] { Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o); })
+            .find("--monocular-cycle names camera '10', which the dataset does not have") != std::string::npos);
+}

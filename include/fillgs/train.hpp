@@ -62,6 +62,9 @@ struct DatasetOptions {
   /// Images averaged over k×k blocks (the last W mod k columns and H mod k rows dropped) and
   /// cameras scaled to match: fx, fy, cx, cy / k.
   int downscale = 1;
+  /// Monocular video from a multi-view one (the paper's protocol for the Nvidia scenes):
+  /// frame f (after `frames`) keeps only the view of camera cycle[f mod n]. Empty: all views.
+  std::vector<std::string> monocular_cycle;
 };
 
 /// Multi-view video. Two layouts:
@@ -103,6 +106,8 @@ class Dataset {
   /// Keeps the views of the frames `range` chooses, renumbered with their times; `per_view`
   /// is filtered alike.
   void keep_frames(const FrameRange& range, std::vector<std::string>* per_view, const std::string& source);
+  /// Keeps, per frame f, only the view of camera cycle[f mod n].
+  void keep_cycle(const std::vector<std::string>& cycle, std::vector<std::string>* per_view, const std::string& source);
 };
 
 /// Points with colours, as SfM gives them (COLMAP points3D.txt/.bin-less text, or a .ply with

@@ -448,6 +448,7 @@ void print_help(std::ostream& out) {
          "                --llff-downscale s\n"
          "image options:  --frames first:last:step (Python's slice; the frames kept become the video)\n"
          "                --downscale k (k×k block average; train, finetune, eval)\n"
+         "                --monocular-cycle a,b,.. (frame f keeps only camera [f mod n])\n"
          "common:         --quiet (no progress bar)\n"
          "                --kernel simd|scalar (the tile kernel: vector, default, or the scalar reference)\n";
 }

@@ -162,13 +162,15 @@ inline std::vector<std::string> split_commas(const std::string& s) {
   return out;
 }
 
-/// --frames first:last:step and --downscale k for the commands that read images.
-inline const std::set<std::string> kDatasetOptions = {"frames", "downscale"};
+/// --frames first:last:step, --downscale k and --monocular-cycle a,b,… for the commands that
+/// read images.
+inline const std::set<std::string> kDatasetOptions = {"frames", "downscale", "monocular-cycle"};
 inline DatasetOptions dataset_options(const Args& a, const std::string& cameras_key) {
   DatasetOptions o;
   o.cameras = split_commas(a.get(cameras_key));
   o.frames = FrameRange::parse(a.get("frames"));
   o.downscale = a.integer("downscale", 1);
+  o.monocular_cycle = split_commas(a.get("monocular-cycle"));
   if (o.downscale < 1) throw_error("fillgs ", a.command(), ": --downscale must be at least 1");
   return o;
 }
