@@ -192,6 +192,9 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
         }
       else
         files = technicolor_frames(images_dir, rig);
+      // One image per camera beside the others (a single frame: images/cam00.png).
+      for (const char* ext : {".png", ".jpg", ".jpeg"})
+        if (files.empty() && fs::is_regular_file(fs::path(images_dir) / (rig + ext))) files.push_back((fs::path(images_dir) / (rig + ext)).string());
       if (files.empty())
         throw_error(cameras_path, ": camera '", rig, "' has no images in ", folder.string(), ", no ", video.string(),
                     " and no Technicolor frames <Scene>_undist_<frame>_", rig.size() > 2 ? rig.substr(rig.size() - 2) : rig, ".png in ", images_dir);
@@ -380,6 +383,36 @@ PointSet read_points(const std::string& path) {
       ps.colours.push_back(rgb ? Vec3f(v.column("red")[i], v.column("green")[i], v.column("blue")[i]) / scale
                                : Vec3f(0.5f, 0.5f, 0.5f));
     }
+  } else if (ext == ".bin") {
+    // COLMAP points3D.bin: u64 count; per point u64 id, f64 x y z, u8 r g b, f64 error,
+    // u64 track length, then that many (i32 image, i32 point2D). Every count is checked
+    // against the bytes left before it is used.
+    const std::string bytes = read_file(path);
+    size_t at = 0;
+    auto take = [&](void* out, size_t n, const char* what) {
+      if (n > bytes.size() - at) throw_error(path, ": truncated in ", what, " at byte ", at);
+      std::memcpy(out, bytes.data() + at, n);
+      at += n;
+    };
+    uint64_t count = 0;
+    take(&count, 8, "the point count");
+    if (count > (bytes.size() - at) / 43) throw_error(path, ": claims ", count, " points, the file holds at most ", (bytes.size() - at) / 43);
+    for (uint64_t i = 0; i < count; ++i) {
+      uint64_t id = 0, track = 0;
+      double xyz[3], error = 0;
+      uint8_t rgb[3];
+      take(&id, 8, "a point id");
+      take(xyz, 24, "a position");
+      take(rgb, 3, "a colour");
+      take(&error, 8, "an error");
+      take(&track, 8, "a track length");
+      if (track > (bytes.size() - at) / 8) throw_error(path, ": point ", id, " claims a track of ", track, ", longer than the file");
+      at += size_t(track) * 8;
+      if (!std::isfinite(xyz[0]) || !std::isfinite(xyz[1]) || !std::isfinite(xyz[2])) throw_error(path, ": point ", id, " is not finite");
+      ps.positions.emplace_back(float(xyz[0]), float(xyz[1]), float(xyz[2]));
+      ps.colours.emplace_back(rgb[0] / 255.0f, rgb[1] / 255.0f, rgb[2] / 255.0f);
+    }
+    if (at != bytes.size()) throw_error(path, ": ", bytes.size() - at, " bytes after the last point");
   } else {
     // COLMAP points3D.txt: POINT3D_ID X Y Z R G B ERROR TRACK[]
     std::ifstream in(path);

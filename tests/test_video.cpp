@@ -7,6 +7,7 @@
 
 #include <Eigen/SVD>
 #include <algorithm>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -475,4 +476,35 @@ TEST_CASE("monocular video (--monocular-cycle): one view per frame, cycling thro
   o.monocular_cycle = {"3", "10"};  // camera 10 is not in the capture
   CHECK(error_of([&] { Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o); })
             .find("--monocular-cycle names camera '10', which the dataset does not have") != std::string::npos);
+}
+
+TEST_CASE("N3V frame 0: COLMAP points3D.bin and one image per camera", "[video]") {
+  const std::string root = shared_data() + "/video/n3v_flame_steak_frame0";
+  const PointSet ps = read_points(root + "/sparse/0/points3D.bin");
+  REQUIRE(ps.positions.size() == 7298);
+  // The first record, read with Python's struct ('<Q', then '<Qddd' and '<BBB').
+  CHECK(ps.positions[0].x() == Approx(-4.694851556413252));
+  CHECK(ps.positions[0].y() == Approx(6.23857386184535));
+  CHECK(ps.positions[0].z() == Approx(11.362469012312957));
+  CHECK(ps.colours[0].x() == Approx(51 / 255.0));
+  CHECK(ps.colours[0].z() == Approx(21 / 255.0));
+  // Truncated and inflated copies are refused with the file's name.
+  const std::string dir = scratch("points_bin");
+  const std::string bytes = read_file(root + "/sparse/0/points3D.bin");
+  write_file_atomically(dir + "/cut.bin", bytes.substr(0, bytes.size() - 5));
+  CHECK(error_of([&] { read_points(dir + "/cut.bin"); }).find("cut.bin: ") != std::string::npos);
+  std::string inflated = bytes;
+  const uint64_t huge = uint64_t(1) << 60;
+  std::memcpy(&inflated[0], &huge, 8);
+  write_file_atomically(dir + "/huge.bin", inflated);
+  CHECK(error_of([&] { read_points(dir + "/huge.bin"); }).find("huge.bin: claims 1152921504606846976 points") != std::string::npos);
+  // The frame-0 images, one per camera, with the rig's COLMAP model.
+  DatasetOptions o;
+  o.cameras = {"cam00", "cam14"};
+  o.downscale = 8;
+  const Dataset d = Dataset::load(root + "/images", root + "/sparse/0", o);
+  REQUIRE(d.views().size() == 2);
+  CHECK(d.frames() == 1);
+  CHECK(d.views()[0].camera.width == 2690 / 8);
+  CHECK(d.views()[0].camera.height == 2016 / 8);
 }

@@ -72,7 +72,8 @@ struct DatasetOptions {
 ///    one view per entry; the image is looked up under the images folder by its path
 ///    (a leading "images/" may be dropped), then beside the camera file;
 ///  * a rig without times (COLMAP, transforms without `time`, ...): `images/<camera>/<frame>.png`,
-///    frames sorted by name, frame f at t = f / (F − 1); or, where the folder holds
+///    frames sorted by name, frame f at t = f / (F − 1); a single frame as `images/<camera>.png`
+///    (or .jpg); Technicolor's `<Scene>_undist_<frame>_<NN>.png` for camera camNN; or, where the folder holds
 ///    `<camera>.mp4` instead (Neural 3D Video as distributed), the video's frames, decoded
 ///    once with FFmpeg (video.hpp). With poses_bounds.npy, its rows name the folder's videos
 ///    in sorted order (cam00.mp4 … as they are; a scene that lacks a camera keeps the names
@@ -110,8 +111,8 @@ class Dataset {
   void keep_cycle(const std::vector<std::string>& cycle, std::vector<std::string>* per_view, const std::string& source);
 };
 
-/// Points with colours, as SfM gives them (COLMAP points3D.txt/.bin-less text, or a .ply with
-/// x, y, z and optional red, green, blue in 0..255 or 0..1).
+/// Points with colours, as SfM gives them (COLMAP points3D.txt or points3D.bin, or a .ply
+/// with x, y, z and optional red, green, blue in 0..255 or 0..1).
 struct PointSet {
   std::vector<Vec3f> positions;
   std::vector<Vec3f> colours;  ///< [0, 1]
