@@ -535,7 +535,7 @@ std::vector<Camera> read_d3dgs_meta(const std::string& path) {
         throw_error(path, ": ", el, ": w2c is not a rigid world-to-camera matrix [R t; 0 0 0 1]");
       if (!FN[f][i].is_string() || FN[f][i].get<std::string>().empty()) throw_error(path, ": ", el, ": fn is not a file name");
       c.image_path = FN[f][i].get<std::string>();
-      char frame[16];
+      char frame[24];
       std::snprintf(frame, sizeof frame, "%06zu", f);
       c.name = ids[i] + "/" + frame;
       c.time = F > 1 ? double(f) / double(F - 1) : 0.0;

@@ -173,7 +173,7 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
           TrainView v;
           v.camera = *cam;
           v.camera.time = frames > 1 ? double(f) / (frames - 1) : 0.0;
-          char name[16];
+          char name[24];
           std::snprintf(name, sizeof name, "%06d", f);
           v.camera.name = rig + "/" + name;
           v.rig = rig;
