@@ -248,23 +248,21 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
   });
   tbb::parallel_for(size_t(0), d.views_.size(), [&](size_t i) {
     TrainView& v = d.views_[i];
-    const bool from_video = fs::path(v.image_path).extension() == ".mp4";
-    if (from_video && !masked) {
-      scale_camera(v.camera, k);
-      return;
+    // Video frames were decoded above (their size checked there); images are read here.
+    if (fs::path(v.image_path).extension() != ".mp4") {
+      const Image im = read_image(v.image_path);
+      if (im.width != v.camera.width || im.height != v.camera.height)
+        throw_error(v.image_path, ": image is ", im.width, "x", im.height, " but camera '", v.camera.name, "' is ",
+                    v.camera.width, "x", v.camera.height);
+      if (im.channels < 3) throw_error(v.image_path, ": ", im.channels, " channels, RGB needed");
+      d.pixels_[i] = block_average(im, 3, k);
     }
-    const Image im = from_video ? Image(v.camera.width, v.camera.height, 3) : read_image(v.image_path);
-    if (im.width != v.camera.width || im.height != v.camera.height)
-      throw_error(v.image_path, ": image is ", im.width, "x", im.height, " but camera '", v.camera.name, "' is ",
-                  v.camera.width, "x", v.camera.height);
-    if (im.channels < 3) throw_error(v.image_path, ": ", im.channels, " channels, RGB needed");
-    if (!from_video) d.pixels_[i] = block_average(im, 3, k);
     if (masked) {
       const fs::path mp = (seg / mask_rel[i]).replace_extension(".png");
       if (!fs::is_regular_file(mp)) throw_error(mp.string(), ": no foreground mask for ", v.image_path, " (", seg.string(), " holds masks)");
       const Image m = read_image(mp.string());
-      if (m.width != im.width || m.height != im.height)
-        throw_error(mp.string(), ": mask is ", m.width, "x", m.height, " but its image is ", im.width, "x", im.height);
+      if (m.width != v.camera.width || m.height != v.camera.height)
+        throw_error(mp.string(), ": mask is ", m.width, "x", m.height, " but its image is ", v.camera.width, "x", v.camera.height);
       std::vector<uint8_t> fg = block_average(m, 1, k);
       for (uint8_t& x : fg) x = x > 127 ? 1 : 0;
       d.masks_[i] = std::move(fg);
