@@ -16,6 +16,7 @@ packages=(
   libtbb-dev
   nlohmann-json3-dev
   libhwy-dev               # Google Highway: portable SIMD with run-time dispatch
+  clang libclang-rt-14-dev # the sanitizer + libFuzzer tree (scripts/build-fuzz.sh, README "Robustness")
 )
 
 missing=()

@@ -14,6 +14,7 @@
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/image_io.hpp"
+#include "fillgs/limits.hpp"
 #include "fillgs/npy.hpp"
 
 namespace fs = std::filesystem;
@@ -54,18 +55,44 @@ std::string strip_extension_and_dot(std::string p) {
   return p;
 }
 
-Mat3d quat_wxyz_to_matrix(double w, double x, double y, double z) {
+/// A rotation from a stored quaternion; a zero or non-finite one is refused.
+Mat3d quat_wxyz_to_matrix(const std::string& source, const std::string& element, double w, double x, double y, double z) {
   Vec4d q(w, x, y, z);
+  if (!q.allFinite() || !(q.norm() > 1e-9))
+    throw_error(source, ": ", element, " has a zero or non-finite quaternion (", w, ", ", x, ", ", y, ", ", z, ")");
   q.normalize();
   return quat_to_matrix<double>(q);
 }
 
+/// The largest image side fillgs accepts (pixels).
+constexpr double kMaxImageSide = 65536;
+
+/// An image side stored as a number: a whole number in [1, 65536], else one line naming it.
+int image_side(double v, const std::string& source, const std::string& element, const char* what) {
+  if (!(v >= 1 && v <= kMaxImageSide) || v != std::floor(v))
+    throw_error(source, ": ", element, " ", what, " ", v, " is not a whole number of pixels in [1, 65536]");
+  return int(v);
+}
+
+/// What every reader checks before a camera is used: finite, positive intrinsics; a rotation
+/// (orthonormal, determinant +1, to 1e-3); a size within [1, 65536] whose render buffers
+/// (about 32 bytes a pixel) fit this machine; a time, when there is one, in [0, 1].
 void check_finite_camera(const std::string& source, const std::string& element, const Camera& c) {
   const bool ok = std::isfinite(c.fx) && std::isfinite(c.fy) && std::isfinite(c.cx) && std::isfinite(c.cy) &&
                   c.R.allFinite() && c.t.allFinite() && c.fx > 0 && c.fy > 0 && c.width > 0 && c.height > 0;
   if (!ok) throw_error(source, ": ", element, " has a non-finite or non-positive value (f ", c.fx, ", ", c.fy,
                        ", size ", c.width, "x", c.height, ")");
+  image_side(c.width, source, element, "width");
+  image_side(c.height, source, element, "height");
+  check_allocation(size_t(c.width) * size_t(c.height) * 32, source, element + " (" + std::to_string(c.width) + "x" +
+                                                                        std::to_string(c.height) + ") render buffers");
+  const double err = (c.R * c.R.transpose() - Mat3d::Identity()).cwiseAbs().maxCoeff();
+  if (!(err < 1e-3) || c.R.determinant() < 0)
+    throw_error(source, ": ", element, " has a rotation that is not one (|R R^T - I| = ", err, ", det ", c.R.determinant(),
+                "): a scaled, reflected or degenerate pose");
   if (c.has_time() && !std::isfinite(c.time)) throw_error(source, ": ", element, " has a non-finite time");
+  if (c.has_time() && (c.time < 0 || c.time > 1))
+    throw_error(source, ": ", element, " has time ", c.time, " outside [0, 1] (fillgs times are normalised)");
 }
 
 // ---------------------------------------------------------------- COLMAP
@@ -129,7 +156,7 @@ std::vector<Camera> assemble_colmap(const std::string& source, const std::map<lo
     c.fy = it->second.fy;
     c.cx = it->second.cx;
     c.cy = it->second.cy;
-    c.R = quat_wxyz_to_matrix(im.q[0], im.q[1], im.q[2], im.q[3]);
+    c.R = quat_wxyz_to_matrix(source, "image " + std::to_string(im.id), im.q[0], im.q[1], im.q[2], im.q[3]);
     c.t = Vec3d(im.t[0], im.t[1], im.t[2]);
     check_finite_camera(source, "image " + std::to_string(im.id), c);
     cams.push_back(c);
@@ -155,7 +182,9 @@ std::vector<Camera> read_colmap_text(const std::string& dir) {
       std::vector<double> p;
       double v;
       while (ls >> v) p.push_back(v);
-      intr[id] = colmap_pinhole(cam_path, id, model, p, int(w), int(h));
+      const std::string el = "camera " + std::to_string(id);
+      intr[id] = colmap_pinhole(cam_path, id, model, p, image_side(double(w), cam_path, el, "width"),
+                                image_side(double(h), cam_path, el, "height"));
     }
   }
   std::vector<ColmapImage> images;
@@ -201,9 +230,12 @@ class BinaryReader {
     pos_ = e + 1;
     return s;
   }
-  void skip(size_t n, const char* what) {
-    if (pos_ + n > data_.size()) throw_error(path_, ": truncated while reading ", what);
-    pos_ += n;
+  /// Skips `count` records of `size` bytes; the count is checked against the bytes left
+  /// before anything is multiplied.
+  void skip_records(uint64_t count, size_t size, const char* what) {
+    if (count > (data_.size() - pos_) / size)
+      throw_error(path_, ": ", what, " count ", count, " at byte ", pos_, " needs more bytes than the file has (truncated or corrupt)");
+    pos_ += size_t(count) * size;
   }
   const std::string& path() const { return path_; }
 
@@ -228,7 +260,9 @@ std::vector<Camera> read_colmap_binary(const std::string& dir) {
                     "), which fillgs cannot read (binary records carry no length; supported: PINHOLE, SIMPLE_PINHOLE)");
       std::vector<double> p(static_cast<size_t>(param_counts[model]));
       for (double& v : p) v = r.get<double>("camera parameters");
-      intr[id] = colmap_pinhole(r.path(), id, colmap_model_name(model), p, int(w), int(h));
+      const std::string el = "camera " + std::to_string(id);
+      intr[id] = colmap_pinhole(r.path(), id, colmap_model_name(model), p, image_side(double(w), r.path(), el, "width"),
+                                image_side(double(h), r.path(), el, "height"));
     }
   }
   std::vector<ColmapImage> images;
@@ -242,7 +276,7 @@ std::vector<Camera> read_colmap_binary(const std::string& dir) {
     im.camera_id = r.get<int32_t>("camera id");
     im.name = r.cstring("image name");
     const uint64_t np = r.get<uint64_t>("point count");
-    r.skip(np * 24, "2D points");
+    r.skip_records(np, 24, "2D points");
     images.push_back(im);
   }
   return assemble_colmap(r.path(), intr, images);
@@ -334,8 +368,8 @@ std::vector<Camera> read_transforms(const std::string& path, const CameraReadOpt
     c.name = c.image_path.empty() ? "frame" + std::to_string(i) : strip_extension_and_dot(c.image_path);
     // Image size: w/h, else the image itself, else the options.
     int w = 0, h = 0;
-    if (const json* jw = pick("w")) w = int(jw->get<double>());
-    if (const json* jh = pick("h")) h = int(jh->get<double>());
+    if (pick("w")) w = image_side(json_number(f.contains("w") ? f : root, path, el, "w"), path, el, "'w'");
+    if (pick("h")) h = image_side(json_number(f.contains("h") ? f : root, path, el, "h"), path, el, "'h'");
     if ((w <= 0 || h <= 0) && !c.image_path.empty()) {
       const fs::path ip = base / c.image_path;
       for (const char* ext : {"", ".png", ".jpg", ".jpeg", ".exr"})
@@ -404,21 +438,32 @@ std::vector<Camera> read_gaussian_json(const std::string& path) {
     const json& e = root[i];
     const std::string el = "camera " + std::to_string(i);
     Camera c;
+    if (!e.is_object()) throw_error(path, ": ", el, " is not an object");
+    if (e.contains("img_name") && !e["img_name"].is_string()) throw_error(path, ": ", el, " 'img_name' is not a string");
     c.name = e.contains("img_name") ? e["img_name"].get<std::string>() : "cam" + std::to_string(i);
     c.image_path = c.name;
-    c.width = int(json_number(e, path, el, "width"));
-    c.height = int(json_number(e, path, el, "height"));
+    c.width = image_side(json_number(e, path, el, "width"), path, el, "width");
+    c.height = image_side(json_number(e, path, el, "height"), path, el, "height");
     c.fx = json_number(e, path, el, "fx");
     c.fy = json_number(e, path, el, "fy");
     c.cx = c.width / 2.0;
     c.cy = c.height / 2.0;
-    if (!e.contains("position") || e["position"].size() != 3 || !e.contains("rotation") || e["rotation"].size() != 3)
-      throw_error(path, ": ", el, " needs 'position' (3) and 'rotation' (3x3)");
+    auto number = [&](const json& v, const std::string& what) {
+      if (!v.is_number()) throw_error(path, ": ", el, " ", what, " is not a number");
+      return v.get<double>();
+    };
+    if (!e.contains("position") || !e["position"].is_array() || e["position"].size() != 3)
+      throw_error(path, ": ", el, " needs 'position' (3 numbers)");
+    if (!e.contains("rotation") || !e["rotation"].is_array() || e["rotation"].size() != 3)
+      throw_error(path, ": ", el, " needs 'rotation' (3 rows of 3 numbers)");
     Vec3d pos;
     Mat3d rot;
     for (int r = 0; r < 3; ++r) {
-      pos[r] = e["position"][size_t(r)].get<double>();
-      for (int k = 0; k < 3; ++k) rot(r, k) = e["rotation"][size_t(r)][size_t(k)].get<double>();
+      pos[r] = number(e["position"][size_t(r)], "'position' [" + std::to_string(r) + "]");
+      const json& row = e["rotation"][size_t(r)];
+      if (!row.is_array() || row.size() != 3)
+        throw_error(path, ": ", el, " 'rotation' row ", r, " has ", row.is_array() ? row.size() : 0, " values, needs 3");
+      for (int k = 0; k < 3; ++k) rot(r, k) = number(row[size_t(k)], "'rotation' [" + std::to_string(r) + "][" + std::to_string(k) + "]");
     }
     c.R = rot.transpose();
     c.t = -c.R * pos;
@@ -452,7 +497,7 @@ std::vector<Camera> read_technicolor(const std::string& path, const CameraReadOp
     c.fx = c.fy = v[0];
     c.cx = v[1];
     c.cy = v[2];
-    c.R = quat_wxyz_to_matrix(v[5], v[6], v[7], v[8]);
+    c.R = quat_wxyz_to_matrix(path, "line " + std::to_string(line_no), v[5], v[6], v[7], v[8]);
     c.t = Vec3d(v[9], v[10], v[11]);
     check_finite_camera(path, "line " + std::to_string(line_no), c);
     cams.push_back(c);
@@ -570,16 +615,18 @@ CameraFormat detect_camera_format(const std::string& path) {
 
 std::vector<Camera> read_cameras(const std::string& path, const CameraReadOptions& opt) {
   const CameraFormat f = opt.format == CameraFormat::Auto ? detect_camera_format(path) : opt.format;
-  std::vector<Camera> cams;
-  switch (f) {
-    case CameraFormat::Colmap: cams = read_colmap(path); break;
-    case CameraFormat::Llff: cams = read_llff(path, opt); break;
-    case CameraFormat::Transforms: cams = read_transforms(path, opt); break;
-    case CameraFormat::GaussianJson: cams = read_gaussian_json(path); break;
-    case CameraFormat::Technicolor: cams = read_technicolor(path, opt); break;
-    case CameraFormat::D3dgs: cams = read_d3dgs_meta(path); break;
-    case CameraFormat::Auto: break;
-  }
+  std::vector<Camera> cams = reading(path, [&]() -> std::vector<Camera> {
+    switch (f) {
+      case CameraFormat::Colmap: return read_colmap(path);
+      case CameraFormat::Llff: return read_llff(path, opt);
+      case CameraFormat::Transforms: return read_transforms(path, opt);
+      case CameraFormat::GaussianJson: return read_gaussian_json(path);
+      case CameraFormat::Technicolor: return read_technicolor(path, opt);
+      case CameraFormat::D3dgs: return read_d3dgs_meta(path);
+      case CameraFormat::Auto: break;
+    }
+    return {};
+  });
   if (cams.empty()) throw_error(path, ": no cameras");
   // Names must be unique (they become file names): disambiguate repeats by index.
   std::map<std::string, int> seen;

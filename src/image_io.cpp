@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "fillgs/error.hpp"
+#include "fillgs/limits.hpp"
 #include "fillgs/fs_util.hpp"
 
 namespace fillgs {
@@ -40,6 +41,11 @@ Image read_image(const std::string& path) {
   auto in = OIIO::ImageInput::open(path);
   if (!in) throw_error(path, ": cannot read image (", OIIO::geterror(), ")");
   const OIIO::ImageSpec& spec = in->spec();
+  // The size is the file's word: checked before the pixels are allocated.
+  if (spec.width < 1 || spec.height < 1 || spec.width > 65536 || spec.height > 65536 || spec.nchannels < 1 || spec.nchannels > 64)
+    throw_error(path, ": image claims ", spec.width, "x", spec.height, "x", spec.nchannels, " (sides must be 1..65536, channels 1..64)");
+  check_allocation(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels) * sizeof(float), path,
+                   "an image of " + std::to_string(spec.width) + "x" + std::to_string(spec.height));
   Image img(spec.width, spec.height, spec.nchannels);
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, img.pixels.data()))
     throw_error(path, ": cannot decode image (", in->geterror(), ")");

@@ -57,7 +57,9 @@ ViewInitResult points_from_views(const Dataset& data, const ViewInitOptions& o) 
     if (data.views()[v].frame == 0) views.push_back({data.views()[v].camera, data.image(v), data.mask(v)});
   std::vector<Camera> cams;
   for (const FirstView& v : views) cams.push_back(v.camera);
-  const auto [centre, r] = centre_of_interest(cams);
+  const auto interest = centre_of_interest(cams);  // not a structured binding: lambdas below capture it (C++17)
+  const Vec3d centre = interest.first;
+  const double r = interest.second;
   const int need = std::min<int>(o.min_views, int(views.size()));
   ViewInitResult out;
   auto colour_of = [&](const Vec3d& X, bool foreground_only, Vec3f* colour) {

@@ -4,11 +4,11 @@
 #include <cstdio>
 #include <cstring>
 #include <unistd.h>
-#include <regex>
 #include <sstream>
 
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
+#include "fillgs/limits.hpp"
 
 namespace fillgs {
 
@@ -45,25 +45,54 @@ NpyArray read_npy(const std::string& path) {
   if (b.size() < offset + header_len) throw_error(path, ": truncated .npy header");
   const std::string header = b.substr(offset, header_len);
   NpyArray a;
-  std::smatch m;
-  if (!std::regex_search(header, m, std::regex("'descr'\\s*:\\s*'([^']+)'"))) throw_error(path, ": .npy header has no descr");
-  a.descr = m[1];
-  if (!std::regex_search(header, m, std::regex("'fortran_order'\\s*:\\s*(True|False)")))
-    throw_error(path, ": .npy header has no fortran_order");
-  a.fortran_order = m[1] == "True";
-  if (!std::regex_search(header, m, std::regex("'shape'\\s*:\\s*\\(([^)]*)\\)"))) throw_error(path, ": .npy header has no shape");
-  std::string dims = m[1];
-  std::istringstream ds(dims);
-  std::string tok;
-  while (std::getline(ds, tok, ',')) {
-    if (tok.find_first_not_of(" ") == std::string::npos) continue;
-    a.shape.push_back(size_t(std::stoull(tok)));
+  // The header is a Python dict literal; it is scanned by hand (no regex: a long header
+  // must not cost stack) and every value is checked exactly.
+  auto value_of = [&](const char* key) -> size_t {
+    const std::string quoted = std::string("'") + key + "'";
+    size_t at = header.find(quoted);
+    if (at == std::string::npos) throw_error(path, ": .npy header has no ", key);
+    at += quoted.size();
+    while (at < header.size() && header[at] == ' ') ++at;
+    if (at >= header.size() || header[at] != ':') throw_error(path, ": .npy header: no ':' after ", key);
+    ++at;
+    while (at < header.size() && header[at] == ' ') ++at;
+    return at;
+  };
+  {
+    const size_t at = value_of("descr");
+    const size_t close = at < header.size() && header[at] == '\'' ? header.find('\'', at + 1) : std::string::npos;
+    if (close == std::string::npos) throw_error(path, ": .npy header: descr is not a quoted string");
+    a.descr = header.substr(at + 1, close - at - 1);
   }
-  size_t item = 0;
-  const char kind = a.descr.size() >= 3 ? a.descr[1] : '?';
-  if (a.descr.size() >= 3) item = size_t(std::atoi(a.descr.c_str() + 2));
-  if (item == 0 || (kind != 'f' && kind != 'i' && kind != 'u')) throw_error(path, ": unsupported .npy dtype '", a.descr, "'");
-  const size_t need = a.size() * item;
+  {
+    const size_t at = value_of("fortran_order");
+    if (header.compare(at, 4, "True") == 0) a.fortran_order = true;
+    else if (header.compare(at, 5, "False") == 0) a.fortran_order = false;
+    else throw_error(path, ": .npy header: fortran_order is neither True nor False");
+  }
+  {
+    const size_t at = value_of("shape");
+    const size_t close = at < header.size() && header[at] == '(' ? header.find(')', at) : std::string::npos;
+    if (close == std::string::npos) throw_error(path, ": .npy header: shape is not a tuple");
+    std::string dims = header.substr(at + 1, close - at - 1);
+    size_t from = 0;
+    while (from <= dims.size()) {
+      size_t comma = dims.find(',', from);
+      if (comma == std::string::npos) comma = dims.size();
+      const std::string tok = dims.substr(from, comma - from);
+      if (tok.find_first_not_of(" ") != std::string::npos)
+        a.shape.push_back(parse_count(tok, size_t(1) << 48, path, ".npy shape dimension " + std::to_string(a.shape.size())));
+      from = comma + 1;
+    }
+  }
+  static const char* const kKnown[] = {"<f4", "<f8", "<i4", "<i8", "|u1", "<u1", "<u2", "<u4"};
+  bool known = false;
+  for (const char* k : kKnown) known = known || a.descr == k;
+  if (!known) throw_error(path, ": unsupported .npy dtype '", a.descr.substr(0, 40), "' (fillgs reads <f4 <f8 <i4 <i8 |u1 <u2 <u4)");
+  const size_t item = size_t(a.descr[2] - '0');
+  size_t count = 1;
+  for (size_t d : a.shape) count = checked_mul(count, d, path, ".npy shape");
+  const size_t need = checked_mul(count, item, path, ".npy data size");
   const size_t data_at = offset + header_len;
   if (b.size() - data_at < need)
     throw_error(path, ": truncated: shape needs ", need, " bytes of data, file has ", b.size() - data_at);

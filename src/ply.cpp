@@ -195,6 +195,9 @@ PlyData read_ply(const std::string& path) {
         ls >> p.name;
       }
       if (p.name.empty()) throw_error(path, ": header line ", line_no, ": property without a name");
+      for (const PropertyDecl& q : decls.back().properties)
+        if (q.name == p.name)
+          throw_error(path, ": header line ", line_no, ": element '", decls.back().name, "' declares property '", p.name, "' twice");
       decls.back().properties.push_back(p);
     } else if (kw == "end_header") {
       have_end = true;
@@ -235,6 +238,16 @@ PlyData read_ply(const std::string& path) {
       column_of[i] = int(el.property_names.size());
       el.property_names.push_back(d.properties[i].name);
     }
+    // The count is the file's word: check it against the bytes left before taking memory.
+    // A binary record is at least its scalars plus its list lengths; an ASCII one at least
+    // one character and one separator per value.
+    if (d.count > 0 && d.properties.empty())
+      throw_error(path, ": element '", d.name, "' has ", d.count, " records but no properties");
+    size_t min_record = 0;
+    for (const PropertyDecl& p : d.properties) min_record += binary ? type_size(p.is_list ? p.count_type : p.type) : 2;
+    if (d.count > (end - pos + 1) / std::max<size_t>(min_record, 1))
+      throw_error(path, ": truncated or corrupt: element '", d.name, "' claims ", d.count, " records of at least ", min_record, " bytes, but only ",
+                  end - pos, " bytes follow");
     el.columns.assign(el.property_names.size(), std::vector<float>(d.count));
     bool all_scalar = std::all_of(d.properties.begin(), d.properties.end(), [](const PropertyDecl& p) { return !p.is_list; });
     if (binary && all_scalar) {
@@ -305,6 +318,13 @@ PlyData read_ply(const std::string& path) {
       }
     }
     data.elements.push_back(std::move(el));
+  }
+  if (binary && pos != end)
+    throw_error(path, ": ", end - pos, " bytes follow the last element (a wrong count, or a body that is not ",
+                data.format == PlyFormat::BinaryLittleEndian ? "binary_little_endian" : "binary_big_endian", ")");
+  if (!binary) {
+    while (cur < stop && std::isspace(static_cast<unsigned char>(*cur))) ++cur;
+    if (cur < stop) throw_error(path, ": values follow the last element (", stop - cur, " bytes; a wrong count?)");
   }
   return data;
 }

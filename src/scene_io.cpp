@@ -1,15 +1,16 @@
 #include "fillgs/scene_io.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <regex>
 #include <sstream>
 
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
+#include "fillgs/limits.hpp"
 #include "fillgs/ply.hpp"
 #include "fillgs/sh.hpp"
 
@@ -215,17 +216,40 @@ Ex4dgsConfig read_ex4dgs_config(const std::string& static_ply) {
     const fs::path f = dir / "cfg_args";
     if (!fs::exists(f, ec)) continue;
     const std::string text = read_file(f.string());
-    auto number = [&](const char* key, auto* out) {
-      std::smatch m;
-      const std::regex re(std::string("\\b") + key + "=(-?[0-9.eE+-]+)");
-      if (std::regex_search(text, m, re)) *out = static_cast<std::remove_pointer_t<decltype(out)>>(std::stod(m[1]));
+    const std::string source = f.string();
+    // cfg_args is a Python Namespace repr: "Namespace(duration=300, ..., interp_type='cube')".
+    // Scanned by hand (no regex on a file of any length); a value is what follows "key=" up
+    // to the next ',' or ')'.
+    auto value = [&](const char* key, std::string* out) {
+      const std::string k = std::string(key) + "=";
+      for (size_t at = text.find(k); at != std::string::npos; at = text.find(k, at + 1)) {
+        const char before = at ? text[at - 1] : ' ';
+        if (std::isalnum(static_cast<unsigned char>(before)) || before == '_') continue;
+        const size_t from = at + k.size();
+        size_t end = text.find_first_of(",)", from);
+        if (end == std::string::npos) end = text.size();
+        *out = text.substr(from, end - from);
+        return true;
+      }
+      return false;
     };
-    number("duration", &cfg.duration);
-    number("time_interval", &cfg.interval);
-    number("time_pad", &cfg.pad);
-    number("var_pad", &cfg.var_pad);
-    std::smatch m;
-    if (std::regex_search(text, m, std::regex("\\binterp_type=['\"]([a-z]+)['\"]"))) cfg.interp = m[1];
+    auto integer = [&](const char* key, int* out, int lo, int hi) {
+      std::string v;
+      if (!value(key, &v)) return;
+      const double x = parse_number(v, source, std::string("cfg_args ") + key);
+      if (x != std::floor(x) || x < lo || x > hi)
+        throw_error(source, ": cfg_args ", key, " = ", x, " is not an integer in [", lo, ", ", hi, "]");
+      *out = int(x);
+    };
+    integer("duration", &cfg.duration, 2, 1000000);
+    integer("time_interval", &cfg.interval, 1, 1000000);
+    integer("time_pad", &cfg.pad, 0, 1000000);
+    std::string v;
+    if (value("var_pad", &v)) cfg.var_pad = parse_number(v, source, "cfg_args var_pad");
+    if (value("interp_type", &v)) {
+      const size_t b = v.find_first_of("'\""), e = v.find_last_of("'\"");
+      cfg.interp = (b != std::string::npos && e > b) ? v.substr(b + 1, e - b - 1) : v;
+    }
     cfg.source = f.string();
     break;
   }
@@ -247,9 +271,26 @@ GaussianCloud read_ex4dgs(const std::string& static_path, const std::string& dyn
   const PlyData dply = read_ply(dynamic_path);
   const PlyElement& sv = sply.element("vertex");
   const PlyElement& dv = dply.element("vertex");
+  const size_t ns = sv.count, nd = dv.count;
+  // Every key k < K has three columns, so K is bounded by the property count: an index
+  // beyond it names a column that cannot exist, whatever the file says.
+  int K = 0;
+  const std::string prefix = "motion_xyz_";
+  for (const std::string& name : dv.property_names) {
+    if (name.compare(0, prefix.size(), prefix) != 0) continue;
+    const size_t us = name.find('_', prefix.size());
+    if (us == std::string::npos) continue;
+    const std::string digits = name.substr(prefix.size(), us - prefix.size());
+    if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    const long k = digits.size() > 9 ? 1000000000L : std::strtol(digits.c_str(), nullptr, 10);
+    if (size_t(k) >= dv.property_names.size() / 3)
+      throw_error(dynamic_path, ": property '", name, "' names keyframe ", digits, ", but the vertex element has only ",
+                  dv.property_names.size(), " properties (3 per keyframe)");
+    K = std::max(K, int(k) + 1);
+  }
+  if (K < 2 && nd > 0) throw_error(dynamic_path, ": no 'motion_xyz_{k}_{j}' keyframe properties");
   GaussianCloud c;
   c.sh_degree = sh_degree_of(sv, "f_rest_");
-  const size_t ns = sv.count, nd = dv.count;
   c.resize(ns + nd);
   const auto sids = iota_ids(ns), dids = iota_ids(nd, uint32_t(ns));
   read_base(sv, c, sids);
@@ -258,13 +299,6 @@ GaussianCloud read_ex4dgs(const std::string& static_path, const std::string& dyn
   read_sh(dv, "motion_f_dc_", "motion_f_rest_", c, dids);
 
   // Keyframe count from the file: the largest k in motion_xyz_{k}_{j} plus one.
-  int K = 0;
-  for (const std::string& name : dv.property_names) {
-    int k = 0, j = 0;
-    char tail = 0;
-    if (std::sscanf(name.c_str(), "motion_xyz_%d_%d%c", &k, &j, &tail) == 2) K = std::max(K, k + 1);
-  }
-  if (K < 2 && nd > 0) throw_error(dynamic_path, ": no 'motion_xyz_{k}_{j}' keyframe properties");
 
   KeyframedMotion& km = c.keyframed;
   km.key_count = K;
@@ -372,7 +406,10 @@ GaussianCloud read_fillgs(const std::string& path) {
   const size_t M = tr->count;
   if (M > v.count) throw_error(path, ": track element has ", M, " rows but vertex has only ", v.count);
   KeyframedMotion& km = c.keyframed;
-  km.key_count = int(key_number("count"));
+  const double count = key_number("count");
+  if (!(count >= 1 && count <= 1e6) || count != std::floor(count))
+    throw_error(path, ": comment 'fillgs_keys' count=", count, " is not an integer in [1, 1000000]");
+  km.key_count = int(count);
   km.first_key_time = key_number("first");
   km.key_spacing = key_number("spacing");
   const std::string interp = keys.count("interp") ? keys["interp"] : "catmull_rom";
@@ -382,6 +419,9 @@ GaussianCloud read_fillgs(const std::string& path) {
   else throw_error(path, ": unknown interpolation '", interp, "' in comment 'fillgs_keys'");
   const int K = km.key_count;
   if (K < 1) throw_error(path, ": comment 'fillgs_keys' count must be at least 1");
+  if (size_t(K) * 7 > tr->property_names.size())
+    throw_error(path, ": comment 'fillgs_keys' count=", K, " needs ", size_t(K) * 7, " track properties, the track element has ",
+                tr->property_names.size());
   if (!(km.key_spacing > 0)) throw_error(path, ": comment 'fillgs_keys' spacing must be positive");
   km.positions.resize(M * K * 3);
   km.rotations.resize(M * K * 4);
@@ -431,22 +471,24 @@ SceneFormat detect_scene_format(const std::string& path) {
 
 GaussianCloud read_scene(const std::string& path, const SceneReadOptions& options) {
   SceneFormat f = options.format == SceneFormat::Auto ? detect_scene_format(path) : options.format;
-  GaussianCloud c;
-  switch (f) {
-    case SceneFormat::Gaussian3D: c = read_3dgs(path); break;
-    case SceneFormat::Spacetime: c = read_spacetime(path, options); break;
-    case SceneFormat::Fillgs4D: c = read_fillgs(path); break;
-    case SceneFormat::Ex4dgs: {
-      auto [s, d] = ex4dgs_pair(path);
-      if (s.empty()) throw_error(path, ": Ex4DGS needs point_cloud.ply and dynamic_point_cloud.ply side by side");
-      c = read_ex4dgs(s, d, options);
-      break;
+  return reading(path, [&] {
+    GaussianCloud c;
+    switch (f) {
+      case SceneFormat::Gaussian3D: c = read_3dgs(path); break;
+      case SceneFormat::Spacetime: c = read_spacetime(path, options); break;
+      case SceneFormat::Fillgs4D: c = read_fillgs(path); break;
+      case SceneFormat::Ex4dgs: {
+        auto [s, d] = ex4dgs_pair(path);
+        if (s.empty()) throw_error(path, ": Ex4DGS needs point_cloud.ply and dynamic_point_cloud.ply side by side");
+        c = read_ex4dgs(s, d, options);
+        break;
+      }
+      case SceneFormat::Auto: break;
     }
-    case SceneFormat::Auto: break;
-  }
-  c.validate(path);
-  partition_static_dynamic(c, options.partition);
-  return c;
+    c.validate(path);
+    partition_static_dynamic(c, options.partition);
+    return c;
+  });
 }
 
 // ---- writers ----

@@ -7,6 +7,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <utility>
 #include <chrono>
 #include <cmath>
 #include <cctype>
@@ -98,7 +99,7 @@ FrameRange FrameRange::parse(const std::string& text) {
     if (p.empty()) return fallback;
     if (p.size() > 9 || p.find_first_not_of("0123456789") != std::string::npos)
       throw_error("--frames \"", text, "\": '", p, "' is not a frame number (first:last:step, e.g. 0:150:5)");
-    return std::stoi(p);
+    return int(std::strtol(p.c_str(), nullptr, 10));
   };
   if (parts.size() > 3) throw_error("--frames \"", text, "\": expected first:last:step");
   r.first = whole(parts[0], 0);
@@ -1451,7 +1452,7 @@ struct Reader {
     const uint64_t n = pod<uint64_t>();
     if (n > (bytes.size() - at) / sizeof(T)) throw_error(path, ": checkpoint is truncated");
     std::vector<T> v(n);
-    std::memcpy(v.data(), bytes.data() + at, n * sizeof(T));
+    if (n) std::memcpy(v.data(), bytes.data() + at, n * sizeof(T));  // an empty vector's data() may be null
     at += n * sizeof(T);
     return v;
   }
@@ -1476,8 +1477,31 @@ ModelParams<float> read_params(Reader& r) {
   p.keyed_opacity = r.pod<uint8_t>() != 0;
   p.dynamic_ids = r.vec<uint32_t>();
   for (std::vector<float>* a : p.arrays()) *a = r.vec<float>();
-  const size_t n = p.size();
-  if (p.means.size() != 3 * n || p.sh.size() != n * size_t(p.sh_count()) * 3) throw_error(r.path, ": checkpoint arrays disagree");
+  // Every shape is checked before anything indexes the arrays (the file's word is not taken).
+  const size_t n = p.size(), m = p.dynamic_ids.size();
+  if (p.sh_degree < 0 || p.sh_degree > 3) throw_error(r.path, ": checkpoint SH degree ", p.sh_degree, " is not 0..3");
+  if (p.key_count < 0 || p.key_count > 1000000 || (m > 0 && p.key_count < 1))
+    throw_error(r.path, ": checkpoint key count ", p.key_count, " is not 0..1000000 (at least 1 with moving Gaussians)");
+  if (!std::isfinite(p.first_key_time) || !(p.key_spacing > 0) || !std::isfinite(p.key_spacing))
+    throw_error(r.path, ": checkpoint key layout (first ", p.first_key_time, ", spacing ", p.key_spacing, ") is not finite and positive");
+  const size_t K = size_t(p.key_count);
+  auto shape = [&](const std::vector<float>& a, size_t want, const char* what) {
+    if (a.size() != want) throw_error(r.path, ": checkpoint array '", what, "' has ", a.size(), " values, the model needs ", want);
+  };
+  shape(p.means, 3 * n, "means");
+  shape(p.log_scales, 3 * n, "log_scales");
+  shape(p.rotations, 4 * n, "rotations");
+  shape(p.sh, n * size_t(p.sh_count()) * 3, "sh");
+  shape(p.key_positions, m * K * 3, "key_positions");
+  shape(p.key_rotations, m * K * 4, "key_rotations");
+  if (!p.key_log_scales.empty()) shape(p.key_log_scales, m * K * 3, "key_log_scales");
+  if (p.keyed_opacity || !p.key_opacity_logits.empty()) shape(p.key_opacity_logits, m * K, "key_opacity_logits");
+  for (size_t i = 0; i < m; ++i)
+    if (p.dynamic_ids[i] >= n || (i > 0 && p.dynamic_ids[i] <= p.dynamic_ids[i - 1]))
+      throw_error(r.path, ": checkpoint moving Gaussian ", i, " has id ", p.dynamic_ids[i], " (ids must ascend below ", n, ")");
+  for (const std::vector<float>* a : p.arrays())
+    for (float v : *a)
+      if (!std::isfinite(v)) throw_error(r.path, ": checkpoint holds a non-finite parameter");
   return p;
 }
 }  // namespace
@@ -1543,6 +1567,16 @@ Trainer Trainer::resume(const Dataset& data, const std::string& path, const Trai
   t.on_change_ = r.vec<uint8_t>();
   t.status_.loss = r.pod<double>();
   t.status_.psnr = r.pod<double>();
+  // The state's shapes follow the model's: checked here, before training indexes them.
+  const size_t n = t.params_.size();
+  const auto want = std::as_const(t.params_).arrays(), am = std::as_const(t.adam_m_).arrays(), av = std::as_const(t.adam_v_).arrays();
+  for (size_t k = 0; k < want.size(); ++k)
+    if (am[k]->size() != want[k]->size() || av[k]->size() != want[k]->size())
+      throw_error(path, ": checkpoint optimiser moments do not match the model's arrays (array ", k, ")");
+  const size_t bins = size_t(std::max(1, options.time_bins));
+  if (t.grad_accum_.size() != n || t.max_radii_.size() != n || t.denom_.size() != n || t.on_change_.size() != n ||
+      t.bin_count_.size() != n * bins || t.bin_grad_.size() != n * bins * 3 || it < 0)
+    throw_error(path, ": checkpoint densification state does not match its ", n, " Gaussians");
   if (r.at < bytes.size()) {
     const std::vector<float> colour = r.vec<float>();
     if (colour.size() != t.colour_.size() * 19) throw_error(path, ": the colour corrections are for ", colour.size() / 19, " cameras, the dataset has ", t.colour_.size());

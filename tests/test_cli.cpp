@@ -13,6 +13,7 @@
 #include "fillgs/ply.hpp"
 #include "fillgs/raster.hpp"
 #include "fillgs/scene_io.hpp"
+#include "cli_run.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;
@@ -21,16 +22,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-  int code;
-  std::string out, err;
-};
-
-Result run_cli(std::vector<std::string> args) {
-  std::ostringstream out, err;
-  const int code = cli::run(args, out, err);
-  return {code, out.str(), err.str()};
-}
+using Result = CliResult;
 
 const char* kHeader =
     "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"

@@ -23,4 +23,30 @@ void make_directories(const std::string& path);
 /// Joins path components with '/'.
 std::string join_path(const std::string& a, const std::string& b);
 
+/// A command's output folder, written as one transaction. Everything goes into a hidden
+/// staging folder beside it (".<name>.partial-<pid>-<n>"); commit() moves the staged files
+/// into place (the folder itself by one rename when it did not exist, else file by file,
+/// each replacing the file of that name and leaving the folder's other files alone). A
+/// command that throws, or is killed, before commit() leaves an existing folder exactly as
+/// it was and creates nothing that stays: the destructor removes the staging folder and any
+/// parent folders it had to create, and staging folders and temporary files of processes
+/// that no longer run are removed when the next command opens the same folder.
+class OutputFolder {
+ public:
+  explicit OutputFolder(const std::string& dir);
+  ~OutputFolder();
+  OutputFolder(const OutputFolder&) = delete;
+  OutputFolder& operator=(const OutputFolder&) = delete;
+  /// Where to write until commit().
+  const std::string& path() const { return staging_; }
+  /// The folder the output ends in.
+  const std::string& final_path() const { return dir_; }
+  void commit();
+
+ private:
+  std::string dir_, staging_;
+  std::vector<std::string> created_;  ///< parent folders this object created, outermost first
+  bool committed_ = false;
+};
+
 }  // namespace fillgs

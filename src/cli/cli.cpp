@@ -92,20 +92,18 @@ int cmd_render(const std::vector<std::string>& args, std::ostream& out, std::ost
   const double time = a.number("time", 0.0);
   if (fixed_time && (time < 0 || time > 1)) throw_error("fillgs render: --time must lie in [0, 1] (got ", time, ")");
   RenderOptions ro;
-  ro.threads = a.integer("threads", 0);
+  ro.threads = a.threads();
   ro.rgb = channel == "rgb";
   ro.depth = channel == "depth";
   if (a.has("background")) {
-    std::istringstream bs(a.get("background"));
-    char comma;
-    float r, g, b;
-    if (!(bs >> r >> comma >> g >> comma >> b)) throw_error("fillgs render: --background expects r,g,b");
-    ro.background = Vec3f(r, g, b);
+    const std::vector<double> c = a.numbers("background", 3);
+    ro.background = Vec3f(float(c[0]), float(c[1]), float(c[2]));
   }
   const GaussianCloud cloud = read_scene(a.require("scene"), scene_options(a));
   const std::vector<Camera> cams = read_cameras(a.require("cameras"), camera_options(a));
   const double load_s = seconds_since(t0);
 
+  OutputFolder folder(out_dir);  // nothing replaces the folder's files unless every view renders
   FrameEvaluator ev(cloud);
   TerminalProgress progress(err, progress_enabled(a));
   progress.start("rendering", cams.size());
@@ -134,7 +132,7 @@ int cmd_render(const std::vector<std::string>& args, std::ostream& out, std::ost
         for (float& v : img.pixels) v /= max_depth;
       }
     }
-    write_image(join_path(out_dir, cam.name + "." + format), img);
+    write_image(join_path(folder.path(), cam.name + "." + format), img);
     views.push_back({{"camera", cam.name}, {"time", t}, {"gaussians_rendered", r.rendered}, {"depth_scale", depth_scale}});
     progress.advance();
   }
@@ -148,7 +146,8 @@ int cmd_render(const std::vector<std::string>& args, std::ostream& out, std::ost
   s["ms_per_view"] = cams.empty() ? 0.0 : 1000.0 * render_s / cams.size();
   s["kernel"] = {{"name", kernel_name(Kernel::Default)}, {"instruction_set", simd_target()}};
   s["views"] = views;
-  write_file_atomically(join_path(out_dir, "summary.json"), s.dump(2) + "\n");
+  write_file_atomically(join_path(folder.path(), "summary.json"), s.dump(2) + "\n");
+  folder.commit();
   out << "rendered " << cams.size() << " views (" << channel << ") into " << out_dir << ": "
       << (cams.empty() ? 0.0 : 1000.0 * render_s / cams.size()) << " ms per view, " << rendered / std::max<size_t>(1, cams.size())
       << " Gaussians per view\n";
@@ -175,7 +174,7 @@ int cmd_synth(const std::vector<std::string>& args, std::ostream& out, std::ostr
   const std::string dir = a.require("out");
   const SynthScene s = make_synthetic_scene(synth_options(a));
   TerminalProgress progress(err, progress_enabled(a));
-  write_synthetic_scene(s, dir, progress, a.integer("threads", 0));
+  write_synthetic_scene(s, dir, progress, a.threads());
   out << "synthetic scene: " << s.scene.size() << " Gaussians (" << s.scene.dynamic_count() << " moving), "
       << s.train.size() << " rig cameras (" << s.options.rig << ", split: train " << s.split.train.size() << ", interpolation "
       << s.split.interpolation.size() << ", extrapolation " << s.split.extrapolation.size() << "), " << s.options.frames << " frames, " << s.options.width << "x" << s.options.height
@@ -222,7 +221,7 @@ int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::os
   if (o.visibility.stride < 1) throw_error("fillgs observe: --stride must be at least 1");
   o.visibility.min_weight = float(a.number("tau", o.visibility.min_weight));
   if (!(o.visibility.min_weight > 0.0f && o.visibility.min_weight < 1.0f)) throw_error("fillgs observe: --tau must lie in (0, 1)");
-  o.visibility.threads = a.integer("threads", 0);
+  o.visibility.threads = a.threads();
   o.visibility.dilate = !a.flag("no-raster-match");
   o.incremental = !a.flag("from-scratch");
   ObserveOutputOptions oo;
@@ -236,7 +235,9 @@ int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::os
   double frame_step = 0;
   const std::vector<double> times = observe_times(a, cloud, cams, &frame_step);
   TerminalProgress progress(err, progress_enabled(a));
-  const ObserveReport r = observe_to_directory(cloud, cams, times, frame_step, o, out_dir, oo, progress);
+  OutputFolder folder(out_dir);  // a failed or killed run leaves the folder as it was
+  const ObserveReport r = observe_to_directory(cloud, cams, times, frame_step, o, folder.path(), oo, progress);
+  folder.commit();
   const ObservationSummary& s = r.summary;
   out << "observed " << s.gaussians << " Gaussians (" << s.dynamic_count << " dynamic) over " << s.frames << " frames and " << s.views
       << " views (" << to_string(o.visibility.mode);
@@ -265,7 +266,7 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   if (iterations < 1) throw_error("fillgs train: --iterations must be at least 1");
   TrainOptions o = TrainOptions::scaled(iterations);
   o.seed = uint64_t(a.integer("seed", 1));
-  o.threads = a.integer("threads", 0);
+  o.threads = a.threads();
   o.key_interval_frames = a.integer("key-interval", o.key_interval_frames);
   if (o.key_interval_frames < 1) throw_error("fillgs train: --key-interval must be at least 1 frame");
   o.max_gaussians = size_t(a.integer("max-gaussians", int(o.max_gaussians)));
@@ -284,9 +285,8 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   o.checkpoint_interval = a.integer("checkpoint-every", std::max(1, iterations / 5));
   o.colour_correction = a.flag("colour-correction");
   if (a.has("background")) {
-    const std::vector<std::string> c = split_commas(a.get("background"));
-    if (c.size() != 3) throw_error("fillgs train: --background needs r,g,b");
-    for (int k = 0; k < 3; ++k) o.background[k] = std::stof(c[size_t(k)]);
+    const std::vector<double> c = a.numbers("background", 3);
+    for (int k = 0; k < 3; ++k) o.background[k] = float(c[size_t(k)]);
   }
   // Test split (optional): loaded before anything is written, so bad input writes nothing.
   std::unique_ptr<Dataset> test;

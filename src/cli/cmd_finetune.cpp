@@ -1,5 +1,6 @@
 // fillgs finetune, eval, bench and run: the refinement loop, its evaluation, the paper's
 // comparison and the main job.
+#include <optional>
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
@@ -9,6 +10,7 @@
 #include "commands.hpp"
 #include "common.hpp"
 #include "progress_bar.hpp"
+#include "fillgs/limits.hpp"
 #include "fillgs/evaluate.hpp"
 #include "fillgs/experiment.hpp"
 #include "fillgs/finetune.hpp"
@@ -104,7 +106,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
     o.mask.external_dir = a.get("confidence");
     if (!fs::is_directory(o.mask.external_dir)) throw_error("fillgs finetune: --confidence ", o.mask.external_dir, " is not a folder");
   }
-  o.threads = a.integer("threads", 0);
+  o.threads = a.threads();
   o.work_dir = join_path(out_dir, "work");
 
   const std::string kind = a.get("refiner", "identity");
@@ -189,19 +191,21 @@ int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostre
   if (a.has("truth")) truth = std::make_unique<GaussianCloud>(read_scene(a.get("truth"), scene_options(a)));
   EvalOptions eo;
   eo.stride = a.integer("stride", 1);
-  eo.threads = a.integer("threads", 0);
+  eo.threads = a.threads();
   eo.truth = truth.get();
   eo.lpips_onnx = a.get("lpips");
   if (a.has("colour-correction")) eo.colour = read_colour_correction(a.get("colour-correction"));
   eo.ls_gain = a.flag("ls-gain");
   if (!eo.lpips_onnx.empty() && !fs::exists(eo.lpips_onnx)) throw_error("fillgs eval: --lpips ", eo.lpips_onnx, " does not exist");
   const std::string out_dir = a.get("out");
+  std::optional<OutputFolder> folder;  // a failed or killed run leaves the folder as it was
+  if (!out_dir.empty()) folder.emplace(out_dir);
   TerminalProgress progress(err, progress_enabled(a));
   json j = json::object();
   out << "split            views   PSNR    SSIM   moving PSNR" << (eo.lpips_onnx.empty() ? "" : "   LPIPS")
       << (eo.ls_gain ? "   PSNR (least-squares gain per image)" : "") << "\n";
   for (size_t k = 0; k < splits.size(); ++k) {
-    eo.save_dir = out_dir.empty() || a.flag("no-renders") ? "" : join_path(join_path(out_dir, "renders"), names[k]);
+    eo.save_dir = !folder || a.flag("no-renders") ? "" : join_path(join_path(folder->path(), "renders"), names[k]);
     const SplitMetrics m = evaluate_split(model, splits[k], names[k], eo, progress);
     char line[200];
     std::snprintf(line, sizeof line, "%-16s %5zu  %6.2f  %6.4f  %11s", names[k].c_str(), m.views, m.psnr, m.ssim, fixed(m.psnr_moving).c_str());
@@ -210,9 +214,9 @@ int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostre
     j[names[k]] = {{"views", m.views}, {"psnr", m.psnr}, {"ssim", m.ssim}, {"psnr_moving", num(m.psnr_moving)},
                    {"moving_pixels", m.moving_pixels}, {"lpips", num(m.lpips)}, {"psnr_ls_gain", num(m.psnr_ls_gain)}};
   }
-  if (!out_dir.empty()) {
-    make_directories(out_dir);
-    write_file_atomically(join_path(out_dir, "metrics.json"), j.dump(2) + "\n");
+  if (folder) {
+    write_file_atomically(join_path(folder->path(), "metrics.json"), j.dump(2) + "\n");
+    folder->commit();
   }
   if (!truth && !std::any_of(splits.begin(), splits.end(), [](const Dataset& d) { return d.has_masks(); }))
     out << "(moving-region PSNR needs --truth SCENE, the ground truth with its moving Gaussians, or foreground masks in seg/ beside the cameras)\n";
@@ -236,7 +240,7 @@ BenchSetup bench_setup(const Args& a, bool smoke) {
   e.height = a.integer("height", e.height);
   e.frames = a.integer("frames", e.frames);
   e.backbone_iterations = a.integer("backbone-iterations", e.backbone_iterations);
-  e.threads = a.integer("threads", 0);
+  e.threads = a.threads();
   FinetuneOptions& f = b.finetune;
   f.iterations = a.integer("iterations", smoke ? 60 : f.iterations);
   f.select_every = a.integer("select-every", smoke ? 30 : f.select_every);
@@ -268,7 +272,8 @@ int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostr
   const std::vector<std::string> scenes = split_commas(a.get("scenes", a.get("variants", "n3v")));
   for (const std::string& sc : scenes) parse_scene(sc);  // unknown names fail before any work
   std::vector<uint64_t> seeds;
-  for (const std::string& s : split_commas(a.get("seeds", smoke ? "1" : "1,2,3"))) seeds.push_back(uint64_t(std::stoull(s)));
+  for (const std::string& s : split_commas(a.get("seeds", smoke ? "1" : "1,2,3")))
+    seeds.push_back(uint64_t(parse_count(s, size_t(1) << 62, "fillgs bench", "--seeds value")));
   const double strength = a.number("artifact-strength", 0.5);
   const std::vector<OracleSupport> supports = parse_supports(a.get("support", "observed"));
   std::vector<RunConfig> configs = standard_configs(parse_weighting(a.get("baseline-weighting", "exploregs")), strength, supports);

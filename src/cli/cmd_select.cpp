@@ -27,7 +27,7 @@ ExplorationOptions exploration_options(const Args& a) {
   ExplorationOptions o;
   o.divisions = a.integer("divisions", o.divisions);
   o.occupancy_alpha = float(a.number("occupancy-alpha", o.occupancy_alpha));
-  o.threads = a.integer("threads", 0);
+  o.threads = a.threads();
   return o;
 }
 
@@ -73,11 +73,12 @@ int cmd_explore(const std::vector<std::string>& args, std::ostream& out, std::os
   TerminalProgress progress(err, progress_enabled(a));
   ExplorationStats stats;
   const ExplorationGrid grid = ExplorationGrid::build(cloud, cams, sweep, exploration_options(a), &stats, progress);
-  make_directories(out_dir);
-  grid.write(join_path(out_dir, "exploration.vdb"));
-  write_topdown_png(join_path(out_dir, "exploration.png"), grid, cams, {}, "exploration space");
+  OutputFolder folder(out_dir);  // a failed or killed run leaves the folder as it was
+  grid.write(join_path(folder.path(), "exploration.vdb"));
+  write_topdown_png(join_path(folder.path(), "exploration.png"), grid, cams, {}, "exploration space");
   nlohmann::json j = {{"command", "explore"}, {"grid", grid_json(grid, &stats)}, {"seconds", seconds_since(t0)}};
-  write_file_atomically(join_path(out_dir, "summary.json"), j.dump(2) + "\n");
+  write_file_atomically(join_path(folder.path(), "summary.json"), j.dump(2) + "\n");
+  folder.commit();
   out << "exploration grid " << grid.dims().x() << "^3 over [" << grid.box().lo.transpose() << "] .. [" << grid.box().hi.transpose()
       << "]: " << stats.occupied << " occupied (" << stats.occupied_by_static << " by static Gaussians), " << stats.unexplored
       << " unexplored, " << stats.free << " free; step " << grid.step() << " -> " << out_dir << " (" << seconds_since(t0) << " s)\n";
@@ -99,7 +100,7 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
   o.strategy = parse_strategy(a.get("strategy", "fillgs"));
   o.trajectories = a.integer("trajectories", o.trajectories);
   o.seed = uint64_t(a.integer("seed", int(o.seed)));
-  o.threads = a.integer("threads", 0);
+  o.threads = a.threads();
   o.views = a.integer("views", o.views);
   o.patch_frames = a.integer("patch-frames", o.patch_frames);
   o.time_stride = a.integer("time-stride", o.time_stride);
@@ -125,9 +126,8 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
   SelectInput in;
   in.scene = &cloud;
   if (a.has("background")) {
-    const std::vector<std::string> c = split_commas(a.get("background"));
-    if (c.size() != 3) throw_error("fillgs select: --background needs r,g,b");
-    for (int k = 0; k < 3; ++k) in.background[k] = std::stof(c[size_t(k)]);
+    const std::vector<double> c = a.numbers("background", 3);
+    for (int k = 0; k < 3; ++k) in.background[k] = float(c[size_t(k)]);
   }
   std::unique_ptr<Dataset> data;
   std::vector<Camera> cams;
@@ -158,7 +158,7 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
   const SelectResult r = select_viewpoints(in, o, progress);
 
   // ---- outputs
-  make_directories(out_dir);
+  OutputFolder folder(out_dir);  // a failed or killed run leaves the folder as it was
   std::vector<Camera> virtual_cams;
   nlohmann::json trajs = nlohmann::json::array(), flat = nlohmann::json::array();
   for (const Trajectory& tr : r.trajectories) {
@@ -185,9 +185,9 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
   }
   nlohmann::json tj = {{"strategy", to_string(o.strategy)}, {"seed", o.seed}, {"frames", in.frames},
                        {"deficiency_scale", r.deficiency_scale}, {"trajectories", trajs}, {"cameras", flat}};
-  write_file_atomically(join_path(out_dir, "trajectories.json"), tj.dump(2) + "\n");
-  write_transforms_json(join_path(out_dir, "transforms.json"), virtual_cams);
-  if (!virtual_cams.empty()) write_colmap_text(join_path(out_dir, "colmap"), virtual_cams);
+  write_file_atomically(join_path(folder.path(), "trajectories.json"), tj.dump(2) + "\n");
+  write_transforms_json(join_path(folder.path(), "transforms.json"), virtual_cams);
+  if (!virtual_cams.empty()) write_colmap_text(join_path(folder.path(), "colmap"), virtual_cams);
 
   // Renders: RGB and the normalised deficiency D̂ (initial tables) of every virtual view.
   double mean_selected_deficiency = 0;
@@ -208,8 +208,8 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
       rgb.pixels = img.rgb;
       dmap.pixels = img.features;
       for (float v : img.features) mean_selected_deficiency += v / double(img.features.size() * virtual_cams.size());
-      write_image(join_path(out_dir, "renders/" + c.name + ".png"), rgb);
-      write_image(join_path(out_dir, "renders/" + c.name + "_D.png"), dmap);
+      write_image(join_path(folder.path(), "renders/" + c.name + ".png"), rgb);
+      write_image(join_path(folder.path(), "renders/" + c.name + "_D.png"), dmap);
       progress.advance();
     }
     progress.finish();
@@ -232,10 +232,10 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
     std::vector<double> V(r.priority.views.size());
     for (size_t k = 0; k < V.size(); ++k) V[k] = r.priority.translation[k] + r.priority.rotation[k] + r.priority.time[k];
     const std::vector<float> E = table(r.priority.priority);
-    write_npy(join_path(out_dir, "priority_E.npy"), E.data(), {poses, F});
-    write_npy(join_path(out_dir, "priority_L.npy"), table(r.priority.error).data(), {poses, F});
-    write_npy(join_path(out_dir, "priority_V.npy"), table(V).data(), {poses, F});
-    write_npy(join_path(out_dir, "priority_V_time.npy"), table(r.priority.time).data(), {poses, F});
+    write_npy(join_path(folder.path(), "priority_E.npy"), E.data(), {poses, F});
+    write_npy(join_path(folder.path(), "priority_L.npy"), table(r.priority.error).data(), {poses, F});
+    write_npy(join_path(folder.path(), "priority_V.npy"), table(V).data(), {poses, F});
+    write_npy(join_path(folder.path(), "priority_V_time.npy"), table(r.priority.time).data(), {poses, F});
     std::vector<float> shown = E;
     for (float& x : shown)
       if (std::isnan(x)) x = 0;
@@ -248,13 +248,13 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
     for (const ObservedView& v : in.views) cam_names[v.pose] = v.camera.name.substr(0, v.camera.name.find('/'));
     for (size_t p = 0; p < poses; ++p) per_camera[p] /= std::max(1, nc[p]);
     for (size_t f = 0; f < F; ++f) per_frame[f] /= std::max(1, nf[f]), frame_names[f] = std::to_string(f);
-    write_heatmap_png(join_path(out_dir, "priority_heatmap.png"), shown, int(poses), int(F),
+    write_heatmap_png(join_path(folder.path(), "priority_heatmap.png"), shown, int(poses), int(F),
                       {"exploration priority E = L + V (rows: cameras, columns: frames)", "frame", "camera"}, &per_camera);
-    write_bar_chart_png(join_path(out_dir, "priority_over_cameras.png"), cam_names, per_camera, {"mean E per camera", "camera", "E"});
-    write_bar_chart_png(join_path(out_dir, "priority_over_time.png"), frame_names, per_frame, {"mean E per frame", "frame", "E"});
+    write_bar_chart_png(join_path(folder.path(), "priority_over_cameras.png"), cam_names, per_camera, {"mean E per camera", "camera", "E"});
+    write_bar_chart_png(join_path(folder.path(), "priority_over_time.png"), frame_names, per_frame, {"mean E per frame", "frame", "E"});
     prio = {{"evaluated_views", r.priority.views.size()}, {"seconds", r.priority.seconds}};
   }
-  write_topdown_png(join_path(out_dir, "trajectories.png"), *grid, cams, virtual_cams,
+  write_topdown_png(join_path(folder.path(), "trajectories.png"), *grid, cams, virtual_cams,
                     std::string("strategy ") + to_string(o.strategy) + ": " + std::to_string(r.trajectories.size()) + " trajectories");
 
   const SelectTimings& tm = r.timings;
@@ -278,7 +278,8 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
                         {"total", seconds_since(t0)}}},
                       {"candidates_scored", tm.candidates_scored},
                       {"candidates_rejected", tm.candidates_rejected}};
-  write_file_atomically(join_path(out_dir, "summary.json"), s.dump(2) + "\n");
+  write_file_atomically(join_path(folder.path(), "summary.json"), s.dump(2) + "\n");
+  folder.commit();
   out << "selected " << r.trajectories.size() << " trajectories (" << virtual_cams.size() << " virtual views) with " << to_string(o.strategy)
       << " in " << seconds_since(t0) << " s (priority " << tm.priority << " s, scoring " << tm.scoring << " s of "
       << tm.candidates_scored << " candidates) -> " << out_dir << "\n";

@@ -78,6 +78,31 @@ class Args {
     if (x != std::floor(x) || std::fabs(x) > 1e9) throw_error("fillgs ", command_, ": --", k, " expects an integer");
     return int(x);
   }
+  /// --threads: 0 (all cores) or a positive count.
+  int threads() const {
+    const int n = integer("threads", 0);
+    if (n < 0) throw_error("fillgs ", command_, ": --threads must be 0 (all cores) or positive, got ", n);
+    return n;
+  }
+  /// A comma-separated list of numbers ("r,g,b"), each checked.
+  std::vector<double> numbers(const std::string& k, size_t count) const {
+    std::vector<double> out;
+    const std::string v = get(k);
+    size_t from = 0;
+    while (from <= v.size()) {
+      size_t comma = v.find(',', from);
+      if (comma == std::string::npos) comma = v.size();
+      const std::string part = v.substr(from, comma - from);
+      char* end = nullptr;
+      const double x = std::strtod(part.c_str(), &end);
+      if (part.empty() || end != part.c_str() + part.size() || !std::isfinite(x))
+        throw_error("fillgs ", command_, ": --", k, " expects ", count, " comma-separated numbers, got '", v, "'");
+      out.push_back(x);
+      from = comma + 1;
+    }
+    if (out.size() != count) throw_error("fillgs ", command_, ": --", k, " expects ", count, " comma-separated numbers, got '", v, "'");
+    return out;
+  }
   const std::string& command() const { return command_; }
   std::vector<std::string> positional;
 

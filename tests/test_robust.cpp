@@ -1,0 +1,289 @@
+// Inputs from anywhere (README "Robustness"): every defect class the fuzzing of commit
+// 1cc6089 found, as a regression test with the exact bytes, made here. Each bad input must
+// end in one line naming the file and the element, exit status 1, without a crash, without
+// taking memory on the file's word, and without changing the output folder.
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "fillgs/cli.hpp"
+#include "fillgs/limits.hpp"
+#include "fillgs/npy.hpp"
+#include "cli_run.hpp"
+#include "helpers.hpp"
+
+using namespace fillgs;
+using namespace fillgs::test;
+namespace fs = std::filesystem;
+
+namespace {
+
+using Result = CliResult;
+
+void write(const std::string& path, const std::string& bytes) {
+  fs::create_directories(fs::path(path).parent_path());
+  std::ofstream(path, std::ios::binary) << bytes;
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// One line, exit 1, naming every word; and no message that names nothing.
+void expect_error(const Result& r, const std::vector<std::string>& words) {
+  INFO("stderr: " << r.err);
+  CHECK(r.code == 1);
+  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  for (const std::string& w : words) {
+    INFO("should mention '" << w << "'");
+    CHECK(r.err.find(w) != std::string::npos);
+  }
+  for (const char* nameless : {"error: stod", "error: stoull", "out of memory\n", "json.exception", "max_size"}) CHECK(r.err.find(nameless) == std::string::npos);
+}
+
+std::string npy_with_header(const std::string& dict) {
+  std::string header = dict;
+  while ((10 + header.size() + 1) % 64) header += ' ';
+  header += '\n';
+  std::string out = "\x93NUMPY";
+  out += char(1), out += char(0);
+  out += char(header.size() & 0xff), out += char((header.size() >> 8) & 0xff);
+  return out + header;
+}
+
+const char* kVertex3dgs =
+    "property float x\nproperty float y\nproperty float z\nproperty float f_dc_0\nproperty float f_dc_1\nproperty float f_dc_2\n"
+    "property float opacity\nproperty float scale_0\nproperty float scale_1\nproperty float scale_2\n"
+    "property float rot_0\nproperty float rot_1\nproperty float rot_2\nproperty float rot_3\n";
+const char* kRow = "0 0 0 0.1 0.2 0.3 1 -3 -3 -3 1 0 0 0\n";
+
+std::string transforms(const std::string& frame_extra, const std::string& matrix = "[[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]") {
+  return R"({"fl_x": 40, "w": 48, "h": 32, "frames": [{"file_path": "a", )" + frame_extra + R"("transform_matrix": )" + matrix + "}]}";
+}
+
+/// A process id that no longer runs: a child that has exited and been reaped.
+pid_t dead_pid() {
+  const pid_t p = ::fork();
+  if (p == 0) ::_exit(0);
+  ::waitpid(p, nullptr, 0);
+  return p;
+}
+
+}  // namespace
+
+TEST_CASE("crashes: long .npy and cfg_args headers, descr with trailing characters", "[robust]") {
+  const std::string dir = scratch("robust_crash");
+  write(dir + "/long_descr.npy", npy_with_header("{'descr': '<f" + std::string(50000, '8') + "', 'fortran_order': False, 'shape': (2, 17), }"));
+  expect_error(run_cli({"cameras", "--cameras", dir + "/long_descr.npy", "--out", dir + "/o.json"}), {"long_descr.npy", "dtype"});
+  write(dir + "/long_shape.npy", npy_with_header("{'descr': '<f8', 'fortran_order': False, 'shape': (" + std::string(50000, '1') + ", 17), }"));
+  expect_error(run_cli({"cameras", "--cameras", dir + "/long_shape.npy", "--out", dir + "/o.json"}), {"long_shape.npy", "shape"});
+  write(dir + "/suffix.npy", npy_with_header("{'descr': '<f8AAAA', 'fortran_order': False, 'shape': (0, 17), }"));
+  expect_error(run_cli({"cameras", "--cameras", dir + "/suffix.npy", "--out", dir + "/o.json"}), {"suffix.npy", "<f8AAAA"});
+  // Ex4DGS cfg_args with a 100,000-character value.
+  const std::string pc = dir + "/ex/point_cloud/iteration_1/";
+  write(dir + "/ex/cfg_args", "Namespace(duration=" + std::string(100000, '9') + ", time_interval=5)");
+  write(pc + "point_cloud.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
+  write(pc + "dynamic_point_cloud.ply", "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nend_header\n");
+  expect_error(run_cli({"info", pc + "point_cloud.ply"}), {"cfg_args", "duration"});
+  CHECK_FALSE(fs::exists(dir + "/o.json"));
+}
+
+TEST_CASE("reads past the end: wrapping LLFF shape, short cameras.json rotation rows", "[robust]") {
+  const std::string dir = scratch("robust_oob");
+  write(dir + "/wrap.npy", npy_with_header("{'descr': '<f8', 'fortran_order': False, 'shape': (1085102592571150096, 17), }") + std::string(272, '\0'));
+  expect_error(run_cli({"cameras", "--cameras", dir + "/wrap.npy", "--out", dir + "/o.json"}), {"wrap.npy", "shape"});
+  write(dir + "/cameras.json", R"([{"id": 0, "img_name": "a", "width": 8, "height": 6, "fx": 5, "fy": 5, "position": [0, 0, 0],
+      "rotation": [[1], [0, 1, 0], [0, 0, 1]]}])");
+  expect_error(run_cli({"cameras", "--cameras", dir + "/cameras.json", "--out", dir + "/o.json"}),
+               {"cameras.json", "camera 0", "'rotation' row 0 has 1 values, needs 3"});
+}
+
+TEST_CASE("memory taken on a file's word: claimed counts are checked against the bytes first", "[robust]") {
+  const std::string dir = scratch("robust_counts");
+  for (const std::string count : {"100000000", "2147483648", "4000000000", "18446744073709551615"}) {
+    write(dir + "/v.ply", "ply\nformat binary_little_endian 1.0\nelement vertex " + count + "\n" + kVertex3dgs + "end_header\n" + std::string(56, '\0'));
+    const Result r = run_cli({"info", dir + "/v.ply"});
+    // 2^64 - 1 does not fit the header's integer type and is refused as a malformed line.
+    expect_error(r, count.size() < 20 ? std::vector<std::string>{"v.ply", "element 'vertex'", "claims"}
+                                      : std::vector<std::string>{"v.ply", "element vertex " + count});
+    CHECK(r.seconds < 5.0);
+  }
+  // fillgs 4D: a key count the track element cannot hold.
+  write(dir + "/keys.ply", std::string("ply\nformat ascii 1.0\ncomment fillgs_keys count=100000000 first=0 spacing=0.5 interp=linear\n"
+                                       "element vertex 1\n") + kVertex3dgs +
+                               "element track 1\nproperty float motion_xyz_0_0\nend_header\n" + kRow + "0\n");
+  expect_error(run_cli({"info", dir + "/keys.ply", "--scene-format", "fillgs"}), {"keys.ply", "fillgs_keys", "count="});
+  // Ex4DGS: keyframe indices taken from property names.
+  for (const std::string k : {"99999999", "2147483647"}) {
+    const std::string pc = dir + "/ex" + k + "/point_cloud/iteration_1/";
+    write(dir + "/ex" + k + "/cfg_args", "Namespace(duration=21, time_interval=5, time_pad=2)");
+    write(pc + "point_cloud.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
+    write(pc + "dynamic_point_cloud.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float motion_xyz_" + k + "_0\nend_header\n0\n");
+    const Result r = run_cli({"info", pc + "point_cloud.ply"});
+    expect_error(r, {"dynamic_point_cloud.ply", "motion_xyz_" + k + "_0"});
+    CHECK(r.seconds < 5.0);
+  }
+  // COLMAP images.bin whose 2D-point count wraps n · 24.
+  auto pod = [](std::string& s, auto v) { s.append(reinterpret_cast<const char*>(&v), sizeof v); };
+  std::string cb, ib;
+  pod(cb, uint64_t(1)), pod(cb, int32_t(1)), pod(cb, int32_t(1)), pod(cb, uint64_t(8)), pod(cb, uint64_t(6));
+  for (double v : {5.0, 5.0, 4.0, 3.0}) pod(cb, v);
+  pod(ib, uint64_t(1)), pod(ib, int32_t(1));
+  for (double v : {1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 3.0}) pod(ib, v);
+  pod(ib, int32_t(1));
+  ib += std::string("a.png") + '\0';
+  pod(ib, uint64_t(0xAAAAAAAAAAAAAAABull));  // · 24 wraps to 8
+  ib += std::string(8, '\0');
+  write(dir + "/colmap/cameras.bin", cb);
+  write(dir + "/colmap/images.bin", ib);
+  const Result r = run_cli({"cameras", "--cameras", dir + "/colmap", "--out", dir + "/o.json"});
+  expect_error(r, {"images.bin", "2D points count"});
+  CHECK(r.seconds < 5.0);
+  // A camera whose render buffers no machine holds: refused at reading, naming it.
+  write(dir + "/huge.json", R"({"fl_x": 40, "w": 100000, "h": 100000, "frames": [{"file_path": "a",
+      "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  expect_error(run_cli({"cameras", "--cameras", dir + "/huge.json", "--out", dir + "/o.json"}), {"huge.json", "frame 0", "'w' 100000"});
+  write(dir + "/big.json", R"({"fl_x": 40, "w": 60000, "h": 60000, "frames": [{"file_path": "a",
+      "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  ::setenv("FILLGS_MAX_ALLOC", "1000000000", 1);
+  expect_error(run_cli({"cameras", "--cameras", dir + "/big.json", "--out", dir + "/o.json"}),
+               {"big.json", "frame 0 (60000x60000) render buffers would need 115200000000 bytes"});
+  ::unsetenv("FILLGS_MAX_ALLOC");
+  CHECK_FALSE(fs::exists(dir + "/o.json"));
+}
+
+TEST_CASE("invalid input that was accepted is refused", "[robust]") {
+  const std::string dir = scratch("robust_invalid");
+  // A duplicated property whose second value is NaN.
+  write(dir + "/dup.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "property float x\nend_header\n0 0 0 0.1 0.2 0.3 1 -3 -3 -3 1 0 0 0 nan\n");
+  expect_error(run_cli({"info", dir + "/dup.ply"}), {"dup.ply", "'x' twice"});
+  // Trailing bytes after the last element; an ASCII body labelled binary.
+  write(dir + "/trail.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow + "7 7\n");
+  expect_error(run_cli({"info", dir + "/trail.ply"}), {"trail.ply", "follow the last element"});
+  write(dir + "/label.ply", std::string("ply\nformat binary_little_endian 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow + kRow);
+  expect_error(run_cli({"info", dir + "/label.ply"}), {"label.ply", "binary_little_endian"});
+  // Degenerate poses: all-zero and ×100 transform matrices, a zero COLMAP quaternion.
+  write(dir + "/zero.json", transforms("", "[[0,0,0,0],[0,0,0,0],[0,0,0,0],[0,0,0,1]]"));
+  expect_error(run_cli({"cameras", "--cameras", dir + "/zero.json", "--out", dir + "/o.json"}), {"zero.json", "frame 0", "rotation"});
+  write(dir + "/scaled.json", transforms("", "[[100,0,0,0],[0,100,0,0],[0,0,100,4],[0,0,0,1]]"));
+  expect_error(run_cli({"cameras", "--cameras", dir + "/scaled.json", "--out", dir + "/o.json"}), {"scaled.json", "frame 0", "rotation"});
+  write(dir + "/q/cameras.txt", "1 PINHOLE 8 6 5 5 4 3\n");
+  write(dir + "/q/images.txt", "1 0 0 0 0 0 0 3 1 a.png\n\n");
+  expect_error(run_cli({"cameras", "--cameras", dir + "/q", "--out", dir + "/o.json"}), {"images.txt", "image 1", "zero or non-finite quaternion"});
+  // A COLMAP width beyond 32 bits (4294967328 = 2^32 + 32 was read as 32).
+  write(dir + "/w/cameras.txt", "1 PINHOLE 4294967328 6 5 5 4 3\n");
+  write(dir + "/w/images.txt", "1 1 0 0 0 0 0 3 1 a.png\n\n");
+  expect_error(run_cli({"cameras", "--cameras", dir + "/w", "--out", dir + "/o.json"}), {"cameras.txt", "camera 1", "width 4.29497e+09"});
+  // A time outside [0, 1]; a width of 1e20 (was "has no image size").
+  write(dir + "/time.json", transforms(R"("time": 2.0, )"));
+  expect_error(run_cli({"cameras", "--cameras", dir + "/time.json", "--out", dir + "/o.json"}), {"time.json", "frame 0", "time 2 outside [0, 1]"});
+  write(dir + "/w20.json", R"({"fl_x": 40, "w": 1e20, "h": 32, "frames": [{"file_path": "a", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  expect_error(run_cli({"cameras", "--cameras", dir + "/w20.json", "--out", dir + "/o.json"}), {"w20.json", "frame 0", "'w' 1e+20"});
+  // A negative thread count; an option value that is not a number.
+  write(dir + "/ok.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
+  write(dir + "/ok.json", transforms(""));
+  expect_error(run_cli({"render", "--scene", dir + "/ok.ply", "--cameras", dir + "/ok.json", "--out", dir + "/r", "--threads", "-5"}), {"--threads"});
+  expect_error(run_cli({"render", "--scene", dir + "/ok.ply", "--cameras", dir + "/ok.json", "--out", dir + "/r", "--background", "a,b,c"}),
+               {"--background", "'a,b,c'"});
+  expect_error(run_cli({"bench", "--seeds", "x", "--out", dir + "/b"}), {"--seeds", "'x'"});
+  // A JSON value of the wrong type names the file and the element, not nlohmann's exception.
+  write(dir + "/null.json", R"([{"id": 0, "img_name": null, "width": 8, "height": 6, "fx": 5, "fy": 5, "position": [0, 0, 0], "rotation": [[1,0,0],[0,1,0],[0,0,1]]}])");
+  expect_error(run_cli({"cameras", "--cameras", dir + "/null.json", "--out", dir + "/o.json"}), {"null.json", "camera 0", "'img_name'"});
+  write(dir + "/pos.json", R"([{"id": 0, "width": 8, "height": 6, "fx": 5, "fy": 5, "position": [0, null, 0], "rotation": [[1,0,0],[0,1,0],[0,0,1]]}])");
+  expect_error(run_cli({"cameras", "--cameras", dir + "/pos.json", "--out", dir + "/o.json"}), {"pos.json", "camera 0", "'position' [1]"});
+  CHECK_FALSE(fs::exists(dir + "/o.json"));
+  CHECK_FALSE(fs::exists(dir + "/r"));
+}
+
+TEST_CASE("a failing command leaves its output folder exactly as it was, and killed runs leave nothing behind", "[robust]") {
+  const std::string dir = scratch("robust_output");
+  write(dir + "/s.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
+  // The second camera's file name is too long for the file system: it fails after the first
+  // view has been rendered and written.
+  const std::string long_name(300, 'n');
+  write(dir + "/cams.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
+      {"file_path": "first", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]},
+      {"file_path": ")" + long_name + R"(", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  write(dir + "/out/first.png", "old image");
+  write(dir + "/out/summary.json", "old summary");
+  write(dir + "/out/other.txt", "kept");
+  expect_error(run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/cams.json", "--out", dir + "/out"}), {long_name.substr(0, 20)});
+  CHECK(slurp(dir + "/out/first.png") == "old image");
+  CHECK(slurp(dir + "/out/summary.json") == "old summary");
+  CHECK(slurp(dir + "/out/other.txt") == "kept");
+  std::vector<std::string> left;
+  for (const auto& e : fs::directory_iterator(dir)) left.push_back(e.path().filename().string());
+  std::sort(left.begin(), left.end());
+  CHECK(left == std::vector<std::string>{"cams.json", "out", "s.ply"});
+  // A new folder is not created at all, nor its missing parents.
+  expect_error(run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/cams.json", "--out", dir + "/new/deeper/out"}), {long_name.substr(0, 20)});
+  CHECK_FALSE(fs::exists(dir + "/new"));
+
+  // What a killed run leaves (its staging folder beside the output, a temporary file inside
+  // it) is removed by the next run; files of the folder that the new run does not write stay.
+  const pid_t gone = dead_pid();
+  write(dir + "/.out.partial-" + std::to_string(gone) + "-0/first.png", "half");
+  write(dir + "/out/.summary.tmp" + std::to_string(gone) + "_0.json", "half");
+  write(dir + "/ok.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
+      {"file_path": "first", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  const Result ok = run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/ok.json", "--out", dir + "/out"});
+  INFO(ok.err);
+  REQUIRE(ok.code == 0);
+  CHECK_FALSE(fs::exists(dir + "/.out.partial-" + std::to_string(gone) + "-0"));
+  CHECK_FALSE(fs::exists(dir + "/out/.summary.tmp" + std::to_string(gone) + "_0.json"));
+  CHECK(slurp(dir + "/out/first.png") != "old image");
+  CHECK(slurp(dir + "/out/other.txt") == "kept");
+  left.clear();
+  for (const auto& e : fs::directory_iterator(dir)) left.push_back(e.path().filename().string());
+  std::sort(left.begin(), left.end());
+  CHECK(left == std::vector<std::string>{"cams.json", "ok.json", "out", "s.ply"});
+}
+
+TEST_CASE("size arithmetic: checked products, counts and numbers from text", "[robust]") {
+  CHECK(checked_mul(1u << 20, 1u << 20, "f", "x") == (size_t(1) << 40));
+  CHECK_THROWS_WITH(checked_mul(size_t(1) << 40, size_t(1) << 40, "f.npy", "shape"), Catch::Contains("f.npy: shape overflows"));
+  CHECK(parse_count(" 42 ", 100, "f", "n") == 42);
+  CHECK_THROWS_WITH(parse_count("101", 100, "f", "n"), Catch::Contains("not an integer in [0, 100]"));
+  CHECK_THROWS_WITH(parse_count("18446744073709551616", ~size_t(0), "f", "n"), Catch::Contains("not an integer"));
+  CHECK_THROWS(parse_count("-1", 100, "f", "n"));
+  CHECK_THROWS(parse_count("", 100, "f", "n"));
+  CHECK(parse_number(" 2.5e1\n", "f", "v") == 25.0);
+  CHECK_THROWS_WITH(parse_number("1e999", "f", "v"), Catch::Contains("is not a number"));
+  CHECK_THROWS_WITH(parse_number(std::string(100000, '9'), "f", "v"), Catch::Contains("..."));
+  ::setenv("FILLGS_MAX_ALLOC", "1000", 1);
+  CHECK(allocation_cap() == 1000);
+  CHECK_THROWS_WITH(check_allocation(1001, "f", "table"), Catch::Contains("f: table would need 1001 bytes, more than this machine's 1000"));
+  ::unsetenv("FILLGS_MAX_ALLOC");
+  CHECK(allocation_cap() > (size_t(1) << 28));
+}
+
+TEST_CASE("valid input without undefined behaviour: alpha and depth channels, exact observation", "[robust]") {
+  // Under the sanitizer tree (README "Robustness") these ran into an empty vector at commit
+  // 1cc6089; here they must also give the closed-form coverage of one opaque splat.
+  const std::string dir = scratch("robust_valid");
+  write(dir + "/s.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n0 0 0 0.1 0.2 0.3 9 -1 -1 -1 1 0 0 0\n");
+  write(dir + "/cams.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
+      {"file_path": "front", "time": 0.5, "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  for (const char* channel : {"alpha", "depth"}) {
+    const Result r = run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/cams.json", "--out", dir + "/" + channel, "--channel", channel});
+    INFO(r.err);
+    REQUIRE(r.code == 0);
+    CHECK(fs::exists(dir + "/" + channel + "/front.png"));
+  }
+  const Result o = run_cli({"observe", "--scene", dir + "/s.ply", "--cameras", dir + "/cams.json", "--out", dir + "/obs", "--mode", "exact",
+                            "--times", "0.5", "--frames", "3", "--no-plots"});
+  INFO(o.err);
+  REQUIRE(o.code == 0);
+  const NpyArray counts = read_npy(dir + "/obs/count.npy");
+  const std::vector<double> c = counts.to_doubles(dir + "/obs/count.npy");
+  REQUIRE(c.size() == 1);
+  CHECK(c[0] == 1.0);  // the one Gaussian, in front of the one camera, is observed once
+}
