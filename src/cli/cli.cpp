@@ -174,7 +174,9 @@ int cmd_synth(const std::vector<std::string>& args, std::ostream& out, std::ostr
   const std::string dir = a.require("out");
   const SynthScene s = make_synthetic_scene(synth_options(a));
   TerminalProgress progress(err, progress_enabled(a));
-  write_synthetic_scene(s, dir, progress, a.threads());
+  OutputFolder folder(dir);  // a failed or killed run leaves the folder as it was
+  write_synthetic_scene(s, folder.path(), progress, a.threads());
+  folder.commit();
   out << "synthetic scene: " << s.scene.size() << " Gaussians (" << s.scene.dynamic_count() << " moving), "
       << s.train.size() << " rig cameras (" << s.options.rig << ", split: train " << s.split.train.size() << ", interpolation "
       << s.split.interpolation.size() << ", extrapolation " << s.split.extrapolation.size() << "), " << s.options.frames << " frames, " << s.options.width << "x" << s.options.height
