@@ -343,7 +343,7 @@ json parse_json_file(const std::string& path) {
   const std::string text = read_file(path);
   try {
     return json::parse(text);
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse errors, and numbers out of range (1e911)
     throw_error(path, ": invalid JSON (", e.what(), ")");
   }
 }

@@ -338,7 +338,7 @@ std::vector<ColourCorrection> read_colour_correction(const std::string& path) {
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(read_file(path));
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // parse errors, and numbers out of range (1e911)
     throw_error(path, ": invalid JSON (", e.what(), ")");
   }
   if (!j.is_object()) throw_error(path, ": colour corrections must be an object of cameras");
@@ -1580,8 +1580,11 @@ Trainer Trainer::resume(const Dataset& data, const std::string& path, const Trai
   if (r.at < bytes.size()) {
     const std::vector<float> colour = r.vec<float>();
     if (colour.size() != t.colour_.size() * 19) throw_error(path, ": the colour corrections are for ", colour.size() / 19, " cameras, the dataset has ", t.colour_.size());
+    for (float v : colour)
+      if (!std::isfinite(v)) throw_error(path, ": checkpoint colour corrections hold a non-finite value");
     for (size_t c = 0; c < t.colour_.size(); ++c) {
       const float* x = &colour[c * 19];
+      if (!(x[18] >= 0 && x[18] <= 1e9f)) throw_error(path, ": checkpoint colour correction ", c, " has step count ", x[18]);
       t.colour_[c].gain = Vec3f(x[0], x[1], x[2]);
       t.colour_[c].offset = Vec3f(x[3], x[4], x[5]);
       std::copy(x + 6, x + 12, t.colour_m_[c].begin());

@@ -14,6 +14,7 @@
 #include "fillgs/cli.hpp"
 #include "fillgs/limits.hpp"
 #include "fillgs/npy.hpp"
+#include "fillgs/train.hpp"
 #include "cli_run.hpp"
 #include "helpers.hpp"
 
@@ -46,7 +47,7 @@ void expect_error(const Result& r, const std::vector<std::string>& words) {
     INFO("should mention '" << w << "'");
     CHECK(r.err.find(w) != std::string::npos);
   }
-  for (const char* nameless : {"error: stod", "error: stoull", "out of memory\n", "json.exception", "max_size"}) CHECK(r.err.find(nameless) == std::string::npos);
+  for (const char* nameless : {"error: stod", "error: stoull", "error: out of memory", "error: [json.exception", "error: cannot create std::vector"}) CHECK(r.err.find(nameless) == std::string::npos);
 }
 
 std::string npy_with_header(const std::string& dict) {
@@ -286,4 +287,14 @@ TEST_CASE("valid input without undefined behaviour: alpha and depth channels, ex
   const std::vector<double> c = counts.to_doubles(dir + "/obs/count.npy");
   REQUIRE(c.size() == 1);
   CHECK(c[0] == 1.0);  // the one Gaussian, in front of the one camera, is observed once
+}
+
+TEST_CASE("fuzzing findings of this commit: JSON numbers out of range, non-finite checkpoint state", "[robust]") {
+  const std::string dir = scratch("robust_fuzzed");
+  // nlohmann-json throws out_of_range, not parse_error, for 1e911: it escaped as an
+  // unnamed library exception from the colour-correction and camera readers.
+  write(dir + "/cc.json", R"({"cam00": {"gain": [1e911, 1, 1], "offset": [0, 0, 0]}})");
+  CHECK_THROWS_WITH(read_colour_correction(dir + "/cc.json"), Catch::Contains("cc.json: invalid JSON"));
+  write(dir + "/t.json", R"({"fl_x": 1e911, "frames": []})");
+  expect_error(run_cli({"cameras", "--cameras", dir + "/t.json", "--out", dir + "/o.json"}), {"t.json", "invalid JSON"});
 }
