@@ -77,7 +77,7 @@ int image_side(double v, const std::string& source, const std::string& element, 
 /// What every reader checks before a camera is used: finite, positive intrinsics; a rotation
 /// (orthonormal, determinant +1, to 1e-3); a size within [1, 65536] whose render buffers
 /// (about 32 bytes a pixel) fit this machine; a time, when there is one, in [0, 1].
-void check_finite_camera(const std::string& source, const std::string& element, const Camera& c) {
+void check_camera(const std::string& source, const std::string& element, const Camera& c) {
   const bool ok = std::isfinite(c.fx) && std::isfinite(c.fy) && std::isfinite(c.cx) && std::isfinite(c.cy) &&
                   c.R.allFinite() && c.t.allFinite() && c.fx > 0 && c.fy > 0 && c.width > 0 && c.height > 0;
   if (!ok) throw_error(source, ": ", element, " has a non-finite or non-positive value (f ", c.fx, ", ", c.fy,
@@ -158,7 +158,7 @@ std::vector<Camera> assemble_colmap(const std::string& source, const std::map<lo
     c.cy = it->second.cy;
     c.R = quat_wxyz_to_matrix(source, "image " + std::to_string(im.id), im.q[0], im.q[1], im.q[2], im.q[3]);
     c.t = Vec3d(im.t[0], im.t[1], im.t[2]);
-    check_finite_camera(source, "image " + std::to_string(im.id), c);
+    check_camera(source, "image " + std::to_string(im.id), c);
     cams.push_back(c);
   }
   return cams;
@@ -323,7 +323,7 @@ std::vector<Camera> read_llff(const std::string& path, const CameraReadOptions& 
     c.cy = c.height / 2.0;
     c.R = c2w.transpose();
     c.t = -c.R * col(3);
-    check_finite_camera(path, "row " + std::to_string(i), c);
+    check_camera(path, "row " + std::to_string(i), c);
     cams.push_back(c);
   }
   return cams;
@@ -422,7 +422,7 @@ std::vector<Camera> read_transforms(const std::string& path, const CameraReadOpt
     c.R = c2w.transpose();
     c.t = -c.R * m.block<3, 1>(0, 3);
     if (f.contains("time")) c.time = json_number(f, path, el, "time");
-    check_finite_camera(path, el, c);
+    check_camera(path, el, c);
     cams.push_back(c);
   }
   return cams;
@@ -467,7 +467,7 @@ std::vector<Camera> read_gaussian_json(const std::string& path) {
     }
     c.R = rot.transpose();
     c.t = -c.R * pos;
-    check_finite_camera(path, el, c);
+    check_camera(path, el, c);
     cams.push_back(c);
   }
   return cams;
@@ -499,7 +499,7 @@ std::vector<Camera> read_technicolor(const std::string& path, const CameraReadOp
     c.cy = v[2];
     c.R = quat_wxyz_to_matrix(path, "line " + std::to_string(line_no), v[5], v[6], v[7], v[8]);
     c.t = Vec3d(v[9], v[10], v[11]);
-    check_finite_camera(path, "line " + std::to_string(line_no), c);
+    check_camera(path, "line " + std::to_string(line_no), c);
     cams.push_back(c);
   }
   if (cams.empty()) throw_error(path, ": no camera rows after the header line");
@@ -584,7 +584,7 @@ std::vector<Camera> read_d3dgs_meta(const std::string& path) {
       std::snprintf(frame, sizeof frame, "%06zu", f);
       c.name = ids[i] + "/" + frame;
       c.time = F > 1 ? double(f) / double(F - 1) : 0.0;
-      check_finite_camera(path, el, c);
+      check_camera(path, el, c);
       cams.push_back(c);
     }
   }

@@ -170,7 +170,6 @@ PlyData ply_of(std::vector<PlyElement> elements, PlyFormat format) {
   return d;
 }
 
-std::string file_bytes(const std::string& path) { return read_file(path); }
 
 std::string stg_ply(PlyFormat format) {
   PlyElement v = gaussians(2);
@@ -191,16 +190,16 @@ void make_seeds(const std::string& dir) {
   if (r == "ply_3dgs") {
     for (PlyFormat f : {PlyFormat::Ascii, PlyFormat::BinaryLittleEndian, PlyFormat::BinaryBigEndian}) {
       write_ply(tmp, ply_of({gaussians(3)}, f));
-      seed("seed_" + std::to_string(int(f)) + ".ply", file_bytes(tmp));
+      seed("seed_" + std::to_string(int(f)) + ".ply", read_file(tmp));
     }
   } else if (r == "ply_stg") {
-    seed("seed_ascii.ply", file_bytes(stg_ply(PlyFormat::Ascii)));
-    seed("seed_binary.ply", file_bytes(stg_ply(PlyFormat::BinaryLittleEndian)));
+    seed("seed_ascii.ply", read_file(stg_ply(PlyFormat::Ascii)));
+    seed("seed_binary.ply", read_file(stg_ply(PlyFormat::BinaryLittleEndian)));
   } else if (r == "ply_fillgs") {
     SceneReadOptions o;
     o.format = SceneFormat::Spacetime;
     write_fillgs_ply(tmp + ".ply", read_scene(stg_ply(PlyFormat::BinaryLittleEndian), o), 3);
-    seed("seed.ply", file_bytes(tmp + ".ply"));
+    seed("seed.ply", read_file(tmp + ".ply"));
   } else if (r == "ex4dgs") {
     PlyElement sv = gaussians(2);
     for (int a = 0; a < 3; ++a) add_column(sv, "xyz_disp_" + std::to_string(a), {0.0f, a == 0 ? 2.1f : 0.0f});
@@ -212,21 +211,21 @@ void make_seeds(const std::string& dir) {
     for (const char* n : {"motion_opacity_c_0", "motion_opacity_c_1", "motion_opacity_v_0", "motion_opacity_v_1"}) add_column(dv, n, {1.0f});
     write_ply(tmp + "s", ply_of({sv}, PlyFormat::BinaryLittleEndian));
     write_ply(tmp + "d", ply_of({dv}, PlyFormat::BinaryLittleEndian));
-    seed("seed", file_bytes(tmp + "s") + kSplit + file_bytes(tmp + "d") + kSplit +
+    seed("seed", read_file(tmp + "s") + kSplit + read_file(tmp + "d") + kSplit +
                      "Namespace(duration=21, time_interval=5, time_pad=2, interp_type='cube', var_pad=3)");
   } else if (r == "npy" || r == "llff") {
     // Two cameras of an LLFF rig: [R | t | hwf] row-major (down-right-back), then near, far.
     const double rows[2][17] = {{0, 1, 0, 0, 480, 1, 0, 0, 0, 640, 0, 0, 1, 3, 500, 0.5, 10},
                                 {0, 1, 0, 0.2, 480, 1, 0, 0, 0, 640, 0, 0, 1, 3, 500, 0.5, 10}};
     write_npy(tmp + ".npy", &rows[0][0], {2, 17});
-    seed("seed_f8.npy", file_bytes(tmp + ".npy"));
+    seed("seed_f8.npy", read_file(tmp + ".npy"));
     if (r == "npy") {
       const float f[6] = {1, 2, 3, 4, 5, 6};
       write_npy(tmp + ".npy", f, {3, 2});
-      seed("seed_f4.npy", file_bytes(tmp + ".npy"));
+      seed("seed_f4.npy", read_file(tmp + ".npy"));
       const uint8_t u[4] = {1, 2, 3, 4};
       write_npy(tmp + ".npy", u, {4});
-      seed("seed_u1.npy", file_bytes(tmp + ".npy"));
+      seed("seed_u1.npy", read_file(tmp + ".npy"));
     }
   } else if (r == "colmap_text" || r == "transforms") {
     std::vector<Camera> cams(2);
@@ -241,10 +240,10 @@ void make_seeds(const std::string& dir) {
     }
     if (r == "colmap_text") {
       write_colmap_text(tmp + "_colmap", cams);
-      seed("seed", file_bytes(tmp + "_colmap/cameras.txt") + kSplit + file_bytes(tmp + "_colmap/images.txt"));
+      seed("seed", read_file(tmp + "_colmap/cameras.txt") + kSplit + read_file(tmp + "_colmap/images.txt"));
     } else {
       write_transforms_json(tmp + ".json", cams);
-      seed("seed.json", file_bytes(tmp + ".json"));
+      seed("seed.json", read_file(tmp + ".json"));
     }
   } else if (r == "colmap_bin") {
     auto pod = [](std::string& s, auto v) { s.append(reinterpret_cast<const char*>(&v), sizeof v); };
@@ -284,7 +283,7 @@ void make_seeds(const std::string& dir) {
     Image im(5, 4, 3);
     for (size_t i = 0; i < im.pixels.size(); ++i) im.pixels[i] = float(i % 11) / 11.0f;
     write_image(tmp + ".png", im);
-    seed("seed.png", file_bytes(tmp + ".png"));
+    seed("seed.png", read_file(tmp + ".png"));
   } else if (r == "checkpoint") {
     PointSet points;
     points.positions = {Vec3f(0, 0, 0), Vec3f(0.2f, 0, 0.1f), Vec3f(0, 0.2f, -0.1f), Vec3f(0.1f, 0.1f, 0)};
