@@ -114,7 +114,10 @@ OutputFolder::OutputFolder(const std::string& dir) {
     if (owner_is_gone(e.path().filename().string(), prefix)) fs::remove_all(e.path(), ec);
   if (fs::is_directory(d, ec)) {
     std::vector<fs::path> stale;
-    for (const fs::directory_entry& e : fs::recursive_directory_iterator(d, ec)) {
+    // Outputs nest at most a few levels (camera names with '/'): a folder like "." is not walked whole.
+    for (auto it = fs::recursive_directory_iterator(d, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+      const fs::directory_entry& e = *it;
+      if (it.depth() >= 3) it.disable_recursion_pending();
       const std::string f = e.path().filename().string();
       const size_t at = f.find(".tmp");
       if ((!f.empty() && f[0] == '.' && at != std::string::npos && owner_is_gone(f.substr(at), ".tmp")) ||
