@@ -120,7 +120,7 @@ std::vector<double> NpyArray::to_doubles(const std::string& source) const {
     else throw_error(source, ": unsupported .npy dtype '", descr, "'");
     out[i] = v;
   }
-  if (fortran_order && shape.size() == 2) {
+  if (fortran_order && shape.size() == 2 && n > 0) {  // n = 0: nothing to transpose, whatever the other side claims
     std::vector<double> c(n);
     const size_t R = shape[0], C = shape[1];
     for (size_t r = 0; r < R; ++r)

@@ -298,3 +298,13 @@ TEST_CASE("fuzzing findings of this commit: JSON numbers out of range, non-finit
   write(dir + "/t.json", R"({"fl_x": 1e911, "frames": []})");
   expect_error(run_cli({"cameras", "--cameras", dir + "/t.json", "--out", dir + "/o.json"}), {"t.json", "invalid JSON"});
 }
+
+TEST_CASE("fuzzing finding of this commit: an empty Fortran-order array with a huge side is not walked", "[robust]") {
+  // shape (620571270000, 0), fortran_order True: the transpose looped over 6·10¹¹ empty rows.
+  const std::string dir = scratch("robust_npy_empty");
+  write(dir + "/e.npy", npy_with_header("{'descr': '<f4', 'fortran_order': True, 'shape': (620571270000, 0), }"));
+  const auto t0 = std::chrono::steady_clock::now();
+  const NpyArray a = read_npy(dir + "/e.npy");
+  CHECK(a.to_doubles(dir + "/e.npy").empty());
+  CHECK(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < 5.0);
+}
