@@ -14,6 +14,7 @@
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/image_io.hpp"
+#include "fillgs/json_file.hpp"
 #include "fillgs/limits.hpp"
 #include "fillgs/npy.hpp"
 
@@ -62,16 +63,6 @@ Mat3d quat_wxyz_to_matrix(const std::string& source, const std::string& element,
     throw_error(source, ": ", element, " has a zero or non-finite quaternion (", w, ", ", x, ", ", y, ", ", z, ")");
   q.normalize();
   return quat_to_matrix<double>(q);
-}
-
-/// The largest image side fillgs accepts (pixels).
-constexpr double kMaxImageSide = 65536;
-
-/// An image side stored as a number: a whole number in [1, 65536], else one line naming it.
-int image_side(double v, const std::string& source, const std::string& element, const char* what) {
-  if (!(v >= 1 && v <= kMaxImageSide) || v != std::floor(v))
-    throw_error(source, ": ", element, " ", what, " ", v, " is not a whole number of pixels in [1, 65536]");
-  return int(v);
 }
 
 /// What every reader checks before a camera is used: finite, positive intrinsics; a rotation
@@ -339,17 +330,9 @@ double json_number(const json& j, const std::string& source, const std::string& 
   return v;
 }
 
-json parse_json_file(const std::string& path) {
-  const std::string text = read_file(path);
-  try {
-    return json::parse(text);
-  } catch (const json::exception& e) {  // parse errors, and numbers out of range (1e911)
-    throw_error(path, ": invalid JSON (", e.what(), ")");
-  }
-}
 
 std::vector<Camera> read_transforms(const std::string& path, const CameraReadOptions& opt) {
-  const json root = parse_json_file(path);
+  const json root = read_json_file(path);
   if (!root.is_object() || !root.contains("frames") || !root["frames"].is_array())
     throw_error(path, ": not a transforms file (no 'frames' list)");
   const fs::path base = fs::path(path).parent_path();
@@ -431,7 +414,7 @@ std::vector<Camera> read_transforms(const std::string& path, const CameraReadOpt
 // ---------------------------------------------------------------- 3DGS cameras.json
 
 std::vector<Camera> read_gaussian_json(const std::string& path) {
-  const json root = parse_json_file(path);
+  const json root = read_json_file(path);
   if (!root.is_array()) throw_error(path, ": 3DGS cameras.json must be a list");
   std::vector<Camera> cams;
   for (size_t i = 0; i < root.size(); ++i) {
@@ -515,13 +498,13 @@ std::vector<Camera> read_technicolor(const std::string& path, const CameraReadOp
 /// projection puts the ray through (cx, cy) at pixel coordinate cx − ½ of a grid whose first
 /// pixel centre is 0).
 std::vector<Camera> read_d3dgs_meta(const std::string& path) {
-  const json root = parse_json_file(path);
+  const json root = read_json_file(path);
   if (!root.is_object()) throw_error(path, ": a Dynamic 3D Gaussians meta file must be an object");
   for (const char* key : {"w", "h", "k", "w2c", "fn", "cam_id"})
     if (!root.contains(key)) throw_error(path, ": no '", key, "' (a Dynamic 3D Gaussians meta file has w, h, k, w2c, fn, cam_id)");
   const double w = json_number(root, path, "the file", "w"), h = json_number(root, path, "the file", "h");
-  if (w < 1 || h < 1 || w > 65536 || h > 65536 || w != std::floor(w) || h != std::floor(h))
-    throw_error(path, ": image size ", w, "x", h, " is not a positive whole number of pixels");
+  image_side(w, path, "the file", "w");
+  image_side(h, path, "the file", "h");
   const json &K = root["k"], &W2C = root["w2c"], &FN = root["fn"], &ID = root["cam_id"];
   for (const auto& [name, list] : {std::pair<const char*, const json*>{"k", &K}, {"w2c", &W2C}, {"fn", &FN}, {"cam_id", &ID}})
     if (!list->is_array() || list->empty()) throw_error(path, ": '", name, "' is not a non-empty list of frames");

@@ -1,4 +1,5 @@
 #include "fillgs/experiment.hpp"
+#include "fillgs/json_file.hpp"
 
 #include <algorithm>
 #include <array>
@@ -23,15 +24,6 @@ using nlohmann::json;
 namespace fillgs {
 
 namespace {
-
-/// A JSON file a bench run wrote; a damaged one is named, not reported as a library exception.
-json read_json(const std::string& path) {
-  try {
-    return json::parse(read_file(path));
-  } catch (const json::exception& e) {
-    throw_error(path, ": invalid JSON (", e.what(), "); remove the run's folder to recompute it");
-  }
-}
 
 
 json options_json(const ExperimentOptions& o) {
@@ -166,7 +158,7 @@ void save_result(const std::string& path, const RunResult& r) { write_file_atomi
 
 RunResult load_result(const std::string& path) {
   try {
-    return result_from(read_json(path));
+    return result_from(read_json_file(path));
   } catch (const json::exception& e) {
     throw_error(path, ": not a fillgs result (", e.what(), ")");
   }
@@ -246,7 +238,7 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& op
   const std::string scene_dir = p.scene_dir(), stamp_path = join_path(p.dir, "options.json");
   const json stamp = options_json(o);
   if (fs::exists(stamp_path)) {
-    const json old = read_json(stamp_path);
+    const json old = read_json_file(stamp_path);
     if (old != stamp)
       throw_error(stamp_path, ": this folder holds a run made with other options (", old.dump(), "); use another --out");
   }
@@ -388,7 +380,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
                                                         {"position_lr", base.train.position_lr_init},
                                                         {"key_lr_scale", base.train.key_lr_scale}};
   if (fs::exists(result_path) && fs::exists(schedule_path)) {
-    const json old = read_json(schedule_path);
+    const json old = read_json_file(schedule_path);
     if (old != schedule)
       throw_error(schedule_path, ": run ", c.id, " was made with another fine-tuning schedule (", old.dump(), ", now ", schedule.dump(),
                   "); use another --out");

@@ -130,19 +130,27 @@ OutputFolder::OutputFolder(const std::string& dir) {
   const std::string id = std::to_string(::getpid()) + "-" + std::to_string(counter++);
   staging_ = (parent / (prefix + id)).string();
   fs::create_directory(staging_, ec);
-  if (ec && fs::is_directory(d)) {
+  if (ec && fs::is_directory(d, ec)) {
     // The parent is not writable (say --out is a mount point): stage inside the folder.
     staging_ = (d / (".partial-" + id)).string();
     fs::create_directory(staging_, ec);
   }
-  if (ec) throw_error(dir_, ": cannot create the staging folder ", staging_, " (", ec.message(), ")");
+  if (ec) {
+    remove_created_parents();
+    throw_error(dir_, ": cannot create the staging folder ", staging_, " (", ec.message(), ")");
+  }
+}
+
+void OutputFolder::remove_created_parents() {
+  std::error_code ec;
+  for (auto it = created_.rbegin(); it != created_.rend(); ++it) fs::remove(*it, ec);  // only if still empty
 }
 
 OutputFolder::~OutputFolder() {
   if (committed_) return;
   std::error_code ec;
   fs::remove_all(staging_, ec);
-  for (auto it = created_.rbegin(); it != created_.rend(); ++it) fs::remove(*it, ec);  // only if still empty
+  remove_created_parents();
 }
 
 void OutputFolder::commit() {
@@ -151,7 +159,6 @@ void OutputFolder::commit() {
     fs::rename(staging_, dir_, ec);
     if (ec) throw_error(dir_, ": cannot move the new output into place (", ec.message(), ")");
   } else {
-    if (!fs::is_directory(dir_, ec)) throw_error(dir_, ": exists and is not a folder");
     move_into(staging_, dir_);  // also when staging inside dir_: its entries move up one level
     fs::remove_all(staging_, ec);
   }

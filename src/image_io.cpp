@@ -42,8 +42,9 @@ Image read_image(const std::string& path) {
   if (!in) throw_error(path, ": cannot read image (", OIIO::geterror(), ")");
   const OIIO::ImageSpec& spec = in->spec();
   // The size is the file's word: checked before the pixels are allocated.
-  if (spec.width < 1 || spec.height < 1 || spec.width > 65536 || spec.height > 65536 || spec.nchannels < 1 || spec.nchannels > 64)
-    throw_error(path, ": image claims ", spec.width, "x", spec.height, "x", spec.nchannels, " (sides must be 1..65536, channels 1..64)");
+  image_side(spec.width, path, "the image", "width");
+  image_side(spec.height, path, "the image", "height");
+  if (spec.nchannels < 1 || spec.nchannels > 64) throw_error(path, ": image claims ", spec.nchannels, " channels (1..64)");
   check_allocation(size_t(spec.width) * size_t(spec.height) * size_t(spec.nchannels) * sizeof(float), path,
                    "an image of " + std::to_string(spec.width) + "x" + std::to_string(spec.height));
   Image img(spec.width, spec.height, spec.nchannels);

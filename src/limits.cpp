@@ -19,6 +19,12 @@ size_t allocation_cap() {
   return size_t(pages) * size_t(page);
 }
 
+int image_side(double v, const std::string& source, const std::string& element, const char* what) {
+  if (!(v >= 1 && v <= kMaxImageSide) || v != std::floor(v))
+    throw_error(source, ": ", element, " ", what, " ", v, " is not a whole number of pixels in [1, ", kMaxImageSide, "]");
+  return int(v);
+}
+
 size_t checked_mul(size_t a, size_t b, const std::string& source, const std::string& what) {
   if (a != 0 && b > std::numeric_limits<size_t>::max() / a) throw_error(source, ": ", what, " overflows (", a, " x ", b, ")");
   return a * b;
@@ -57,14 +63,19 @@ size_t parse_count(const std::string& text, size_t max, const std::string& sourc
   return v;
 }
 
-double parse_number(const std::string& text, const std::string& source, const std::string& what) {
+bool parse_number(const std::string& text, double* out) {
   const size_t b = trim_front(text), e = trim_back(text, b);
   const std::string t = text.substr(b, e - b);
   char* end = nullptr;
-  errno = 0;
   const double v = t.empty() ? 0.0 : std::strtod(t.c_str(), &end);
-  if (t.empty() || end != t.c_str() + t.size() || !std::isfinite(v))
-    throw_error(source, ": ", what, " '", excerpt(text), "' is not a number");
+  if (t.empty() || end != t.c_str() + t.size() || !std::isfinite(v)) return false;
+  *out = v;
+  return true;
+}
+
+double parse_number(const std::string& text, const std::string& source, const std::string& what) {
+  double v = 0;
+  if (!parse_number(text, &v)) throw_error(source, ": ", what, " '", excerpt(text), "' is not a number");
   return v;
 }
 

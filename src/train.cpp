@@ -1,4 +1,5 @@
 #include "fillgs/train.hpp"
+#include "fillgs/json_file.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -335,12 +336,7 @@ void write_colour_correction(const std::string& path, const std::vector<ColourCo
 }
 
 std::vector<ColourCorrection> read_colour_correction(const std::string& path) {
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(read_file(path));
-  } catch (const nlohmann::json::exception& e) {  // parse errors, and numbers out of range (1e911)
-    throw_error(path, ": invalid JSON (", e.what(), ")");
-  }
+  const nlohmann::json j = read_json_file(path);
   if (!j.is_object()) throw_error(path, ": colour corrections must be an object of cameras");
   std::vector<ColourCorrection> out;
   for (const auto& [rig, e] : j.items()) {

@@ -40,45 +40,6 @@ Dataset load_panoptic(const std::vector<std::string>& cameras, const std::string
   return Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o);
 }
 
-/// The 3×4 projection K [R | t] of a camera, from its fields.
-Eigen::Matrix<double, 3, 4> projection(const Camera& c) {
-  Mat3d K;
-  K << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1;
-  Eigen::Matrix<double, 3, 4> Rt;
-  Rt << c.R, c.t;
-  return K * Rt;
-}
-
-/// Linear (DLT) triangulation of one point from its pixels in several cameras.
-Vec3d triangulate(const std::vector<Camera>& cams, const std::vector<Vec2d>& px) {
-  Eigen::MatrixXd A(2 * cams.size(), 4);
-  for (size_t i = 0; i < cams.size(); ++i) {
-    const Eigen::Matrix<double, 3, 4> P = projection(cams[i]);
-    A.row(2 * i) = px[i].x() * P.row(2) - P.row(0);
-    A.row(2 * i + 1) = px[i].y() * P.row(2) - P.row(1);
-  }
-  const Eigen::Vector4d X = Eigen::JacobiSVD<Eigen::MatrixXd>(A, Eigen::ComputeFullV).matrixV().col(3);
-  return X.head<3>() / X[3];
-}
-
-struct MaskStats {
-  Vec2d centroid = Vec2d::Zero();
-  int x0 = 1 << 30, x1 = -1, y0 = 1 << 30, y1 = -1;
-  size_t pixels = 0;
-};
-MaskStats mask_stats(const std::vector<uint8_t>& m, int W) {
-  MaskStats s;
-  for (size_t p = 0; p < m.size(); ++p) {
-    if (!m[p]) continue;
-    const int x = int(p % size_t(W)), y = int(p / size_t(W));
-    s.centroid += Vec2d(x + 0.5, y + 0.5);
-    s.x0 = std::min(s.x0, x), s.x1 = std::max(s.x1, x), s.y0 = std::min(s.y0, y), s.y1 = std::max(s.y1, y);
-    ++s.pixels;
-  }
-  if (s.pixels) s.centroid /= double(s.pixels);
-  return s;
-}
-
 /// The message of the fillgs::Error `f` throws ("" if none).
 template <typename F>
 std::string error_of(F&& f) {

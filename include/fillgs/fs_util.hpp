@@ -39,14 +39,13 @@ class OutputFolder {
   OutputFolder& operator=(const OutputFolder&) = delete;
   /// Where to write until commit().
   const std::string& path() const { return staging_; }
-  /// The folder the output ends in.
-  const std::string& final_path() const { return dir_; }
   void commit();
 
  private:
   std::string dir_, staging_;
   std::vector<std::string> created_;  ///< parent folders this object created, outermost first
   bool committed_ = false;
+  void remove_created_parents();
 };
 
 }  // namespace fillgs

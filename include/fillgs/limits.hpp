@@ -15,6 +15,13 @@
 
 namespace fillgs {
 
+/// The largest image side fillgs accepts, in pixels (cameras, image files, video frames).
+constexpr int kMaxImageSide = 65536;
+
+/// An image side stored as a number: a whole number in [1, kMaxImageSide], else one line
+/// "SOURCE: ELEMENT WHAT v is not a whole number of pixels in [1, 65536]".
+int image_side(double v, const std::string& source, const std::string& element, const char* what);
+
 /// The most bytes one allocation may take: this machine's physical memory, or the
 /// FILLGS_MAX_ALLOC environment variable (bytes) when set (tests use it).
 size_t allocation_cap();
@@ -29,7 +36,11 @@ void check_allocation(size_t bytes, const std::string& source, const std::string
 /// most `max`; throws "SOURCE: WHAT 'text' is not an integer in [0, max]".
 size_t parse_count(const std::string& text, size_t max, const std::string& source, const std::string& what);
 
-/// A finite number from the whole of `text` (blanks around it allowed); throws
+/// A finite number from the whole of `text` (blanks around it allowed) into *out; false
+/// (and *out untouched) when the text is anything else.
+bool parse_number(const std::string& text, double* out);
+
+/// As above, but throws
 /// "SOURCE: WHAT 'text' is not a number" (the text is cut to 40 characters in the message).
 double parse_number(const std::string& text, const std::string& source, const std::string& what);
 

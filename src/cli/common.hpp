@@ -14,6 +14,7 @@
 
 #include "fillgs/camera.hpp"
 #include "fillgs/error.hpp"
+#include "fillgs/limits.hpp"
 #include "fillgs/scene_io.hpp"
 #include "fillgs/timing.hpp"
 #include "fillgs/train.hpp"
@@ -68,9 +69,8 @@ class Args {
   double number(const std::string& k, double def) const {
     if (!has(k)) return def;
     const std::string v = get(k);
-    char* end = nullptr;
-    const double x = std::strtod(v.c_str(), &end);
-    if (end == v.c_str() || *end != '\0' || !std::isfinite(x)) throw_error("fillgs ", command_, ": --", k, " expects a number, got '", v, "'");
+    double x = 0;
+    if (!parse_number(v, &x)) throw_error("fillgs ", command_, ": --", k, " expects a number, got '", v, "'");
     return x;
   }
   int integer(const std::string& k, int def) const {
@@ -86,21 +86,14 @@ class Args {
   }
   /// A comma-separated list of numbers ("r,g,b"), each checked.
   std::vector<double> numbers(const std::string& k, size_t count) const {
-    std::vector<double> out;
     const std::string v = get(k);
-    size_t from = 0;
-    while (from <= v.size()) {
-      size_t comma = v.find(',', from);
-      if (comma == std::string::npos) comma = v.size();
-      const std::string part = v.substr(from, comma - from);
-      char* end = nullptr;
-      const double x = std::strtod(part.c_str(), &end);
-      if (part.empty() || end != part.c_str() + part.size() || !std::isfinite(x))
-        throw_error("fillgs ", command_, ": --", k, " expects ", count, " comma-separated numbers, got '", v, "'");
-      out.push_back(x);
-      from = comma + 1;
-    }
-    if (out.size() != count) throw_error("fillgs ", command_, ": --", k, " expects ", count, " comma-separated numbers, got '", v, "'");
+    std::vector<double> out;
+    std::stringstream ss(v);
+    std::string part;
+    double x = 0;
+    while (std::getline(ss, part, ',') && parse_number(part, &x)) out.push_back(x);
+    if (out.size() != count || !ss.eof() || (!v.empty() && v.back() == ','))
+      throw_error("fillgs ", command_, ": --", k, " expects ", count, " comma-separated numbers, got '", v, "'");
     return out;
   }
   const std::string& command() const { return command_; }
