@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "fillgs/cli.hpp"
+#include "fillgs/image_io.hpp"
 #include "fillgs/limits.hpp"
 #include "fillgs/npy.hpp"
 #include "fillgs/train.hpp"
@@ -307,4 +308,31 @@ TEST_CASE("fuzzing finding of this commit: an empty Fortran-order array with a h
   const NpyArray a = read_npy(dir + "/e.npy");
   CHECK(a.to_doubles(dir + "/e.npy").empty());
   CHECK(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < 5.0);
+}
+
+TEST_CASE("images are read by the reader their extension names, and its complaint is one line", "[robust]") {
+  const std::string dir = scratch("robust_image_ext");
+  Image im(6, 4, 3);
+  for (size_t i = 0; i < im.pixels.size(); ++i) im.pixels[i] = float(i % 5) / 4.0f;
+  write_image(dir + "/a.png", im);
+  const std::string png = slurp(dir + "/a.png");
+  // The same bytes without an extension: OpenImageIO tries its readers in turn and finds PNG.
+  write(dir + "/noext", png);
+  const Image back = read_image(dir + "/noext");
+  REQUIRE(back.width == 6);
+  CHECK(back.pixels == read_image(dir + "/a.png").pixels);
+  // Named .jpg, a PNG is not a JPEG: refused by the JPEG reader, not handed to every other one.
+  write(dir + "/b.jpg", png);
+  CHECK_THROWS_WITH(read_image(dir + "/b.jpg"), Catch::Contains("b.jpg: cannot read image") && Catch::Contains("jpeg"));
+  // A PNG cut after its header: libpng's two-line complaint comes back as one line.
+  write(dir + "/cut.png", png.substr(0, 40));
+  try {
+    (void)read_image(dir + "/cut.png");
+    FAIL("a truncated PNG was read");
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    INFO(what);
+    CHECK(what.find("cut.png: cannot read image") != std::string::npos);
+    CHECK(what.find('\n') == std::string::npos);
+  }
 }
