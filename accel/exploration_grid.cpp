@@ -1,5 +1,8 @@
 // The exploration grid on OpenVDB: labels live in an Int32 grid (background = free), so
 // only occupied and unexplored voxels are stored; queries go through value accessors.
+// On disk the labels are two BoolGrids, `occupied` and `unexplored` (free = in neither),
+// the types every VDB tool reads (pyopenvdb and Blender read no Int32Grid); files of the
+// first layout (one Int32Grid `labels`) are still read.
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
 
@@ -255,12 +258,34 @@ ExplorationGrid ExplorationGrid::build(const GaussianCloud& scene, const std::ve
   return grid;
 }
 
+namespace {
+
+/// The metadata fillgs reads back, copied onto every grid it writes.
+void copy_fillgs_meta(const openvdb::GridBase& from, openvdb::GridBase& to) {
+  for (auto it = from.beginMeta(); it != from.endMeta(); ++it)
+    if (it->first.rfind("fillgs_", 0) == 0 && it->first != "fillgs_labels") to.insertMeta(it->first, *it->second);
+}
+
+/// One BoolGrid of the voxels whose label is `label`, active and true.
+openvdb::BoolGrid::Ptr label_grid(const openvdb::Int32Grid& labels, VoxelLabel label) {
+  auto g = openvdb::BoolGrid::create(false);
+  g->setName(to_string(label));
+  g->setTransform(labels.transform().copy());
+  copy_fillgs_meta(labels, *g);
+  auto acc = g->getAccessor();
+  for (auto it = labels.cbeginValueOn(); it; ++it)
+    if (*it == int(label)) acc.setValue(it.getCoord(), true);
+  return g;
+}
+
+}  // namespace
+
 void ExplorationGrid::write(const std::string& path) const {
   FILLGS_CHECK(impl_->grid);
   write_atomically(path, [&](const std::string& tmp) {
     try {
       openvdb::io::File file(tmp);
-      file.write({impl_->grid});
+      file.write({label_grid(*impl_->grid, VoxelLabel::Occupied), label_grid(*impl_->grid, VoxelLabel::Unexplored)});
       file.close();
     } catch (const openvdb::Exception& e) {
       throw_error(path, ": cannot write the OpenVDB file (", e.what(), ")");
@@ -274,20 +299,44 @@ ExplorationGrid ExplorationGrid::read(const std::string& path) {
   try {
     openvdb::io::File file(path);
     file.open();
-    if (!file.hasGrid("labels")) throw_error(path, ": no grid named 'labels' (not written by fillgs explore)");
-    auto base = file.readGrid("labels");
+    openvdb::Int32Grid::Ptr labels;
+    if (file.hasGrid("occupied") && file.hasGrid("unexplored")) {
+      // This layout: two BoolGrids, merged into the in-memory labels.
+      for (const VoxelLabel label : {VoxelLabel::Occupied, VoxelLabel::Unexplored}) {
+        auto base = file.readGrid(to_string(label));
+        auto g = openvdb::gridPtrCast<openvdb::BoolGrid>(base);
+        if (!g) throw_error(path, ": grid '", to_string(label), "' is ", base->type(), ", expected bool");
+        if (!labels) {
+          labels = openvdb::Int32Grid::create(0);
+          labels->setName("labels");
+          labels->setTransform(g->transform().copy());
+          copy_fillgs_meta(*g, *labels);
+        }
+        auto acc = labels->getAccessor();
+        for (auto it = g->cbeginValueOn(); it; ++it)
+          if (*it) acc.setValue(it.getCoord(), int(label));
+      }
+    } else if (file.hasGrid("labels")) {
+      // The first layout: one Int32Grid of labels.
+      auto base = file.readGrid("labels");
+      labels = openvdb::gridPtrCast<openvdb::Int32Grid>(base);
+      if (!labels) throw_error(path, ": grid 'labels' is ", base->type(), ", expected Int32");
+    } else {
+      throw_error(path, ": no grids named 'occupied' and 'unexplored' (not written by fillgs explore)");
+    }
     file.close();
-    auto g = openvdb::gridPtrCast<openvdb::Int32Grid>(base);
-    if (!g) throw_error(path, ": grid 'labels' is ", base->type(), ", expected Int32");
-    auto lo = g->metaValue<openvdb::Vec3d>("fillgs_box_min");
-    auto hi = g->metaValue<openvdb::Vec3d>("fillgs_box_max");
-    auto d = g->metaValue<openvdb::Vec3i>("fillgs_divisions");
+    for (const char* key : {"fillgs_box_min", "fillgs_box_max", "fillgs_divisions"})
+      if (!(*labels)[key]) throw_error(path, ": metadata '", key, "' is missing");
+    const auto lo = labels->metaValue<openvdb::Vec3d>("fillgs_box_min");
+    const auto hi = labels->metaValue<openvdb::Vec3d>("fillgs_box_max");
+    const auto d = labels->metaValue<openvdb::Vec3i>("fillgs_divisions");
     grid.box_.lo = Vec3d(lo.x(), lo.y(), lo.z());
     grid.box_.hi = Vec3d(hi.x(), hi.y(), hi.z());
     grid.dims_ = Vec3i(d.x(), d.y(), d.z());
-    if ((grid.dims_.array() < 1).any() || !((grid.box_.hi - grid.box_.lo).array() > 0).all())
+    if ((grid.dims_.array() < 1).any() || (grid.dims_.array() > kMaxDivisions).any() || !((grid.box_.hi - grid.box_.lo).array() > 0).all() ||
+        !grid.box_.lo.allFinite() || !grid.box_.hi.allFinite())
       throw_error(path, ": metadata fillgs_box_min/max or fillgs_divisions is invalid");
-    grid.impl_->grid = g;
+    grid.impl_->grid = labels;
   } catch (const openvdb::Exception& e) {
     throw_error(path, ": cannot read as an exploration grid (", e.what(), ")");
   }

@@ -17,6 +17,9 @@ packages=(
   nlohmann-json3-dev
   libhwy-dev               # Google Highway: portable SIMD with run-time dispatch
   clang libclang-rt-14-dev # the sanitizer + libFuzzer tree (scripts/build-fuzz.sh, README "Robustness")
+  python3-openvdb          # the OpenVDB Python binding: a test opens exploration.vdb with it
+  colmap                   # COLMAP 3.8: a test round-trips the COLMAP export; triangulated initial points
+  gnuplot-nox              # the plots (src/plot.cpp drives gnuplot through a pipe)
 )
 
 missing=()

@@ -3,6 +3,7 @@
 #include <openvdb/openvdb.h>
 #include <openvdb/io/File.h>
 
+#include <cstdlib>
 #include <fstream>
 #include <random>
 
@@ -26,6 +27,16 @@ std::vector<Camera> ring(int n = 8, double radius = 4.0) {
     c.name = "cam" + std::to_string(i);
     cams.push_back(c);
   }
+  return cams;
+}
+
+/// ring() plus a camera at (4, 0, 3) looking away from the scene: the box stretches upwards,
+/// where no camera sees, so the grid has unexplored voxels as well as occupied ones.
+std::vector<Camera> ring_and_high() {
+  std::vector<Camera> cams = ring();
+  Camera high = cams[0];
+  high.look_at(Vec3d(4, 0, 3), Vec3d(8, 0, 3), Vec3d::UnitZ());
+  cams.push_back(high);
   return cams;
 }
 
@@ -175,23 +186,32 @@ TEST_CASE("exploration grid: the .vdb file opens in OpenVDB and reads back to th
   const GaussianCloud box = lattice_box(0.5, 4, 0.08f, 0.9f);
   ExplorationOptions o;
   o.divisions = 24;
-  const ExplorationGrid g = ExplorationGrid::build(box, ring(), {}, o);
+  const ExplorationGrid g = ExplorationGrid::build(box, ring_and_high(), {}, o);
   const std::string dir = scratch("explore_vdb"), path = join_path(dir, "exploration.vdb");
   g.write(path);
-  // Plain OpenVDB, no fillgs: an Int32 grid named "labels" holding the non-free voxels.
+  // Plain OpenVDB, no fillgs: BoolGrids "occupied" and "unexplored", active where the label is.
   openvdb::initialize();
   openvdb::io::File file(path);
   file.open();
-  auto base = file.readGrid("labels");
+  auto occupied = openvdb::gridPtrCast<openvdb::BoolGrid>(file.readGrid("occupied"));
+  auto unexplored = openvdb::gridPtrCast<openvdb::BoolGrid>(file.readGrid("unexplored"));
   file.close();
-  auto grid = openvdb::gridPtrCast<openvdb::Int32Grid>(base);
-  REQUIRE(grid);
-  CHECK(grid->activeVoxelCount() == openvdb::Index64(g.counts()[1] + g.counts()[2]));
+  REQUIRE(occupied);
+  REQUIRE(unexplored);
+  CHECK(occupied->activeVoxelCount() == openvdb::Index64(g.counts()[1]));
+  CHECK(unexplored->activeVoxelCount() == openvdb::Index64(g.counts()[2]));
+  CHECK(occupied->activeVoxelCount() > 0);
+  CHECK(unexplored->activeVoxelCount() > 0);
+  size_t wrong = 0;
+  for (auto it = occupied->cbeginValueOn(); it; ++it)
+    wrong += g.label(Vec3i(it.getCoord().x(), it.getCoord().y(), it.getCoord().z())) != VoxelLabel::Occupied;
+  CHECK(wrong == 0);
   const Vec3d world = g.voxel_centre(Vec3i(3, 5, 7));
-  const openvdb::Vec3d idx = grid->transform().worldToIndex(openvdb::Vec3d(world.x(), world.y(), world.z()));
+  const openvdb::Vec3d idx = unexplored->transform().worldToIndex(openvdb::Vec3d(world.x(), world.y(), world.z()));
   CHECK(idx.x() == Approx(3).margin(1e-9));
   CHECK(idx.y() == Approx(5).margin(1e-9));
   CHECK(idx.z() == Approx(7).margin(1e-9));
+  CHECK(unexplored->metaValue<openvdb::Vec3i>("fillgs_divisions") == openvdb::Vec3i(24, 24, 24));
 
   const ExplorationGrid r = ExplorationGrid::read(path);
   CHECK(r.dims() == g.dims());
@@ -210,5 +230,81 @@ TEST_CASE("exploration grid: the .vdb file opens in OpenVDB and reads back to th
     FAIL("read accepted a text file");
   } catch (const Error& e) {
     CHECK(std::string(e.what()).find(bad) != std::string::npos);
+  }
+}
+
+TEST_CASE("exploration grid: files of the first layout (one Int32Grid 'labels') still read", "[explore]") {
+  const GaussianCloud box = lattice_box(0.5, 4, 0.08f, 0.9f);
+  ExplorationOptions o;
+  o.divisions = 12;
+  const ExplorationGrid g = ExplorationGrid::build(box, ring_and_high(), {}, o);
+  // The first layout, written here with plain OpenVDB: labels 1 occupied, 2 unexplored.
+  openvdb::initialize();
+  auto labels = openvdb::Int32Grid::create(0);
+  labels->setName("labels");
+  const Vec3d vs = g.voxel_size(), origin = g.box().lo + 0.5 * vs;
+  labels->setTransform(openvdb::math::Transform::Ptr(new openvdb::math::Transform(openvdb::math::MapBase::Ptr(
+      new openvdb::math::ScaleTranslateMap(openvdb::Vec3d(vs.x(), vs.y(), vs.z()), openvdb::Vec3d(origin.x(), origin.y(), origin.z()))))));
+  labels->insertMeta("fillgs_box_min", openvdb::Vec3DMetadata(openvdb::Vec3d(g.box().lo.x(), g.box().lo.y(), g.box().lo.z())));
+  labels->insertMeta("fillgs_box_max", openvdb::Vec3DMetadata(openvdb::Vec3d(g.box().hi.x(), g.box().hi.y(), g.box().hi.z())));
+  labels->insertMeta("fillgs_divisions", openvdb::Vec3IMetadata(openvdb::Vec3i(12, 12, 12)));
+  auto acc = labels->getAccessor();
+  for (int z = 0; z < 12; ++z)
+    for (int y = 0; y < 12; ++y)
+      for (int x = 0; x < 12; ++x)
+        if (const int l = int(g.label(Vec3i(x, y, z)))) acc.setValue(openvdb::Coord(x, y, z), l);
+  const std::string dir = scratch("explore_vdb_v1"), path = join_path(dir, "old.vdb");
+  {
+    openvdb::io::File file(path);
+    file.write({labels});
+    file.close();
+  }
+  const ExplorationGrid r = ExplorationGrid::read(path);
+  CHECK(r.dims() == g.dims());
+  CHECK(r.counts() == g.counts());
+  size_t differ = 0;
+  for (int z = 0; z < 12; ++z)
+    for (int y = 0; y < 12; ++y)
+      for (int x = 0; x < 12; ++x) differ += r.label(Vec3i(x, y, z)) != g.label(Vec3i(x, y, z));
+  CHECK(differ == 0);
+}
+
+TEST_CASE("exploration grid: the .vdb file opens in the OpenVDB Python binding (python3-openvdb)", "[explore]") {
+  if (std::system("/usr/bin/python3 -c 'import pyopenvdb' >/dev/null 2>&1") != 0) {
+    WARN("skipped: /usr/bin/python3 cannot import pyopenvdb (Debian python3-openvdb; scripts/install-deps.sh installs it)");
+    return;
+  }
+  const GaussianCloud box = lattice_box(0.5, 4, 0.08f, 0.9f);
+  ExplorationOptions o;
+  o.divisions = 20;
+  const ExplorationGrid g = ExplorationGrid::build(box, ring_and_high(), {}, o);
+  const std::string dir = scratch("explore_pyvdb"), path = join_path(dir, "exploration.vdb"), out = join_path(dir, "py.txt");
+  g.write(path);
+  // What a user's script does: read every grid, count its voxels, map an index to the world.
+  const std::string script = join_path(dir, "read.py");
+  std::ofstream(script) << "import sys, pyopenvdb as vdb\n"
+                           "grids = {g.name: g for g in vdb.readAll(sys.argv[1])[0]}\n"
+                           "out = open(sys.argv[2], 'w')\n"
+                           "for name in ('occupied', 'unexplored'):\n"
+                           "    g = grids[name]\n"
+                           "    out.write('%s %s %d\\n' % (name, g.valueTypeName, g.activeVoxelCount()))\n"
+                           "    w = g.transform.indexToWorld((3, 5, 7))\n"
+                           "    out.write('%.12g %.12g %.12g\\n' % tuple(w))\n"
+                           "    out.write('%d %d %d\\n' % tuple(g['fillgs_divisions']))\n";
+  REQUIRE(std::system(("/usr/bin/python3 " + script + " " + path + " " + out).c_str()) == 0);
+  std::ifstream in(out);
+  const Vec3d centre = g.voxel_centre(Vec3i(3, 5, 7));
+  for (const VoxelLabel label : {VoxelLabel::Occupied, VoxelLabel::Unexplored}) {
+    std::string name, type;
+    long long count = -1;
+    Vec3d w;
+    int dx = 0, dy = 0, dz = 0;
+    in >> name >> type >> count >> w.x() >> w.y() >> w.z() >> dx >> dy >> dz;
+    REQUIRE(in);
+    CHECK(name == to_string(label));
+    CHECK(type == "bool");
+    CHECK(count == (long long)g.counts()[size_t(label)]);
+    CHECK((w - centre).norm() < 1e-9);
+    CHECK((Vec3i(dx, dy, dz) == g.dims()));
   }
 }

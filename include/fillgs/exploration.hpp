@@ -64,8 +64,9 @@ class ExplorationGrid {
                                Progress& progress = null_progress());
   /// Reads a grid written by write(); throws naming the file when it is not one.
   static ExplorationGrid read(const std::string& path);
-  /// Writes an OpenVDB file (atomically): an Int32 grid "labels" (1 occupied, 2 unexplored,
-  /// background 0 = free) with the box and divisions as metadata.
+  /// Writes an OpenVDB file (atomically): BoolGrids "occupied" and "unexplored" (free = in
+  /// neither) with the box and divisions as metadata. read() also takes the first layout, one
+  /// Int32Grid "labels" (1 occupied, 2 unexplored, background 0 = free).
   void write(const std::string& path) const;
 
   ExplorationGrid();
