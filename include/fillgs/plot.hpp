@@ -1,6 +1,9 @@
 #pragma once
-// Small PNG plots (OpenCV) for results people would rather look at than read: heatmaps,
-// bar charts, scatter plots. Files are written atomically.
+// Figures for results people would rather look at than read. Charts (heatmaps, bar charts,
+// scatter plots; src/chart.cpp) are drawn by gnuplot: each is NAME.png with NAME.csv (the
+// numbers) and NAME.gp (the script: `gnuplot NAME.gp` re-plots) beside it, and a missing
+// gnuplot leaves the CSV and script with one warning line. Pictures (scene top views, image
+// grids; src/plot.cpp) are drawn with OpenCV. Files are written atomically.
 #include <string>
 #include <vector>
 
@@ -13,11 +16,13 @@ struct PlotLabels {
 };
 
 /// A rows × cols heatmap (row 0 at the top), inferno colours from 0 to the maximum, with a
-/// colour bar. `row_totals`, when given (size rows), is drawn as a bar profile on the right.
+/// colour bar. `row_totals`, when given (size rows), is drawn as a bar profile on the right
+/// (and is the CSV's last column).
 void write_heatmap_png(const std::string& path, const std::vector<float>& values, int rows, int cols, const PlotLabels& labels,
                        const std::vector<double>* row_totals = nullptr);
 
-/// One bar per value, labelled underneath (labels thinned when they would overlap).
+/// One bar per value, names rotated underneath, values on the bars (up to 24 bars; beyond,
+/// names thinned so they never touch).
 void write_bar_chart_png(const std::string& path, const std::vector<std::string>& names, const std::vector<double>& values,
                          const PlotLabels& labels);
 
@@ -27,7 +32,8 @@ struct ScatterSeries {
   std::vector<std::string> point_labels;  ///< optional, one per point
 };
 
-/// Scatter plot of several series (one colour each, legend top-left); log10 x when asked.
+/// Several series as points joined in order (one colour each, legend outside the plot on the
+/// right); point labels placed where they cover no other label or point; log10 x when asked.
 void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>& series, const PlotLabels& labels, bool log_x);
 
 /// Top view (z up) of a rig's split: static points grey, moving points orange, cameras
