@@ -190,9 +190,25 @@ int cmd_convert(const std::vector<std::string>& args, std::ostream& out, std::os
   Args a("convert", args, 1, merge({"scene", "out", "to", "time", "frames"}, kSceneOptions), {});
   const GaussianCloud c = read_scene(a.require("scene"), scene_options(a));
   const std::string to = a.get("to", "3dgs"), path = a.require("out");
+  if (to == "frames") {
+    // One standard 3DGS PLY per frame, t = f/(F−1): a sequence splat viewers can play.
+    const int frames = a.integer("frames", c.motion == MotionModel::Keyframed ? c.keyframed.key_count : 0);
+    if (frames < 1) throw_error("fillgs convert: --to frames needs --frames F (F >= 1)");
+    OutputFolder folder(path);
+    const std::vector<double> times = frame_times(frames);
+    for (int f = 0; f < frames; ++f) {
+      char name[32];
+      std::snprintf(name, sizeof name, "frame_%04d.ply", f);
+      write_3dgs_ply(join_path(folder.path(), name), c, times[size_t(f)]);
+    }
+    folder.commit();
+    out << "wrote " << frames << " frames to " << path << " (3dgs, frame_0000.ply … at t = f/" << std::max(1, frames - 1) << ", " << c.size()
+        << " Gaussians each)\n";
+    return 0;
+  }
   if (to == "3dgs") write_3dgs_ply(path, c, a.number("time", 0.0));
   else if (to == "fillgs") write_fillgs_ply(path, c, a.integer("frames", 0));
-  else throw_error("fillgs convert: --to must be 3dgs or fillgs (got '", to, "')");
+  else throw_error("fillgs convert: --to must be 3dgs, fillgs or frames (got '", to, "')");
   out << "wrote " << path << " (" << to << ", " << c.size() << " Gaussians)\n";
   return 0;
 }
@@ -406,7 +422,7 @@ void print_help(std::ostream& out) {
          "  synth --out DIR [--frames F] [--width W] [--height H] [--seed n] [--spacing m] [--rig ring|n3v|technicolor]\n"
          "        [--variant chair|orbit|lift (ring) | kitchen (n3v, technicolor)]\n"
          "                                            the chair/shelf analysis scene with ground-truth images\n"
-         "  convert --scene S --out F.ply [--to 3dgs|fillgs] [--time t] [--frames F]\n"
+         "  convert --scene S --out F.ply [--to 3dgs|fillgs|frames] [--time t] [--frames F]\n"
          "  cameras --cameras C --out PATH [--to transforms|colmap]\n"
          "  observe --scene S --cameras C --out DIR   observation counts C[t][g], speeds s, deficiency D = s/(1+C)\n"
          "         [--frames F | --times t1,t2,..] [--mode frustum|raytraced|exact] [--stride s] [--tau w]\n"
