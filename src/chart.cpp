@@ -240,7 +240,11 @@ void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>
   const double char_w = 6.6, text_h = 13;  // DejaVu Sans 9 pt in pngcairo, approximately
   for (size_t k = 0; k < series.size(); ++k) {
     const auto& s = series[k];
-    for (size_t i = 0; i < s.x.size(); ++i) {
+    // Points are joined in order of x.
+    std::vector<size_t> order(s.x.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return s.x[a] < s.x[b]; });
+    for (const size_t i : order) {
       std::string label = i < s.point_labels.size() ? s.point_labels[i] : std::string();
       double dx = 0, dy = 0;
       if (!label.empty()) {

@@ -15,6 +15,7 @@
 #include "fillgs/error.hpp"
 #include "fillgs/timing.hpp"
 #include "fillgs/fs_util.hpp"
+#include "fillgs/html_report.hpp"
 #include "fillgs/plot.hpp"
 #include "fillgs/scene_io.hpp"
 
@@ -603,7 +604,6 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
     if (m.id != "backbone")
       md << "| " << m.variant << " | " << m.id << " | " << fmt(m.t[0], 1) << " | " << fmt(m.t[1], 1) << " | " << fmt(m.t[2], 1) << " | " << fmt(m.t[3], 1) << " | "
          << fmt(m.t[4], 1) << " |\n";
-  write_file_atomically(join_path(root, "results.md"), md.str());
 
   // Plots of the first scene: strategies with the first support mode, the control, the upper bounds.
   const std::string plotted = means.empty() ? "" : means.front().variant;
@@ -639,6 +639,12 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
     write_bar_chart_png(join_path(root, "time_per_phase.png"), std::vector<std::string>(phases, phases + 5), t,
                         {"mean seconds per phase and run", "", "seconds"});
   }
+  // The figures drawn above, named in the Markdown (and so embedded in the HTML page).
+  md << "\n## Figures\n\nEach figure's numbers are in the CSV of its name, and `gnuplot NAME.gp` re-draws it.\n\n";
+  for (const char* f : {"psnr_interpolation", "psnr_extrapolation", "budget", "time_per_phase"})
+    if (fs::exists(join_path(root, std::string(f) + ".png"))) md << "![" << f << "](" << f << ".png)\n\n";
+  write_file_atomically(join_path(root, "results.md"), md.str());
+  write_html_report(join_path(root, "results.md"), join_path(root, "results.html"));
 }
 
 }  // namespace fillgs

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "fillgs/fs_util.hpp"
+#include "fillgs/html_report.hpp"
 #include "fillgs/image_io.hpp"
 #include "fillgs/plot.hpp"
 #include "helpers.hpp"
@@ -159,4 +160,59 @@ TEST_CASE("without gnuplot a chart leaves its CSV and script, one warning and no
   CHECK(std::count(warning.begin(), warning.end(), '\n') == 1);
   CHECK(warning.find("bars.png not drawn") != std::string::npos);
   for (const auto& e : fs::directory_iterator(dir)) CHECK(e.path().filename().string()[0] != '.');
+}
+
+namespace {
+
+std::string unbase64(const std::string& text) {
+  auto value = [](char c) -> int {
+    if (c >= 'A' && c <= 'Z') return c - 'A';
+    if (c >= 'a' && c <= 'z') return c - 'a' + 26;
+    if (c >= '0' && c <= '9') return c - '0' + 52;
+    return c == '+' ? 62 : c == '/' ? 63 : -1;
+  };
+  std::string out;
+  int bits = 0, acc = 0;
+  for (char c : text) {
+    const int v = value(c);
+    if (v < 0) break;  // '=' padding ends it
+    acc = (acc << 6) | v, bits += 6;
+    if (bits >= 8) bits -= 8, out += char((acc >> bits) & 0xff);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST_CASE("HTML report: tables, escapes, code and images embedded byte for byte", "[plot][report]") {
+  const std::string dir = scratch("html_report");
+  Image im(5, 3, 3);
+  for (size_t i = 0; i < im.pixels.size(); ++i) im.pixels[i] = float(i % 4) / 3.0f;
+  write_image(join_path(dir, "pic.png"), im);
+  std::ofstream(join_path(dir, "r.md")) << "# A <report>\n\nSome **bold** and `code`\ncontinued.\n\n"
+                                           "| Method | PSNR |\n|---|---|\n| fillgs | 18.71 |\n| a<b | 1 |\n\n"
+                                           "- one\n- two\n\n```\nfillgs run --out <dir>\n```\n\n![pic](pic.png)\n\n![gone](gone.png)\n";
+  std::ostringstream captured;
+  std::streambuf* old = std::cerr.rdbuf(captured.rdbuf());
+  const HtmlReport r = write_html_report(join_path(dir, "r.md"), join_path(dir, "r.html"));
+  std::cerr.rdbuf(old);
+  const std::string& h = r.html;
+  CHECK(read_file(join_path(dir, "r.html")) == h);
+  CHECK(h.find("<title>A &lt;report&gt;</title>") != std::string::npos);
+  CHECK(h.find("<h1>A &lt;report&gt;</h1>") != std::string::npos);
+  CHECK(h.find("<p>Some <b>bold</b> and <code>code</code> continued.</p>") != std::string::npos);
+  CHECK(h.find("<tr><th>Method</th><th>PSNR</th></tr>") != std::string::npos);
+  CHECK(h.find("<tr><td>fillgs</td><td>18.71</td></tr>") != std::string::npos);
+  CHECK(h.find("<tr><td>a&lt;b</td><td>1</td></tr>") != std::string::npos);
+  CHECK(h.find("<ul>\n<li>one</li>\n<li>two</li>\n</ul>") != std::string::npos);
+  CHECK(h.find("<pre><code>fillgs run --out &lt;dir&gt;\n</code></pre>") != std::string::npos);
+  CHECK(r.images == std::vector<std::string>{"pic.png", "gone.png"});
+  CHECK(r.missing == std::vector<std::string>{"gone.png"});
+  CHECK(captured.str().find("gone.png is missing") != std::string::npos);
+  const std::string key = "src=\"data:image/png;base64,";
+  const size_t at = h.find(key);
+  REQUIRE(at != std::string::npos);
+  const std::string payload = h.substr(at + key.size(), h.find('"', at + key.size()) - at - key.size());
+  CHECK(unbase64(payload) == read_file(join_path(dir, "pic.png")));
+  CHECK(h.find("missing image gone.png") != std::string::npos);
 }

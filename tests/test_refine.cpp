@@ -550,7 +550,8 @@ TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refi
   CHECK(fs::exists(join_path(dir, "n3v_s1/runs/fillgs/views.png")));
   // FillGS paired against the others in the report.
   CHECK(read_file(join_path(dir, "results.md")).find("| n3v | random | strategy |") != std::string::npos);
-  for (const char* f : {"results.md", "psnr_interpolation.png", "psnr_extrapolation.png", "time_per_phase.png"}) CHECK(fs::exists(join_path(dir, f)));
+  for (const char* f : {"results.md", "results.html", "psnr_interpolation.png", "psnr_extrapolation.png", "time_per_phase.png"}) CHECK(fs::exists(join_path(dir, f)));
+  CHECK(read_file(join_path(dir, "results.md")).find("![psnr_interpolation](psnr_interpolation.png)") != std::string::npos);
   // Interrupted: the last run's result is missing. The rerun reuses the scene, the backbone
   // and the finished runs, recomputes only the missing one, and gets the same numbers.
   fs::remove(join_path(dir, "n3v_s1/runs/random/result.json"));
@@ -718,7 +719,15 @@ TEST_CASE("fillgs run: the whole pipeline prints its comparison and writes its r
     CHECK(fs::exists(join_path(dir, file)));
     ++pictures;
   }
-  CHECK(pictures == 2);
+  CHECK(pictures == 6);  // two moments, two PSNR charts, the virtual views of FillGS and the baseline
+  CHECK(report.find("```\nfillgs run --smoke") != std::string::npos);
+  // The HTML page embeds every one of them and names no file outside itself.
+  const std::string html = read_file(join_path(dir, "report.html"));
+  size_t embedded = 0;
+  for (size_t at = html.find("src=\"data:image/png;base64,"); at != std::string::npos; at = html.find("src=\"data:image/png;base64,", at + 1)) ++embedded;
+  CHECK(embedded == pictures);
+  CHECK(html.find("missing image") == std::string::npos);
+  CHECK(html.find("<td>fillgs</td>") != std::string::npos);
 }
 
 TEST_CASE("bench report: FillGS paired against each method by seed (hand-made results)", "[refine][bench]") {

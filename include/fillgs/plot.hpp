@@ -32,7 +32,7 @@ struct ScatterSeries {
   std::vector<std::string> point_labels;  ///< optional, one per point
 };
 
-/// Several series as points joined in order (one colour each, legend outside the plot on the
+/// Several series as points joined in order of x (one colour each, legend outside the plot on the
 /// right); point labels placed where they cover no other label or point; log10 x when asked.
 void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>& series, const PlotLabels& labels, bool log_x);
 

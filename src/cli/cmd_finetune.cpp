@@ -15,6 +15,7 @@
 #include "fillgs/experiment.hpp"
 #include "fillgs/finetune.hpp"
 #include "fillgs/fs_util.hpp"
+#include "fillgs/html_report.hpp"
 #include "fillgs/plot.hpp"
 #include "fillgs/ply.hpp"
 #include "fillgs/raster.hpp"
@@ -401,12 +402,28 @@ int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostrea
                   fixed(r.train.psnr).c_str());
     out << line;
   }
-  md << "\n";
+  md << "\n## Renders\n\nGround truth, the backbone and each fine-tuned model at the view and moment of each split where the moving content "
+        "covers most of the image.\n\n";
   for (const std::string& f : pictures) md << "![" << f << "](" << f << ")\n\n";
+  for (const char* chart : {"psnr_interpolation", "psnr_extrapolation"})
+    if (fs::exists(join_path(dir, std::string(chart) + ".png"))) md << "![" << chart << "](" << chart << ".png)\n\n";
+  // The virtual views each strategy chose (top view), copied beside the report.
+  md << "## Virtual views\n\n";
+  for (const std::string& id : run_ids) {
+    const std::string from = join_path(join_path(join_path(p.dir, "runs"), id), "views.png"), file = "views_" + id + ".png";
+    std::error_code ec;
+    if (id != "no-refinement" && fs::exists(from, ec) && fs::copy_file(from, join_path(dir, file), fs::copy_options::overwrite_existing, ec))
+      md << "![" << file << "](" << file << ")\n\n";
+  }
+  md << "## Command\n\n```\nfillgs";
+  for (const std::string& s : args) md << " " << s;  // args[0] is "run"
+  md << "\n```\n\n";
   md << "Per-run folders (patches, refined views with their support, consistency mask, co-visibility and weight images): `"
      << join_path(p.dir, "runs") << "`.\n";
   write_file_atomically(join_path(dir, "report.md"), md.str());
-  out << "\nfillgs run: finished in " << fixed(seconds_since(t0), 0) << " s; report " << join_path(dir, "report.md") << "\n";
+  write_html_report(join_path(dir, "report.md"), join_path(dir, "report.html"));
+  out << "\nfillgs run: finished in " << fixed(seconds_since(t0), 0) << " s; report " << join_path(dir, "report.md") << " and "
+      << join_path(dir, "report.html") << "\n";
   return 0;
 }
 
