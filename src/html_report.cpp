@@ -164,10 +164,11 @@ HtmlReport markdown_to_html(const std::string& markdown, const std::string& base
   end_paragraph();
   std::ostringstream html;
   html << "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" << escape(title) << "</title>\n<style>\n"
-       << "body { font-family: 'DejaVu Sans', Helvetica, Arial, sans-serif; max-width: 1200px; margin: 2em auto; padding: 0 1em; color: #222; }\n"
-       << "table { border-collapse: collapse; margin: 1em 0; font-size: 0.9em; }\n"
+       << "body { font-family: 'DejaVu Sans', Helvetica, Arial, sans-serif; max-width: 1500px; margin: 2em auto; padding: 0 1em; color: #222; }\n"
+       << "table { border-collapse: collapse; margin: 1em 0; font-size: 0.8em; display: block; overflow-x: auto; }\n"
        << "th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }\n"
-       << "th { background: #f0f0f0; } td:first-child, td:nth-child(2), th:first-child { text-align: left; }\n"
+       << "th { background: #f0f0f0; } td, th { white-space: nowrap; }\n"
+       << "td:first-child, td:nth-child(2), th:first-child, th:nth-child(2) { text-align: left; }\n"
        << "tr:nth-child(even) td { background: #fafafa; }\n"
        << "figure { margin: 1em 0; } img { max-width: 100%; border: 1px solid #ddd; } figcaption { color: #666; font-size: 0.85em; }\n"
        << "pre { background: #f6f6f6; padding: 0.8em; overflow-x: auto; } code { font-family: 'DejaVu Sans Mono', monospace; }\n"
