@@ -127,6 +127,8 @@ void read_one(const std::string& data) {
     read_colour_correction(put("colour_correction.json", data));
   } else if (r == "image") {  // what a refiner hands back
     read_image(put("refined.png", data));
+  } else if (r == "image_jpeg") {  // what datasets hold (Panoptic's ims/<camera>/<frame>.jpg)
+    read_image(put("000000.jpg", data));
   } else if (r == "checkpoint") {
     TrainOptions o;
     o.iterations = 1;
@@ -284,6 +286,11 @@ void make_seeds(const std::string& dir) {
     for (size_t i = 0; i < im.pixels.size(); ++i) im.pixels[i] = float(i % 11) / 11.0f;
     write_image(tmp + ".png", im);
     seed("seed.png", read_file(tmp + ".png"));
+  } else if (r == "image_jpeg") {
+    Image im(16, 8, 3);
+    for (size_t i = 0; i < im.pixels.size(); ++i) im.pixels[i] = float(i % 13) / 13.0f;
+    write_image(tmp + ".jpg", im);
+    seed("seed.jpg", read_file(tmp + ".jpg"));
   } else if (r == "checkpoint") {
     PointSet points;
     points.positions = {Vec3f(0, 0, 0), Vec3f(0.2f, 0, 0.1f), Vec3f(0, 0.2f, -0.1f), Vec3f(0.1f, 0.1f, 0)};
