@@ -142,6 +142,7 @@ void finish_series(ScatterSeries& series, double exact_seconds, std::vector<Scat
   series.x.push_back(exact_seconds);
   series.y.push_back(1.0);
   series.point_labels.push_back("exact");
+  series.joined = false;  // settings, not a sequence
   pareto.push_back(series);
 }
 

@@ -294,7 +294,7 @@ void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>
     const std::string colour = kPalette[k % 6];
     const std::string mine = "($1 == " + std::to_string(k) + " ? $";
     if (k) gp << ", \\\n     ";
-    gp << "'" << data << "' skip 1 using 2:" << mine << "3 : NaN) with linespoints pt 7 ps 1.1 lw 1.5 lc rgb '" << colour << "' title "
+    gp << "'" << data << "' skip 1 using 2:" << mine << "3 : NaN) with " << (series[k].joined ? "linespoints" : "points") << " pt 7 ps 1.1 lw 1.5 lc rgb '" << colour << "' title "
        << quoted(series[k].name);
   }
   gp << "\n";

@@ -30,6 +30,7 @@ struct ScatterSeries {
   std::string name;
   std::vector<double> x, y;
   std::vector<std::string> point_labels;  ///< optional, one per point
+  bool joined = true;                     ///< false: points only (settings that are not a sequence)
 };
 
 /// Several series as points joined in order of x (one colour each, legend outside the plot on the
