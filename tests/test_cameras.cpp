@@ -209,6 +209,24 @@ TEST_CASE("transforms.json and COLMAP text writers round-trip", "[cameras]") {
   }
 }
 
+namespace {
+
+/// Name, size and intrinsics equal; rotation and translation within `tolerance`.
+void check_same_camera(const Camera& a, const Camera& b, double tolerance) {
+  INFO(a.name);
+  CHECK(a.name == b.name);
+  CHECK((a.R - b.R).cwiseAbs().maxCoeff() < tolerance);
+  CHECK((a.t - b.t).cwiseAbs().maxCoeff() < tolerance);
+  CHECK(a.fx == b.fx);
+  CHECK(a.fy == b.fy);
+  CHECK(a.cx == b.cx);
+  CHECK(a.cy == b.cy);
+  CHECK(a.width == b.width);
+  CHECK(a.height == b.height);
+}
+
+}  // namespace
+
 TEST_CASE("COLMAP 3.8 itself reads fillgs's export: model_converter to binary, read back by fillgs", "[cameras][colmap]") {
   if (std::system("colmap help >/dev/null 2>&1") != 0) {
     WARN("skipped: no 'colmap' program (Debian colmap; scripts/install-deps.sh installs it)");
@@ -237,19 +255,9 @@ TEST_CASE("COLMAP 3.8 itself reads fillgs's export: model_converter to binary, r
   REQUIRE(std::filesystem::exists(dir + "/bin/images.bin"));
   const auto back = read_cameras(dir + "/bin");
   REQUIRE(back.size() == cams.size());
-  for (size_t i = 0; i < cams.size(); ++i) {
-    // COLMAP stores the pose as a quaternion and translation in doubles: the same pose to
-    // rounding, and the same intrinsics exactly.
-    CHECK(back[i].name == cams[i].name);
-    CHECK((back[i].R - cams[i].R).cwiseAbs().maxCoeff() < 1e-9);
-    CHECK((back[i].t - cams[i].t).cwiseAbs().maxCoeff() < 1e-9);
-    CHECK(back[i].fx == cams[i].fx);
-    CHECK(back[i].fy == cams[i].fy);
-    CHECK(back[i].cx == cams[i].cx);
-    CHECK(back[i].cy == cams[i].cy);
-    CHECK(back[i].width == cams[i].width);
-    CHECK(back[i].height == cams[i].height);
-  }
+  // COLMAP stores the pose as a quaternion and translation in doubles: the same pose to
+  // rounding, and the same intrinsics exactly.
+  for (size_t i = 0; i < cams.size(); ++i) check_same_camera(back[i], cams[i], 1e-9);
 }
 
 TEST_CASE("COLMAP 3.8 converts the N3V model to text: fillgs reads both forms alike", "[cameras][colmap]") {
@@ -265,12 +273,7 @@ TEST_CASE("COLMAP 3.8 converts the N3V model to text: fillgs reads both forms al
   const auto bin = read_cameras(model), txt = read_cameras(dir);
   REQUIRE(bin.size() == 21);
   REQUIRE(txt.size() == bin.size());
-  for (size_t i = 0; i < bin.size(); ++i) {
-    CHECK(txt[i].name == bin[i].name);
-    CHECK((txt[i].R - bin[i].R).cwiseAbs().maxCoeff() < 1e-12);
-    CHECK((txt[i].t - bin[i].t).cwiseAbs().maxCoeff() < 1e-12);
-    CHECK(txt[i].fx == bin[i].fx);
-  }
+  for (size_t i = 0; i < bin.size(); ++i) check_same_camera(txt[i], bin[i], 1e-12);
   // Points: COLMAP writes the 7,298 points of points3D.bin as text; fillgs reads both.
   const PointSet pb = read_points(model + "/points3D.bin"), pt = read_points(dir + "/points3D.txt");
   REQUIRE(pb.positions.size() == 7298);
