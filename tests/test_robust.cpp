@@ -11,6 +11,16 @@
 #include <fstream>
 #include <sstream>
 
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define FILLGS_LSAN 1
+#include <sanitizer/lsan_interface.h>
+#endif
+#endif
+#ifndef FILLGS_LSAN
+#define FILLGS_LSAN 0
+#endif
+
 #include "fillgs/cli.hpp"
 #include "fillgs/image_io.hpp"
 #include "fillgs/limits.hpp"
@@ -70,6 +80,14 @@ const char* kRow = "0 0 0 0.1 0.2 0.3 1 -3 -3 -3 1 0 0 0\n";
 std::string transforms(const std::string& frame_extra, const std::string& matrix = "[[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]") {
   return R"({"fl_x": 40, "w": 48, "h": 32, "frames": [{"file_path": "a", )" + frame_extra + R"("transform_matrix": )" + matrix + "}]}";
 }
+
+/// Allocations made while one lives are not reported by LeakSanitizer (where it runs).
+struct LeaksIgnored {
+#if FILLGS_LSAN
+  LeaksIgnored() { __lsan_disable(); }
+  ~LeaksIgnored() { __lsan_enable(); }
+#endif
+};
 
 /// A process id that no longer runs: a child that has exited and been reaped.
 pid_t dead_pid() {
@@ -325,7 +343,10 @@ TEST_CASE("images are read by the reader their extension names, and its complain
   write(dir + "/b.jpg", png);
   CHECK_THROWS_WITH(read_image(dir + "/b.jpg"), Catch::Contains("b.jpg: cannot read image") && Catch::Contains("jpeg"));
   // A PNG cut after its header: libpng's two-line complaint comes back as one line.
+  // OpenImageIO's PNG reader leaks a string on this path (libpng's longjmp skips its
+  // destructors; README "Robustness"): not fillgs's, so not counted under LeakSanitizer.
   write(dir + "/cut.png", png.substr(0, 40));
+  [[maybe_unused]] const LeaksIgnored oiio_png_leak;
   try {
     (void)read_image(dir + "/cut.png");
     FAIL("a truncated PNG was read");
