@@ -14,7 +14,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -114,44 +113,39 @@ void draw(const std::string& png_path, const std::string& csv, const std::string
                            stem_name + ".gp\n" + preamble(width, height);
   write_file_atomically(gp_path, head + "set output " + quoted(stem_name + ".png") + "\n" + body);
 
-  static std::atomic<int> counter{0};
-  const std::string tmp_name = "." + stem_name + ".png.tmp" + std::to_string(::getpid()) + "_" + std::to_string(counter++);
   const std::string log_path = join_path(dir, "." + stem_name + ".gnuplot" + std::to_string(::getpid()) + ".log");
   const std::string command = gnuplot_program() + " > /dev/null 2> '" + log_path + "'";
-  // A gnuplot that stops reading (a script error, or none installed) must not end fillgs with
-  // SIGPIPE: the signal is blocked in this thread while writing, and a pending one consumed.
-  sigset_t pipe_signal, previous;
-  sigemptyset(&pipe_signal);
-  sigaddset(&pipe_signal, SIGPIPE);
-  pthread_sigmask(SIG_BLOCK, &pipe_signal, &previous);
-  FILE* pipe = ::popen(command.c_str(), "w");
-  bool ok = false;
-  if (pipe) {
-    const std::string script = "cd " + quoted(fs::absolute(dir).string()) + "\n" + head + "set output " + quoted(tmp_name) + "\n" + body + "set output\n";
-    const bool written = std::fwrite(script.data(), 1, script.size(), pipe) == script.size();
-    const int status = ::pclose(pipe);
-    ok = written && status == 0;
-  }
-  const timespec no_wait{0, 0};
-  while (sigtimedwait(&pipe_signal, nullptr, &no_wait) == SIGPIPE) {
-  }
-  pthread_sigmask(SIG_SETMASK, &previous, nullptr);
-  const std::string tmp_path = join_path(dir, tmp_name);
-  std::error_code ec;
-  if (ok && fs::exists(tmp_path, ec) && fs::file_size(tmp_path, ec) > 0) {
-    fs::rename(tmp_path, png_path, ec);
-    ok = !ec;
-  } else {
-    ok = false;
-  }
-  if (!ok) {
+  try {
+    // The PNG appears whole or not at all: gnuplot draws into write_atomically's temporary file.
+    write_atomically(png_path, [&](const std::string& tmp) {
+      // A gnuplot that stops reading (a script error, or none installed) must not end fillgs
+      // with SIGPIPE: the signal is blocked in this thread while writing, and a pending one consumed.
+      sigset_t pipe_signal, previous;
+      sigemptyset(&pipe_signal);
+      sigaddset(&pipe_signal, SIGPIPE);
+      pthread_sigmask(SIG_BLOCK, &pipe_signal, &previous);
+      bool ok = false;
+      if (FILE* pipe = ::popen(command.c_str(), "w")) {
+        const std::string script = "cd " + quoted(fs::absolute(dir).string()) + "\n" + head + "set output " +
+                                   quoted(fs::absolute(tmp).string()) + "\n" + body + "set output\n";
+        const bool written = std::fwrite(script.data(), 1, script.size(), pipe) == script.size();
+        ok = ::pclose(pipe) == 0 && written;
+      }
+      const timespec no_wait{0, 0};
+      while (sigtimedwait(&pipe_signal, nullptr, &no_wait) == SIGPIPE) {
+      }
+      pthread_sigmask(SIG_SETMASK, &previous, nullptr);
+      std::error_code ec;
+      if (!ok || !fs::exists(tmp, ec) || fs::file_size(tmp, ec) == 0) throw_error(png_path, ": gnuplot failed");
+    });
+  } catch (const Error&) {
     std::string why = read_file_or_empty(log_path);
     why = why.substr(0, why.find('\n'));
     if (why.empty()) why = "could not run '" + gnuplot_program() + "' (Debian gnuplot-nox; scripts/install-deps.sh installs it)";
     std::cerr << "warning: " << png_path << " not drawn (" << why << "); its data and script are in " << stem_name << ".csv and "
               << stem_name << ".gp\n";
-    fs::remove(tmp_path, ec);
   }
+  std::error_code ec;
   fs::remove(log_path, ec);
 }
 
@@ -196,7 +190,6 @@ const char* const kPalette[] = {"#3c78b4", "#d62728", "#2ca02c", "#9467bd", "#ff
 
 struct Box {
   double x0, y0, x1, y1;
-  bool overlaps(const Box& o) const { return x0 < o.x1 && o.x0 < x1 && y0 < o.y1 && o.y0 < y1; }
   double overlap(const Box& o) const {
     return std::max(0.0, std::min(x1, o.x1) - std::max(x0, o.x0)) * std::max(0.0, std::min(y1, o.y1) - std::max(y0, o.y0));
   }
