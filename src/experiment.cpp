@@ -16,6 +16,7 @@
 #include "fillgs/timing.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/html_report.hpp"
+#include "fillgs/limits.hpp"
 #include "fillgs/plot.hpp"
 #include "fillgs/scene_io.hpp"
 
@@ -165,10 +166,19 @@ RunResult load_result(const std::string& path) {
   }
 }
 
-std::vector<RunResult> collect_results(const std::string& root) {
+namespace {
+
+/// Runs of one scene and seed in the order of standard_configs (backbone first, then by id).
+void sort_by_configuration(std::vector<RunResult>::iterator first, std::vector<RunResult>::iterator last) {
   std::vector<std::string> order = {"backbone"};
   for (const RunConfig& c : standard_configs(Weighting::ExploreGS, 0.5, {OracleSupport::Observed, OracleSupport::Full})) order.push_back(c.id);
-  std::vector<std::pair<std::string, RunResult>> found;
+  auto rank = [&](const std::string& id) { return size_t(std::find(order.begin(), order.end(), id) - order.begin()); };
+  std::stable_sort(first, last, [&](const RunResult& a, const RunResult& b) { return rank(a.id) != rank(b.id) ? rank(a.id) < rank(b.id) : a.id < b.id; });
+}
+
+}  // namespace
+
+std::vector<RunResult> collect_results(const std::string& root) {
   if (!fs::is_directory(root)) return {};
   std::vector<fs::path> scenes;
   for (const auto& e : fs::directory_iterator(root))
@@ -181,9 +191,102 @@ std::vector<RunResult> collect_results(const std::string& root) {
     if (fs::is_directory(sc / "runs"))
       for (const auto& e : fs::directory_iterator(sc / "runs"))
         if (fs::exists(e.path() / "result.json")) rs.push_back(load_result((e.path() / "result.json").string()));
-    auto rank = [&](const std::string& id) { return size_t(std::find(order.begin(), order.end(), id) - order.begin()); };
-    std::sort(rs.begin(), rs.end(), [&](const RunResult& a, const RunResult& b) { return rank(a.id) != rank(b.id) ? rank(a.id) < rank(b.id) : a.id < b.id; });
+    sort_by_configuration(rs.begin(), rs.end());
     out.insert(out.end(), rs.begin(), rs.end());
+  }
+  return out;
+}
+
+std::vector<RunResult> read_results_csv(const std::string& path) {
+  const std::string text = read_file(path);
+  std::istringstream in(text);
+  std::string line;
+  if (!std::getline(in, line) || line != kResultsCsvHeader)
+    throw_error(path, ": not a fillgs bench results.csv (the first line must be the header '", kResultsCsvHeader, "')");
+  constexpr size_t kColumns = 23;
+  std::vector<RunResult> out;
+  for (size_t row = 2; std::getline(in, line); ++row) {
+    if (line.empty()) continue;
+    std::vector<std::string> f;
+    std::stringstream ls(line);
+    for (std::string cell; std::getline(ls, cell, ',');) f.push_back(cell);
+    if (!line.empty() && line.back() == ',') f.emplace_back();
+    if (f.size() != kColumns) throw_error(path, ": line ", row, " has ", f.size(), " columns, the header ", kColumns);
+    if (f[0].empty() || f[2].empty()) throw_error(path, ": line ", row, ": empty scene or id");
+    const std::string where = "line " + std::to_string(row);
+    auto num = [&](size_t k) {
+      // The writer prints a missing metric (no moving pixels) as nan.
+      if (f[k] == "nan" || f[k] == "-nan") return std::nan("");
+      double x = 0;
+      if (!parse_number(f[k], &x)) throw_error(path, ": ", where, " column ", k + 1, ": '", f[k], "' is not a number");
+      return x;
+    };
+    auto count = [&](size_t k) {
+      const double x = num(k);
+      if (!(x >= 0 && x == std::floor(x) && x < 9.0e15)) throw_error(path, ": ", where, " column ", k + 1, ": '", f[k], "' is not a count");
+      return x;
+    };
+    RunResult r;
+    r.variant = f[0];
+    r.seed = uint64_t(count(1));
+    r.id = f[2];
+    r.group = f[3];
+    r.support = f[4];
+    r.interpolation.split = "interpolation", r.extrapolation.split = "extrapolation", r.train.split = "train";
+    r.interpolation.psnr = num(5), r.interpolation.ssim = num(6), r.interpolation.psnr_moving = num(7);
+    r.extrapolation.psnr = num(8), r.extrapolation.ssim = num(9), r.extrapolation.psnr_moving = num(10);
+    r.train.psnr = num(11);
+    r.trajectories = int(count(12));
+    r.views_added = size_t(count(13));
+    r.mean_weight = num(14), r.support_share = num(15);
+    r.refine_failures = int(count(16));
+    r.seconds_select = num(17), r.seconds_refine = num(18), r.seconds_weights = num(19), r.seconds_train = num(20), r.seconds_eval = num(21),
+    r.seconds_total = num(22);
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+std::vector<RunResult> merge_results(const std::vector<std::string>& inputs) {
+  struct Found {
+    RunResult result;
+    std::string source;
+  };
+  std::vector<Found> all;
+  for (const std::string& in : inputs) {
+    if (!fs::exists(in)) throw_error(in, ": no such bench folder or results.csv");
+    const std::vector<RunResult> rs = fs::is_directory(in) ? collect_results(in) : read_results_csv(in);
+    if (rs.empty()) throw_error(in, ": holds no finished run");
+    for (const RunResult& r : rs) all.push_back({r, in});
+  }
+  // A run found twice must be the same run: equal to the CSV's 6 significant digits.
+  auto same = [](double a, double b) { return (std::isnan(a) && std::isnan(b)) || std::abs(a - b) <= 1e-5 * std::max(1.0, std::abs(a)); };
+  std::vector<RunResult> out;
+  std::vector<std::string> sources;
+  for (const Found& f : all) {
+    const RunResult& r = f.result;
+    auto it = std::find_if(out.begin(), out.end(), [&](const RunResult& x) { return x.variant == r.variant && x.seed == r.seed && x.id == r.id; });
+    if (it == out.end()) {
+      out.push_back(r);
+      sources.push_back(f.source);
+      continue;
+    }
+    const std::pair<double, double> metrics[] = {{it->interpolation.psnr, r.interpolation.psnr},
+                                                 {it->interpolation.psnr_moving, r.interpolation.psnr_moving},
+                                                 {it->extrapolation.psnr, r.extrapolation.psnr},
+                                                 {it->extrapolation.psnr_moving, r.extrapolation.psnr_moving},
+                                                 {it->train.psnr, r.train.psnr},
+                                                 {it->mean_weight, r.mean_weight}};
+    for (const auto& [a, b] : metrics)
+      if (!same(a, b))
+        throw_error(sources[size_t(it - out.begin())], " and ", f.source, " disagree on ", r.variant, " seed ", r.seed, " ", r.id, " (", a, " against ",
+                    b, "): two different runs under one name");
+  }
+  std::stable_sort(out.begin(), out.end(), [](const RunResult& a, const RunResult& b) { return a.variant != b.variant ? a.variant < b.variant : a.seed < b.seed; });
+  for (auto first = out.begin(); first != out.end();) {
+    auto last = std::find_if(first, out.end(), [&](const RunResult& x) { return x.variant != first->variant || x.seed != first->seed; });
+    sort_by_configuration(first, last);
+    first = last;
   }
   return out;
 }
@@ -516,8 +619,7 @@ std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& r
 void write_bench_report(const std::string& root, const std::vector<RunResult>& results) {
   // CSV: every run.
   std::ostringstream csv;
-  csv << "scene,seed,id,group,support,interp_psnr,interp_ssim,interp_psnr_moving,extrap_psnr,extrap_ssim,extrap_psnr_moving,train_psnr,"
-         "trajectories,views_added,mean_weight,support_share,refine_failures,s_select,s_refine,s_weights,s_train,s_eval,s_total\n";
+  csv << kResultsCsvHeader << "\n";
   for (const RunResult& r : results)
     csv << r.variant << "," << r.seed << "," << r.id << "," << r.group << "," << r.support << "," << r.interpolation.psnr << "," << r.interpolation.ssim
         << "," << r.interpolation.psnr_moving << "," << r.extrapolation.psnr << "," << r.extrapolation.ssim << "," << r.extrapolation.psnr_moving

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "fillgs/cli.hpp"
+#include "fillgs/error.hpp"
 #include "fillgs/evaluate.hpp"
 #include "fillgs/experiment.hpp"
 #include "fillgs/finetune.hpp"
@@ -23,6 +24,7 @@
 #include "fillgs/scene_io.hpp"
 #include "fillgs/train_model.hpp"
 #include "fillgs/weights.hpp"
+#include "cli_run.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;
@@ -762,4 +764,112 @@ TEST_CASE("bench report: FillGS paired against each method by seed (hand-made re
   CHECK(d[1].mean[0] == Approx(1.0));
   CHECK(d[1].mean[2] == Approx(-1.0));
   CHECK(d[1].sd[0] == 0.0);
+}
+
+TEST_CASE("bench merge: runs from bench folders and results.csv files make one table; conflicts and bad rows are refused", "[refine][bench]") {
+  auto result = [](const std::string& id, uint64_t seed, double interp, double extrap) {
+    RunResult r;
+    r.id = id;
+    r.group = id == "backbone" ? "control" : "strategy";
+    r.variant = "n3v";
+    r.seed = seed;
+    r.support = id == "backbone" ? "" : "observed";
+    r.interpolation.psnr = interp;
+    r.interpolation.ssim = 0.612345678;
+    r.interpolation.psnr_moving = interp - 5;
+    r.extrapolation.psnr = extrap;
+    r.extrapolation.psnr_moving = std::nan("");  // no moving pixels: written as nan, read back as NaN
+    r.train.psnr = 40.0;
+    r.trajectories = 15;
+    r.views_added = 135;
+    r.mean_weight = 0.0149876543;
+    r.seconds_total = 123.456789;
+    return r;
+  };
+  // Folder A as the bench lays it out (seed 1); CSV B as the bench writes it (seeds 1 and 2).
+  const std::string a = scratch("merge_a"), b = scratch("merge_b"), c = scratch("merge_c");
+  make_directories(join_path(a, "n3v_s1/runs/fillgs"));
+  make_directories(join_path(a, "n3v_s1/backbone"));
+  write_file_atomically(join_path(a, "n3v_s1/options.json"), "{}\n");
+  save_result(join_path(a, "n3v_s1/backbone/result.json"), result("backbone", 1, 17.123456789, 12.5));
+  save_result(join_path(a, "n3v_s1/runs/fillgs/result.json"), result("fillgs", 1, 19.987654321, 13.25));
+  write_bench_report(b, {result("fillgs", 1, 19.987654321, 13.25), result("backbone", 2, 18.0, 12.0), result("fillgs", 2, 21.0, 14.0)});
+  const std::string csv = join_path(b, "results.csv");
+
+  const std::vector<RunResult> back = read_results_csv(csv);
+  REQUIRE(back.size() == 3);
+  CHECK(back[0].id == "fillgs");
+  CHECK(back[0].seed == 1);
+  CHECK(back[0].group == "strategy");
+  CHECK(back[0].support == "observed");
+  CHECK(back[0].interpolation.psnr == Approx(19.9877).epsilon(1e-6));  // 6 significant digits
+  CHECK(back[0].interpolation.ssim == Approx(0.612346).epsilon(1e-6));
+  CHECK(back[0].interpolation.psnr_moving == Approx(14.9877).epsilon(1e-6));
+  CHECK(std::isnan(back[0].extrapolation.psnr_moving));
+  CHECK(back[0].trajectories == 15);
+  CHECK(back[0].views_added == 135);
+  CHECK(back[0].mean_weight == Approx(0.0149877).epsilon(1e-6));
+  CHECK(back[0].seconds_total == Approx(123.457).epsilon(1e-6));
+
+  // The union: seed 1's fillgs is in both (full precision and 6 digits) and counted once.
+  const std::vector<RunResult> all = merge_results({a, csv});
+  REQUIRE(all.size() == 4);
+  const char* order[][2] = {{"backbone", "1"}, {"fillgs", "1"}, {"backbone", "2"}, {"fillgs", "2"}};
+  for (size_t i = 0; i < 4; ++i) {
+    CHECK(all[i].id == order[i][0]);
+    CHECK(all[i].seed == uint64_t(std::stoi(order[i][1])));
+  }
+  CHECK(all[1].interpolation.psnr == Approx(19.987654321).epsilon(1e-12));  // the folder's full-precision value came first
+
+  // Through the command line: the merged CSV has the four runs, FillGS's mean over both seeds.
+  const CliResult ok = run_cli({"bench", "--merge", a + "," + csv, "--out", c});
+  INFO(ok.err);
+  REQUIRE(ok.code == 0);
+  CHECK(read_results_csv(join_path(c, "results.csv")).size() == 4);
+  const std::string md = read_file(join_path(c, "results.md"));
+  CHECK(md.find("20.49 ± 0.72") != std::string::npos);  // (19.99 + 21.00) / 2, sd |21 − 19.99| / √2
+
+  // Two different runs under one name.
+  const std::string d = scratch("merge_d");
+  write_bench_report(d, {result("fillgs", 1, 19.5, 13.25)});
+  try {
+    merge_results({a, join_path(d, "results.csv")});
+    FAIL("a conflict was accepted");
+  } catch (const Error& e) {
+    const std::string m = e.what();
+    CHECK(m.find(a) != std::string::npos);
+    CHECK(m.find(join_path(d, "results.csv")) != std::string::npos);
+    CHECK(m.find("disagree on n3v seed 1 fillgs") != std::string::npos);
+  }
+
+  // Bad files: one line naming the file, the line and the column.
+  const std::string header = kResultsCsvHeader, bad = join_path(d, "bad.csv");
+  const std::string row = read_file(csv).substr(header.size() + 1);
+  auto refused = [&](const std::string& text, const std::string& expect) {
+    write_file_atomically(bad, text);
+    try {
+      read_results_csv(bad);
+      FAIL("accepted: " << text);
+    } catch (const Error& e) {
+      const std::string m = e.what();
+      CHECK(m.find(bad) != std::string::npos);
+      CHECK(m.find(expect) != std::string::npos);
+      CHECK(m.find('\n') == std::string::npos);
+    }
+  };
+  refused("scene,seed,id\n", "not a fillgs bench results.csv");
+  refused(header + "\nn3v,1,fillgs,strategy,observed,19.5\n", "line 2 has 6 columns");
+  std::string letter = row.substr(0, row.find('\n'));
+  letter.replace(letter.find("19.9877"), 7, "19.9x77");
+  refused(header + "\n" + letter + "\n", "line 2 column 6: '19.9x77' is not a number");
+  std::string seed = row.substr(0, row.find('\n'));
+  seed.replace(seed.find(",1,"), 3, ",1.5,");
+  refused(header + "\n" + seed + "\n", "column 2: '1.5' is not a count");
+
+  const CliResult mixed = run_cli({"bench", "--merge", csv, "--out", c, "--seeds", "1"});
+  CHECK(mixed.code != 0);
+  CHECK(mixed.err.find("--seeds has no meaning") != std::string::npos);
+  const CliResult missing = run_cli({"bench", "--merge", join_path(d, "nothing.csv"), "--out", scratch("merge_e")});
+  CHECK(missing.code != 0);
+  CHECK(missing.err.find("nothing.csv: no such bench folder or results.csv") != std::string::npos);
 }

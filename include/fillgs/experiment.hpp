@@ -123,6 +123,22 @@ RunResult load_result(const std::string& path);
 /// standard_configs (backbone first).
 std::vector<RunResult> collect_results(const std::string& root);
 
+/// The first line of a bench's results.csv (one run a row; write_bench_report writes it).
+inline constexpr const char* kResultsCsvHeader =
+    "scene,seed,id,group,support,interp_psnr,interp_ssim,interp_psnr_moving,extrap_psnr,extrap_ssim,extrap_psnr_moving,train_psnr,"
+    "trajectories,views_added,mean_weight,support_share,refine_failures,s_select,s_refine,s_weights,s_train,s_eval,s_total";
+
+/// The runs of a results.csv. What the CSV does not hold (view and pixel counts, LPIPS,
+/// per-split seconds) stays at its default. Bad rows: one error naming file, line and column.
+std::vector<RunResult> read_results_csv(const std::string& path);
+
+/// The union of several benches' runs — each input a bench folder (its result.json files)
+/// or a results.csv — ordered by scene, seed, then as collect_results orders a folder: seeds
+/// run on different machines, or kept only as CSV, make one table. A run (scene, seed, id)
+/// found in two inputs must agree to the CSV's 6 significant digits, else one error names
+/// both inputs.
+std::vector<RunResult> merge_results(const std::vector<std::string>& inputs);
+
 /// `reference` minus another configuration, paired by scene and seed: the way to read a
 /// comparison whose spread between seeds is larger than the differences between methods.
 struct PairedDifference {

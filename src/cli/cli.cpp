@@ -458,6 +458,7 @@ void print_help(std::ostream& out) {
          "         [--support observed|full|both] [--iterations N] [--backbone-iterations N] [--width W --height H --frames F]\n"
          "         [--artifact-strength a] [--baseline-weighting NAME] [--motion-rates repair|gentle] [--position-lr LR]\n"
          "         [--key-lr-scale k] [--smoke]                the paper's comparison (resumable)\n"
+         "  bench --merge A,B,.. --out DIR             its tables over finished runs: bench folders or results.csv files\n"
          "  run [--out DIR] [--scene NAME] [--baseline NAME] [--support observed|full] [--motion-rates repair|gentle] [--smoke]\n"
          "                                            the whole pipeline on the built-in scene, with a report\n\n"
          "scene options:  --scene-format auto|3dgs|stg|ex4dgs|fillgs --duration F (Ex4DGS) --stg-duration F\n"

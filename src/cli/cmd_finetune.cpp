@@ -263,11 +263,27 @@ std::vector<OracleSupport> parse_supports(const std::string& s) {
 int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("bench", args, 1,
          merge({"out", "scenes", "variants", "seeds", "only", "configs", "iterations", "select-every", "backbone-iterations", "width", "height",
-                "frames", "artifact-strength", "baseline-weighting", "threads", "time-stride", "support"},
+                "frames", "artifact-strength", "baseline-weighting", "threads", "time-stride", "support", "merge"},
                kMotionRateOptions),
          {"quiet", "smoke"});
   const bool smoke = a.flag("smoke");
   const std::string root = a.get("out", "fillgs_bench");
+  if (a.has("merge")) {
+    // Tables over finished runs only: bench folders or results.csv files, nothing run.
+    if (!a.has("out")) throw_error("fillgs bench: --merge needs --out DIR (the folder for the merged tables)");
+    for (const std::string& k : merge({"scenes", "variants", "seeds", "only", "configs", "iterations", "select-every", "backbone-iterations", "width",
+                                       "height", "frames", "artifact-strength", "baseline-weighting", "time-stride", "support"},
+                                      kMotionRateOptions))
+      if (a.has(k)) throw_error("fillgs bench: --merge runs nothing, so --", k, " has no meaning with it");
+    if (smoke) throw_error("fillgs bench: --merge runs nothing, so --smoke has no meaning with it");
+    const std::vector<std::string> inputs = split_commas(a.get("merge"));
+    const std::vector<RunResult> all = merge_results(inputs);
+    make_directories(root);
+    write_bench_report(root, all);
+    out << "fillgs bench: " << all.size() << " runs from " << inputs.size() << " inputs -> " << join_path(root, "results.md") << ", "
+        << join_path(root, "results.csv") << "\n";
+    return 0;
+  }
   BenchSetup setup = bench_setup(a, smoke);
   // --variants is the earlier name of --scenes.
   const std::vector<std::string> scenes = split_commas(a.get("scenes", a.get("variants", "n3v")));
