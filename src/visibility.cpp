@@ -6,6 +6,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <numeric>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -37,6 +38,13 @@ double ViewMaps::score() const {
   double s = 0;
   for (float v : deficiency) s += v;
   return s / double(deficiency.size());
+}
+
+std::vector<size_t> shard_frames(size_t total, size_t index, size_t count) {
+  if (count < 1 || index >= count) throw_error("shard ", index + 1, " of ", count, " does not exist");
+  std::vector<size_t> out;
+  for (size_t f = total * index / count; f < total * (index + 1) / count; ++f) out.push_back(f);
+  return out;
 }
 
 std::vector<double> frame_times(int frames) {
@@ -569,6 +577,14 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
     if (f > 0 && !(times[f] > times[f - 1])) throw_error("observe: times must be strictly ascending (", times[f - 1], ", ", times[f], ")");
   }
   const size_t N = cloud.size();
+  std::vector<size_t> frames = options.frames;
+  if (frames.empty()) {
+    frames.resize(times.size());
+    std::iota(frames.begin(), frames.end(), size_t(0));
+  }
+  for (size_t k = 0; k < frames.size(); ++k)
+    if (frames[k] >= times.size() || (k > 0 && frames[k] <= frames[k - 1]))
+      throw_error("observe: the frames to evaluate must be strictly ascending indices below ", times.size());
   const auto views = views_per_frame(cameras, times, frame_step);
   size_t max_views = 0;
   for (const auto& v : views) max_views = std::max(max_views, v.size());
@@ -579,14 +595,14 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
   summary.gaussians = N;
   summary.static_count = cloud.static_count();
   summary.dynamic_count = cloud.dynamic_count();
-  summary.frames = int(times.size());
+  summary.frames = int(frames.size());
   summary.camera_poses = run.pose_count();
   summary.max_views_per_frame = uint16_t(max_views);
 
   tbb::task_arena arena(vis.threads > 0 ? vis.threads : tbb::task_arena::automatic);
   arena.execute([&] {
     FrameEvaluator evaluator(cloud);
-    const FrameGaussians* frame = &evaluator.evaluate(times[0]);
+    const FrameGaussians* frame = &evaluator.evaluate(times[frames[0]]);
     std::unique_ptr<GaussianTracer> tracer;
     if (vis.mode == VisibilityMode::Raytraced) {
       TracerOptions to;
@@ -605,9 +621,9 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
     std::vector<uint32_t> base_poses;  // sorted pose indices the base was summed for
     bool have_base = false;
     std::vector<float> speed, deficiency;
-    progress.start("observe", times.size());
-    for (size_t f = 0; f < times.size(); ++f) {
-      if (f > 0) {
+    progress.start("observe", frames.size());
+    for (size_t f : frames) {
+      if (f != frames[0]) {
         frame = &evaluator.evaluate(times[f]);
         if (tracer) {
           tracer->refit_dynamic(*frame);
@@ -680,7 +696,6 @@ ObservationTables observation_tables(const GaussianCloud& cloud, const std::vect
                                      double frame_step, const ObservationOptions& options, ObservationSummary* summary,
                                      Progress& progress) {
   ObservationTables tables;
-  tables.times = times;
   tables.gaussians = cloud.size();
   tables.dynamic_ids = cloud.dynamic_ids;
   const size_t N = cloud.size(), M = cloud.dynamic_count();
@@ -690,6 +705,7 @@ ObservationTables observation_tables(const GaussianCloud& cloud, const std::vect
   const ObservationSummary s = observe(
       cloud, cameras, times, frame_step, options,
       [&](const FrameObservation& fo) {
+        tables.times.push_back(fo.time);
         tables.counts.insert(tables.counts.end(), fo.counts, fo.counts + N);
         tables.dynamic_speed.insert(tables.dynamic_speed.end(), fo.dynamic_speed, fo.dynamic_speed + M);
         tables.dynamic_deficiency.insert(tables.dynamic_deficiency.end(), fo.dynamic_deficiency, fo.dynamic_deficiency + M);

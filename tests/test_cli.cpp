@@ -274,3 +274,73 @@ TEST_CASE("fillgs convert --to frames: one 3DGS PLY per frame, each the model at
   CHECK(text.find("**Row Count:** " + std::to_string(read_scene(scene).size())) != std::string::npos);
   CHECK(text.find("| x ") != std::string::npos);
 }
+
+TEST_CASE("fillgs observe --shard i/n, then --merge: the single process's tables byte for byte", "[cli][observe]") {
+  const std::string dir = scratch("cli_observe_shards");
+  const int F = 7;
+  const SynthScene s = small_synth(F, 64, 48, 0.04);
+  write_fillgs_ply(dir + "/scene.ply", s.scene);
+  write_transforms_json(dir + "/train.json", cameras_over_time(s.train, F));
+  auto observe = [&](const std::string& out, std::vector<std::string> extra) {
+    std::vector<std::string> args = {"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/" + out, "--quiet"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const Result r = run_cli(args);
+    INFO(r.err);
+    REQUIRE(r.code == 0);
+  };
+  auto same_bytes = [&](const std::string& a, const std::string& b) {
+    INFO(a << " vs " << b);
+    CHECK(read_file(dir + "/" + a) == read_file(dir + "/" + b));
+  };
+  for (const std::vector<std::string>& mode : {std::vector<std::string>{"--mode", "raytraced", "--stride", "2"},
+                                               std::vector<std::string>{"--mode", "frustum", "--motion-tables", "dynamic"}}) {
+    const std::string tag = mode[1];
+    observe(tag + "_whole", mode);
+    std::vector<std::string> parts;
+    for (int i = 1; i <= 3; ++i) {
+      std::vector<std::string> extra = mode;
+      extra.insert(extra.end(), {"--shard", std::to_string(i) + "/3"});
+      observe(tag + "_part" + std::to_string(i), extra);
+      parts.push_back(dir + "/" + tag + "_part" + std::to_string(i));
+    }
+    // Blocks of 2, 2 and 3 frames (7 frames in 3 shards).
+    CHECK(read_npy(parts[0] + "/count.npy").shape == std::vector<size_t>{2, s.scene.size()});
+    CHECK(read_npy(parts[2] + "/times.npy").to_doubles("times") == std::vector<double>{4.0 / 6, 5.0 / 6, 1.0});
+    // Given out of order: the merge sorts the shards by their frames.
+    const Result m = run_cli({"observe", "--merge", parts[2] + "," + parts[0] + "," + parts[1], "--out", dir + "/" + tag + "_merged", "--quiet"});
+    INFO(m.err);
+    REQUIRE(m.code == 0);
+    const std::string suffix = tag == "frustum" ? "_dynamic" : "";
+    for (const std::string& f : std::vector<std::string>{"count.npy", "speed" + suffix + ".npy", "deficiency" + suffix + ".npy", "dynamic_ids.npy", "times.npy"})
+      same_bytes(tag + "_whole/" + f, tag + "_merged/" + f);
+    const auto whole = nlohmann::json::parse(std::ifstream(dir + "/" + tag + "_whole/summary.json"));
+    const auto merged = nlohmann::json::parse(std::ifstream(dir + "/" + tag + "_merged/summary.json"));
+    CHECK(merged["views"] == whole["views"]);
+    CHECK(merged["rays_traced"].get<uint64_t>() >= whole["rays_traced"].get<uint64_t>());  // each shard traces its cameras' static answers once
+    CHECK(merged["frames"] == F);
+    for (size_t k = 0; k < size_t(F); ++k)
+      CHECK(merged["deficiency_per_frame"][k].get<double>() == Approx(whole["deficiency_per_frame"][k].get<double>()).epsilon(1e-12));
+    for (size_t c = 0; c < whole["per_camera"].size(); ++c) {
+      CHECK(merged["per_camera"][c]["frames"] == whole["per_camera"][c]["frames"]);
+      CHECK(merged["per_camera"][c]["visible_fraction"].get<double>() ==
+            Approx(whole["per_camera"][c]["visible_fraction"].get<double>()).epsilon(1e-12));
+    }
+    CHECK(fs::exists(dir + "/" + tag + "_merged/deficiency_heatmap.png"));
+  }
+
+  SECTION("shards that do not make one job: one line, nothing written") {
+    const std::string p1 = dir + "/raytraced_part1", p2 = dir + "/raytraced_part2", p3 = dir + "/raytraced_part3";
+    expect_one_line_error(run_cli({"observe", "--merge", p1 + "," + p3, "--out", dir + "/bad"}), {"raytraced_part3", "frame 4 where frame 2"});
+    expect_one_line_error(run_cli({"observe", "--merge", p1 + "," + p2, "--out", dir + "/bad"}), {"a shard is missing"});
+    expect_one_line_error(run_cli({"observe", "--merge", p1 + "," + p1 + "," + p2 + "," + p3, "--out", dir + "/bad"}),
+                          {"raytraced_part1", "two shards hold it"});
+    expect_one_line_error(run_cli({"observe", "--merge", p1 + "," + dir + "/frustum_part2," + p3, "--out", dir + "/bad"}),
+                          {"frustum_part2", "'mode'", "shards of different jobs"});
+    expect_one_line_error(run_cli({"observe", "--merge", dir + "/raytraced_whole", "--out", dir + "/bad"}), {"raytraced_whole", "not a shard"});
+    expect_one_line_error(run_cli({"observe", "--merge", p1, "--out", dir + "/bad", "--mode", "exact"}), {"--mode", "belongs to the shards"});
+    for (const char* spec : {"0/3", "4/3", "3", "a/3", "1/8"})
+      expect_one_line_error(run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/bad", "--shard", spec}),
+                            {"--shard"});
+    CHECK_FALSE(fs::exists(dir + "/bad"));
+  }
+}

@@ -28,12 +28,22 @@ struct ObserveReport {
 ///   count.npy [T, N] (uint8 when at most 255 views share a time, else uint16),
 ///   speed.npy / deficiency.npy [T, N] float32 (or the _dynamic [T, M] variants),
 ///   dynamic_ids.npy [M] uint32, times.npy [T] float64, summary.json,
+///   with ObservationOptions::frames (a shard): only those rows, times.npy of those frames,
+///   deficiency_heat.npy (the heatmap's rows) and "shard" in summary.json;
 ///   deficiency_heatmap.png (Σ D per frame and per bin of dynamic Gaussians ordered along
 ///   the scene's longest axis), visible_fraction.png (per camera).
 /// Every file appears atomically; nothing is left under a final name if it fails.
 ObserveReport observe_to_directory(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const std::vector<double>& times,
                                    double frame_step, const ObservationOptions& options, const std::string& dir,
                                    const ObserveOutputOptions& output = {}, Progress& progress = null_progress());
+
+/// Shards of one job (folders of observe_to_directory with ObservationOptions::frames set:
+/// `fillgs observe --shard i/n`) combined into `dir` as the single process writes it: the
+/// .npy tables byte for byte (rows in frame order), summary.json (views, rays and seconds
+/// summed over the shards, per-camera fractions over all frames) and, with `plots`, the
+/// two pictures. The shards must agree on every setting and tile the frames exactly once;
+/// otherwise one error names the shard and what differs.
+ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, const std::string& dir, bool plots = true);
 
 /// Peak resident memory of this process so far (Linux VmHWM), 0 where unknown.
 size_t peak_memory_bytes();

@@ -111,11 +111,19 @@ struct ObservationOptions {
   /// Reuse each camera's static answer across frames and re-trace (raytraced) or
   /// re-project (frustum) only what dynamic Gaussians can change. Same counts either way.
   bool incremental = true;
+  /// Indices into `times` to evaluate, strictly ascending; empty: every time. Views are
+  /// assigned to frames over all of `times`, so the rows of a subset equal the same rows of
+  /// the whole (a shard of a job split over processes or machines).
+  std::vector<size_t> frames;
 };
+
+/// The frames of shard `index` (0-based) of `count`: a contiguous block of [0, total),
+/// sizes differing by at most one, earlier shards first.
+std::vector<size_t> shard_frames(size_t total, size_t index, size_t count);
 
 /// One frame of the tables, handed to the sink in frame order. Spans are valid during the call.
 struct FrameObservation {
-  int frame = 0;
+  int frame = 0;  ///< index into the `times` given to observe (also for a subset)
   double time = 0;
   const uint16_t* counts = nullptr;           ///< C[t][g] for all N Gaussians
   const float* dynamic_speed = nullptr;       ///< s[t][g] for the dynamic set (0 elsewhere)
@@ -126,7 +134,7 @@ struct FrameObservation {
 
 struct ObservationSummary {
   size_t gaussians = 0, static_count = 0, dynamic_count = 0;
-  int frames = 0;
+  int frames = 0;              ///< frames evaluated
   size_t views = 0;            ///< (camera, frame) pairs evaluated
   size_t camera_poses = 0;     ///< distinct poses (static answers cached per pose)
   uint16_t max_views_per_frame = 0;
@@ -145,7 +153,7 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
 /// The tables in memory: counts for every Gaussian, speeds and deficiency only for the
 /// dynamic set (static Gaussians have s = D = 0).
 struct ObservationTables {
-  std::vector<double> times;
+  std::vector<double> times;  ///< the times evaluated (a subset when ObservationOptions::frames names one)
   size_t gaussians = 0;
   std::vector<uint32_t> dynamic_ids;
   std::vector<uint16_t> counts;              ///< [T][N]

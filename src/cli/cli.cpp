@@ -228,11 +228,23 @@ int cmd_cameras(const std::vector<std::string>& args, std::ostream& out, std::os
 
 int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("observe", args, 1,
-         merge(merge({"scene", "cameras", "frames", "times", "mode", "stride", "threads", "out", "tau", "motion-tables"}, kSceneOptions),
+         merge(merge({"scene", "cameras", "frames", "times", "mode", "stride", "threads", "out", "tau", "motion-tables", "shard", "merge"},
+                     kSceneOptions),
                kCameraOptions),
          {"quiet", "from-scratch", "no-raster-match", "no-plots"});
   const auto t0 = Clock::now();
   const std::string out_dir = a.require("out");
+  if (a.has("merge")) {
+    for (const char* k : {"scene", "cameras", "frames", "times", "mode", "stride", "tau", "motion-tables", "shard"})
+      if (a.has(k)) throw_error("fillgs observe: --merge combines finished shards; --", k, " belongs to the shards' own runs");
+    const std::vector<std::string> shards = split_commas(a.get("merge"));
+    OutputFolder folder(out_dir);
+    const ObserveReport r = merge_observations(shards, folder.path(), !a.flag("no-plots"));
+    folder.commit();
+    out << "merged " << shards.size() << " shards: " << r.summary.gaussians << " Gaussians over " << r.summary.frames << " frames and "
+        << r.summary.views << " views -> " << out_dir << "\n";
+    return 0;
+  }
   ObservationOptions o;
   o.visibility.mode = parse_visibility_mode(a.get("mode", "frustum"));
   o.visibility.stride = a.integer("stride", o.visibility.stride);
@@ -252,6 +264,20 @@ int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::os
   if (cams.empty()) throw_error(a.get("cameras"), ": no cameras");
   double frame_step = 0;
   const std::vector<double> times = observe_times(a, cloud, cams, &frame_step);
+  if (a.has("shard")) {
+    // --shard i/n: the i-th of n contiguous blocks of frames (1-based), for observe --merge.
+    const std::string spec = a.get("shard");
+    const size_t slash = spec.find('/');
+    size_t index = 0, count = 0;
+    if (slash != std::string::npos) {
+      index = parse_count(spec.substr(0, slash), 1u << 20, "fillgs observe", "--shard index");
+      count = parse_count(spec.substr(slash + 1), 1u << 20, "fillgs observe", "--shard count");
+    }
+    if (slash == std::string::npos || index < 1 || count < 1 || index > count)
+      throw_error("fillgs observe: --shard expects i/n with 1 <= i <= n (got '", spec, "')");
+    if (count > times.size()) throw_error("fillgs observe: --shard ", spec, ": more shards than the ", times.size(), " frames");
+    o.frames = shard_frames(times.size(), index - 1, count);
+  }
   TerminalProgress progress(err, progress_enabled(a));
   OutputFolder folder(out_dir);  // a failed or killed run leaves the folder as it was
   const ObserveReport r = observe_to_directory(cloud, cams, times, frame_step, o, folder.path(), oo, progress);
@@ -427,6 +453,8 @@ void print_help(std::ostream& out) {
          "  observe --scene S --cameras C --out DIR   observation counts C[t][g], speeds s, deficiency D = s/(1+C)\n"
          "         [--frames F | --times t1,t2,..] [--mode frustum|raytraced|exact] [--stride s] [--tau w]\n"
          "         [--threads n] [--motion-tables dense|dynamic] [--from-scratch] [--no-raster-match] [--no-plots]\n"
+         "         [--shard i/n]                    the i-th of n blocks of frames, for --merge\n"
+         "  observe --merge DIR1,DIR2,.. --out DIR [--no-plots]   shards combined into the single-process tables\n"
          "  train --images DIR --cameras C --out DIR [--points P] [--iterations N] [--train-cameras a,b]\n"
          "         [--resume CKPT] [--checkpoint-every N] [--seed n] [--key-interval F] [--max-gaussians N]\n"
          "         [--sh-degree D] [--test-cameras C --test-images DIR] [--static-only] [--background r,g,b]\n"
