@@ -20,6 +20,7 @@ packages=(
   python3-openvdb          # the OpenVDB Python binding: a test opens exploration.vdb with it
   colmap                   # COLMAP 3.8: a test round-trips the COLMAP export; triangulated initial points
   gnuplot-nox              # the plots (src/plot.cpp drives gnuplot through a pipe)
+  libopenmpi-dev openmpi-bin  # observation tables over MPI ranks (fillgs observe --mpi)
 )
 
 missing=()

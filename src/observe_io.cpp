@@ -113,6 +113,14 @@ nlohmann::json per_camera_json(const ObserveTallies& t) {
 ObserveReport observe_to_directory(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const std::vector<double>& times,
                                    double frame_step, const ObservationOptions& options, const std::string& dir,
                                    const ObserveOutputOptions& output, Progress& progress) {
+  return write_observation(
+      cloud, cameras, times, frame_step, options,
+      [&](const FrameSink& sink, Progress& p) { return observe(cloud, cameras, times, frame_step, options, sink, p); }, dir, output, progress);
+}
+
+ObserveReport write_observation(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const std::vector<double>& times,
+                                double frame_step, const ObservationOptions& options, const FrameSource& source, const std::string& dir,
+                                const ObserveOutputOptions& output, Progress& progress) {
   using Clock = std::chrono::steady_clock;
   make_directories(dir);
   const bool shard = !options.frames.empty();
@@ -145,8 +153,7 @@ ObserveReport observe_to_directory(const GaussianCloud& cloud, const std::vector
   std::vector<float> dense_row;
   double write_seconds = 0;
 
-  const ObservationSummary summary = observe(
-      cloud, cameras, times, frame_step, options,
+  const ObservationSummary summary = source(
       [&](const FrameObservation& fo) {
         const auto start = Clock::now();
         if (narrow) {

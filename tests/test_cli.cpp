@@ -328,7 +328,7 @@ TEST_CASE("fillgs observe --shard i/n, then --merge: the single process's tables
     CHECK(fs::exists(dir + "/" + tag + "_merged/deficiency_heatmap.png"));
   }
 
-  SECTION("shards that do not make one job: one line, nothing written") {
+  {  // shards that do not make one job: one line, nothing written
     const std::string p1 = dir + "/raytraced_part1", p2 = dir + "/raytraced_part2", p3 = dir + "/raytraced_part3";
     expect_one_line_error(run_cli({"observe", "--merge", p1 + "," + p3, "--out", dir + "/bad"}), {"raytraced_part3", "frame 4 where frame 2"});
     expect_one_line_error(run_cli({"observe", "--merge", p1 + "," + p2, "--out", dir + "/bad"}), {"a shard is missing"});

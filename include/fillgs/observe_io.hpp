@@ -1,6 +1,7 @@
 #pragma once
 // `fillgs observe` as a library call: the observation tables streamed to .npy files frame
 // by frame (never all held in memory), summary.json, and two pictures.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,17 @@ struct ObserveReport {
 ObserveReport observe_to_directory(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const std::vector<double>& times,
                                    double frame_step, const ObservationOptions& options, const std::string& dir,
                                    const ObserveOutputOptions& output = {}, Progress& progress = null_progress());
+
+using FrameSink = std::function<void(const FrameObservation&)>;
+/// Hands every frame of a job to the sink in frame order and returns the summary: observe()
+/// in this process, or the frames of several processes (observe_mpi.hpp).
+using FrameSource = std::function<ObservationSummary(const FrameSink& sink, Progress& progress)>;
+
+/// observe_to_directory with the frames from `source` (the files, pictures and summary.json
+/// of the same job; `options` describes how the source computes them).
+ObserveReport write_observation(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const std::vector<double>& times,
+                                double frame_step, const ObservationOptions& options, const FrameSource& source, const std::string& dir,
+                                const ObserveOutputOptions& output = {}, Progress& progress = null_progress());
 
 /// Shards of one job (folders of observe_to_directory with ObservationOptions::frames set:
 /// `fillgs observe --shard i/n`) combined into `dir` as the single process writes it: the

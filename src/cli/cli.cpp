@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <optional>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -17,6 +18,9 @@
 #include "fillgs/image_io.hpp"
 #include "fillgs/init.hpp"
 #include "fillgs/observe_io.hpp"
+#ifdef FILLGS_WITH_MPI
+#include "fillgs/observe_mpi.hpp"
+#endif
 #include "fillgs/raster.hpp"
 #include "fillgs/scene_io.hpp"
 #include "fillgs/synth.hpp"
@@ -226,12 +230,119 @@ int cmd_cameras(const std::vector<std::string>& args, std::ostream& out, std::os
 
 // ------------------------------------------------------------------ observe
 
+namespace {
+
+/// What `fillgs observe` computes: the scene, the cameras, the times and how.
+struct ObserveJob {
+  ObservationOptions options;
+  ObserveOutputOptions output;
+  GaussianCloud cloud;
+  std::vector<Camera> cameras;
+  std::vector<double> times;
+  double frame_step = 0;
+};
+
+ObserveJob observe_job(const Args& a) {
+  ObserveJob job;
+  ObservationOptions& o = job.options;
+  o.visibility.mode = parse_visibility_mode(a.get("mode", "frustum"));
+  o.visibility.stride = a.integer("stride", o.visibility.stride);
+  if (o.visibility.stride < 1) throw_error("fillgs observe: --stride must be at least 1");
+  o.visibility.min_weight = float(a.number("tau", o.visibility.min_weight));
+  if (!(o.visibility.min_weight > 0.0f && o.visibility.min_weight < 1.0f)) throw_error("fillgs observe: --tau must lie in (0, 1)");
+  o.visibility.threads = a.threads();
+  o.visibility.dilate = !a.flag("no-raster-match");
+  o.incremental = !a.flag("from-scratch");
+  const std::string tables = a.get("motion-tables", "dense");
+  if (tables != "dense" && tables != "dynamic") throw_error("fillgs observe: --motion-tables must be dense or dynamic (got '", tables, "')");
+  job.output.dense_motion_tables = tables == "dense";
+  job.output.plots = !a.flag("no-plots");
+  job.cloud = read_scene(a.require("scene"), scene_options(a));
+  job.cameras = read_cameras(a.require("cameras"), camera_options(a));
+  if (job.cameras.empty()) throw_error(a.get("cameras"), ": no cameras");
+  job.times = observe_times(a, job.cloud, job.cameras, &job.frame_step);
+  if (a.has("shard")) {
+    // --shard i/n: the i-th of n contiguous blocks of frames (1-based), for observe --merge.
+    const std::string spec = a.get("shard");
+    const size_t slash = spec.find('/');
+    size_t index = 0, count = 0;
+    if (slash != std::string::npos) {
+      index = parse_count(spec.substr(0, slash), 1u << 20, "fillgs observe", "--shard index");
+      count = parse_count(spec.substr(slash + 1), 1u << 20, "fillgs observe", "--shard count");
+    }
+    if (slash == std::string::npos || index < 1 || count < 1 || index > count)
+      throw_error("fillgs observe: --shard expects i/n with 1 <= i <= n (got '", spec, "')");
+    if (count > job.times.size()) throw_error("fillgs observe: --shard ", spec, ": more shards than the ", job.times.size(), " frames");
+    o.frames = shard_frames(job.times.size(), index - 1, count);
+  }
+  return job;
+}
+
+void print_observed(std::ostream& out, const ObserveJob& job, const ObserveReport& r, double seconds, const std::string& out_dir) {
+  const ObservationSummary& s = r.summary;
+  out << "observed " << s.gaussians << " Gaussians (" << s.dynamic_count << " dynamic) over " << s.frames << " frames and " << s.views
+      << " views (" << to_string(job.options.visibility.mode);
+  if (job.options.visibility.mode == VisibilityMode::Raytraced) out << ", stride " << job.options.visibility.stride;
+  out << ") in " << seconds << " s";
+  if (s.counters.rays) out << ", " << s.counters.rays << " rays";
+  out << ", peak memory " << (r.peak_memory_bytes >> 20) << " MB -> " << out_dir << "\n";
+}
+
+/// `fillgs observe --mpi` under mpirun: every rank reads the inputs; if any rank fails,
+/// the lowest failing rank says why (one line) and every rank exits 1; then frames go
+/// round the ranks and rank 0 writes the files.
+int observe_over_mpi(const Args& a, const std::string& out_dir, std::ostream& out, std::ostream& err) {
+#ifdef FILLGS_WITH_MPI
+  const auto t0 = Clock::now();
+  mpi::Session session;
+  ObserveJob job;
+  std::optional<OutputFolder> folder;
+  std::string failure;
+  try {
+    if (a.has("shard")) throw_error("fillgs observe: --mpi shares the whole job between the ranks; --shard splits it between separate runs");
+    job = observe_job(a);
+    if (session.rank() == 0) folder.emplace(out_dir);
+  } catch (const std::exception& e) {
+    failure = e.what();
+  }
+  const int failed = session.first_failure(failure.empty());
+  if (failed >= 0) {
+    if (session.rank() != failed) return 1;
+    throw_error(failed == 0 ? failure : "rank " + std::to_string(failed) + ": " + failure);
+  }
+  try {
+    const FrameSource source = mpi::observe_source(job.cloud, job.cameras, job.times, job.frame_step, job.options);
+    if (session.rank() != 0) {
+      source([](const FrameObservation&) {}, null_progress());
+      return 0;
+    }
+    TerminalProgress progress(err, progress_enabled(a));
+    const ObserveReport r =
+        write_observation(job.cloud, job.cameras, job.times, job.frame_step, job.options, source, folder->path(), job.output, progress);
+    folder->commit();
+    print_observed(out, job, r, seconds_since(t0), out_dir);
+    out << "(" << session.size() << " MPI ranks)\n";
+    return 0;
+  } catch (const std::exception& e) {
+    // The ranks are exchanging frames: one that stops would leave the others waiting.
+    err << "error: " << (session.rank() ? "rank " + std::to_string(session.rank()) + ": " : std::string()) << e.what() << "\n";
+    err.flush();
+    session.abort(1);
+  }
+#else
+  (void)a, (void)out_dir, (void)out, (void)err;
+  throw_error("fillgs observe: --mpi needs fillgs built with MPI (scripts/install-deps.sh installs libopenmpi-dev; then rebuild)");
+#endif
+}
+
+}  // namespace
+
 int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("observe", args, 1,
          merge(merge({"scene", "cameras", "frames", "times", "mode", "stride", "threads", "out", "tau", "motion-tables", "shard", "merge"},
                      kSceneOptions),
                kCameraOptions),
-         {"quiet", "from-scratch", "no-raster-match", "no-plots"});
+         {"quiet", "from-scratch", "no-raster-match", "no-plots", "mpi"});
   const auto t0 = Clock::now();
   const std::string out_dir = a.require("out");
   if (a.has("merge")) {
@@ -245,50 +356,13 @@ int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::os
         << r.summary.views << " views -> " << out_dir << "\n";
     return 0;
   }
-  ObservationOptions o;
-  o.visibility.mode = parse_visibility_mode(a.get("mode", "frustum"));
-  o.visibility.stride = a.integer("stride", o.visibility.stride);
-  if (o.visibility.stride < 1) throw_error("fillgs observe: --stride must be at least 1");
-  o.visibility.min_weight = float(a.number("tau", o.visibility.min_weight));
-  if (!(o.visibility.min_weight > 0.0f && o.visibility.min_weight < 1.0f)) throw_error("fillgs observe: --tau must lie in (0, 1)");
-  o.visibility.threads = a.threads();
-  o.visibility.dilate = !a.flag("no-raster-match");
-  o.incremental = !a.flag("from-scratch");
-  ObserveOutputOptions oo;
-  const std::string tables = a.get("motion-tables", "dense");
-  if (tables != "dense" && tables != "dynamic") throw_error("fillgs observe: --motion-tables must be dense or dynamic (got '", tables, "')");
-  oo.dense_motion_tables = tables == "dense";
-  oo.plots = !a.flag("no-plots");
-  const GaussianCloud cloud = read_scene(a.require("scene"), scene_options(a));
-  const std::vector<Camera> cams = read_cameras(a.require("cameras"), camera_options(a));
-  if (cams.empty()) throw_error(a.get("cameras"), ": no cameras");
-  double frame_step = 0;
-  const std::vector<double> times = observe_times(a, cloud, cams, &frame_step);
-  if (a.has("shard")) {
-    // --shard i/n: the i-th of n contiguous blocks of frames (1-based), for observe --merge.
-    const std::string spec = a.get("shard");
-    const size_t slash = spec.find('/');
-    size_t index = 0, count = 0;
-    if (slash != std::string::npos) {
-      index = parse_count(spec.substr(0, slash), 1u << 20, "fillgs observe", "--shard index");
-      count = parse_count(spec.substr(slash + 1), 1u << 20, "fillgs observe", "--shard count");
-    }
-    if (slash == std::string::npos || index < 1 || count < 1 || index > count)
-      throw_error("fillgs observe: --shard expects i/n with 1 <= i <= n (got '", spec, "')");
-    if (count > times.size()) throw_error("fillgs observe: --shard ", spec, ": more shards than the ", times.size(), " frames");
-    o.frames = shard_frames(times.size(), index - 1, count);
-  }
+  if (a.flag("mpi")) return observe_over_mpi(a, out_dir, out, err);
+  const ObserveJob job = observe_job(a);
   TerminalProgress progress(err, progress_enabled(a));
   OutputFolder folder(out_dir);  // a failed or killed run leaves the folder as it was
-  const ObserveReport r = observe_to_directory(cloud, cams, times, frame_step, o, folder.path(), oo, progress);
+  const ObserveReport r = observe_to_directory(job.cloud, job.cameras, job.times, job.frame_step, job.options, folder.path(), job.output, progress);
   folder.commit();
-  const ObservationSummary& s = r.summary;
-  out << "observed " << s.gaussians << " Gaussians (" << s.dynamic_count << " dynamic) over " << s.frames << " frames and " << s.views
-      << " views (" << to_string(o.visibility.mode);
-  if (o.visibility.mode == VisibilityMode::Raytraced) out << ", stride " << o.visibility.stride;
-  out << ") in " << seconds_since(t0) << " s";
-  if (s.counters.rays) out << ", " << s.counters.rays << " rays";
-  out << ", peak memory " << (r.peak_memory_bytes >> 20) << " MB -> " << out_dir << "\n";
+  print_observed(out, job, r, seconds_since(t0), out_dir);
   return 0;
 }
 
@@ -454,6 +528,7 @@ void print_help(std::ostream& out) {
          "         [--frames F | --times t1,t2,..] [--mode frustum|raytraced|exact] [--stride s] [--tau w]\n"
          "         [--threads n] [--motion-tables dense|dynamic] [--from-scratch] [--no-raster-match] [--no-plots]\n"
          "         [--shard i/n]                    the i-th of n blocks of frames, for --merge\n"
+         "         [--mpi]                          under mpirun: frames shared by the ranks, rank 0 writes\n"
          "  observe --merge DIR1,DIR2,.. --out DIR [--no-plots]   shards combined into the single-process tables\n"
          "  train --images DIR --cameras C --out DIR [--points P] [--iterations N] [--train-cameras a,b]\n"
          "         [--resume CKPT] [--checkpoint-every N] [--seed n] [--key-interval F] [--max-gaussians N]\n"
