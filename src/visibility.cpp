@@ -585,10 +585,14 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
   for (size_t k = 0; k < frames.size(); ++k)
     if (frames[k] >= times.size() || (k > 0 && frames[k] <= frames[k - 1]))
       throw_error("observe: the frames to evaluate must be strictly ascending indices below ", times.size());
-  const auto views = views_per_frame(cameras, times, frame_step);
+  auto views = views_per_frame(cameras, times, frame_step);
   size_t max_views = 0;
   for (const auto& v : views) max_views = std::max(max_views, v.size());
   if (max_views > 65535) throw_error("observe: ", max_views, " views at one time; counts are stored in 16 bits");
+  if (!options.cameras.empty()) {
+    FILLGS_CHECK(options.cameras.size() == cameras.size());
+    for (auto& v : views) v.erase(std::remove_if(v.begin(), v.end(), [&](uint32_t c) { return !options.cameras[c]; }), v.end());
+  }
 
   ObservationRun run(cloud, cameras, options);
   ObservationSummary& summary = run.summary;

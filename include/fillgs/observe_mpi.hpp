@@ -1,9 +1,10 @@
 #pragma once
 // Observation tables over MPI ranks (built when OpenMPI is found; FILLGS_WITH_MPI). Every
-// rank reads the scene and the cameras; frame f is computed by rank f mod n, and rank 0
-// receives the rows in frame order and writes them (observe_io.hpp's write_observation), so
-// a rank holds one frame of the tables at a time and the files are the single process's,
-// byte for byte. Nothing here includes mpi.h.
+// rank reads the scene and the cameras and takes the camera poses p with p mod n = rank, so
+// each pose's static answer is traced once in the job; all ranks walk the frames in order,
+// and per frame their partial count rows are added on rank 0 (MPI_Reduce), which writes the
+// tables (observe_io.hpp's write_observation). A rank holds one frame of the tables; the
+// files are the single process's, byte for byte. Nothing here includes mpi.h.
 #include "fillgs/observe_io.hpp"
 
 namespace fillgs::mpi {
@@ -29,11 +30,11 @@ class Session {
   bool owns_ = false;
 };
 
-/// The frames of the whole job (options.frames must be empty), computed over the ranks of
-/// MPI_COMM_WORLD. Collective: every rank calls the returned source; on rank 0 the sink gets
-/// every frame in order and the summary adds up the ranks' views, rays and probes (seconds:
-/// the slowest rank's); on the other ranks the sink is never called. The arguments must
-/// outlive the source.
+/// The frames of the whole job (options.frames and options.cameras must be empty), computed
+/// over the ranks of MPI_COMM_WORLD. Collective: every rank calls the returned source; on
+/// rank 0 the sink gets every frame in order and the summary adds up the ranks' views, rays
+/// and probes (seconds: the slowest rank's); on the other ranks the sink is never called.
+/// The arguments must outlive the source.
 FrameSource observe_source(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const std::vector<double>& times, double frame_step,
                            const ObservationOptions& options);
 

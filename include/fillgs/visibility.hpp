@@ -115,6 +115,10 @@ struct ObservationOptions {
   /// assigned to frames over all of `times`, so the rows of a subset equal the same rows of
   /// the whole (a shard of a job split over processes or machines).
   std::vector<size_t> frames;
+  /// One flag per camera: count only the views of flagged cameras; empty: every camera.
+  /// The others still shape the job (which frame a view belongs to, the rasterizer-matching
+  /// padding), so the counts of cameras split between processes add up to the whole's.
+  std::vector<uint8_t> cameras;
 };
 
 /// The frames of shard `index` (0-based) of `count`: a contiguous block of [0, total),
