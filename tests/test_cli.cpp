@@ -164,12 +164,23 @@ TEST_CASE("inputs are never modified and outputs are replaced atomically", "[cli
   CHECK(read_scene(dir + "/copy.ply").size() == 3000);
 }
 
+namespace {
+
+/// A small synthetic scene for fillgs observe: DIR/scene.ply and DIR/train.json (the
+/// training cameras at each of F frames).
+SynthScene observe_inputs(const std::string& dir, int F) {
+  SynthScene s = small_synth(F, 64, 48, 0.04);
+  write_fillgs_ply(dir + "/scene.ply", s.scene);
+  write_transforms_json(dir + "/train.json", cameras_over_time(s.train, F));
+  return s;
+}
+
+}  // namespace
+
 TEST_CASE("fillgs observe writes [T, N] tables that numpy reads, summary.json and pictures", "[cli][observe]") {
   const std::string dir = scratch("cli_observe");
   const int F = 4;
-  const SynthScene s = small_synth(F, 64, 48, 0.04);
-  write_fillgs_ply(dir + "/scene.ply", s.scene);
-  write_transforms_json(dir + "/train.json", cameras_over_time(s.train, F));
+  const SynthScene s = observe_inputs(dir, F);
   const Result r = run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/obs",
                             "--mode", "raytraced", "--stride", "4", "--quiet"});
   INFO(r.err);
@@ -278,9 +289,7 @@ TEST_CASE("fillgs convert --to frames: one 3DGS PLY per frame, each the model at
 TEST_CASE("fillgs observe --shard i/n, then --merge: the single process's tables byte for byte", "[cli][observe]") {
   const std::string dir = scratch("cli_observe_shards");
   const int F = 7;
-  const SynthScene s = small_synth(F, 64, 48, 0.04);
-  write_fillgs_ply(dir + "/scene.ply", s.scene);
-  write_transforms_json(dir + "/train.json", cameras_over_time(s.train, F));
+  const SynthScene s = observe_inputs(dir, F);
   auto observe = [&](const std::string& out, std::vector<std::string> extra) {
     std::vector<std::string> args = {"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/" + out, "--quiet"};
     args.insert(args.end(), extra.begin(), extra.end());
