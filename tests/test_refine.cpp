@@ -766,7 +766,7 @@ TEST_CASE("bench report: FillGS paired against each method by seed (hand-made re
   CHECK(d[1].sd[0] == 0.0);
 }
 
-TEST_CASE("bench merge: runs from bench folders and results.csv files make one table; conflicts and bad rows are refused", "[refine][bench]") {
+TEST_CASE("bench merge: runs from bench folders and results.csv files make one table, conflicts and bad rows are refused", "[refine][bench]") {
   auto result = [](const std::string& id, uint64_t seed, double interp, double extrap) {
     RunResult r;
     r.id = id;
