@@ -120,6 +120,7 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
       const RefineReport rep = refine_patches(refiner, patches, patch_root, refined_root, progress);
       r.seconds_refine = seconds_since(t0);
       r.refine_failures = rep.failures;
+      r.views_dropped = rep.dropped;
 
       // Weights, written next to every refined image.
       t0 = Clock::now();

@@ -348,6 +348,69 @@ std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& o, ui
 
 std::unique_ptr<Refiner> make_identity_refiner() { return std::make_unique<IdentityRefiner>(); }
 
+int nearest_pool_view(const RigPool& pool, const Camera& view, const RigOptions& o) {
+  const int F = std::max(1, pool.frame_count);
+  const int frame = view.has_time() ? int(std::lround(std::clamp(view.time, 0.0, 1.0) * (F - 1))) : 0;
+  const Vec3d centre = view.centre();
+  const Vec3d axis = view.R.row(2).transpose();
+  const double cos_max = std::cos(o.max_angle_degrees * kPi / 180.0);
+  int best = -1;
+  double best_distance = 0, best_cos = 0;
+  for (size_t i = 0; i < pool.cameras.size(); ++i) {
+    if (pool.frames[i] != frame) continue;
+    const Camera& c = pool.cameras[i];
+    const double d = (c.centre() - centre).norm();
+    const double cosine = axis.dot(c.R.row(2).transpose());
+    if (d > o.max_distance || cosine < cos_max) continue;
+    if (best < 0 || d < best_distance || (d == best_distance && cosine > best_cos)) best = int(i), best_distance = d, best_cos = cosine;
+  }
+  return best;
+}
+
+namespace {
+
+class RigRefiner : public Refiner {
+ public:
+  RigRefiner(RigPool pool, const RigOptions& o) : pool_(std::move(pool)), o_(o) {
+    if (pool_.cameras.empty()) throw_error("rig refiner: no pool camera (every camera of the rig is trained on or held out)");
+    if (pool_.frames.size() != pool_.cameras.size() || !pool_.image) throw_error("rig refiner: the pool's frames or images are missing");
+    if (!(o_.max_distance >= 0 && std::isfinite(o_.max_distance)))
+      throw_error("rig refiner: --rig-max-distance must be a finite number at least 0 (got ", o_.max_distance, ")");
+    if (!(o_.max_angle_degrees >= 0 && o_.max_angle_degrees <= 180))
+      throw_error("rig refiner: --rig-max-angle must be in [0, 180] degrees (got ", o_.max_angle_degrees, ")");
+  }
+  std::string name() const override { return "rig"; }
+  void refine(const std::string&, const std::string& out, const Patch& patch) override {
+    make_directories(out);
+    for (const PatchImage& im : patch.images) {
+      if (im.observed) continue;
+      const int k = nearest_pool_view(pool_, im.camera, o_);
+      if (k < 0) continue;
+      const Camera& c = pool_.cameras[size_t(k)];
+      Image photo(c.width, c.height, 3);
+      photo.pixels = pool_.image(size_t(k));
+      write_image(join_path(out, im.file), photo);
+    }
+  }
+  RefinedPose pose(const PatchImage& image) const override {
+    const int k = nearest_pool_view(pool_, image.camera, o_);
+    RefinedPose p;
+    if (k < 0) p.dropped = true;
+    else p.camera = pool_.cameras[size_t(k)];
+    return p;
+  }
+
+ private:
+  RigPool pool_;
+  RigOptions o_;
+};
+
+}  // namespace
+
+std::unique_ptr<Refiner> make_rig_refiner(RigPool pool, const RigOptions& options) {
+  return std::make_unique<RigRefiner>(std::move(pool), options);
+}
+
 const char* to_string(OracleSupport s) { return s == OracleSupport::Full ? "full" : "observed"; }
 
 OracleSupport parse_oracle_support(const std::string& name) {
@@ -437,16 +500,23 @@ RefineReport refine_patches(Refiner& refiner, const std::vector<Patch>& patches,
       std::error_code ec;
       fs::remove_all(out, ec);  // a stale result of an earlier run must not pass the check
       refiner.refine(in, out, p);
+      size_t dropped = 0;
       for (const PatchImage& im : p.images) {
         if (im.observed) continue;
+        const RefinedPose pose = refiner.pose(im);
+        if (pose.dropped) {
+          ++dropped;
+          continue;
+        }
+        const Camera& cam = pose.camera ? *pose.camera : im.camera;
         const std::string path = join_path(out, im.file);
         int w = 0, h = 0;
         if (!image_size(path, &w, &h)) throw_error("missing refined image ", im.file);
-        if (w != im.camera.width || h != im.camera.height)
-          throw_error(im.file, " is ", w, "x", h, ", expected ", im.camera.width, "x", im.camera.height);
+        if (w != cam.width || h != cam.height) throw_error(im.file, " is ", w, "x", h, ", expected ", cam.width, "x", cam.height);
         RefinedImage r;
         r.patch = int(i);
         r.image = im;
+        r.image.camera = cam;
         r.path = path;
         r.rgb = read_image(path);
         if (r.rgb.channels < 3) throw_error(im.file, " has ", r.rgb.channels, " channels, expected RGB");
@@ -459,6 +529,7 @@ RefineReport refine_patches(Refiner& refiner, const std::vector<Patch>& patches,
         got.push_back(std::move(r));
       }
       for (RefinedImage& r : got) rep.images.push_back(std::move(r));
+      rep.dropped += dropped;
     } catch (const std::exception& e) {
       rep.failures.emplace_back(int(i), p.name + ": " + e.what());
     }

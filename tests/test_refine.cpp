@@ -97,6 +97,77 @@ TEST_CASE("patch: 3 frames x 4 views in serpentine order with the observed start
   for (const auto& im : j["images"]) CHECK(fs::exists(join_path(join_path(dir, p.name), im["file"].get<std::string>())));
 }
 
+TEST_CASE("rig refiner: the nearest pool camera in tolerance at the view's frame, its photograph and real pose; the others dropped", "[refine][rig]") {
+  // Pool cameras at known centres, 2 frames each; the virtual view at (1, 0, 3) looks at the origin.
+  auto cam = [](const Vec3d& eye, const Vec3d& target, double time, const std::string& name) {
+    Camera c;
+    c.name = name;
+    c.set_fov_x(1.0, 16, 12);
+    c.look_at(eye, target, Vec3d(0, -1, 0));
+    c.time = time;
+    return c;
+  };
+  RigPool pool;
+  pool.frame_count = 2;
+  const Vec3d a(1.2, 0, 3), b(0.9, 0, 3);  // a: 0.2 away, same axis (almost); b: 0.1 away, looking 90° aside
+  for (int f = 0; f < 2; ++f) {
+    pool.cameras.push_back(cam(a, Vec3d::Zero(), f, "a/" + std::to_string(f)));
+    pool.cameras.push_back(cam(b, b + Vec3d(1, 0, 0), f, "b/" + std::to_string(f)));
+    pool.frames.push_back(f), pool.frames.push_back(f);
+  }
+  pool.image = [&](size_t i) { return std::vector<float>(16 * 12 * 3, float(i + 1) / 8.0f); };
+  const Camera view = cam(Vec3d(1, 0, 3), Vec3d::Zero(), 1.0, "virtual");
+  RigOptions o;
+  o.max_distance = 0.5;
+  o.max_angle_degrees = 30;
+  // Angle between the axes of a and the view: both look at the origin from 0.2 apart.
+  const double angle_a = std::acos(std::clamp(view.R.row(2).dot(pool.cameras[2].R.row(2)), -1.0, 1.0)) * 180 / kPi;
+  REQUIRE(angle_a < 5.0);
+  CHECK(nearest_pool_view(pool, view, o) == 2);  // a at frame 1 (b is nearer but looks 90° away)
+  Camera early = view;
+  early.time = 0.2;  // rounds to frame 0
+  CHECK(nearest_pool_view(pool, early, o) == 0);
+  o.max_angle_degrees = 180;
+  CHECK(nearest_pool_view(pool, view, o) == 3);  // now b, the nearer one
+  o.max_angle_degrees = 30;
+  o.max_distance = 0.15;  // a too far, b turned away
+  CHECK(nearest_pool_view(pool, view, o) == -1);
+  o.max_distance = 0.2 + 1e-9;
+  CHECK(nearest_pool_view(pool, view, o) == 2);
+
+  // Through refine_patches: the virtual views of a patch near pool camera a get its photograph
+  // and pose; the others are dropped and counted.
+  o.max_distance = 0.5;
+  std::vector<ObservedView> views;
+  for (int f = 0; f < 2; ++f) views.push_back({cam(Vec3d(3, 0, 3), Vec3d::Zero(), f, "start/" + std::to_string(f)), f, 0});
+  Trajectory tr;
+  tr.start_view = 1;
+  tr.frame = 1;
+  tr.poses = {view, cam(Vec3d(-3, 0, 3), Vec3d::Zero(), 1.0, "far"), cam(Vec3d(1.1, 0.1, 3), Vec3d::Zero(), 1.0, "near")};
+  tr.patch_frames = {0, 1};
+  tr.patch_times = {0.0, 1.0};
+  const Patch patch = make_patch(tr, views, "patch_000");
+  const std::string dir = scratch("rig");
+  write_patch(join_path(join_path(dir, "in"), patch.name), patch, views, [&](size_t) { return std::vector<float>(16 * 12 * 3, 0.0f); },
+              [&](const Camera&) { return std::vector<float>(16 * 12 * 3, 0.5f); });
+  auto rig = make_rig_refiner(pool, o);
+  const RefineReport rep = refine_patches(*rig, {patch}, join_path(dir, "in"), join_path(dir, "out"));
+  REQUIRE(rep.failures.empty());
+  CHECK(rep.dropped == 2);  // the far pose at frames 0 and 1
+  REQUIRE(rep.images.size() == 4);
+  for (const RefinedImage& ri : rep.images) {
+    const size_t k = size_t(ri.image.frame) * 2;  // pool camera a at the image's frame
+    CHECK(ri.image.camera.name == pool.cameras[k].name);
+    CHECK((ri.image.camera.centre() - a).norm() < 1e-9);
+    CHECK(ri.image.camera.time == Approx(double(ri.image.frame)));
+    for (float x : ri.rgb.pixels) REQUIRE(x == Approx(float(k + 1) / 8.0f).margin(0.5 / 255));
+  }
+  CHECK_THROWS_WITH(make_rig_refiner(RigPool{}, o), Catch::Contains("no pool camera"));
+  RigOptions bad = o;
+  bad.max_angle_degrees = 200;
+  CHECK_THROWS_WITH(make_rig_refiner(pool, bad), Catch::Contains("--rig-max-angle"));
+}
+
 TEST_CASE("artifacts: strength 0 is the clean image, otherwise changes are confined to the mask and seeded", "[refine]") {
   Image img(64, 48, 3);
   for (int y = 0; y < 48; ++y)
@@ -501,6 +572,26 @@ TEST_CASE("cli: finetune with the example refiner, eval, and bad input", "[refin
   CHECK(m["extrapolation"]["views"] == 24);
   CHECK(m["interpolation"]["psnr"].get<double>() > 10.0);
 
+  // The rig refiner with cam05 as the only pool camera: every virtual view within a wide
+  // tolerance becomes cam05's photograph at cam05's pose; none within distance 0.
+  for (const char* dist : {"100", "0"}) {
+    const std::string ft = join_path(dir, std::string("rig") + dist);
+    REQUIRE(cli::run({"finetune", "--model", scene, "--images", join_path(dir, "scene"), "--cameras", cams, "--train-cameras", "cam04,cam06",
+                      "--out", ft, "--iterations", "20", "--select-every", "10", "--trajectories", "1", "--refiner", "rig", "--pool-cameras",
+                      "cam05", "--rig-max-distance", dist, "--rig-max-angle", "180", "--quiet"},
+                     out, err) == 0);
+    const nlohmann::json rj = nlohmann::json::parse(read_file(join_path(ft, "summary.json")));
+    CHECK(rj["refiner"] == "rig");
+    CHECK(rj["virtual_views"].get<int>() + rj["virtual_views_dropped"].get<int>() == 18);
+    CHECK(rj["virtual_views_dropped"] == (std::string(dist) == "0" ? 18 : 0));
+    if (std::string(dist) == "0") continue;
+    const std::vector<Camera> got = read_cameras(join_path(ft, "virtual_views.json"));
+    const std::vector<Camera> rig = read_cameras(cams);
+    const auto c5 = std::find_if(rig.begin(), rig.end(), [](const Camera& c) { return c.image_path.find("cam05/") != std::string::npos; });
+    REQUIRE(c5 != rig.end());
+    for (const Camera& c : got) CHECK((c.centre() - c5->centre()).norm() < 1e-6);
+  }
+
   auto fails = [&](std::vector<std::string> args, const std::string& what) {
     std::ostringstream o, e;
     CHECK(cli::run(args, o, e) == 1);
@@ -519,6 +610,8 @@ TEST_CASE("cli: finetune with the example refiner, eval, and bad input", "[refin
   fails(with({"--refiner", "diffusion"}), "unknown --refiner \"diffusion\"");
   fails(with({"--refiner", "external", "--refiner-command", "denoise"}), "must contain {in} and {out}");
   fails(with({"--refiner", "oracle"}), "missing --truth");
+  fails(with({"--train-cameras", "cam04,cam06", "--refiner", "rig"}), "--refiner rig needs --pool-cameras");
+  fails(with({"--train-cameras", "cam04,cam06", "--refiner", "rig", "--pool-cameras", "cam05,cam06"}), "names cam06, a training camera");
   fails({"finetune", "--model", join_path(dir, "none.ply"), "--images", join_path(dir, "scene"), "--cameras", cams, "--out", join_path(dir, "bad")},
         "none.ply");
   fails(with({"--out", join_path(dir, "ft")}), "exists and is not empty");

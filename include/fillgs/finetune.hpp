@@ -59,6 +59,7 @@ struct FinetuneRound {
   int iteration = 0;
   int trajectories = 0;
   size_t views_added = 0;
+  size_t views_dropped = 0;  ///< virtual views the refiner left out (the rig refiner: no pool camera in tolerance)
   std::vector<std::pair<int, std::string>> refine_failures;
   double seconds_select = 0, seconds_render = 0, seconds_refine = 0, seconds_weights = 0;
   std::vector<std::string> notes;

@@ -2,7 +2,8 @@
 // Spatiotemporal patches for a generative refiner (METHOD.md §6) and the refiners fillgs
 // drives: `external` (any program, through a folder protocol), `oracle` (synthetic scenes:
 // the ground truth at the virtual view where the training cameras support it, with optional
-// injected generation artifacts) and `identity` (the render itself).
+// injected generation artifacts), `rig` (real captures: the photograph of the nearest pool
+// camera of the rig, at its real pose) and `identity` (the render itself).
 //
 // A patch is 3 consecutive frames × 4 views of one trajectory: the observed start image,
 // then the trajectory's 3 virtual poses rendered by the current model. Order: serpentine
@@ -20,6 +21,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -74,13 +76,21 @@ constexpr float kArtifactVisible = 0.03f;
 /// image changed by more than kArtifactVisible in some channel).
 std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& options, uint64_t key);
 
+/// What a refiner made of one virtual view, where it is not "an image at the view's own pose".
+struct RefinedPose {
+  bool dropped = false;          ///< no image: the view is left out (and counted)
+  std::optional<Camera> camera;  ///< the image shows this pose instead of the virtual one
+};
+
 class Refiner {
  public:
   virtual ~Refiner() = default;
   virtual std::string name() const = 0;
-  /// Reads the patch in `in_dir`, writes refined images of the virtual views into `out_dir`.
-  /// Throws on failure.
+  /// Reads the patch in `in_dir`, writes refined images of the virtual views into `out_dir`
+  /// (every one that pose() does not drop). Throws on failure.
   virtual void refine(const std::string& in_dir, const std::string& out_dir, const Patch& patch) = 0;
+  /// The pose of the image refine() returns for a virtual view; the default: its own.
+  virtual RefinedPose pose(const PatchImage& /*image*/) const { return {}; }
 };
 
 /// Copies the rendered images.
@@ -132,6 +142,28 @@ std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const O
 /// The full-support oracle (ground truth everywhere).
 std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const ArtifactOptions& artifacts, const Vec3f& background,
                                              int threads = 0);
+/// The real-capture refiner (`--refiner rig`): the refined image of a virtual view is the
+/// real photograph of the nearest *pool* camera — a camera of the rig neither trained on nor
+/// held out — at the view's frame, and that camera's real pose replaces the virtual one.
+/// Nearest: the smallest distance between camera centres among the pool cameras within
+/// `max_distance` (world units) whose optical axis is within `max_angle_degrees` of the
+/// view's (ties: the smaller angle, then the earlier camera). A virtual view with no pool
+/// camera in tolerance at its frame is dropped (RefineReport::dropped). No generative model
+/// is involved: the comparison on real data of which camera-times help most.
+struct RigOptions {
+  double max_distance = 1.0;
+  double max_angle_degrees = 30.0;
+};
+struct RigPool {
+  std::vector<Camera> cameras;  ///< every pool view, with its time (frame f at f / (frames − 1))
+  std::vector<int> frames;      ///< the frame of each view
+  std::function<std::vector<float>(size_t)> image;  ///< float RGB [H][W][3] of view i
+  int frame_count = 1;
+};
+/// Index into `pool` of the photograph for `view` (its time picks the frame), or −1.
+int nearest_pool_view(const RigPool& pool, const Camera& view, const RigOptions& options);
+std::unique_ptr<Refiner> make_rig_refiner(RigPool pool, const RigOptions& options);
+
 /// Runs `command` through /bin/sh with {in} and {out} replaced by the folders (quoted);
 /// killed after `timeout_seconds`. Its output goes to `out_dir`/refiner.log.
 std::unique_ptr<Refiner> make_external_refiner(const std::string& command, double timeout_seconds);
@@ -149,6 +181,7 @@ struct RefinedImage {
 };
 struct RefineReport {
   std::vector<RefinedImage> images;                    ///< every virtual view of every patch that succeeded
+  size_t dropped = 0;                                  ///< virtual views the refiner left out (Refiner::pose)
   std::vector<std::pair<int, std::string>> failures;   ///< (patch index, reason)
   double seconds = 0;
 };

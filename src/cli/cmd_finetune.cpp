@@ -80,7 +80,8 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
   Args a("finetune", args, 1,
          merge({"model", "images", "cameras", "out", "train-cameras", "iterations", "select-every", "trajectories", "strategy", "weighting",
                 "refiner", "refiner-command", "refiner-timeout", "truth", "artifact-strength", "confidence", "seed", "threads",
-                "time-stride", "refined-share", "mask-sigma", "mask", "covis", "support", "support-window"},
+                "time-stride", "refined-share", "mask-sigma", "mask", "covis", "support", "support-window", "pool-cameras", "rig-max-distance",
+                "rig-max-angle"},
                merge(merge(kSceneOptions, kMotionRateOptions), kDatasetOptions)),
          kFinetuneFlags);
   const auto t0 = Clock::now();
@@ -113,6 +114,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
   const std::string kind = a.get("refiner", "identity");
   std::unique_ptr<Refiner> refiner;
   std::unique_ptr<GaussianCloud> truth;
+  std::unique_ptr<Dataset> pool_data;
   if (kind == "identity") {
     refiner = make_identity_refiner();
   } else if (kind == "oracle") {
@@ -129,8 +131,27 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
     refiner = make_oracle_refiner(*truth, oo);
   } else if (kind == "external") {
     refiner = make_external_refiner(a.require("refiner-command"), a.number("refiner-timeout", 600.0));
+  } else if (kind == "rig") {
+    // The pool: rig cameras neither trained on nor held out, every frame the training views have.
+    DatasetOptions po = dataset_options(a, "pool-cameras");
+    po.monocular_cycle.clear();
+    if (po.cameras.empty()) throw_error("fillgs finetune: --refiner rig needs --pool-cameras a,b,.. (rig cameras neither trained on nor held out)");
+    for (const std::string& c : po.cameras)
+      for (const std::string& t : data.rigs())
+        if (c == t) throw_error("fillgs finetune: --pool-cameras names ", c, ", a training camera");
+    pool_data = std::make_unique<Dataset>(Dataset::load(a.require("images"), a.require("cameras"), po));
+    if (pool_data->frames() != data.frames())
+      throw_error("fillgs finetune: the pool cameras have ", pool_data->frames(), " frames, the training cameras ", data.frames());
+    RigPool pool;
+    for (const TrainView& v : pool_data->views()) pool.cameras.push_back(v.camera), pool.frames.push_back(v.frame);
+    pool.frame_count = pool_data->frames();
+    pool.image = [d = pool_data.get()](size_t i) { return d->image(i); };
+    RigOptions ro;
+    ro.max_distance = a.number("rig-max-distance", ro.max_distance);
+    ro.max_angle_degrees = a.number("rig-max-angle", ro.max_angle_degrees);
+    refiner = make_rig_refiner(std::move(pool), ro);
   } else {
-    throw_error("fillgs finetune: unknown --refiner \"", kind, "\" (identity, oracle, external)");
+    throw_error("fillgs finetune: unknown --refiner \"", kind, "\" (identity, oracle, external, rig)");
   }
   require_fresh(out_dir, "finetune");
   make_directories(out_dir);
@@ -148,6 +169,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
     rounds.push_back({{"iteration", rd.iteration},
                       {"trajectories", rd.trajectories},
                       {"views_added", rd.views_added},
+                      {"views_dropped", rd.views_dropped},
                       {"mean_weight", rd.mean_weight},
                       {"refine_failures", f},
                       {"notes", rd.notes},
@@ -156,9 +178,11 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
     for (const auto& [patch, why] : rd.refine_failures) err << "warning: refinement failed for " << why << "\n";
   }
   const EvalResult tr = evaluate_views(r.model, data, std::max<int>(1, int(data.views().size() / 32)), Vec3f::Zero(), o.threads);
+  size_t dropped = 0;
+  for (const FinetuneRound& rd : r.rounds) dropped += rd.views_dropped;
   const json j = {{"iterations", o.iterations}, {"select_every", o.select_every}, {"trajectories_per_round", o.trajectories},
                   {"strategy", to_string(o.select.strategy)}, {"weighting", to_string(o.weighting)}, {"refiner", refiner->name()},
-                  {"rounds", rounds}, {"virtual_views", r.virtual_views.size()}, {"train_psnr", tr.psnr}, {"train_ssim", tr.ssim},
+                  {"rounds", rounds}, {"virtual_views", r.virtual_views.size()}, {"virtual_views_dropped", dropped}, {"train_psnr", tr.psnr}, {"train_ssim", tr.ssim},
                   {"gaussians", r.model.size()}, {"moving_gaussians", r.model.dynamic_count()},
                   {"seconds", {{"train", r.seconds_train}, {"total", seconds_since(t0)}}}};
   ScatterSeries loss{"loss", {}, {}, {}};
@@ -166,7 +190,8 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
   for (size_t i = 0; i < r.loss_history.size(); i += every) loss.x.push_back(double(i + 1)), loss.y.push_back(r.loss_history[i]);
   write_scatter_png(join_path(out_dir, "loss.png"), {loss}, {"fine-tuning loss (weighted on refined views)", "iteration", "loss"}, false);
   write_file_atomically(join_path(out_dir, "summary.json"), j.dump(2) + "\n");
-  out << "fine-tuned in " << fixed(seconds_since(t0), 1) << " s: " << r.virtual_views.size() << " refined views added, train PSNR "
+  out << "fine-tuned in " << fixed(seconds_since(t0), 1) << " s: " << r.virtual_views.size() << " refined views added"
+      << (dropped ? " (" + std::to_string(dropped) + " dropped by the refiner)" : "") << ", train PSNR "
       << fixed(tr.psnr) << " dB -> " << out_dir << "\n";
   return 0;
 }
