@@ -71,25 +71,53 @@ for s in "${STRATEGIES[@]}"; do
   finetune "$s" --strategy $s --weighting $w
 done
 
-# The table: a value of a metrics.json or summary.json (the first "key": number).
-value() { sed -n "s/^ *\"$2\": \\([-0-9.eE+]*\\),\\{0,1\\}$/\\1/p" "$1" | head -n 1; }
-fmt() { if [ -z "$1" ]; then echo -; else printf '%.2f' "$1"; fi; }
+# The table: a value of a metrics.json or summary.json (the first "key": number), and the
+# sum of a key over a file (the per-round seconds).
+value() { sed -n "s/^ *\"$2\": \([-0-9.eE+]*\),\{0,1\}$/\1/p" "$1" | head -n 1; }
+total() { sed -n "s/^ *\"$2\": \([-0-9.eE+]*\),\{0,1\}$/\1/p" "$1" | awk '{s += $1} END {printf "%.0f", s}'; }
+fmt() { if [ -z "$1" ]; then echo -; else printf "%.${2:-2}f" "$1"; fi; }
 {
-  echo "| Method | Interp PSNR | foreground | gain-corrected | Extrap PSNR | foreground | gain-corrected | views added | dropped |"
-  echo "|---|---|---|---|---|---|---|---|---|"
+  echo "| Method | Interp PSNR | SSIM | foreground | gain-corrected | Extrap PSNR | SSIM | foreground | gain-corrected | views added | dropped | seconds: select / render + refine / weights / train / total |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
   for id in backbone no-refinement "${STRATEGIES[@]}"; do
     row="| $id"
     for split in interpolation extrapolation; do
       m=$OUT/$id/eval_$split/metrics.json
-      row="$row | $(fmt "$(value "$m" psnr)") | $(fmt "$(value "$m" psnr_moving)") | $(fmt "$(value "$m" psnr_ls_gain)")"
+      row="$row | $(fmt "$(value "$m" psnr)") | $(fmt "$(value "$m" ssim)" 3) | $(fmt "$(value "$m" psnr_moving)") | $(fmt "$(value "$m" psnr_ls_gain)")"
     done
+    S=$OUT/$id/summary.json
     if [ $id = backbone ]; then
-      row="$row | – | –"
+      row="$row | – | – | training $(fmt "$(value "$S" seconds)" 0)"
     else
-      row="$row | $(value "$OUT/$id/summary.json" virtual_views) | $(value "$OUT/$id/summary.json" virtual_views_dropped)"
+      rr=$(awk -v a="$(total "$S" render)" -v b="$(total "$S" refine)" 'BEGIN {printf "%.0f", a + b}')
+      row="$row | $(value "$S" virtual_views) | $(value "$S" virtual_views_dropped) | $(total "$S" select) / $rr / $(total "$S" weights) / $(fmt "$(value "$S" train)" 0) / $(fmt "$(value "$S" total)" 0)"
     fi
     echo "$row |"
   done
 } >"$OUT/results.md.tmp"
 mv "$OUT/results.md.tmp" "$OUT/results.md"
 cat "$OUT/results.md"
+
+# The picture: ground truth | backbone | FillGS | the best baseline (highest mean of the two
+# splits' PSNR) at held-out cameras 22 (between the pair) and 9 (beyond it), the clip's
+# middle frame (fixed before any run).
+best=$(for s in random negative interpolation fisherrf coverage3d coverage4d; do
+  echo "$s $(value "$OUT/$s/eval_interpolation/metrics.json" psnr) $(value "$OUT/$s/eval_extrapolation/metrics.json" psnr)"
+done | awk '{m = ($2 + $3) / 2; if (NR == 1 || m > b) {b = m; n = $1}} END {print n}')
+NF=$(ls "$P/ims/22" | wc -l)
+SRC=$(( (NF / 2) / ${FRAMES##*:} * ${FRAMES##*:} ))  # a source frame the --frames step keeps
+for id in backbone fillgs "$best"; do
+  if [ ! -d "$OUT/$id/picture" ]; then
+    "$FILLGS" eval --model "$OUT/$id/model.ply" "${DS[@]}" --select-cameras 22,9 --splits picture --out "$OUT/$id/picture.tmp" --quiet >/dev/null
+    mv "$OUT/$id/picture.tmp" "$OUT/$id/picture"
+  fi
+done
+rows=()
+for cam in 22 9; do
+  name=$(printf '%s_%06d.png' $cam $SRC)
+  W=$(( 640 / DOWN )) H=$(( 360 / DOWN ))
+  rows+=("$P/ims/$cam/$(printf '%06d' $SRC).jpg" --resize ${W}x$H)
+  for id in backbone fillgs "$best"; do rows+=("$OUT/$id/picture/renders/picture/$name"); done
+done
+oiiotool "${rows[@]}" --mosaic 4x2 --resize 400% -o "$OUT/compare.png"
+echo "picture: ground truth | backbone | fillgs | $best at cameras 22 and 9, source frame $SRC -> $OUT/compare.png"
