@@ -231,9 +231,16 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
   // Foreground masks where a seg/ folder stands beside the camera file.
   const fs::path seg = base / "seg";
   const bool masked = fs::is_directory(seg);
-  // Load every image (and mask) once, 8-bit, checking sizes; downscaled by k.
+  // Load every image (and mask) once, 8-bit, checking sizes; downscaled by k; held in
+  // memory or, past the budget, in the image cache file.
   const int k = opt.downscale;
-  d.pixels_.resize(d.views_.size());
+  std::vector<size_t> sizes;
+  for (const TrainView& v : d.views_) {
+    if (v.camera.width / k < 1 || v.camera.height / k < 1)
+      throw_error("--downscale ", k, " leaves no pixel of camera '", v.camera.name, "' (", v.camera.width, "x", v.camera.height, ")");
+    sizes.push_back(size_t(v.camera.width / k) * size_t(v.camera.height / k) * 3);
+  }
+  d.pixels_.reset(sizes, opt.image_memory < 0 ? default_image_budget() : size_t(opt.image_memory), opt.spill_dir);
   if (masked) d.masks_.resize(d.views_.size());
   // Videos: decoded once each, in order, keeping the frames of their views.
   std::map<std::string, std::vector<size_t>> by_video;
@@ -245,8 +252,7 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
     std::vector<int> frames;
     for (size_t i : vs) frames.push_back(d.views_[i].source_frame);
     const Camera& c = d.views_[vs[0]].camera;
-    std::vector<std::vector<uint8_t>> px = decode_video_frames(path, frames, k, c.width, c.height);
-    for (size_t n = 0; n < vs.size(); ++n) d.pixels_[vs[n]] = std::move(px[n]);
+    decode_video_frames(path, frames, k, c.width, c.height, [&](size_t n, std::vector<uint8_t>&& px) { d.pixels_.put(vs[n], std::move(px)); });
   });
   tbb::parallel_for(size_t(0), d.views_.size(), [&](size_t i) {
     TrainView& v = d.views_[i];
@@ -257,7 +263,7 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
         throw_error(v.image_path, ": image is ", im.width, "x", im.height, " but camera '", v.camera.name, "' is ",
                     v.camera.width, "x", v.camera.height);
       if (im.channels < 3) throw_error(v.image_path, ": ", im.channels, " channels, RGB needed");
-      d.pixels_[i] = block_average(im, 3, k);
+      d.pixels_.put(i, block_average(im, 3, k));
     }
     if (masked) {
       const fs::path mp = (seg / mask_rel[i]).replace_extension(".png");
@@ -313,7 +319,10 @@ void Dataset::keep_cycle(const std::vector<std::string>& cycle, std::vector<std:
 }
 
 std::vector<float> Dataset::image(size_t view) const {
-  const std::vector<uint8_t>& px = pixels_.at(view);
+  std::vector<uint8_t> read;
+  const std::vector<uint8_t>* held = pixels_.in_memory(view);
+  if (!held) read = pixels_.get(view);
+  const std::vector<uint8_t>& px = held ? *held : read;
   std::vector<float> out(px.size());
   for (size_t i = 0; i < px.size(); ++i) out[i] = float(px[i]) / 255.0f;
   return out;

@@ -51,7 +51,13 @@ VideoInfo probe_video(const std::string& path) {
 
 std::vector<std::vector<uint8_t>> decode_video_frames(const std::string& path, const std::vector<int>& frames, int k, int width, int height) {
   std::vector<std::vector<uint8_t>> out;
-  if (frames.empty()) return out;
+  decode_video_frames(path, frames, k, width, height, [&](size_t, std::vector<uint8_t>&& px) { out.push_back(std::move(px)); });
+  return out;
+}
+
+void decode_video_frames(const std::string& path, const std::vector<int>& frames, int k, int width, int height,
+                         const std::function<void(size_t, std::vector<uint8_t>&&)>& sink) {
+  if (frames.empty()) return;
   for (size_t i = 1; i < frames.size(); ++i)
     if (frames[i] <= frames[i - 1]) throw_error(path, ": frames to decode must be distinct and in order");
   cv::VideoCapture cap = open_video(path);
@@ -64,10 +70,9 @@ std::vector<std::vector<uint8_t>> decode_video_frames(const std::string& path, c
     if (m.cols != width || m.rows != height || m.type() != CV_8UC3)
       throw_error(path, ": frame ", f, " is ", m.cols, "x", m.rows, " (", m.channels(), " channels), but its camera is ", width, "x", height, " RGB");
     if (!m.isContinuous()) m = m.clone();
-    out.push_back(block_average_u8(m.ptr<uint8_t>(), m.cols, m.rows, 3, 3, bgr_to_rgb, k, 1.0f));
+    sink(next, block_average_u8(m.ptr<uint8_t>(), m.cols, m.rows, 3, 3, bgr_to_rgb, k, 1.0f));
     ++next;
   }
-  return out;
 }
 
 }  // namespace fillgs

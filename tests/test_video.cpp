@@ -371,6 +371,47 @@ TEST_CASE("Neural 3D Video as distributed: mp4 per camera + poses_bounds.npy, fr
   }
 }
 
+TEST_CASE("image cache: a dataset past its image budget reads back the same images from its file, for JPEG frames and mp4 video", "[video]") {
+  // The in-memory dataset is the reference; budget 0 spills every image.
+  auto same = [](const Dataset& held, const Dataset& spilled) {
+    CHECK_FALSE(held.images_spilled());
+    CHECK(spilled.images_spilled());
+    CHECK(held.image_bytes() == spilled.image_bytes());
+    REQUIRE(held.views().size() == spilled.views().size());
+    for (size_t i = 0; i < held.views().size(); ++i) {
+      REQUIRE(held.views()[i].camera.name == spilled.views()[i].camera.name);
+      REQUIRE(held.image(i) == spilled.image(i));
+      REQUIRE(held.mask(i) == spilled.mask(i));
+    }
+  };
+  DatasetOptions o;
+  o.cameras = {"1", "5", "12"};
+  o.frames = FrameRange::parse("0:150:30");
+  o.downscale = 2;
+  const Dataset held = Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o);
+  CHECK(held.image_bytes() == 15 * size_t(320 * 180 * 3));
+  o.image_memory = 0;
+  const Dataset spilled = Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o);
+  same(held, spilled);
+  const Dataset copy = spilled;  // copies share the file
+  CHECK(copy.image(7) == held.image(7));
+  // A budget the images fit in keeps them in memory.
+  o.image_memory = int64_t(held.image_bytes());
+  CHECK_FALSE(Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o).images_spilled());
+
+  const std::string dir = scratch("n3v_cache");
+  const std::string poses = write_video_rig(dir, {"cam00", "cam01"}, {6, 6});
+  DatasetOptions v;
+  const Dataset vheld = Dataset::load(dir, poses, v);
+  v.image_memory = 0;
+  v.spill_dir = join_path(dir, "cache");
+  make_directories(v.spill_dir);
+  same(vheld, Dataset::load(dir, poses, v));
+  CHECK(fs::is_empty(v.spill_dir));  // the cache file is unlinked as soon as it is made
+  v.spill_dir = join_path(dir, "no/such/folder");
+  CHECK(error_of([&] { Dataset::load(dir, poses, v); }).find("cannot make the image cache") != std::string::npos);
+}
+
 TEST_CASE("Neural 3D Video as distributed: bad videos are named in one line", "[video]") {
   const std::string dir = scratch("n3v_mp4_bad");
   const std::string poses = write_video_rig(dir, {"cam00", "cam01"}, {6, 5});

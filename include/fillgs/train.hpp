@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "fillgs/camera.hpp"
+#include "fillgs/pixel_store.hpp"
 #include "fillgs/progress.hpp"
 #include "fillgs/train_model.hpp"
 
@@ -65,6 +66,11 @@ struct DatasetOptions {
   /// Monocular video from a multi-view one (the paper's protocol for the Nvidia scenes):
   /// frame f (after `frames`) keeps only the view of camera cycle[f mod n]. Empty: all views.
   std::vector<std::string> monocular_cycle;
+  /// Bytes of 8-bit images held in memory (< 0: default_image_budget(), a quarter of the
+  /// machine's memory); a dataset with more is kept in an unlinked temporary file in
+  /// `spill_dir` (empty: $TMPDIR or /tmp) and each image read back when it is used.
+  int64_t image_memory = -1;
+  std::string spill_dir;
 };
 
 /// Multi-view video. Two layouts:
@@ -95,6 +101,9 @@ class Dataset {
   std::vector<uint8_t> mask(size_t view) const { return masks_.empty() ? std::vector<uint8_t>() : masks_.at(view); }
   /// The view's image as float RGB in [0, 1] ([H][W][3]).
   std::vector<float> image(size_t view) const;
+  /// Bytes of the 8-bit images, and whether they are kept on disk (DatasetOptions::image_memory).
+  size_t image_bytes() const { return pixels_.bytes(); }
+  bool images_spilled() const { return pixels_.spilled(); }
   /// Centre and radius of the camera centres ×1.1 (3DGS "cameras_extent").
   std::pair<Vec3f, float> camera_extent() const;
 
@@ -102,7 +111,7 @@ class Dataset {
   std::vector<TrainView> views_;
   std::vector<std::string> rigs_;
   int frames_ = 1;
-  std::vector<std::vector<uint8_t>> pixels_;
+  PixelStore pixels_;
   std::vector<std::vector<uint8_t>> masks_;
   /// Keeps the views of the frames `range` chooses, renumbered with their times; `per_view`
   /// is filtered alike.

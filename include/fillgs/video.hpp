@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,10 @@ VideoInfo probe_video(const std::string& path);
 /// RGB pixels averaged over k×k blocks ([H/k][W/k][3], 8-bit). Every frame must decode and
 /// be width × height; otherwise one error naming the file and the frame.
 std::vector<std::vector<uint8_t>> decode_video_frames(const std::string& path, const std::vector<int>& frames, int k, int width, int height);
+/// The same, handing each frame to `sink(index into frames, pixels)` as soon as it is
+/// decoded, so that no more than one frame is held.
+void decode_video_frames(const std::string& path, const std::vector<int>& frames, int k, int width, int height,
+                         const std::function<void(size_t, std::vector<uint8_t>&&)>& sink);
 
 /// `k`×k block average of interleaved pixels (the last W mod k columns and H mod k rows
 /// dropped) to 8-bit: each sample × `to_255` (255 for floats in [0, 1], 1 for 8-bit),

@@ -444,8 +444,9 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   }
   make_directories(join_path(out_dir, "checkpoints"));
   if (!init_points.positions.empty()) write_points_ply(join_path(out_dir, "init_points.ply"), init_points);
-  out << "training on " << data.views().size() << " views (" << data.rigs().size() << " cameras x " << data.frames() << " frames), "
-      << trainer->params().size() << " initial Gaussians, " << iterations << " iterations\n";
+  out << "training on " << data.views().size() << " views (" << data.rigs().size() << " cameras x " << data.frames() << " frames; "
+      << (data.image_bytes() >> 20) << " MB of 8-bit images " << (data.images_spilled() ? "in the image cache file, read on demand" : "in memory")
+      << "), " << trainer->params().size() << " initial Gaussians, " << iterations << " iterations\n";
   TerminalProgress progress(err, progress_enabled(a));
   while (trainer->iteration() < iterations) {
     const int next = std::min(iterations, (trainer->iteration() / o.checkpoint_interval + 1) * o.checkpoint_interval);
@@ -503,6 +504,7 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   }
   // Peak resident memory of the whole run (images held 8-bit, the model, the optimiser).
   j["peak_memory_bytes"] = peak_memory_bytes();
+  j["images"] = {{"bytes", data.image_bytes()}, {"spilled", data.images_spilled()}};
   out << ", peak memory " << (peak_memory_bytes() >> 20) << " MB -> " << out_dir << "\n";
   ScatterSeries loss{"loss", {}, {}, {}};
   const std::vector<float>& h = trainer->loss_history();
@@ -572,6 +574,8 @@ void print_help(std::ostream& out) {
          "image options:  --frames first:last:step (Python's slice; the frames kept become the video)\n"
          "                --downscale k (k×k block average; train, finetune, eval)\n"
          "                --monocular-cycle a,b,.. (frame f keeps only camera [f mod n])\n"
+         "                --image-memory GB (images beyond it wait in a temporary file in $TMPDIR, read\n"
+         "                on demand; default a quarter of the machine's memory)\n"
          "common:         --quiet (no progress bar)\n"
          "                --kernel simd|scalar (the tile kernel: vector, default, or the scalar reference)\n";
 }

@@ -182,7 +182,7 @@ inline std::vector<std::string> split_commas(const std::string& s) {
 
 /// --frames first:last:step, --downscale k and --monocular-cycle a,b,… for the commands that
 /// read images.
-inline const std::set<std::string> kDatasetOptions = {"frames", "downscale", "monocular-cycle"};
+inline const std::set<std::string> kDatasetOptions = {"frames", "downscale", "monocular-cycle", "image-memory"};
 inline DatasetOptions dataset_options(const Args& a, const std::string& cameras_key) {
   DatasetOptions o;
   o.cameras = split_commas(a.get(cameras_key));
@@ -190,6 +190,11 @@ inline DatasetOptions dataset_options(const Args& a, const std::string& cameras_
   o.downscale = a.integer("downscale", 1);
   o.monocular_cycle = split_commas(a.get("monocular-cycle"));
   if (o.downscale < 1) throw_error("fillgs ", a.command(), ": --downscale must be at least 1");
+  if (a.has("image-memory")) {
+    const double gb = a.number("image-memory", 0.0);
+    if (!(gb >= 0 && gb < 1e6)) throw_error("fillgs ", a.command(), ": --image-memory must be a number of GB, at least 0 (got ", a.get("image-memory"), ")");
+    o.image_memory = int64_t(gb * double(int64_t(1) << 30));
+  }
   return o;
 }
 
