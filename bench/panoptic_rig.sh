@@ -15,6 +15,11 @@
 # far side is pool. The rig refiner accepts a pool camera within half the training baseline
 # (1.5 of the pair's 2.98 world units) and 30 degrees of the virtual view's axis.
 #
+# Rows: the two-camera backbone; the dense reference (pair + pool, every camera but the
+# held-out ones, 3,000 iterations); no-refinement (the same fine-tuning, real views only);
+# each strategy (FillGS with its weights, the baselines with ExploreGS's); FillGS's views
+# with ExploreGS's weights and with none.
+#
 # Resumable: a finished step (its summary.json or metrics.json) is reused. Writes
 # OUT/results.md. --smoke: 2 frames at 1/8 size and a few iterations (CI: it must not rot).
 set -euo pipefail
@@ -64,33 +69,47 @@ finetune() {  # id, extra finetune options
 }
 
 evaluate "$OUT/backbone"
+# The dense reference: every camera but the held-out ones (pair + pool), as the dense split
+# of the README trains (3,000 iterations).
+if [ ! -f "$OUT/dense/summary.json" ]; then
+  rm -rf "$OUT/dense"
+  DENSE_IT=(--iterations 3000)
+  [ $SMOKE = 1 ] && DENSE_IT=("${BB[@]}")
+  "$FILLGS" train "${DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE_IT[@]}" --out "$OUT/dense" --quiet
+fi
+evaluate "$OUT/dense"
 finetune no-refinement --trajectories 0
 for s in "${STRATEGIES[@]}"; do
   w=exploregs
   [ $s = fillgs ] && w=fillgs
   finetune "$s" --strategy $s --weighting $w
 done
+# FillGS's views under the baselines' weights (the selection alone against theirs) and
+# unweighted (a real photograph needs no mask): the paper's Table 4 question on real data.
+finetune fillgs.w-exploregs --strategy fillgs --weighting exploregs
+finetune fillgs.w-none --strategy fillgs --weighting none
 
 # The table: a value of a metrics.json or summary.json (the first "key": number), and the
 # sum of a key over a file (the per-round seconds).
 value() { sed -n "s/^ *\"$2\": \([-0-9.eE+]*\),\{0,1\}$/\1/p" "$1" | head -n 1; }
 total() { sed -n "s/^ *\"$2\": \([-0-9.eE+]*\),\{0,1\}$/\1/p" "$1" | awk '{s += $1} END {printf "%.0f", s}'; }
+mean() { sed -n "s/^ *\"$2\": \([-0-9.eE+]*\),\{0,1\}$/\1/p" "$1" | awk '{s += $1; n++} END {if (n) printf "%.3f", s / n}'; }
 fmt() { if [ -z "$1" ]; then echo -; else printf "%.${2:-2}f" "$1"; fi; }
 {
-  echo "| Method | Interp PSNR | SSIM | foreground | gain-corrected | Extrap PSNR | SSIM | foreground | gain-corrected | views added | dropped | seconds: select / render + refine / weights / train / total |"
-  echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
-  for id in backbone no-refinement "${STRATEGIES[@]}"; do
+  echo "| Method | Interp PSNR | SSIM | foreground | gain-corrected | Extrap PSNR | SSIM | foreground | gain-corrected | views added | dropped | mean weight | seconds: select / render + refine / weights / train / total |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+  for id in backbone dense no-refinement "${STRATEGIES[@]}" fillgs.w-exploregs fillgs.w-none; do
     row="| $id"
     for split in interpolation extrapolation; do
       m=$OUT/$id/eval_$split/metrics.json
       row="$row | $(fmt "$(value "$m" psnr)") | $(fmt "$(value "$m" ssim)" 3) | $(fmt "$(value "$m" psnr_moving)") | $(fmt "$(value "$m" psnr_ls_gain)")"
     done
     S=$OUT/$id/summary.json
-    if [ $id = backbone ]; then
-      row="$row | – | – | training $(fmt "$(value "$S" seconds)" 0)"
+    if [ $id = backbone ] || [ $id = dense ]; then
+      row="$row | – | – | – | training $(fmt "$(value "$S" seconds)" 0)"
     else
       rr=$(awk -v a="$(total "$S" render)" -v b="$(total "$S" refine)" 'BEGIN {printf "%.0f", a + b}')
-      row="$row | $(value "$S" virtual_views) | $(value "$S" virtual_views_dropped) | $(total "$S" select) / $rr / $(total "$S" weights) / $(fmt "$(value "$S" train)" 0) / $(fmt "$(value "$S" total)" 0)"
+      row="$row | $(value "$S" virtual_views) | $(value "$S" virtual_views_dropped) | $(mean "$S" mean_weight) | $(total "$S" select) / $rr / $(total "$S" weights) / $(fmt "$(value "$S" train)" 0) / $(fmt "$(value "$S" total)" 0)"
     fi
     echo "$row |"
   done
