@@ -138,5 +138,5 @@ for cam in 22 9; do
   rows+=("$P/ims/$cam/$(printf '%06d' $SRC).jpg" --resize ${W}x$H)
   for id in backbone fillgs "$best"; do rows+=("$OUT/$id/picture/renders/picture/$name"); done
 done
-oiiotool "${rows[@]}" --mosaic 4x2 --resize 400% -o "$OUT/compare.png"
+oiiotool "${rows[@]}" --mosaic 4x2 --resize 200% -o "$OUT/compare.png"
 echo "picture: ground truth | backbone | fillgs | $best at cameras 22 and 9, source frame $SRC -> $OUT/compare.png"
