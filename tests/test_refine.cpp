@@ -97,7 +97,7 @@ TEST_CASE("patch: 3 frames x 4 views in serpentine order with the observed start
   for (const auto& im : j["images"]) CHECK(fs::exists(join_path(join_path(dir, p.name), im["file"].get<std::string>())));
 }
 
-TEST_CASE("rig refiner: the nearest pool camera in tolerance at the view's frame, its photograph and real pose; the others dropped", "[refine][rig]") {
+TEST_CASE("rig refiner: the nearest pool camera in tolerance at the view's frame, its photograph and real pose, the others dropped", "[refine][rig]") {
   // Pool cameras at known centres, 2 frames each; the virtual view at (1, 0, 3) looks at the origin.
   auto cam = [](const Vec3d& eye, const Vec3d& target, double time, const std::string& name) {
     Camera c;
