@@ -248,7 +248,8 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
     if (fs::path(d.views_[i].image_path).extension() == ".mp4") by_video[d.views_[i].image_path].push_back(i);
   std::vector<std::pair<std::string, std::vector<size_t>>> video_list(by_video.begin(), by_video.end());
   tbb::parallel_for(size_t(0), video_list.size(), [&](size_t j) {
-    const auto& [path, vs] = video_list[j];
+    const std::string& path = video_list[j].first;
+    const std::vector<size_t>& vs = video_list[j].second;  // named, not a structured binding: lambdas capture it
     std::vector<int> frames;
     for (size_t i : vs) frames.push_back(d.views_[i].source_frame);
     const Camera& c = d.views_[vs[0]].camera;
