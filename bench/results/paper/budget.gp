@@ -16,6 +16,6 @@ set tmargin at screen 0.9
 set key outside right top vertical Left reverse noautotitle
 set grid xtics ytics lc rgb '#dddddd' lt 1
 set xrange [-0.42:63.42]
-set yrange [12.6455892:19.1545971]
+set yrange [12.645604:19.154596]
 plot 'budget.csv' skip 1 using 2:($1 == 0 ? $3 : NaN) with linespoints pt 7 ps 1.1 lw 1.5 lc rgb '#3c78b4' title 'interpolation', \
      'budget.csv' skip 1 using 2:($1 == 1 ? $3 : NaN) with linespoints pt 7 ps 1.1 lw 1.5 lc rgb '#d62728' title 'extrapolation'
