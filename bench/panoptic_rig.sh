@@ -89,11 +89,12 @@ done
 finetune fillgs.w-exploregs --strategy fillgs --weighting exploregs
 finetune fillgs.w-none --strategy fillgs --weighting none
 
-# The table: a value of a metrics.json or summary.json (the first "key": number), and the
-# sum of a key over a file (the per-round seconds).
-value() { sed -n "s/^ *\"$2\": \([-0-9.eE+]*\),\{0,1\}$/\1/p" "$1" | head -n 1; }
-total() { sed -n "s/^ *\"$2\": \([-0-9.eE+]*\),\{0,1\}$/\1/p" "$1" | awk '{s += $1} END {printf "%.0f", s}'; }
-mean() { sed -n "s/^ *\"$2\": \([-0-9.eE+]*\),\{0,1\}$/\1/p" "$1" | awk '{s += $1; n++} END {if (n) printf "%.3f", s / n}'; }
+# The table: every number a metrics.json or summary.json gives a key ("key": number, one a
+# line as fillgs writes them); the first, their sum (the per-round seconds) or their mean.
+numbers() { sed -n "s/^ *\"$2\": \([-0-9.eE+]*\),\{0,1\}$/\1/p" "$1"; }
+value() { numbers "$1" "$2" | head -n 1; }
+total() { numbers "$1" "$2" | awk '{s += $1} END {printf "%.0f", s}'; }
+mean() { numbers "$1" "$2" | awk '{s += $1; n++} END {if (n) printf "%.3f", s / n}'; }
 fmt() { if [ -z "$1" ]; then echo -; else printf "%.${2:-2}f" "$1"; fi; }
 {
   echo "| Method | Interp PSNR | SSIM | foreground | gain-corrected | Extrap PSNR | SSIM | foreground | gain-corrected | views added | dropped | mean weight | seconds: select / render + refine / weights / train / total |"

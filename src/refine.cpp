@@ -349,16 +349,15 @@ std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& o, ui
 std::unique_ptr<Refiner> make_identity_refiner() { return std::make_unique<IdentityRefiner>(); }
 
 int nearest_pool_view(const RigPool& pool, const Camera& view, const RigOptions& o) {
-  const int F = std::max(1, pool.frame_count);
-  const int frame = view.has_time() ? int(std::lround(std::clamp(view.time, 0.0, 1.0) * (F - 1))) : 0;
+  const int frame = nearest_frame(view.time, pool.frame_count);
   const Vec3d centre = view.centre();
   const Vec3d axis = view.R.row(2).transpose();
   const double cos_max = std::cos(o.max_angle_degrees * kPi / 180.0);
   int best = -1;
   double best_distance = 0, best_cos = 0;
   for (size_t i = 0; i < pool.cameras.size(); ++i) {
-    if (pool.frames[i] != frame) continue;
     const Camera& c = pool.cameras[i];
+    if (nearest_frame(c.time, pool.frame_count) != frame) continue;
     const double d = (c.centre() - centre).norm();
     const double cosine = axis.dot(c.R.row(2).transpose());
     if (d > o.max_distance || cosine < cos_max) continue;
@@ -373,7 +372,7 @@ class RigRefiner : public Refiner {
  public:
   RigRefiner(RigPool pool, const RigOptions& o) : pool_(std::move(pool)), o_(o) {
     if (pool_.cameras.empty()) throw_error("rig refiner: no pool camera (every camera of the rig is trained on or held out)");
-    if (pool_.frames.size() != pool_.cameras.size() || !pool_.image) throw_error("rig refiner: the pool's frames or images are missing");
+    if (!pool_.image) throw_error("rig refiner: the pool's images are missing");
     if (!(o_.max_distance >= 0 && std::isfinite(o_.max_distance)))
       throw_error("rig refiner: --rig-max-distance must be a finite number at least 0 (got ", o_.max_distance, ")");
     if (!(o_.max_angle_degrees >= 0 && o_.max_angle_degrees <= 180))

@@ -49,12 +49,6 @@ VideoInfo probe_video(const std::string& path) {
   return v;
 }
 
-std::vector<std::vector<uint8_t>> decode_video_frames(const std::string& path, const std::vector<int>& frames, int k, int width, int height) {
-  std::vector<std::vector<uint8_t>> out;
-  decode_video_frames(path, frames, k, width, height, [&](size_t, std::vector<uint8_t>&& px) { out.push_back(std::move(px)); });
-  return out;
-}
-
 void decode_video_frames(const std::string& path, const std::vector<int>& frames, int k, int width, int height,
                          const std::function<void(size_t, std::vector<uint8_t>&&)>& sink) {
   if (frames.empty()) return;

@@ -47,6 +47,11 @@ std::vector<size_t> shard_frames(size_t total, size_t index, size_t count) {
   return out;
 }
 
+int nearest_frame(double t, int frames) {
+  if (frames <= 1 || std::isnan(t)) return 0;
+  return int(std::lround(std::clamp(t, 0.0, 1.0) * (frames - 1)));
+}
+
 std::vector<double> frame_times(int frames) {
   FILLGS_CHECK(frames >= 1);
   std::vector<double> t(size_t(frames), 0.0);

@@ -25,8 +25,6 @@ constexpr WeightingName kWeightings[] = {{Weighting::FillGS, "fillgs"},
                                          {Weighting::ExploreGS, "exploregs"},
                                          {Weighting::UA4DGS, "ua-4dgs"}};
 
-int frame_of(double t, int frames) { return frames > 1 ? std::clamp(int(std::lround(t * (frames - 1))), 0, frames - 1) : 0; }
-
 /// Gaussians whose maximum blending weight in a view reaches 1/255 (the rasterizer's own
 /// notion of "contributes"), as a 0/1 vector, and the per-Gaussian maximum weights.
 std::vector<float> max_weights(const FrameGaussians& frame, const Camera& camera, int threads) {
@@ -233,7 +231,7 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
   if (!ctx.model) throw_error("weights: no model");
   ViewWeights w;
   const size_t P = size_t(camera.width) * size_t(camera.height);
-  const int f = frame_of(camera.time, ctx.frames);
+  const int f = nearest_frame(camera.time, ctx.frames);
   const FrameGaussians frame = evaluate(*ctx.model, camera.time);
   const std::vector<int> adj = adjacent_observed(ctx.views, camera, f);
   for (size_t k = 0; k < adj.size() && k < 2; ++k) w.adjacent[k] = adj[k];

@@ -113,7 +113,6 @@ TEST_CASE("rig refiner: the nearest pool camera in tolerance at the view's frame
   for (int f = 0; f < 2; ++f) {
     pool.cameras.push_back(cam(a, Vec3d::Zero(), f, "a/" + std::to_string(f)));
     pool.cameras.push_back(cam(b, b + Vec3d(1, 0, 0), f, "b/" + std::to_string(f)));
-    pool.frames.push_back(f), pool.frames.push_back(f);
   }
   pool.image = [&](size_t i) { return std::vector<float>(16 * 12 * 3, float(i + 1) / 8.0f); };
   const Camera view = cam(Vec3d(1, 0, 3), Vec3d::Zero(), 1.0, "virtual");

@@ -21,7 +21,6 @@ class PixelStore {
   std::vector<uint8_t> get(size_t i) const;
   /// The image when it is held in memory, else null (read it with get).
   const std::vector<uint8_t>* in_memory(size_t i) const { return file_ ? nullptr : &memory_.at(i); }
-  size_t size() const { return sizes_.size(); }
   size_t bytes() const { return total_; }
   bool spilled() const { return file_ != nullptr; }
 

@@ -155,8 +155,7 @@ struct RigOptions {
   double max_angle_degrees = 30.0;
 };
 struct RigPool {
-  std::vector<Camera> cameras;  ///< every pool view, with its time (frame f at f / (frames − 1))
-  std::vector<int> frames;      ///< the frame of each view
+  std::vector<Camera> cameras;  ///< every pool view, with its time (frame f at f / (frame_count − 1))
   std::function<std::vector<float>(size_t)> image;  ///< float RGB [H][W][3] of view i
   int frame_count = 1;
 };

@@ -22,12 +22,10 @@ struct VideoInfo {
 };
 VideoInfo probe_video(const std::string& path);
 
-/// Decodes `path` in order and returns, for each frame index in `frames` (increasing), its
-/// RGB pixels averaged over k×k blocks ([H/k][W/k][3], 8-bit). Every frame must decode and
-/// be width × height; otherwise one error naming the file and the frame.
-std::vector<std::vector<uint8_t>> decode_video_frames(const std::string& path, const std::vector<int>& frames, int k, int width, int height);
-/// The same, handing each frame to `sink(index into frames, pixels)` as soon as it is
-/// decoded, so that no more than one frame is held.
+/// Decodes `path` in order and hands, for each frame index in `frames` (increasing), its
+/// RGB pixels averaged over k×k blocks ([H/k][W/k][3], 8-bit) to `sink(index into frames,
+/// pixels)` as soon as it is decoded, so that no more than one frame is held. Every frame
+/// must decode and be width × height; otherwise one error naming the file and the frame.
 void decode_video_frames(const std::string& path, const std::vector<int>& frames, int k, int width, int height,
                          const std::function<void(size_t, std::vector<uint8_t>&&)>& sink);
 

@@ -178,5 +178,7 @@ ObservationTables observation_tables(const GaussianCloud& cloud, const std::vect
 
 /// The frame grid t_f = f / (F − 1) (F = 1: {0}).
 std::vector<double> frame_times(int frames);
+/// The frame of the grid nearest to time t, clamped to [0, F − 1]; 0 for F = 1 or an untimed (NaN) t.
+int nearest_frame(double t, int frames);
 
 }  // namespace fillgs

@@ -143,7 +143,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
     if (pool_data->frames() != data.frames())
       throw_error("fillgs finetune: the pool cameras have ", pool_data->frames(), " frames, the training cameras ", data.frames());
     RigPool pool;
-    for (const TrainView& v : pool_data->views()) pool.cameras.push_back(v.camera), pool.frames.push_back(v.frame);
+    for (const TrainView& v : pool_data->views()) pool.cameras.push_back(v.camera);
     pool.frame_count = pool_data->frames();
     pool.image = [d = pool_data.get()](size_t i) { return d->image(i); };
     RigOptions ro;
