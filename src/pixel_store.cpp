@@ -60,9 +60,9 @@ void PixelStore::put(size_t i, std::vector<uint8_t>&& pixels) {
   }
 }
 
-std::vector<uint8_t> PixelStore::get(size_t i) const {
+const std::vector<uint8_t>& PixelStore::get(size_t i, std::vector<uint8_t>& out) const {
   if (!file_) return memory_.at(i);
-  std::vector<uint8_t> out(sizes_.at(i));
+  out.resize(sizes_.at(i));
   size_t done = 0;
   while (done < out.size()) {
     const ssize_t n = ::pread(file_->fd, out.data() + done, out.size() - done, off_t(offsets_[i] + done));

@@ -320,10 +320,8 @@ void Dataset::keep_cycle(const std::vector<std::string>& cycle, std::vector<std:
 }
 
 std::vector<float> Dataset::image(size_t view) const {
-  std::vector<uint8_t> read;
-  const std::vector<uint8_t>* held = pixels_.in_memory(view);
-  if (!held) read = pixels_.get(view);
-  const std::vector<uint8_t>& px = held ? *held : read;
+  std::vector<uint8_t> scratch;
+  const std::vector<uint8_t>& px = pixels_.get(view, scratch);
   std::vector<float> out(px.size());
   for (size_t i = 0; i < px.size(); ++i) out[i] = float(px[i]) / 255.0f;
   return out;

@@ -18,9 +18,8 @@ class PixelStore {
   /// temporary folder, $TMPDIR) when their sum exceeds `budget` bytes.
   void reset(const std::vector<size_t>& sizes, size_t budget, const std::string& spill_dir = "");
   void put(size_t i, std::vector<uint8_t>&& pixels);
-  std::vector<uint8_t> get(size_t i) const;
-  /// The image when it is held in memory, else null (read it with get).
-  const std::vector<uint8_t>* in_memory(size_t i) const { return file_ ? nullptr : &memory_.at(i); }
+  /// Image i: the one held in memory, or read from the file into `scratch` (and returned).
+  const std::vector<uint8_t>& get(size_t i, std::vector<uint8_t>& scratch) const;
   size_t bytes() const { return total_; }
   bool spilled() const { return file_ != nullptr; }
 
