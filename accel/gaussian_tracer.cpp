@@ -105,37 +105,64 @@ inline bool respond(const Proxy& p, const float org[3], const float dir[3], cons
   return true;
 }
 
-/// The k first hits beyond the last accepted one, kept sorted by (key, id).
-/// Keys are ray distances, or view depths under a RasterMatch.
+/// The first hits beyond the last accepted one, kept sorted by (key, id), up to the hit that
+/// ends the ray: each entry knows the transmittance in front of it (from `start_T`, the
+/// ray's T when the pass began, multiplied in the same order as the blend), and once some
+/// entry would take T under `min_T` the entries behind it are dropped and its key becomes
+/// the limit — so a ray's traversal stops where its blend will, not only once the buffer
+/// is full. Keys are ray distances, or view depths under a RasterMatch.
 struct KBuffer {
-  static constexpr int kCapacity = 16;
+  static constexpr int kCapacity = kTraceBatch;
   struct Entry {
     float key;
     uint32_t id;
     float alpha;
     float ray_distance;
+    float T;  ///< transmittance in front of this entry
   };
   Entry entries[kCapacity];
   int count = 0;
+  bool ends = false;       ///< entries[count - 1] takes T under min_T: the ray ends there
   bool has_floor = false;  ///< false on the first pass
   float floor_key = 0;
   uint32_t floor_id = 0;
+  float start_T = 1.0f, min_T = 0.0f;
 
   static bool before(float da, uint32_t ia, float db, uint32_t ib) { return da < db || (da == db && ia < ib); }
 
-  /// Offers a hit; returns the key beyond which nothing can enter any more (+inf while not full).
+  /// Empties the buffer for a pass that starts with transmittance T.
+  void begin_pass(float T) {
+    count = 0;
+    ends = false;
+    start_T = T;
+  }
+
+  /// Offers a hit; returns the key beyond which nothing can enter any more (+inf while the
+  /// buffer is neither full nor ended).
   float offer(float key, uint32_t id, float alpha, float ray_distance) {
     if (has_floor && !before(floor_key, floor_id, key, id)) return limit();
-    if (count == kCapacity && !before(key, id, entries[count - 1].key, entries[count - 1].id)) return limit();
+    if ((ends || count == kCapacity) && !before(key, id, entries[count - 1].key, entries[count - 1].id)) return limit();
     int i = count < kCapacity ? count++ : kCapacity - 1;
     while (i > 0 && before(key, id, entries[i - 1].key, entries[i - 1].id)) {
       entries[i] = entries[i - 1];
       --i;
     }
-    entries[i] = {key, id, alpha, ray_distance};
+    entries[i] = {key, id, alpha, ray_distance, 0.0f};
+    // Transmittances from the new entry on, exactly as the blend will multiply them.
+    float T = i == 0 ? start_T : entries[i - 1].T * (1.0f - entries[i - 1].alpha);
+    ends = false;
+    for (int j = i; j < count; ++j) {
+      entries[j].T = T;
+      T *= 1.0f - entries[j].alpha;
+      if (T < min_T) {
+        count = j + 1;
+        ends = true;
+        break;
+      }
+    }
     return limit();
   }
-  float limit() const { return count == kCapacity ? entries[count - 1].key : std::numeric_limits<float>::infinity(); }
+  float limit() const { return ends || count == kCapacity ? entries[count - 1].key : std::numeric_limits<float>::infinity(); }
 };
 
 /// Embree passes our context pointer through to the callbacks unchanged (also inside instances).
@@ -222,16 +249,60 @@ double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+/// The half-diagonal above which proxies go to the large tier: with sizes d sorted
+/// ascending, a traversal ordered by depth keys visits about (window) × (proxies per depth)
+/// and its window is the tier's largest half-diagonal, so the split minimises
+/// (i + 1)·d[i] + (n − 1 − i)·d[n − 1] over i (i = n − 1: one tier). +inf when one tier is best.
+float large_tier_threshold(std::vector<float> d) {
+  if (d.size() < 2) return std::numeric_limits<float>::infinity();
+  std::sort(d.begin(), d.end());
+  const size_t n = d.size();
+  size_t best = n - 1;
+  double best_cost = double(n) * double(d[n - 1]);
+  for (size_t i = 0; i + 1 < n; ++i) {
+    if (d[i] == d[i + 1]) continue;  // a threshold splits between distinct sizes only
+    const double cost = double(i + 1) * double(d[i]) + double(n - 1 - i) * double(d[n - 1]);
+    if (cost < best_cost) {
+      best_cost = cost;
+      best = i;
+    }
+  }
+  return best == n - 1 ? std::numeric_limits<float>::infinity() : d[best];
+}
+
+float half_diagonal(const Proxy& p) {
+  return std::sqrt(p.half_extent[0] * p.half_extent[0] + p.half_extent[1] * p.half_extent[1] + p.half_extent[2] * p.half_extent[2]);
+}
+
 }  // namespace
 
 
+/// Proxies are split by size into tiers, each traversed on its own: a ray ordered by depth
+/// keys may stop only a tier's largest proxy beyond its k-th key, so the few large proxies
+/// (floaters, backgrounds) in a tier of their own keep that slack small for all the others.
+/// A tier holds its static proxies (BVH built once) and dynamic ones (refit per time),
+/// both instanced into the tier's top-level scene.
 struct GaussianTracer::Impl {
+  struct Tier {
+    ProxySet static_set, dynamic_set;
+    SceneHandle static_scene, dynamic_scene, top;
+    RTCGeometry dynamic_geometry = nullptr;  // owned by dynamic_scene
+    RTCGeometry dynamic_instance = nullptr;  // owned by top
+
+    bool empty(TraceLayers layers) const {
+      return static_set.proxies.empty() && (layers == TraceLayers::StaticOnly || dynamic_set.proxies.empty());
+    }
+    float slack(TraceLayers layers) const {
+      return layers == TraceLayers::All ? std::max(static_set.slack, dynamic_set.slack) : static_set.slack;
+    }
+    RTCScene scene(TraceLayers layers) const { return layers == TraceLayers::All ? top.scene : static_scene.scene; }
+  };
+  static constexpr int kTiers = 2;  ///< [0]: up to the threshold (and empty proxies), [1]: larger
+
   TracerOptions options;
   accel::EmbreeDevice device;
-  ProxySet static_set, dynamic_set;
-  SceneHandle static_scene, dynamic_scene, top;
-  RTCGeometry dynamic_geometry = nullptr;  // owned by dynamic_scene
-  RTCGeometry dynamic_instance = nullptr;  // owned by top
+  Tier tiers[kTiers];
+  float large_threshold = std::numeric_limits<float>::infinity();
   double build_seconds = 0, refit_seconds = 0;
 
   void fill(ProxySet& set, const FrameGaussians& frame) {
@@ -240,16 +311,48 @@ struct GaussianTracer::Impl {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, set.ids.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i < r.end(); ++i) {
           const uint32_t g = set.ids[i];
-          set.proxies[i] = make_proxy(frame.means[g], frame.scales[g], frame.rotations[g], frame.opacities[g], set.min_alpha, set.padding);
+          set.proxies[i] = make_proxy(frame.means[g], frame.scales[g], frame.rotations[g], frame.opacities[g], set.min_alpha,
+                                      padding_at(frame.means[g], set.padding));
         }
       });
     });
     float slack = 0;
     for (const Proxy& p : set.proxies)
-      if (p.k2 > 0.0f)
-        slack = std::max(slack, std::sqrt(p.half_extent[0] * p.half_extent[0] + p.half_extent[1] * p.half_extent[1] +
-                                          p.half_extent[2] * p.half_extent[2]));
+      if (p.k2 > 0.0f) slack = std::max(slack, half_diagonal(p));
     set.slack = slack;
+  }
+
+  /// Bound padding of a Gaussian with mean `x`: the largest dilation σ·z over the listed
+  /// cameras (z: its view depth; none at or behind the camera plane), else `uniform`.
+  float padding_at(const Vec3f& x, float uniform) const {
+    if (options.dilation_views.empty()) return uniform;
+    float pad = 0.0f;
+    for (const TracerOptions::DilationView& v : options.dilation_views) {
+      const float z = v.axis[0] * (x[0] - v.centre[0]) + v.axis[1] * (x[1] - v.centre[1]) + v.axis[2] * (x[2] - v.centre[2]);
+      pad = std::max(pad, v.sigma_per_depth * z);
+    }
+    return pad * (1.0f + 1e-5f);  // the ray's depth is computed in its own rounding
+  }
+
+  /// Moves the proxies of `all` into the tiers' sets of the same kind by size.
+  void split(ProxySet& all, ProxySet Tier::*kind) {
+    for (Tier& t : tiers) {
+      ProxySet& s = t.*kind;
+      s.min_alpha = all.min_alpha;
+      s.padding = all.padding;
+    }
+    for (size_t i = 0; i < all.proxies.size(); ++i) {
+      const Proxy& p = all.proxies[i];
+      ProxySet& s = tiers[p.k2 > 0.0f && half_diagonal(p) > large_threshold ? 1 : 0].*kind;
+      s.proxies.push_back(p);
+      s.ids.push_back(all.ids[i]);
+    }
+    for (Tier& t : tiers) {
+      ProxySet& s = t.*kind;
+      for (const Proxy& p : s.proxies)
+        if (p.k2 > 0.0f) s.slack = std::max(s.slack, half_diagonal(p));
+    }
+    all = ProxySet();
   }
 
   RTCGeometry add_user_geometry(RTCScene scene, ProxySet& set, RTCBuildQuality quality) {
@@ -266,15 +369,34 @@ struct GaussianTracer::Impl {
     return g;
   }
 
-  RTCGeometry add_instance(RTCScene child) {
+  RTCGeometry add_instance(RTCScene parent, RTCScene child) {
     RTCGeometry inst = rtcNewGeometry(device.get(), RTC_GEOMETRY_TYPE_INSTANCE);
     rtcSetGeometryInstancedScene(inst, child);
     const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
     rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
     rtcCommitGeometry(inst);
-    rtcAttachGeometry(top.scene, inst);
+    rtcAttachGeometry(parent, inst);
     rtcReleaseGeometry(inst);
     return inst;
+  }
+
+  void build_scenes(Tier& t) {
+    RTCDevice dev = device.get();
+    t.static_scene.scene = rtcNewScene(dev);
+    rtcSetSceneBuildQuality(t.static_scene.scene, RTC_BUILD_QUALITY_MEDIUM);
+    if (!t.static_set.proxies.empty()) add_user_geometry(t.static_scene.scene, t.static_set, RTC_BUILD_QUALITY_MEDIUM);
+    rtcCommitScene(t.static_scene.scene);
+
+    t.dynamic_scene.scene = rtcNewScene(dev);
+    rtcSetSceneFlags(t.dynamic_scene.scene, RTC_SCENE_FLAG_DYNAMIC);
+    rtcSetSceneBuildQuality(t.dynamic_scene.scene, RTC_BUILD_QUALITY_MEDIUM);
+    if (!t.dynamic_set.proxies.empty()) t.dynamic_geometry = add_user_geometry(t.dynamic_scene.scene, t.dynamic_set, RTC_BUILD_QUALITY_MEDIUM);
+    rtcCommitScene(t.dynamic_scene.scene);
+
+    t.top.scene = rtcNewScene(dev);
+    if (!t.static_set.proxies.empty()) add_instance(t.top.scene, t.static_scene.scene);
+    if (!t.dynamic_set.proxies.empty()) t.dynamic_instance = add_instance(t.top.scene, t.dynamic_scene.scene);
+    rtcCommitScene(t.top.scene);
   }
 };
 
@@ -286,41 +408,33 @@ GaussianTracer::GaussianTracer(const FrameGaussians& frame, const std::vector<ui
   FILLGS_CHECK(options.min_alpha > 0.0f && options.min_alpha < 1.0f);
   FILLGS_CHECK(frame.size() < size_t(std::numeric_limits<uint32_t>::max()));
   FILLGS_CHECK(options.dilation_padding >= 0.0f && std::isfinite(options.dilation_padding));
-  FILLGS_CHECK(options.dilation_padding >= 0.0f && std::isfinite(options.dilation_padding));
-  m.static_set.min_alpha = m.dynamic_set.min_alpha = options.min_alpha;
-  m.static_set.padding = m.dynamic_set.padding = options.dilation_padding;
-  m.static_set.padding = m.dynamic_set.padding = options.dilation_padding;
-  m.dynamic_set.ids = dynamic_ids;
+  ProxySet statics, dynamics;
+  statics.min_alpha = dynamics.min_alpha = options.min_alpha;
+  statics.padding = dynamics.padding = options.dilation_padding;
+  dynamics.ids = dynamic_ids;
   std::vector<char> moving(frame.size(), 0);
   for (uint32_t g : dynamic_ids) {
     FILLGS_CHECK_LT(size_t(g), frame.size());
     moving[g] = 1;
   }
-  m.static_set.ids.reserve(frame.size() - dynamic_ids.size());
+  statics.ids.reserve(frame.size() - dynamic_ids.size());
   for (size_t g = 0; g < frame.size(); ++g)
-    if (!moving[g]) m.static_set.ids.push_back(uint32_t(g));
-  m.static_set.proxies.resize(m.static_set.ids.size());
-  m.dynamic_set.proxies.resize(m.dynamic_set.ids.size());
-  m.fill(m.static_set, frame);
-  m.fill(m.dynamic_set, frame);
-
-  RTCDevice dev = m.device.get();
-  m.static_scene.scene = rtcNewScene(dev);
-  rtcSetSceneBuildQuality(m.static_scene.scene, RTC_BUILD_QUALITY_MEDIUM);
-  if (!m.static_set.proxies.empty()) m.add_user_geometry(m.static_scene.scene, m.static_set, RTC_BUILD_QUALITY_MEDIUM);
-  rtcCommitScene(m.static_scene.scene);
-
-  m.dynamic_scene.scene = rtcNewScene(dev);
-  rtcSetSceneFlags(m.dynamic_scene.scene, RTC_SCENE_FLAG_DYNAMIC);
-  rtcSetSceneBuildQuality(m.dynamic_scene.scene, RTC_BUILD_QUALITY_LOW);
-  if (!m.dynamic_set.proxies.empty())
-    m.dynamic_geometry = m.add_user_geometry(m.dynamic_scene.scene, m.dynamic_set, RTC_BUILD_QUALITY_REFIT);
-  rtcCommitScene(m.dynamic_scene.scene);
-
-  m.top.scene = rtcNewScene(dev);
-  if (!m.static_set.proxies.empty()) m.add_instance(m.static_scene.scene);
-  if (!m.dynamic_set.proxies.empty()) m.dynamic_instance = m.add_instance(m.dynamic_scene.scene);
-  rtcCommitScene(m.top.scene);
+    if (!moving[g]) statics.ids.push_back(uint32_t(g));
+  statics.proxies.resize(statics.ids.size());
+  dynamics.proxies.resize(dynamics.ids.size());
+  m.fill(statics, frame);
+  m.fill(dynamics, frame);
+  {
+    std::vector<float> sizes;
+    sizes.reserve(frame.size());
+    for (const ProxySet* set : {&statics, &dynamics})
+      for (const Proxy& p : set->proxies)
+        if (p.k2 > 0.0f) sizes.push_back(half_diagonal(p));
+    m.large_threshold = large_tier_threshold(std::move(sizes));
+  }
+  m.split(statics, &Impl::Tier::static_set);
+  m.split(dynamics, &Impl::Tier::dynamic_set);
+  for (Impl::Tier& t : m.tiers) m.build_scenes(t);
   m.device.check("building Gaussian proxies");
   m.build_seconds = seconds_since(start);
 }
@@ -330,13 +444,15 @@ GaussianTracer::~GaussianTracer() = default;
 void GaussianTracer::refit_dynamic(const FrameGaussians& frame) {
   const auto start = std::chrono::steady_clock::now();
   Impl& m = *impl_;
-  if (m.dynamic_set.proxies.empty()) return;
-  FILLGS_CHECK_LT(size_t(m.dynamic_set.ids.back()), frame.size());
-  m.fill(m.dynamic_set, frame);
-  rtcCommitGeometry(m.dynamic_geometry);
-  rtcCommitScene(m.dynamic_scene.scene);
-  rtcCommitGeometry(m.dynamic_instance);
-  rtcCommitScene(m.top.scene);
+  for (Impl::Tier& t : m.tiers) {
+    if (t.dynamic_set.proxies.empty()) continue;
+    FILLGS_CHECK_LT(size_t(*std::max_element(t.dynamic_set.ids.begin(), t.dynamic_set.ids.end())), frame.size());
+    m.fill(t.dynamic_set, frame);
+    rtcCommitGeometry(t.dynamic_geometry);
+    rtcCommitScene(t.dynamic_scene.scene);
+    rtcCommitGeometry(t.dynamic_instance);
+    rtcCommitScene(t.top.scene);
+  }
   m.device.check("refitting dynamic Gaussian proxies");
   m.refit_seconds = seconds_since(start);
 }
@@ -344,38 +460,44 @@ void GaussianTracer::refit_dynamic(const FrameGaussians& frame) {
 RayOutcome GaussianTracer::trace(const Vec3f& origin, const Vec3f& direction, TraceLayers layers,
                                  std::vector<TracedHit>& hits, const RasterMatch* match) const {
   const Impl& m = *impl_;
-  RTCScene scene = layers == TraceLayers::All ? m.top.scene : m.static_scene.scene;
   KBuffer buffer;
   TraceContext context;
   rtcInitIntersectContext(&context.base);
   context.buffer = &buffer;
   context.match = match;
-  if (match) {
-    context.depth_per_distance = depth_per_distance(direction, *match);
-    context.slack = layers == TraceLayers::All ? std::max(m.static_set.slack, m.dynamic_set.slack) : m.static_set.slack;
-  }
+  if (match) context.depth_per_distance = depth_per_distance(direction, *match);
+  buffer.min_T = m.options.min_transmittance;
   RayOutcome out;
   float T = 1.0f;
   for (;;) {
-    buffer.count = 0;
-    RTCRayHit rh;
-    rh.ray.org_x = origin.x();
-    rh.ray.org_y = origin.y();
-    rh.ray.org_z = origin.z();
-    rh.ray.dir_x = direction.x();
-    rh.ray.dir_y = direction.y();
-    rh.ray.dir_z = direction.z();
-    rh.ray.tnear = !buffer.has_floor ? 0.0f
-                   : match ? std::max(0.0f, (buffer.floor_key - context.slack) / context.depth_per_distance)
-                           : buffer.floor_key;
-    rh.ray.tfar = std::numeric_limits<float>::infinity();
-    rh.ray.time = 0.0f;
-    rh.ray.mask = 0xFFFFFFFFu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(scene, &context.base, &rh);
+    buffer.begin_pass(T);
+    // Every tier offers its proxies to the one k-buffer; each traversal may stop its own
+    // slack beyond the buffer's current k-th key (which only moves closer).
+    for (const Impl::Tier& tier : m.tiers) {
+      if (tier.empty(layers)) continue;
+      context.slack = match ? tier.slack(layers) : 0.0f;
+      const float limit = buffer.limit();
+      RTCRayHit rh;
+      rh.ray.org_x = origin.x();
+      rh.ray.org_y = origin.y();
+      rh.ray.org_z = origin.z();
+      rh.ray.dir_x = direction.x();
+      rh.ray.dir_y = direction.y();
+      rh.ray.dir_z = direction.z();
+      rh.ray.tnear = !buffer.has_floor ? 0.0f
+                     : match ? std::max(0.0f, (buffer.floor_key - context.slack) / context.depth_per_distance)
+                             : buffer.floor_key;
+      rh.ray.tfar = limit == std::numeric_limits<float>::infinity() ? limit
+                    : match ? (limit + context.slack) / context.depth_per_distance
+                            : limit;
+      rh.ray.time = 0.0f;
+      rh.ray.mask = 0xFFFFFFFFu;
+      rh.ray.id = 0;
+      rh.ray.flags = 0;
+      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+      rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+      if (rh.ray.tfar >= rh.ray.tnear) rtcIntersect1(tier.scene(layers), &context.base, &rh);
+    }
     ++out.passes;
     for (int i = 0; i < buffer.count; ++i) {
       const KBuffer::Entry& e = buffer.entries[i];
@@ -400,42 +522,68 @@ RayOutcome GaussianTracer::trace(const Vec3f& origin, const Vec3f& direction, Tr
 bool GaussianTracer::meets_dynamic(const Vec3f& origin, const Vec3f& direction, float max_key,
                                    const RasterMatch* match) const {
   const Impl& m = *impl_;
-  if (m.dynamic_set.proxies.empty() || !(max_key >= 0.0f)) return false;
-  TraceContext context;
-  rtcInitIntersectContext(&context.base);
-  context.buffer = nullptr;
-  context.match = match;
-  context.max_key = max_key;
-  float max_distance = max_key;
-  if (match) {
-    context.depth_per_distance = depth_per_distance(direction, *match);
-    max_distance = (max_key + m.dynamic_set.slack) / context.depth_per_distance;
+  if (!(max_key >= 0.0f)) return false;
+  for (const Impl::Tier& tier : m.tiers) {
+    if (tier.dynamic_set.proxies.empty()) continue;
+    TraceContext context;
+    rtcInitIntersectContext(&context.base);
+    context.buffer = nullptr;
+    context.match = match;
+    context.max_key = max_key;
+    float max_distance = max_key;
+    if (match) {
+      context.depth_per_distance = depth_per_distance(direction, *match);
+      max_distance = (max_key + tier.dynamic_set.slack) / context.depth_per_distance;
+    }
+    RTCRay ray;
+    ray.org_x = origin.x();
+    ray.org_y = origin.y();
+    ray.org_z = origin.z();
+    ray.dir_x = direction.x();
+    ray.dir_y = direction.y();
+    ray.dir_z = direction.z();
+    ray.tnear = 0.0f;
+    ray.tfar = max_distance;
+    ray.time = 0.0f;
+    ray.mask = 0xFFFFFFFFu;
+    ray.id = 0;
+    ray.flags = 0;
+    rtcOccluded1(tier.dynamic_scene.scene, &context.base, &ray);
+    if (ray.tfar < 0.0f) return true;
   }
-  RTCRay ray;
-  ray.org_x = origin.x();
-  ray.org_y = origin.y();
-  ray.org_z = origin.z();
-  ray.dir_x = direction.x();
-  ray.dir_y = direction.y();
-  ray.dir_z = direction.z();
-  ray.tnear = 0.0f;
-  ray.tfar = max_distance;
-  ray.time = 0.0f;
-  ray.mask = 0xFFFFFFFFu;
-  ray.id = 0;
-  ray.flags = 0;
-  rtcOccluded1(m.dynamic_scene.scene, &context.base, &ray);
-  return ray.tfar < 0.0f;
+  return false;
 }
 
-size_t GaussianTracer::static_count() const { return impl_->static_set.ids.size(); }
-size_t GaussianTracer::dynamic_count() const { return impl_->dynamic_set.ids.size(); }
-float GaussianTracer::dilation_padding() const { return impl_->static_set.padding; }
+void GaussianTracer::dynamic_boxes(std::vector<ProxyBox>& out) const {
+  out.clear();
+  for (const Impl::Tier& tier : impl_->tiers)
+    for (const Proxy& p : tier.dynamic_set.proxies) {
+      ProxyBox b;
+      for (int a = 0; a < 3; ++a) {
+        b.centre[a] = p.mean[a];
+        b.half_extent[a] = p.k2 > 0.0f ? p.half_extent[a] : -1.0f;
+      }
+      out.push_back(b);
+    }
+}
+
+size_t GaussianTracer::static_count() const {
+  size_t n = 0;
+  for (const Impl::Tier& t : impl_->tiers) n += t.static_set.ids.size();
+  return n;
+}
+size_t GaussianTracer::dynamic_count() const {
+  size_t n = 0;
+  for (const Impl::Tier& t : impl_->tiers) n += t.dynamic_set.ids.size();
+  return n;
+}
+float GaussianTracer::dilation_padding() const { return impl_->options.dilation_padding; }
+float GaussianTracer::large_proxy_threshold() const { return impl_->large_threshold; }
+size_t GaussianTracer::large_proxy_count() const {
+  return impl_->tiers[1].static_set.ids.size() + impl_->tiers[1].dynamic_set.ids.size();
+}
 double GaussianTracer::build_seconds() const { return impl_->build_seconds; }
 double GaussianTracer::last_refit_seconds() const { return impl_->refit_seconds; }
-size_t GaussianTracer::memory_bytes() const {
-  const size_t n = impl_->static_set.ids.size() + impl_->dynamic_set.ids.size();
-  return n * (sizeof(Proxy) + sizeof(uint32_t));
-}
+size_t GaussianTracer::memory_bytes() const { return (static_count() + dynamic_count()) * (sizeof(Proxy) + sizeof(uint32_t)); }
 
 }  // namespace fillgs

@@ -231,6 +231,8 @@ ObserveReport write_observation(const GaussianCloud& cloud, const std::vector<Ca
   j["rays_traced"] = summary.counters.rays;
   j["dynamic_probes"] = summary.counters.probes;
   j["hits"] = summary.counters.hits;
+  j["rays_incremental"] = summary.incremental_rays;
+  j["rays_in_dynamic_footprints"] = summary.footprint_rays;
   j["rays_retraced"] = summary.retraced_rays;
   j["seconds"] = {{"build", summary.seconds_build},   {"refit", summary.seconds_refit},
                   {"static_answers", summary.seconds_static}, {"frames", summary.seconds_frames},
@@ -348,13 +350,14 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
   ObserveTallies tally;
   nlohmann::json j = first;
   j.erase("shard");
-  uint64_t sums[5] = {};
-  const char* summed[] = {"views", "rays_traced", "dynamic_probes", "hits", "rays_retraced"};
+  const char* summed[] = {"views", "rays_traced", "dynamic_probes", "hits", "rays_incremental", "rays_in_dynamic_footprints", "rays_retraced"};
+  constexpr int kSummed = int(sizeof(summed) / sizeof(summed[0]));
+  uint64_t sums[kSummed] = {};
   double seconds = 0, peak_mb = 0;
   for (const ShardInput& in : shards) {
     const std::string where = join_path(in.dir, "summary.json");
     try {
-      for (int k = 0; k < 5; ++k) sums[k] += in.summary.at(summed[k]).get<uint64_t>();
+      for (int k = 0; k < kSummed; ++k) sums[k] += in.summary.at(summed[k]).get<uint64_t>();
       seconds += in.summary.at("seconds").at("total").get<double>();
       peak_mb = std::max(peak_mb, in.summary.at("peak_memory_mb").get<double>());
       const std::vector<double> d = in.summary.at("deficiency_per_frame").get<std::vector<double>>();
@@ -387,7 +390,7 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
     const float* h = reinterpret_cast<const float*>(heat.bytes.data());
     tally.heat.insert(tally.heat.end(), h, h + heat.size());
   }
-  for (int k = 0; k < 5; ++k) j[summed[k]] = sums[k];
+  for (int k = 0; k < kSummed; ++k) j[summed[k]] = sums[k];
   j["frames"] = T;
   j["seconds"] = {{"total_over_shards", seconds}};
   j["peak_memory_mb"] = peak_mb;

@@ -14,11 +14,12 @@ namespace {
 
 /// Rank 0's summary: the ranks' work added up, the slowest rank's seconds.
 void reduce_summary(ObservationSummary* s, int rank) {
-  uint64_t sums[5] = {uint64_t(s->views), s->counters.rays, s->counters.probes, s->counters.hits, s->retraced_rays};
+  uint64_t sums[7] = {uint64_t(s->views), s->counters.rays,     s->counters.probes, s->counters.hits,
+                      s->incremental_rays,   s->footprint_rays, s->retraced_rays};
   double secs[7] = {s->seconds_build, s->seconds_refit, s->seconds_static, s->seconds_frames, s->seconds_speed, s->seconds_sink, s->seconds_total};
-  uint64_t sum_out[5];
+  uint64_t sum_out[7];
   double max_out[7];
-  MPI_Reduce(sums, sum_out, 5, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+  MPI_Reduce(sums, sum_out, 7, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
   MPI_Reduce(secs, max_out, 7, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
   if (rank != 0) return;  // the reduced values exist on rank 0 only
   s->views = size_t(sum_out[0]);

@@ -6,10 +6,12 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
-#include <numeric>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <memory>
+#include <numeric>
 
 #include "fillgs/error.hpp"
 #include "fillgs/timing.hpp"
@@ -130,6 +132,71 @@ struct RayGrid {
     return (to_world * d).cast<float>();
   }
 };
+
+/// Marks the rays of `grid` that a dynamic proxy can reach before the ray's static answer
+/// ended (`ray_end`: order keys, +inf for rays that never saturated): a ray meets a box only
+/// through the box's screen footprint, which the projections of its 8 corners bound (half a
+/// pixel of margin against rounding); a box reaching behind the camera plane has no bounded
+/// footprint and marks every ray. A proxy's order key is its mean's view depth under a
+/// RasterMatch (never drawn at or before the near plane) or the view depth of a point inside
+/// its box otherwise, so rays that end before that depth are left out. Conservative: every
+/// ray GaussianTracer::meets_dynamic can answer yes for is marked; the probe stays the test.
+/// Returns the number of marked rays.
+size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid& grid, const float* ray_end,
+                               std::unique_ptr<std::atomic<uint8_t>[]>& marks) {
+  const size_t n = grid.count();
+  marks.reset(new std::atomic<uint8_t>[n]);
+  for (size_t r = 0; r < n; ++r) marks[r].store(0, std::memory_order_relaxed);
+  const Camera& cam = *grid.camera;
+  const Vec3d eye = cam.centre();
+  constexpr double kMargin = 0.5;  // pixels
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, boxes.size(), 1024), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t b = range.begin(); b < range.end(); ++b) {
+      const ProxyBox& box = boxes[b];
+      if (box.half_extent[0] < 0.0f) continue;
+      const Vec3d centre = cam.R * (Vec3d(box.centre[0], box.centre[1], box.centre[2]) - eye);
+      double min_key = -std::numeric_limits<double>::infinity();
+      if (grid.match) {
+        if (!(centre.z() > double(grid.match->near_depth))) continue;
+        min_key = centre.z();
+      }
+      double umin = std::numeric_limits<double>::infinity(), umax = -umin, vmin = umin, vmax = -umin, zmin = umin;
+      for (int k = 0; k < 8; ++k) {
+        const Vec3d corner(k & 1 ? box.half_extent[0] : -box.half_extent[0], k & 2 ? box.half_extent[1] : -box.half_extent[1],
+                           k & 4 ? box.half_extent[2] : -box.half_extent[2]);
+        const Vec3d x = centre + cam.R * corner;
+        zmin = std::min(zmin, x.z());
+        if (x.z() > 0.0) {
+          const double u = cam.fx * x.x() / x.z() + cam.cx, v = cam.fy * x.y() / x.z() + cam.cy;
+          umin = std::min(umin, u);
+          umax = std::max(umax, u);
+          vmin = std::min(vmin, v);
+          vmax = std::max(vmax, v);
+        }
+      }
+      if (!grid.match) min_key = zmin;
+      min_key -= 1e-5 * std::fabs(min_key) + 1e-6;  // the probe computes the key in its own rounding
+      int i0 = 0, i1 = grid.width - 1, j0 = 0, j1 = grid.height - 1;
+      if (zmin > 1e-9 * std::max(1.0, std::fabs(centre.z()))) {  // bounded footprint
+        const double off = grid.offset + 0.5, s = grid.stride;
+        const auto first = [&](double lo, int last) { return int(std::clamp(std::ceil((lo - kMargin - off) / s), 0.0, double(last) + 1.0)); };
+        const auto final = [&](double hi, int last) { return int(std::clamp(std::floor((hi + kMargin - off) / s), -1.0, double(last))); };
+        i0 = first(umin, grid.width - 1);
+        i1 = final(umax, grid.width - 1);
+        j0 = first(vmin, grid.height - 1);
+        j1 = final(vmax, grid.height - 1);
+      }
+      for (int j = j0; j <= j1; ++j)
+        for (int i = i0; i <= i1; ++i) {
+          const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
+          if (double(ray_end[ray]) >= min_key) marks[ray].store(1, std::memory_order_relaxed);
+        }
+    }
+  });
+  size_t marked = 0;
+  for (size_t r = 0; r < n; ++r) marked += marks[r].load(std::memory_order_relaxed);
+  return marked;
+}
 
 /// Appends the ids of hits whose weight reaches τ.
 void observed_ids(const std::vector<TracedHit>& hits, float tau, std::vector<uint32_t>& out) {
@@ -415,7 +482,7 @@ struct ViewDelta {
 class ObservationRun {
  public:
   ObservationRun(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const ObservationOptions& options)
-      : cloud_(cloud), cameras_(cameras), vis_(options.visibility) {
+      : cloud_(cloud), cameras_(cameras), vis_(options.visibility), footprints_(options.footprints) {
     pose_of_camera_ = camera_pose_groups(cameras, &pose_count_);
     poses_.resize(pose_count_);
     marks_.assign(cloud.size(), 0);
@@ -496,9 +563,19 @@ class ObservationRun {
 
   /// Raytraced: re-trace only the rays whose path (up to where the static ray ended) meets
   /// a dynamic proxy; static Gaussians those rays no longer observe may leave the set.
-  ViewDelta raytraced_delta(const GaussianTracer& tracer, uint32_t camera) {
+  /// `boxes`: the dynamic proxies at this time (GaussianTracer::dynamic_boxes); only rays in
+  /// their screen footprints are probed.
+  ViewDelta raytraced_delta(const GaussianTracer& tracer, const std::vector<ProxyBox>& boxes, uint32_t camera) {
     const PoseCache& pc = pose(camera);
     const RayGrid grid(cameras_[camera], vis_.stride, vis_.dilate);
+    summary.incremental_rays += grid.count();
+    if (footprints_) {
+      summary.footprint_rays += mark_dynamic_footprints(boxes, grid, pc.ray_end.data(), marks_rays_);
+    } else {
+      marks_rays_.reset(new std::atomic<uint8_t>[grid.count()]);
+      for (size_t r = 0; r < grid.count(); ++r) marks_rays_[r].store(1, std::memory_order_relaxed);
+      summary.footprint_rays += grid.count();
+    }
     struct Local {
       RayScratch rs;
       std::vector<uint32_t> rays;  // re-traced ray indices
@@ -509,6 +586,7 @@ class ObservationRun {
       for (int j = r.begin(); j < r.end(); ++j)
         for (int i = 0; i < grid.width; ++i) {
           const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
+          if (!marks_rays_[ray].load(std::memory_order_relaxed)) continue;
           const Vec3f dir = grid.direction(i, j);
           ++l.rs.probes;
           if (!tracer.meets_dynamic(grid.origin, dir, pc.ray_end[ray], grid.match)) continue;
@@ -562,10 +640,12 @@ class ObservationRun {
   const GaussianCloud& cloud_;
   const std::vector<Camera>& cameras_;
   VisibilityOptions vis_;
+  bool footprints_ = true;
   std::vector<uint32_t> pose_of_camera_;
   size_t pose_count_ = 0;
   std::vector<PoseCache> poses_;
   std::vector<uint32_t> marks_;  // per Gaussian: rays lost (low bits) | kObservedAgain
+  std::unique_ptr<std::atomic<uint8_t>[]> marks_rays_;  // per ray of the view: in a dynamic footprint
 };
 
 }  // namespace
@@ -617,10 +697,18 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
       TracerOptions to;
       to.min_transmittance = vis.min_transmittance;
       to.threads = vis.threads;
-      if (vis.dilate) {
-        const auto extent = scene_extent(cloud);
-        for (const Camera& c : cameras) to.dilation_padding = std::max(to.dilation_padding, padding_for(c, extent));
-      }
+      if (vis.dilate)  // every ray leaves one of these cameras: each proxy padded for its own depth
+        for (const Camera& c : cameras) {
+          const RasterMatch m = camera_raster_match(c);
+          const Vec3d centre = c.centre();
+          TracerOptions::DilationView v;
+          for (int a = 0; a < 3; ++a) {
+            v.centre[a] = float(centre[a]);
+            v.axis[a] = m.axis[a];
+          }
+          v.sigma_per_depth = std::sqrt(m.variance_per_depth2);
+          to.dilation_views.push_back(v);
+        }
       tracer = std::make_unique<GaussianTracer>(*frame, cloud.dynamic_ids, to);
       summary.seconds_build = tracer->build_seconds();
     }
@@ -630,6 +718,7 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
     std::vector<uint32_t> base_poses;  // sorted pose indices the base was summed for
     bool have_base = false;
     std::vector<float> speed, deficiency;
+    std::vector<ProxyBox> boxes;
     progress.start("observe", frames.size());
     for (size_t f : frames) {
       if (f != frames[0]) {
@@ -646,6 +735,7 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
       fo.views = views[f];
       if (incremental) {
         for (uint32_t c : views[f]) run.static_answer(*frame, tracer.get(), c);
+        if (tracer) tracer->dynamic_boxes(boxes);
         std::vector<uint32_t> poses;
         for (uint32_t c : views[f]) poses.push_back(run.pose_index(c));
         std::sort(poses.begin(), poses.end());
@@ -658,7 +748,7 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
         }
         counts = base;
         for (uint32_t c : views[f]) {
-          const ViewDelta d = tracer ? run.raytraced_delta(*tracer, c) : run.frustum_delta(*frame, c);
+          const ViewDelta d = tracer ? run.raytraced_delta(*tracer, boxes, c) : run.frustum_delta(*frame, c);
           for (uint32_t g : d.removed) --counts[g];
           for (uint32_t g : d.added) ++counts[g];
           fo.visible_per_view.push_back(uint32_t(run.pose(c).visible.size() - d.removed.size() + d.added.size()));

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 
 #include "fillgs/gaussian_tracer.hpp"
 #include "fillgs/raster.hpp"
@@ -193,38 +194,134 @@ TEST_CASE("a rotated anisotropic Gaussian is met at its maximum response along t
   }
 }
 
-TEST_CASE("more than 16 hits on a ray come out in depth order across k-buffer passes", "[visibility][tracer]") {
+TEST_CASE("more hits on a ray than a pass gathers come out in depth order across k-buffer passes", "[visibility][tracer]") {
   FrameGaussians frame;
-  // 40 faint Gaussians on the axis, in shuffled id order, so several passes are needed.
-  const int n = 40;
+  // 2·kTraceBatch + 20 faint Gaussians on the axis, in shuffled id order, so three passes are needed.
+  const int n = 2 * kTraceBatch + 20;
+  const float opacity = 0.03f;  // T stays above T_min: 0.97^149 ≈ 0.011
   for (int i = 0; i < n; ++i) {
     const int slot = (i * 17) % n;
-    frame.means.push_back(Vec3f(0, 0, 1.0f + 0.1f * slot));
-    frame.scales.push_back(Vec3f::Constant(0.02f));
+    frame.means.push_back(Vec3f(0, 0, 1.0f + 0.05f * slot));
+    frame.scales.push_back(Vec3f::Constant(0.01f));
     frame.rotations.push_back(Vec4f(1, 0, 0, 0));
-    frame.opacities.push_back(0.1f);
+    frame.opacities.push_back(opacity);
   }
   // Two Gaussians at exactly the same depth: the tie is broken by id, each taken once.
-  frame.means.push_back(Vec3f(0, 0, 1.0f + 0.1f * 16));
-  frame.scales.push_back(Vec3f::Constant(0.02f));
+  frame.means.push_back(Vec3f(0, 0, 1.0f + 0.05f * 16));
+  frame.scales.push_back(Vec3f::Constant(0.01f));
   frame.rotations.push_back(Vec4f(1, 0, 0, 0));
-  frame.opacities.push_back(0.1f);
+  frame.opacities.push_back(opacity);
   GaussianTracer tracer(frame, {});
   std::vector<TracedHit> hits;
   const RayOutcome out = tracer.trace(Vec3f(0, 0, 0), Vec3f(0, 0, 1), TraceLayers::All, hits);
   REQUIRE(hits.size() == size_t(n + 1));
   CHECK(out.passes == 3);
+  CHECK(std::isinf(out.end_key));
   std::vector<uint32_t> ids;
   double T = 1;
   for (size_t k = 0; k < hits.size(); ++k) {
     if (k > 0) CHECK((hits[k - 1].distance < hits[k].distance || (hits[k - 1].distance == hits[k].distance && hits[k - 1].id < hits[k].id)));
-    CHECK(hits[k].weight == Approx(0.1 * T).epsilon(1e-5));
-    T *= 0.9;
+    CHECK(hits[k].weight == Approx(opacity * T).epsilon(1e-4));
+    T *= 1 - opacity;
     ids.push_back(hits[k].id);
   }
   std::sort(ids.begin(), ids.end());
   CHECK(std::unique(ids.begin(), ids.end()) == ids.end());
-  CHECK(out.transmittance == Approx(T).epsilon(1e-4));
+  CHECK(out.transmittance == Approx(T).epsilon(1e-3));
+}
+
+TEST_CASE("a ray ends in its first pass at the hit that would take T under T_min", "[visibility][tracer]") {
+  // 40 Gaussians of α = 0.5 on the axis (shuffled ids), 0.1 apart from z = 1: 0.5^13 ≥ 1e-4 >
+  // 0.5^14, so 13 are blended and the 14th (z = 2.3) ends the ray, whatever lies behind.
+  FrameGaussians frame;
+  const int n = 40;
+  for (int i = 0; i < n; ++i) {
+    frame.means.push_back(Vec3f(0, 0, 1.0f + 0.1f * float((i * 17) % n)));
+    frame.scales.push_back(Vec3f::Constant(0.01f));
+    frame.rotations.push_back(Vec4f(1, 0, 0, 0));
+    frame.opacities.push_back(0.5f);
+  }
+  GaussianTracer tracer(frame, {});
+  std::vector<TracedHit> hits;
+  const RayOutcome out = tracer.trace(Vec3f(0, 0, 0), Vec3f(0, 0, 1), TraceLayers::All, hits);
+  REQUIRE(hits.size() == 13);
+  CHECK(out.passes == 1);
+  CHECK(out.end_key == Approx(2.3).epsilon(1e-5));
+  CHECK(out.transmittance == Approx(std::pow(0.5, 13)).epsilon(1e-4));
+  for (size_t k = 0; k < hits.size(); ++k) CHECK(hits[k].distance == Approx(1.0 + 0.1 * double(k)).epsilon(1e-5));
+}
+
+TEST_CASE("large proxies in a tier of their own: every ray's hits equal a brute-force blend", "[visibility][tracer]") {
+  // 1,500 small faint Gaussians in a slab and 40 large ones scattered in a deeper volume (a
+  // third of each moving): rays collect more hits than the k-buffer holds, so depth-ordered
+  // rays prune by the small tier's size and the large tier is traversed apart.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1, 1);
+  FrameGaussians frame;
+  std::vector<uint32_t> dynamic;
+  for (int g = 0; g < 1540; ++g) {
+    const bool large = g >= 1500;
+    frame.means.push_back(large ? Vec3f(5.0f * u(rng), 4.0f * u(rng), 9.0f + 5.0f * u(rng))
+                                : Vec3f(2.0f * u(rng), 1.5f * u(rng), 6.0f + 1.0f * u(rng)));
+    frame.scales.push_back(large ? Vec3f(0.8f, 0.5f, 0.9f) : Vec3f(0.12f + 0.05f * u(rng), 0.1f, 0.08f));
+    frame.rotations.push_back(normalize_quat(Vec4f(1.0f, 0.3f * u(rng), 0.3f * u(rng), 0.3f * u(rng))));
+    frame.opacities.push_back(large ? 0.3f : 0.12f + 0.08f * u(rng));
+    if (g % 3 == 0) dynamic.push_back(uint32_t(g));
+  }
+  const Camera cam = axis_camera(40, 30, 30);
+  RasterMatch match;
+  match.variance_per_depth2 = float(double(kDilation) / (cam.fx * cam.fy));
+  for (bool matched : {true, false}) {
+    TracerOptions to;
+    to.dilation_padding = matched ? float(std::sqrt(double(kDilation)) / 30.0 * 8.0) : 0.0f;
+    GaussianTracer tracer(frame, dynamic, to);
+    REQUIRE(std::isfinite(tracer.large_proxy_threshold()));
+    CHECK(tracer.large_proxy_count() >= 40);
+    CHECK(tracer.large_proxy_count() < 100);
+    size_t compared = 0;
+    for (int py = 0; py < cam.height; py += 2)
+      for (int px = 0; px < cam.width; px += 2) {
+        const Eigen::Vector3d d((px + 0.5 - cam.cx) / cam.fx, (py + 0.5 - cam.cy) / cam.fy, 1.0);
+        // Reference: every Gaussian's maximum response along the ray, sorted by (key, id).
+        struct Ref { double key; uint32_t id; double alpha; };
+        std::vector<Ref> all;
+        for (uint32_t g = 0; g < frame.size(); ++g) {
+          const Eigen::Matrix3d R = quat_to_matrix<double>(frame.rotations[g].cast<double>());
+          const Eigen::Vector3d mu = frame.means[g].cast<double>();
+          Eigen::Matrix3d cov = R * frame.scales[g].cast<double>().array().square().matrix().asDiagonal() * R.transpose();
+          const double z = mu.z();
+          if (matched) {
+            if (!(z > double(kNearPlane))) continue;
+            cov += double(match.variance_per_depth2) * z * z * Eigen::Matrix3d::Identity();
+          }
+          const Eigen::Matrix3d P = cov.inverse();
+          const double t = std::max(0.0, d.dot(P * mu) / d.dot(P * d));
+          const Eigen::Vector3d at = t * d - mu;
+          const double m2 = at.dot(P * at);
+          const double k2 = 2.0 * std::log(double(frame.opacities[g]) / double(kMinAlpha));
+          if (!(m2 <= k2)) continue;
+          const double alpha = std::min(double(kMaxAlpha), double(frame.opacities[g]) * std::exp(-0.5 * m2));
+          if (alpha < kMinAlpha) continue;
+          all.push_back({matched ? z : t, g, alpha});
+        }
+        std::sort(all.begin(), all.end(), [](const Ref& a, const Ref& b) { return a.key < b.key || (a.key == b.key && a.id < b.id); });
+        std::vector<TracedHit> hits;
+        tracer.trace(Vec3f::Zero(), d.cast<float>(), TraceLayers::All, hits, matched ? &match : nullptr);
+        double T = 1;
+        size_t k = 0;
+        for (; k < all.size(); ++k) {
+          if (T * (1 - all[k].alpha) < kMinTransmittance) break;
+          INFO("pixel " << px << "," << py << " hit " << k << (matched ? " matched" : " plain"));
+          REQUIRE(k < hits.size());
+          CHECK(hits[k].id == all[k].id);
+          CHECK(hits[k].weight == Approx(all[k].alpha * T).epsilon(1e-3).margin(1e-6));
+          T *= 1 - all[k].alpha;
+        }
+        CHECK(hits.size() == k);
+        compared += k;
+      }
+    CHECK(compared > 1000);
+  }
 }
 
 // ---------------------------------------------------------------------------------
@@ -307,6 +404,95 @@ TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame"
     if (mode == VisibilityMode::Raytraced) CHECK(most <= 12);
     else CHECK(most == 16);
   }
+}
+
+namespace {
+
+/// A static opaque wall at z = 6 (x, y in [-1, 1]) and three moving Gaussians on per-frame
+/// keys: a small one crossing in front of the wall, one crossing behind it, and a large one
+/// that passes through the plane of the camera at the origin.
+GaussianCloud wall_and_movers(int frames) {
+  GaussianCloud cloud;
+  add_gaussian(cloud, Vec3f(0, 0, 4), 0.1f, 3.0f, Vec3f(1, 0, 0));
+  add_gaussian(cloud, Vec3f(0, 0, 8), 0.1f, 3.0f, Vec3f(0, 1, 0));
+  add_gaussian(cloud, Vec3f(0, 0, 2), 0.6f, 3.0f, Vec3f(0, 0, 1));
+  for (int i = -4; i <= 4; ++i)
+    for (int j = -4; j <= 4; ++j) add_gaussian(cloud, Vec3f(0.25f * float(i), 0.25f * float(j), 6.0f), 0.2f, 5.0f, Vec3f(0.5f, 0.5f, 0.5f));
+  cloud.motion = MotionModel::Keyframed;
+  cloud.dynamic_ids = {0, 1, 2};
+  cloud.keyframed = per_frame_tracks(3, frames);
+  cloud.keyframed.position_interp = KeyInterp::Linear;
+  const size_t K = size_t(frames);
+  for (size_t f = 0; f < K; ++f) {
+    const float t = float(f) / float(K - 1);
+    const Vec3f at[3] = {{-3.0f + 6.0f * t, 0.1f, 4.0f}, {-2.5f + 5.0f * t, -0.2f, 8.0f}, {0.4f, 0.0f, 2.0f - 3.5f * t}};
+    for (size_t j = 0; j < 3; ++j) {
+      std::copy_n(at[j].data(), 3, &cloud.keyframed.positions[(j * K + f) * 3]);
+      cloud.keyframed.rotations[(j * K + f) * 4] = 1.0f;
+    }
+  }
+  return cloud;
+}
+
+}  // namespace
+
+TEST_CASE("incremental rays: only dynamic footprints are probed, and exactly the rays a moving Gaussian reaches are re-traced",
+          "[visibility][motion]") {
+  const int F = 9;
+  const GaussianCloud cloud = wall_and_movers(F);
+  const auto times = frame_times(F);
+  Camera front = axis_camera(64, 48, 60), side = axis_camera(64, 48, 60);
+  side.look_at(Vec3d(2.5, 0.3, -1.0), Vec3d(0, 0, 5), Vec3d(0, -1, 0));
+  const std::vector<Camera> cams = {front, side};
+  for (bool dilate : {true, false})
+    for (int stride : {1, 3}) {
+      INFO("dilate " << dilate << ", stride " << stride);
+      ObservationOptions inc, full;
+      inc.visibility = full.visibility = mode_options(VisibilityMode::Raytraced, stride);
+      inc.visibility.dilate = full.visibility.dilate = dilate;
+      full.incremental = false;
+      ObservationSummary si;
+      const ObservationTables a = observation_tables(cloud, cams, times, 1.0 / (F - 1), inc, &si);
+      const ObservationTables b = observation_tables(cloud, cams, times, 1.0 / (F - 1), full);
+      CHECK(a.counts == b.counts);
+      CHECK(a.visible_per_view == b.visible_per_view);
+      // The wall hides the far mover from the front camera in the middle frame, not at the ends.
+      CHECK(a.counts[size_t(F / 2) * a.gaussians + 1] < a.counts[1]);
+      CHECK(si.counters.probes == si.footprint_rays);
+      CHECK(si.retraced_rays <= si.footprint_rays);
+      CHECK(si.footprint_rays < si.incremental_rays);
+
+      // The rays re-traced, counted independently: every ray of every view and frame whose
+      // static answer (traced through the static layer alone) ends after a point where a
+      // moving proxy reaches α_min, asked of a tracer with generous bound padding.
+      FrameEvaluator ev(cloud);
+      TracerOptions to;
+      to.dilation_padding = dilate ? float(std::sqrt(double(kDilation)) / 60.0 * 20.0) : 0.0f;
+      GaussianTracer tracer(ev.evaluate(0.0), cloud.dynamic_ids, to);
+      uint64_t expected = 0, rays = 0;
+      std::vector<TracedHit> hits;
+      for (int f = 0; f < F; ++f) {
+        tracer.refit_dynamic(ev.evaluate(times[size_t(f)]));
+        for (const Camera& cam : cams) {
+          RasterMatch match;
+          for (int k = 0; k < 3; ++k) match.axis[k] = float(cam.R(2, k));
+          match.variance_per_depth2 = float(double(kDilation) / (cam.fx * cam.fy));
+          const int offset = stride / 2;
+          for (int py = offset; py < cam.height; py += stride)
+            for (int px = offset; px < cam.width; px += stride) {
+              const Vec3d d((px + 0.5 - cam.cx) / cam.fx, (py + 0.5 - cam.cy) / cam.fy, 1.0);
+              const Vec3f dir = (cam.R.transpose() * d).cast<float>(), eye = cam.centre().cast<float>();
+              hits.clear();
+              const RayOutcome o = tracer.trace(eye, dir, TraceLayers::StaticOnly, hits, dilate ? &match : nullptr);
+              expected += tracer.meets_dynamic(eye, dir, o.end_key, dilate ? &match : nullptr);
+              ++rays;
+            }
+        }
+      }
+      CHECK(si.incremental_rays == rays);
+      CHECK(si.retraced_rays == expected);
+      CHECK(expected > 0);
+    }
 }
 
 TEST_CASE("counts equal the sum of per-view visible sets", "[visibility][synth]") {

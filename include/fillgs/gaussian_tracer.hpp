@@ -8,12 +8,13 @@
 // a Gaussian at the point of maximum response along the ray (t* = -o'·d' / d'·d' in the
 // Gaussian's canonical frame, clamped to t >= 0), with α = min(0.99, o·exp(-½ m²)) where
 // m is the Mahalanobis distance of that point. Hits are gathered in order of that
-// distance (ties broken by id) with a 16-entry k-buffer kept inside the intersect
+// distance (ties broken by id) with a kTraceBatch-entry k-buffer kept inside the intersect
 // callback, blended front to back, and the ray stops before T would drop under T_min
 // (the rasterizer's rule).
 //
 // Two levels: static Gaussians in a BVH built once, dynamic Gaussians in a DYNAMIC scene
-// refit per time step, both instanced into one top-level scene.
+// refit per time step, both instanced into one top-level scene; and two such sets by size,
+// so that a few large proxies do not widen every depth-ordered ray's pruning window.
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -24,12 +25,26 @@
 
 namespace fillgs {
 
+/// Hits a ray gathers per traversal pass (its k-buffer); a ray with more blended hits
+/// than this is traversed again from the last one.
+constexpr int kTraceBatch = 128;
+
 struct TracerOptions {
   float min_alpha = kMinAlpha;                  ///< α_min: a hit below it is not a hit
   float min_transmittance = kMinTransmittance;  ///< stop before T would fall under this
   /// World-space standard deviation added (in quadrature) to every proxy's bound, so that
   /// rays with a RasterMatch up to that size still find the dilated Gaussians.
   float dilation_padding = 0.0f;
+  /// The cameras the rays will leave from, when known in advance: each proxy is then padded
+  /// by the largest dilation those cameras give its mean (σ·z, z its view depth) instead of
+  /// `dilation_padding` everywhere — tighter bounds for Gaussians nearer than the scene's
+  /// farthest corner. Rays from other cameras may then miss dilated Gaussians.
+  struct DilationView {
+    float centre[3];
+    float axis[3];           ///< unit optical axis
+    float sigma_per_depth;   ///< sqrt(RasterMatch::variance_per_depth2)
+  };
+  std::vector<DilationView> dilation_views;
   int threads = 0;                              ///< for building proxies (0: all)
 };
 
@@ -67,6 +82,14 @@ struct RayOutcome {
 
 enum class TraceLayers { All, StaticOnly };
 
+/// The world box a proxy's hits lie in (its k-sigma bound, dilation padding included):
+/// centre = the Gaussian's mean at the current time. `half_extent[0] < 0`: an empty proxy
+/// (α never reaches α_min), never hit.
+struct ProxyBox {
+  float centre[3];
+  float half_extent[3];
+};
+
 class GaussianTracer {
  public:
   /// Builds proxies for `frame`: Gaussians listed in `dynamic_ids` (ascending) go to the
@@ -91,9 +114,18 @@ class GaussianTracer {
   bool meets_dynamic(const Vec3f& origin, const Vec3f& direction, float max_key,
                      const RasterMatch* match = nullptr) const;
 
+  /// The dynamic proxies' boxes at the last refit (in no particular order): where moving
+  /// Gaussians can change a ray's answer (screen footprints, see visibility.cpp).
+  void dynamic_boxes(std::vector<ProxyBox>& out) const;
+
   size_t static_count() const;
   size_t dynamic_count() const;
   float dilation_padding() const;
+  /// Proxies whose box half-diagonal exceeds this threshold (+inf: none) are traversed in a
+  /// tier of their own, so that depth-ordered rays prune the others by the smaller tier's
+  /// largest proxy rather than the scene's (chosen at construction from the proxies' sizes).
+  float large_proxy_threshold() const;
+  size_t large_proxy_count() const;
   double build_seconds() const;       ///< proxies + static BVH + first dynamic build
   double last_refit_seconds() const;  ///< proxies + refit of the last refit_dynamic
   size_t memory_bytes() const;        ///< proxy arrays (Embree's own BVH memory not included)

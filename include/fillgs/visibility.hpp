@@ -111,6 +111,10 @@ struct ObservationOptions {
   /// Reuse each camera's static answer across frames and re-trace (raytraced) or
   /// re-project (frustum) only what dynamic Gaussians can change. Same counts either way.
   bool incremental = true;
+  /// Incremental raytraced: probe only the rays inside the dynamic proxies' screen
+  /// footprints; off: probe every ray (the earlier path, kept for the benchmark's ratio).
+  /// Same counts either way.
+  bool footprints = true;
   /// Indices into `times` to evaluate, strictly ascending; empty: every time. Views are
   /// assigned to frames over all of `times`, so the rows of a subset equal the same rows of
   /// the whole (a shard of a job split over processes or machines).
@@ -143,7 +147,9 @@ struct ObservationSummary {
   size_t camera_poses = 0;     ///< distinct poses (static answers cached per pose)
   uint16_t max_views_per_frame = 0;
   TraceCounters counters;
-  uint64_t retraced_rays = 0;  ///< incremental: rays whose path met a dynamic proxy
+  uint64_t incremental_rays = 0;  ///< incremental raytraced: grid rays of the views evaluated against their static answer
+  uint64_t footprint_rays = 0;    ///< of those, rays inside a dynamic proxy's screen footprint (probed)
+  uint64_t retraced_rays = 0;     ///< of those, rays whose path met a dynamic proxy (re-traced)
   double seconds_build = 0, seconds_refit = 0, seconds_static = 0, seconds_frames = 0, seconds_speed = 0,
          seconds_sink = 0, seconds_total = 0;
 };
