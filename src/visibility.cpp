@@ -141,11 +141,9 @@ struct RayGrid {
 /// RasterMatch (never drawn at or before the near plane) or the view depth of a point inside
 /// its box otherwise, so rays that end before that depth are left out. Conservative: every
 /// ray GaussianTracer::meets_dynamic can answer yes for is marked; the probe stays the test.
-/// Returns the number of marked rays.
-size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid& grid, const float* ray_end,
-                               std::unique_ptr<std::atomic<uint8_t>[]>& marks) {
+/// `marks` holds grid.count() flags; returns the number of marked rays.
+size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid& grid, const float* ray_end, std::atomic<uint8_t>* marks) {
   const size_t n = grid.count();
-  marks.reset(new std::atomic<uint8_t>[n]);
   for (size_t r = 0; r < n; ++r) marks[r].store(0, std::memory_order_relaxed);
   const Camera& cam = *grid.camera;
   const Vec3d eye = cam.centre();
@@ -179,12 +177,13 @@ size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid
       int i0 = 0, i1 = grid.width - 1, j0 = 0, j1 = grid.height - 1;
       if (zmin > 1e-9 * std::max(1.0, std::fabs(centre.z()))) {  // bounded footprint
         const double off = grid.offset + 0.5, s = grid.stride;
-        const auto first = [&](double lo, int last) { return int(std::clamp(std::ceil((lo - kMargin - off) / s), 0.0, double(last) + 1.0)); };
-        const auto final = [&](double hi, int last) { return int(std::clamp(std::floor((hi + kMargin - off) / s), -1.0, double(last))); };
-        i0 = first(umin, grid.width - 1);
-        i1 = final(umax, grid.width - 1);
-        j0 = first(vmin, grid.height - 1);
-        j1 = final(vmax, grid.height - 1);
+        // The first and last ray whose pixel centre (off + i·s) lies in [lo, hi], clamped to the grid.
+        const auto first_ray = [&](double lo, int last) { return int(std::clamp(std::ceil((lo - kMargin - off) / s), 0.0, last + 1.0)); };
+        const auto last_ray = [&](double hi, int last) { return int(std::clamp(std::floor((hi + kMargin - off) / s), -1.0, double(last))); };
+        i0 = first_ray(umin, grid.width - 1);
+        i1 = last_ray(umax, grid.width - 1);
+        j0 = first_ray(vmin, grid.height - 1);
+        j1 = last_ray(vmax, grid.height - 1);
       }
       for (int j = j0; j <= j1; ++j)
         for (int i = i0; i <= i1; ++i) {
@@ -569,11 +568,14 @@ class ObservationRun {
     const PoseCache& pc = pose(camera);
     const RayGrid grid(cameras_[camera], vis_.stride, vis_.dilate);
     summary.incremental_rays += grid.count();
+    if (grid.count() > ray_marks_size_) {
+      ray_marks_.reset(new std::atomic<uint8_t>[grid.count()]);
+      ray_marks_size_ = grid.count();
+    }
     if (footprints_) {
-      summary.footprint_rays += mark_dynamic_footprints(boxes, grid, pc.ray_end.data(), marks_rays_);
+      summary.footprint_rays += mark_dynamic_footprints(boxes, grid, pc.ray_end.data(), ray_marks_.get());
     } else {
-      marks_rays_.reset(new std::atomic<uint8_t>[grid.count()]);
-      for (size_t r = 0; r < grid.count(); ++r) marks_rays_[r].store(1, std::memory_order_relaxed);
+      for (size_t r = 0; r < grid.count(); ++r) ray_marks_[r].store(1, std::memory_order_relaxed);
       summary.footprint_rays += grid.count();
     }
     struct Local {
@@ -586,7 +588,7 @@ class ObservationRun {
       for (int j = r.begin(); j < r.end(); ++j)
         for (int i = 0; i < grid.width; ++i) {
           const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
-          if (!marks_rays_[ray].load(std::memory_order_relaxed)) continue;
+          if (!ray_marks_[ray].load(std::memory_order_relaxed)) continue;
           const Vec3f dir = grid.direction(i, j);
           ++l.rs.probes;
           if (!tracer.meets_dynamic(grid.origin, dir, pc.ray_end[ray], grid.match)) continue;
@@ -645,7 +647,8 @@ class ObservationRun {
   size_t pose_count_ = 0;
   std::vector<PoseCache> poses_;
   std::vector<uint32_t> marks_;  // per Gaussian: rays lost (low bits) | kObservedAgain
-  std::unique_ptr<std::atomic<uint8_t>[]> marks_rays_;  // per ray of the view: in a dynamic footprint
+  std::unique_ptr<std::atomic<uint8_t>[]> ray_marks_;  // per ray of the view: in a dynamic footprint
+  size_t ray_marks_size_ = 0;
 };
 
 }  // namespace
