@@ -593,8 +593,13 @@ std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& r
   std::vector<std::array<Moments, 4>> moments;  // per entry of out
   for (const RunResult& r : results) {
     if (r.id == "backbone") continue;
+    // Each run against the reference of its own oracle: "x@full" against "fillgs@full", the
+    // clean-oracle "x.clean" against "fillgs.clean".
     const size_t at = r.id.find('@');
-    const std::string ref_id = reference + (at == std::string::npos ? "" : r.id.substr(at));
+    const std::string support = at == std::string::npos ? "" : r.id.substr(at);
+    const std::string base = r.id.substr(0, at);
+    const bool clean = base.size() > 6 && base.compare(base.size() - 6, 6, ".clean") == 0;
+    const std::string ref_id = reference + (clean ? ".clean" : "") + support;
     if (r.id == ref_id) continue;
     const auto ref = std::find_if(results.begin(), results.end(),
                                   [&](const RunResult& x) { return x.id == ref_id && x.variant == r.variant && x.seed == r.seed; });

@@ -839,9 +839,10 @@ TEST_CASE("bench report: FillGS paired against each method by seed (hand-made re
   const std::vector<RunResult> results = {
       result("backbone", 1, 18, 12),       result("fillgs", 1, 20, 13),        result("fillgs", 2, 21, 14),
       result("interpolation", 1, 19, 13.5), result("interpolation", 2, 21.5, 13), result("random", 3, 25, 25),  // no fillgs at seed 3
-      result("fillgs@full", 1, 22, 15),    result("random@full", 1, 21, 16)};
+      result("fillgs@full", 1, 22, 15),    result("random@full", 1, 21, 16),
+      result("fillgs.clean", 1, 19, 12),   result("coverage4d.clean", 1, 21.5, 12.25)};
   const std::vector<PairedDifference> d = paired_differences(results);
-  REQUIRE(d.size() == 2);
+  REQUIRE(d.size() == 3);
   // interpolation: differences (1, -0.5) and (-0.5, 1): mean 0.25, sd 0.75 * sqrt(2).
   CHECK(d[0].id == "interpolation");
   CHECK(d[0].seeds == 2);
@@ -856,6 +857,10 @@ TEST_CASE("bench report: FillGS paired against each method by seed (hand-made re
   CHECK(d[1].mean[0] == Approx(1.0));
   CHECK(d[1].mean[2] == Approx(-1.0));
   CHECK(d[1].sd[0] == 0.0);
+  // The clean oracle's runs pair with FillGS's clean run, not the one with artifacts.
+  CHECK(d[2].id == "coverage4d.clean");
+  CHECK(d[2].mean[0] == Approx(-2.5));
+  CHECK(d[2].mean[2] == Approx(-0.25));
 }
 
 TEST_CASE("bench merge: runs from bench folders and results.csv files make one table, conflicts and bad rows are refused", "[refine][bench]") {
