@@ -1,5 +1,5 @@
 // Embree Gaussian proxies: user-geometry ellipsoids, a k-buffer inside the intersect
-// callback, a static BVH built once and a dynamic one refit per time step.
+// callback, a static BVH built once and a dynamic one rebuilt per time step, in two size tiers.
 #include "fillgs/gaussian_tracer.hpp"
 
 #include <embree3/rtcore.h>
@@ -274,13 +274,21 @@ float half_diagonal(const Proxy& p) {
   return std::sqrt(p.half_extent[0] * p.half_extent[0] + p.half_extent[1] * p.half_extent[1] + p.half_extent[2] * p.half_extent[2]);
 }
 
+/// A set's depth-order slack: its largest non-empty proxy's half-diagonal.
+float largest_half_diagonal(const ProxySet& set) {
+  float slack = 0;
+  for (const Proxy& p : set.proxies)
+    if (p.k2 > 0.0f) slack = std::max(slack, half_diagonal(p));
+  return slack;
+}
+
 }  // namespace
 
 
 /// Proxies are split by size into tiers, each traversed on its own: a ray ordered by depth
 /// keys may stop only a tier's largest proxy beyond its k-th key, so the few large proxies
 /// (floaters, backgrounds) in a tier of their own keep that slack small for all the others.
-/// A tier holds its static proxies (BVH built once) and dynamic ones (refit per time),
+/// A tier holds its static proxies (BVH built once) and dynamic ones (rebuilt per time),
 /// both instanced into the tier's top-level scene.
 struct GaussianTracer::Impl {
   struct Tier {
@@ -316,10 +324,7 @@ struct GaussianTracer::Impl {
         }
       });
     });
-    float slack = 0;
-    for (const Proxy& p : set.proxies)
-      if (p.k2 > 0.0f) slack = std::max(slack, half_diagonal(p));
-    set.slack = slack;
+    set.slack = largest_half_diagonal(set);
   }
 
   /// Bound padding of a Gaussian with mean `x`: the largest dilation σ·z over the listed
@@ -334,7 +339,8 @@ struct GaussianTracer::Impl {
     return pad * (1.0f + 1e-5f);  // the ray's depth is computed in its own rounding
   }
 
-  /// Moves the proxies of `all` into the tiers' sets of the same kind by size.
+  /// Moves the proxies of `all` into the tiers' sets of the same kind by size (ids stay
+  /// ascending within each set).
   void split(ProxySet& all, ProxySet Tier::*kind) {
     for (Tier& t : tiers) {
       ProxySet& s = t.*kind;
@@ -347,11 +353,7 @@ struct GaussianTracer::Impl {
       s.proxies.push_back(p);
       s.ids.push_back(all.ids[i]);
     }
-    for (Tier& t : tiers) {
-      ProxySet& s = t.*kind;
-      for (const Proxy& p : s.proxies)
-        if (p.k2 > 0.0f) s.slack = std::max(s.slack, half_diagonal(p));
-    }
+    for (Tier& t : tiers) (t.*kind).slack = largest_half_diagonal(t.*kind);
     all = ProxySet();
   }
 
@@ -446,7 +448,7 @@ void GaussianTracer::refit_dynamic(const FrameGaussians& frame) {
   Impl& m = *impl_;
   for (Impl::Tier& t : m.tiers) {
     if (t.dynamic_set.proxies.empty()) continue;
-    FILLGS_CHECK_LT(size_t(*std::max_element(t.dynamic_set.ids.begin(), t.dynamic_set.ids.end())), frame.size());
+    FILLGS_CHECK_LT(size_t(t.dynamic_set.ids.back()), frame.size());  // ids ascending
     m.fill(t.dynamic_set, frame);
     rtcCommitGeometry(t.dynamic_geometry);
     rtcCommitScene(t.dynamic_scene.scene);

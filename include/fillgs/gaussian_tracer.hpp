@@ -13,7 +13,7 @@
 // (the rasterizer's rule).
 //
 // Two levels: static Gaussians in a BVH built once, dynamic Gaussians in a DYNAMIC scene
-// refit per time step, both instanced into one top-level scene; and two such sets by size,
+// rebuilt per time step, both instanced into one top-level scene; and two such sets by size,
 // so that a few large proxies do not widen every depth-ordered ray's pruning window.
 #include <cstdint>
 #include <limits>
@@ -93,13 +93,15 @@ struct ProxyBox {
 class GaussianTracer {
  public:
   /// Builds proxies for `frame`: Gaussians listed in `dynamic_ids` (ascending) go to the
-  /// refittable scene, all others to the static one.
+  /// per-time scene, all others to the static one.
   GaussianTracer(const FrameGaussians& frame, const std::vector<uint32_t>& dynamic_ids, const TracerOptions& options = {});
   ~GaussianTracer();
   GaussianTracer(const GaussianTracer&) = delete;
   GaussianTracer& operator=(const GaussianTracer&) = delete;
 
-  /// Rewrites the dynamic proxies from `frame` (same Gaussian count) and refits their BVH.
+  /// Rewrites the dynamic proxies from `frame` (same Gaussian count) and rebuilds their BVH
+  /// (a rebuild, not a refit: a refit keeps the first frame's topology, whose boxes grow as
+  /// the Gaussians move apart).
   void refit_dynamic(const FrameGaussians& frame);
 
   /// Traces one ray (direction need not be unit; distances are in units of it), appending
@@ -127,7 +129,7 @@ class GaussianTracer {
   float large_proxy_threshold() const;
   size_t large_proxy_count() const;
   double build_seconds() const;       ///< proxies + static BVH + first dynamic build
-  double last_refit_seconds() const;  ///< proxies + refit of the last refit_dynamic
+  double last_refit_seconds() const;  ///< proxies + BVH rebuild of the last refit_dynamic
   size_t memory_bytes() const;        ///< proxy arrays (Embree's own BVH memory not included)
 
  private:
