@@ -298,12 +298,17 @@ struct GaussianTracer::Impl {
     RTCGeometry dynamic_instance = nullptr;  // owned by top
 
     bool empty(TraceLayers layers) const {
+      if (layers == TraceLayers::DynamicOnly) return dynamic_set.proxies.empty();
       return static_set.proxies.empty() && (layers == TraceLayers::StaticOnly || dynamic_set.proxies.empty());
     }
     float slack(TraceLayers layers) const {
+      if (layers == TraceLayers::DynamicOnly) return dynamic_set.slack;
       return layers == TraceLayers::All ? std::max(static_set.slack, dynamic_set.slack) : static_set.slack;
     }
-    RTCScene scene(TraceLayers layers) const { return layers == TraceLayers::All ? top.scene : static_scene.scene; }
+    RTCScene scene(TraceLayers layers) const {
+      if (layers == TraceLayers::DynamicOnly) return dynamic_scene.scene;
+      return layers == TraceLayers::All ? top.scene : static_scene.scene;
+    }
   };
   static constexpr int kTiers = 2;  ///< [0]: up to the threshold (and empty proxies), [1]: larger
 
@@ -400,6 +405,79 @@ struct GaussianTracer::Impl {
     if (!t.dynamic_set.proxies.empty()) t.dynamic_instance = add_instance(t.top.scene, t.dynamic_scene.scene);
     rtcCommitScene(t.top.scene);
   }
+
+  /// One ray through `layers`, with `seeds` (hits of another layer, ascending by (key, id))
+  /// offered to every k-buffer pass before the traversal, as that layer's traversal would
+  /// have offered them: the buffer's content after a pass does not depend on the order of
+  /// the offers, so the blend equals a trace through both layers.
+  RayOutcome trace(const Vec3f& origin, const Vec3f& direction, TraceLayers layers, const KeyedHit* seeds, size_t seed_count,
+                   std::vector<TracedHit>& hits, const RasterMatch* match, std::vector<KeyedHit>* keyed) const {
+    KBuffer buffer;
+    TraceContext context;
+    rtcInitIntersectContext(&context.base);
+    context.buffer = &buffer;
+    context.match = match;
+    if (match) context.depth_per_distance = depth_per_distance(direction, *match);
+    buffer.min_T = options.min_transmittance;
+    RayOutcome out;
+    float T = 1.0f;
+    size_t next_seed = 0;  // seeds before it lie at or in front of the floor
+    for (;;) {
+      buffer.begin_pass(T);
+      for (size_t i = next_seed; i < seed_count; ++i) {
+        const KeyedHit& h = seeds[i];
+        if (buffer.offer(h.key, h.id, h.alpha, h.ray_distance) <= h.key) break;  // the rest cannot enter
+      }
+      // Every tier offers its proxies to the one k-buffer; each traversal may stop its own
+      // slack beyond the buffer's current k-th key (which only moves closer).
+      for (const Tier& tier : tiers) {
+        if (tier.empty(layers)) continue;
+        context.slack = match ? tier.slack(layers) : 0.0f;
+        const float limit = buffer.limit();
+        RTCRayHit rh;
+        rh.ray.org_x = origin.x();
+        rh.ray.org_y = origin.y();
+        rh.ray.org_z = origin.z();
+        rh.ray.dir_x = direction.x();
+        rh.ray.dir_y = direction.y();
+        rh.ray.dir_z = direction.z();
+        rh.ray.tnear = !buffer.has_floor ? 0.0f
+                       : match ? std::max(0.0f, (buffer.floor_key - context.slack) / context.depth_per_distance)
+                               : buffer.floor_key;
+        rh.ray.tfar = limit == std::numeric_limits<float>::infinity() ? limit
+                      : match ? (limit + context.slack) / context.depth_per_distance
+                              : limit;
+        rh.ray.time = 0.0f;
+        rh.ray.mask = 0xFFFFFFFFu;
+        rh.ray.id = 0;
+        rh.ray.flags = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        if (rh.ray.tfar >= rh.ray.tnear) rtcIntersect1(tier.scene(layers), &context.base, &rh);
+      }
+      ++out.passes;
+      for (int i = 0; i < buffer.count; ++i) {
+        const KBuffer::Entry& e = buffer.entries[i];
+        const float next_T = T * (1.0f - e.alpha);
+        if (keyed) keyed->push_back({e.key, e.id, e.alpha, e.ray_distance});
+        if (next_T < options.min_transmittance) {
+          out.transmittance = T;
+          out.end_key = e.key;
+          return out;
+        }
+        hits.push_back({e.id, e.ray_distance, e.alpha, e.alpha * T});
+        T = next_T;
+      }
+      if (buffer.count < KBuffer::kCapacity) break;
+      buffer.has_floor = true;
+      buffer.floor_key = buffer.entries[KBuffer::kCapacity - 1].key;
+      buffer.floor_id = buffer.entries[KBuffer::kCapacity - 1].id;
+      while (next_seed < seed_count && !KBuffer::before(buffer.floor_key, buffer.floor_id, seeds[next_seed].key, seeds[next_seed].id))
+        ++next_seed;
+    }
+    out.transmittance = T;
+    return out;
+  }
 };
 
 GaussianTracer::GaussianTracer(const FrameGaussians& frame, const std::vector<uint32_t>& dynamic_ids, const TracerOptions& options)
@@ -460,65 +538,16 @@ void GaussianTracer::refit_dynamic(const FrameGaussians& frame) {
 }
 
 RayOutcome GaussianTracer::trace(const Vec3f& origin, const Vec3f& direction, TraceLayers layers,
-                                 std::vector<TracedHit>& hits, const RasterMatch* match) const {
-  const Impl& m = *impl_;
-  KBuffer buffer;
-  TraceContext context;
-  rtcInitIntersectContext(&context.base);
-  context.buffer = &buffer;
-  context.match = match;
-  if (match) context.depth_per_distance = depth_per_distance(direction, *match);
-  buffer.min_T = m.options.min_transmittance;
-  RayOutcome out;
-  float T = 1.0f;
-  for (;;) {
-    buffer.begin_pass(T);
-    // Every tier offers its proxies to the one k-buffer; each traversal may stop its own
-    // slack beyond the buffer's current k-th key (which only moves closer).
-    for (const Impl::Tier& tier : m.tiers) {
-      if (tier.empty(layers)) continue;
-      context.slack = match ? tier.slack(layers) : 0.0f;
-      const float limit = buffer.limit();
-      RTCRayHit rh;
-      rh.ray.org_x = origin.x();
-      rh.ray.org_y = origin.y();
-      rh.ray.org_z = origin.z();
-      rh.ray.dir_x = direction.x();
-      rh.ray.dir_y = direction.y();
-      rh.ray.dir_z = direction.z();
-      rh.ray.tnear = !buffer.has_floor ? 0.0f
-                     : match ? std::max(0.0f, (buffer.floor_key - context.slack) / context.depth_per_distance)
-                             : buffer.floor_key;
-      rh.ray.tfar = limit == std::numeric_limits<float>::infinity() ? limit
-                    : match ? (limit + context.slack) / context.depth_per_distance
-                            : limit;
-      rh.ray.time = 0.0f;
-      rh.ray.mask = 0xFFFFFFFFu;
-      rh.ray.id = 0;
-      rh.ray.flags = 0;
-      rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-      rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-      if (rh.ray.tfar >= rh.ray.tnear) rtcIntersect1(tier.scene(layers), &context.base, &rh);
-    }
-    ++out.passes;
-    for (int i = 0; i < buffer.count; ++i) {
-      const KBuffer::Entry& e = buffer.entries[i];
-      const float next_T = T * (1.0f - e.alpha);
-      if (next_T < m.options.min_transmittance) {
-        out.transmittance = T;
-        out.end_key = e.key;
-        return out;
-      }
-      hits.push_back({e.id, e.ray_distance, e.alpha, e.alpha * T});
-      T = next_T;
-    }
-    if (buffer.count < KBuffer::kCapacity) break;
-    buffer.has_floor = true;
-    buffer.floor_key = buffer.entries[KBuffer::kCapacity - 1].key;
-    buffer.floor_id = buffer.entries[KBuffer::kCapacity - 1].id;
-  }
-  out.transmittance = T;
-  return out;
+                                 std::vector<TracedHit>& hits, const RasterMatch* match, std::vector<KeyedHit>* keyed) const {
+  return impl_->trace(origin, direction, layers, nullptr, 0, hits, match, keyed);
+}
+
+RayOutcome GaussianTracer::trace_over(const Vec3f& origin, const Vec3f& direction, const KeyedHit* static_hits, size_t static_count,
+                                      std::vector<TracedHit>& hits, const RasterMatch* match) const {
+  FILLGS_DCHECK(std::is_sorted(static_hits, static_hits + static_count, [](const KeyedHit& a, const KeyedHit& b) {
+    return KBuffer::before(a.key, a.id, b.key, b.id);
+  }));
+  return impl_->trace(origin, direction, TraceLayers::DynamicOnly, static_hits, static_count, hits, match, nullptr);
 }
 
 bool GaussianTracer::meets_dynamic(const Vec3f& origin, const Vec3f& direction, float max_key,

@@ -452,6 +452,32 @@ struct PoseCache {
   std::vector<uint64_t> ray_offsets;
   std::vector<uint32_t> ray_ids;
   std::vector<float> ray_end;
+  // raytraced, cache_static_hits: per ray its static hits once a moving Gaussian reached it
+  // (null until then; they live in the run's HitArenas)
+  std::vector<const KeyedHit*> static_hits;
+  std::vector<uint32_t> static_hit_count;
+};
+
+/// Storage that never moves what it holds: each ray's hits go contiguously into a block of
+/// at least kBlock entries, appended to by one thread.
+class HitArena {
+ public:
+  const KeyedHit* keep(const std::vector<KeyedHit>& hits) {
+    if (blocks_.empty() || used_ + hits.size() > capacity_) {
+      capacity_ = std::max(kBlock, hits.size());
+      blocks_.emplace_back(new KeyedHit[capacity_]);
+      used_ = 0;
+    }
+    KeyedHit* at = blocks_.back().get() + used_;
+    std::copy(hits.begin(), hits.end(), at);
+    used_ += hits.size();
+    return at;
+  }
+
+ private:
+  static constexpr size_t kBlock = size_t(1) << 16;
+  std::vector<std::unique_ptr<KeyedHit[]>> blocks_;
+  size_t capacity_ = 0, used_ = 0;
 };
 
 }  // namespace
@@ -481,7 +507,7 @@ struct ViewDelta {
 class ObservationRun {
  public:
   ObservationRun(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const ObservationOptions& options)
-      : cloud_(cloud), cameras_(cameras), vis_(options.visibility), footprints_(options.footprints) {
+      : cloud_(cloud), cameras_(cameras), vis_(options.visibility), footprints_(options.footprints), cache_static_(options.cache_static_hits) {
     pose_of_camera_ = camera_pose_groups(cameras, &pose_count_);
     poses_.resize(pose_count_);
     marks_.assign(cloud.size(), 0);
@@ -565,7 +591,7 @@ class ObservationRun {
   /// `boxes`: the dynamic proxies at this time (GaussianTracer::dynamic_boxes); only rays in
   /// their screen footprints are probed.
   ViewDelta raytraced_delta(const GaussianTracer& tracer, const std::vector<ProxyBox>& boxes, uint32_t camera) {
-    const PoseCache& pc = pose(camera);
+    PoseCache& pc = poses_[pose_of_camera_[camera]];
     const RayGrid grid(cameras_[camera], vis_.stride, vis_.dilate);
     summary.incremental_rays += grid.count();
     if (grid.count() > ray_marks_size_) {
@@ -578,9 +604,15 @@ class ObservationRun {
       for (size_t r = 0; r < grid.count(); ++r) ray_marks_[r].store(1, std::memory_order_relaxed);
       summary.footprint_rays += grid.count();
     }
+    if (cache_static_ && pc.static_hits.size() != grid.count()) {
+      pc.static_hits.assign(grid.count(), nullptr);
+      pc.static_hit_count.assign(grid.count(), 0);
+    }
     struct Local {
       RayScratch rs;
       std::vector<uint32_t> rays;  // re-traced ray indices
+      std::vector<KeyedHit> keyed;
+      uint64_t cached_rays = 0, cached_hits = 0;
     };
     tbb::enumerable_thread_specific<Local> local;
     tbb::parallel_for(tbb::blocked_range<int>(0, grid.height, 1), [&](const tbb::blocked_range<int>& r) {
@@ -594,7 +626,21 @@ class ObservationRun {
           if (!tracer.meets_dynamic(grid.origin, dir, pc.ray_end[ray], grid.match)) continue;
           l.rays.push_back(uint32_t(ray));
           l.rs.hits.clear();
-          tracer.trace(grid.origin, dir, TraceLayers::All, l.rs.hits, grid.match);
+          if (!cache_static_) {
+            tracer.trace(grid.origin, dir, TraceLayers::All, l.rs.hits, grid.match);
+          } else {
+            // Each ray is handled by one thread per frame: its slot needs no lock.
+            if (!pc.static_hits[ray]) {
+              l.keyed.clear();
+              tracer.trace(grid.origin, dir, TraceLayers::StaticOnly, l.rs.hits, grid.match, &l.keyed);
+              l.rs.hits.clear();
+              pc.static_hits[ray] = arenas_.local().keep(l.keyed);
+              pc.static_hit_count[ray] = uint32_t(l.keyed.size());
+              ++l.cached_rays;
+              l.cached_hits += l.keyed.size();
+            }
+            tracer.trace_over(grid.origin, dir, pc.static_hits[ray], pc.static_hit_count[ray], l.rs.hits, grid.match);
+          }
           ++l.rs.rays;
           l.rs.hits_count += l.rs.hits.size();
           observed_ids(l.rs.hits, vis_.min_weight, l.rs.ids);
@@ -607,6 +653,8 @@ class ObservationRun {
       summary.counters.probes += l.rs.probes;
       summary.counters.rays += l.rs.rays;
       summary.counters.hits += l.rs.hits_count;
+      summary.cached_static_rays += l.cached_rays;
+      summary.cached_static_hits += l.cached_hits;
       sort_unique(l.rs.ids);
       ids_only.local().ids.insert(ids_only.local().ids.end(), l.rs.ids.begin(), l.rs.ids.end());
     }
@@ -643,6 +691,8 @@ class ObservationRun {
   const std::vector<Camera>& cameras_;
   VisibilityOptions vis_;
   bool footprints_ = true;
+  bool cache_static_ = true;
+  tbb::enumerable_thread_specific<HitArena> arenas_;  // the cached static hits of every pose
   std::vector<uint32_t> pose_of_camera_;
   size_t pose_count_ = 0;
   std::vector<PoseCache> poses_;

@@ -324,6 +324,78 @@ TEST_CASE("large proxies in a tier of their own: every ray's hits equal a brute-
   }
 }
 
+TEST_CASE("the dynamic layer traced over a ray's kept static hits blends exactly as both layers traced together",
+          "[visibility][tracer]") {
+  // 5,000 faint Gaussians in a thin slab (about 190 on a ray: two k-buffer passes), and on
+  // its x > 0.3 side 150 opaque ones among them (rays there end in their first pass, on a
+  // static or a moving hit); every third Gaussian moving.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1, 1);
+  FrameGaussians frame;
+  std::vector<uint32_t> dynamic;
+  for (int g = 0; g < 5150; ++g) {
+    const bool opaque = g >= 5000;
+    frame.means.push_back(Vec3f(opaque ? 0.65f + 0.35f * u(rng) : u(rng), 0.75f * u(rng), 6.0f + 0.5f * u(rng)));
+    frame.scales.push_back(opaque ? Vec3f(0.1f, 0.08f, 0.05f) : Vec3f(0.1f + 0.04f * u(rng), 0.09f, 0.06f));
+    frame.rotations.push_back(normalize_quat(Vec4f(1.0f, 0.3f * u(rng), 0.3f * u(rng), 0.3f * u(rng))));
+    frame.opacities.push_back(opaque ? 0.95f : 0.03f + 0.01f * u(rng));
+    if (g % 3 == 0) dynamic.push_back(uint32_t(g));
+  }
+  const Camera cam = axis_camera(40, 30, 200);  // sees x, y within ±0.6, ±0.45 at z = 6
+  RasterMatch match;
+  match.variance_per_depth2 = float(double(kDilation) / (cam.fx * cam.fy));
+  for (bool matched : {true, false}) {
+    INFO((matched ? "matched" : "plain"));
+    TracerOptions to;
+    to.dilation_padding = matched ? float(std::sqrt(double(kDilation)) / 200.0 * 8.0) : 0.0f;
+    GaussianTracer tracer(frame, dynamic, to);
+    size_t multi_pass = 0, ended_static = 0, ended_dynamic = 0, compared = 0;
+    std::vector<TracedHit> both, statics, over;
+    std::vector<KeyedHit> keyed;
+    std::vector<char> moving(frame.size(), 0);
+    for (uint32_t g : dynamic) moving[g] = 1;
+    for (int py = 0; py < cam.height; ++py)
+      for (int px = 0; px < cam.width; ++px) {
+        INFO("pixel " << px << "," << py);
+        const Vec3f d(float((px + 0.5 - cam.cx) / cam.fx), float((py + 0.5 - cam.cy) / cam.fy), 1.0f);
+        const RasterMatch* m = matched ? &match : nullptr;
+        both.clear(), statics.clear(), over.clear(), keyed.clear();
+        const RayOutcome a = tracer.trace(Vec3f::Zero(), d, TraceLayers::All, both, m);
+        const RayOutcome s = tracer.trace(Vec3f::Zero(), d, TraceLayers::StaticOnly, statics, m, &keyed);
+        // The kept hits: every blended static hit, then the one that ended the ray (if any).
+        REQUIRE(keyed.size() == statics.size() + (std::isinf(s.end_key) ? 0 : 1));
+        for (size_t k = 0; k < statics.size(); ++k) CHECK((keyed[k].id == statics[k].id && keyed[k].alpha == statics[k].alpha));
+        if (!std::isinf(s.end_key)) CHECK(keyed.back().key == s.end_key);
+        const RayOutcome o = tracer.trace_over(Vec3f::Zero(), d, keyed.data(), keyed.size(), over, m);
+        REQUIRE(over.size() == both.size());
+        for (size_t k = 0; k < both.size(); ++k) {
+          CHECK(over[k].id == both[k].id);
+          CHECK(over[k].distance == both[k].distance);
+          CHECK(over[k].alpha == both[k].alpha);
+          CHECK(over[k].weight == both[k].weight);
+        }
+        CHECK(o.transmittance == a.transmittance);
+        CHECK((o.end_key == a.end_key || (std::isinf(o.end_key) && std::isinf(a.end_key))));
+        compared += both.size();
+        multi_pass += a.passes > 1;
+        if (!std::isinf(a.end_key)) {
+          // Which layer the hit that ended the ray came from (the last keyed hit of All).
+          std::vector<KeyedHit> all_keyed;
+          both.clear();
+          tracer.trace(Vec3f::Zero(), d, TraceLayers::All, both, m, &all_keyed);
+          REQUIRE(all_keyed.size() == both.size() + 1);
+          CHECK(all_keyed.back().key == a.end_key);
+          ended_dynamic += moving[all_keyed.back().id];
+          ended_static += !moving[all_keyed.back().id];
+        }
+      }
+    CHECK(compared > 100000);
+    CHECK(multi_pass > 100);
+    CHECK(ended_static > 20);
+    CHECK(ended_dynamic > 20);
+  }
+}
+
 // ---------------------------------------------------------------------------------
 // Agreement between modes
 
@@ -378,17 +450,29 @@ TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame"
   const auto times = frame_times(7);
   for (VisibilityMode mode : {VisibilityMode::Frustum, VisibilityMode::Raytraced}) {
     INFO(to_string(mode));
-    ObservationOptions inc, full;
+    ObservationOptions inc, full, uncached;
     inc.visibility = full.visibility = mode_options(mode, 4);
     full.incremental = false;
-    ObservationSummary si, sf;
+    uncached = inc;
+    uncached.cache_static_hits = false;
+    ObservationSummary si, sf, su;
     // The rig as per-frame cameras with times (as transforms_train.json has it).
     const auto cams = cameras_over_time(s.train, 7);
     const ObservationTables a = observation_tables(s.scene, cams, times, 1.0 / 6, inc, &si);
     const ObservationTables b = observation_tables(s.scene, cams, times, 1.0 / 6, full, &sf);
+    const ObservationTables c = observation_tables(s.scene, cams, times, 1.0 / 6, uncached, &su);
     CHECK(a.counts == b.counts);
     CHECK(a.dynamic_deficiency == b.dynamic_deficiency);
     CHECK(a.visible_per_view == b.visible_per_view);
+    CHECK(c.counts == b.counts);
+    CHECK(c.visible_per_view == b.visible_per_view);
+    CHECK(su.cached_static_rays == 0);
+    CHECK(su.retraced_rays == si.retraced_rays);
+    if (mode == VisibilityMode::Raytraced) {
+      // Static hits are kept once per ray a moving Gaussian reaches, then reused.
+      CHECK(si.cached_static_rays > 0);
+      CHECK(si.cached_static_rays < si.retraced_rays);
+    }
     CHECK(si.camera_poses == 16);
     CHECK(si.views == 16 * 7);
     if (mode == VisibilityMode::Raytraced) {

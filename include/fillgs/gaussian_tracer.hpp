@@ -80,7 +80,19 @@ struct RayOutcome {
   uint32_t passes = 0;         ///< k-buffer passes
 };
 
-enum class TraceLayers { All, StaticOnly };
+/// Which proxies a trace traverses: all, the static ones (built once), or the dynamic ones
+/// (rebuilt per time; `trace_over` blends them with a static layer traced before).
+enum class TraceLayers { All, StaticOnly, DynamicOnly };
+
+/// A hit as the k-buffer orders it: by (key, id), the key a ray distance or, under a
+/// RasterMatch, the view depth of the Gaussian's mean. What `trace` can return of one
+/// layer so that another layer can later be traced over it (`trace_over`).
+struct KeyedHit {
+  float key;
+  uint32_t id;
+  float alpha;
+  float ray_distance;
+};
 
 /// The world box a proxy's hits lie in (its k-sigma bound, dilation padding included):
 /// centre = the Gaussian's mean at the current time. `half_extent[0] < 0`: an empty proxy
@@ -107,8 +119,19 @@ class GaussianTracer {
   /// Traces one ray (direction need not be unit; distances are in units of it), appending
   /// every blended hit front to back to `hits`. Thread-safe.
   /// With a RasterMatch the hits are those the rasterizer would blend (see there).
+  /// `keyed` (optional): also appends each blended hit with its key and, when the ray ends
+  /// at a hit that would take T under T_min, that hit last — everything a later trace of
+  /// another layer needs to blend in front of and between them.
   RayOutcome trace(const Vec3f& origin, const Vec3f& direction, TraceLayers layers, std::vector<TracedHit>& hits,
-                   const RasterMatch* match = nullptr) const;
+                   const RasterMatch* match = nullptr, std::vector<KeyedHit>* keyed = nullptr) const;
+
+  /// The same ray traced through the dynamic layer only, blended with the static layer's
+  /// hits given as `trace(…, StaticOnly, …, keyed)` returned them for this ray (ascending
+  /// by (key, id)): hits and outcome equal `trace(…, All, …)` exactly, while the static
+  /// BVH is not traversed again. The static hits are offered to each k-buffer pass first,
+  /// so the dynamic traversal stops where the blended ray ends. Thread-safe.
+  RayOutcome trace_over(const Vec3f& origin, const Vec3f& direction, const KeyedHit* static_hits, size_t static_count,
+                        std::vector<TracedHit>& hits, const RasterMatch* match = nullptr) const;
 
   /// True if the ray meets a dynamic proxy (a point where α >= α_min) whose order key is at
   /// most `max_key` (pass a RayOutcome::end_key to ask "can moving Gaussians change this
