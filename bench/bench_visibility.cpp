@@ -301,23 +301,23 @@ void million_scene(bool smoke) {
     const double per_frame_inc = (si.seconds_frames - si.seconds_static) / traced_frames + si.seconds_refit / traced_frames;
     const double per_frame_full = sf.seconds_frames / 2.0 + sf.seconds_refit / 2.0;
     scratch_frame = per_frame_full;
-    // The earlier incremental path, which probed every ray, in the same run.
-    ObservationOptions every = inc;
+    // Earlier incremental paths in the same run: seconds per frame, counts checked.
+    auto per_frame_of = [&](const ObservationOptions& o, ObservationSummary& su) {
+      const ObservationTables t = observation_tables(cloud, cams, few, dt, o, &su);
+      same = same && t.counts == a.counts;
+      return (su.seconds_frames - su.seconds_static) / traced_frames + su.seconds_refit / traced_frames;
+    };
+    ObservationOptions every = inc;  // probing every ray (before footprints)
     every.footprints = false;
     ObservationSummary se;
-    const ObservationTables e = observation_tables(cloud, cams, few, dt, every, &se);
-    same = same && e.counts == a.counts;
-    const double per_frame_every = (se.seconds_frames - se.seconds_static) / traced_frames + se.seconds_refit / traced_frames;
+    const double per_frame_every = per_frame_of(every, se);
     std::printf("raytraced s4, %d frames incremental probing every ray (the path before footprints): static answers %.1f s, then %.2f s per "
                 "frame; footprints / every ray = %.3f per frame\n",
                 traced_frames, se.seconds_static, per_frame_every, per_frame_inc / per_frame_every);
-    // The path before kept static hits (every re-traced ray through both layers), same run.
-    ObservationOptions both_layers = inc;
+    ObservationOptions both_layers = inc;  // every re-traced ray through both layers (before kept static hits)
     both_layers.cache_static_hits = false;
     ObservationSummary sb;
-    const ObservationTables bl = observation_tables(cloud, cams, few, dt, both_layers, &sb);
-    same = same && bl.counts == a.counts;
-    const double per_frame_both = (sb.seconds_frames - sb.seconds_static) / traced_frames + sb.seconds_refit / traced_frames;
+    const double per_frame_both = per_frame_of(both_layers, sb);
     std::printf("raytraced s4, %d frames incremental re-tracing both layers (the path before kept static hits): %.2f s per frame; kept "
                 "static hits / both layers = %.3f per frame; kept: %llu rays, %llu hits (%.0f MB)\n",
                 traced_frames, per_frame_both, per_frame_inc / per_frame_both, (unsigned long long)si.cached_static_rays,
