@@ -324,6 +324,37 @@ TEST_CASE("large proxies in a tier of their own: every ray's hits equal a brute-
   }
 }
 
+TEST_CASE("a large proxy met far behind its mean's depth is found through its own tier's slack", "[visibility][tracer]") {
+  // A thin Gaussian 13 units long in depth (σ = 0.01, 0.01, 2) with its mean at depth 5, and
+  // four small opaque ones on a slanted ray at depths 5.2–5.5. The ray (x = 0.04 z) reaches
+  // the long Gaussian's box only beyond depth 6.7, where it crosses it (α ≈ 0.45 near depth
+  // 7.5), but under a RasterMatch the hit's key is the mean's depth, 5: it is blended first,
+  // then the first opaque one, and the second ends the ray at 5.3. A traversal that stops
+  // beyond that end by the small proxies' slack (0.03) instead of the long one's would
+  // never reach the long Gaussian's box.
+  FrameGaussians frame;
+  auto add = [&](const Vec3f& mean, const Vec3f& scale, float opacity) {
+    frame.means.push_back(mean);
+    frame.scales.push_back(scale);
+    frame.rotations.push_back(Vec4f(1, 0, 0, 0));
+    frame.opacities.push_back(opacity);
+  };
+  add(Vec3f(0.3f, 0.0f, 5.0f), Vec3f(0.01f, 0.01f, 2.0f), 0.99f);
+  for (float z : {5.2f, 5.3f, 5.4f, 5.5f}) add(Vec3f(0.04f * z, 0.0f, z), Vec3f::Constant(0.01f), 0.99f);
+  // 16 more long ones far off the ray, so that the large tier's BVH has inner boxes to cull by.
+  for (int i = 0; i < 16; ++i) add(Vec3f(float(i % 2 ? 2 + i : -2 - i), float(i % 4) - 1.5f, 5.0f), Vec3f(0.01f, 0.01f, 2.0f), 0.99f);
+  RasterMatch match;  // axis +z, no dilation
+  GaussianTracer tracer(frame, {});
+  REQUIRE(tracer.large_proxy_count() == 17);
+  std::vector<TracedHit> hits;
+  const RayOutcome out = tracer.trace(Vec3f::Zero(), Vec3f(0.04f, 0.0f, 1.0f), TraceLayers::All, hits, &match);
+  REQUIRE(hits.size() == 2);
+  CHECK(hits[0].id == 0);
+  CHECK(hits[0].distance == Approx(7.5 * std::sqrt(1.0 + 0.04 * 0.04)).epsilon(0.05));
+  CHECK(hits[1].id == 1);
+  CHECK(out.end_key == Approx(5.3).epsilon(1e-5));
+}
+
 TEST_CASE("the dynamic layer traced over a ray's kept static hits blends exactly as both layers traced together",
           "[visibility][tracer]") {
   // 5,000 faint Gaussians in a thin slab (about 190 on a ray: two k-buffer passes), and on
