@@ -315,7 +315,7 @@ void million_scene(bool smoke) {
                 "frame; footprints / every ray = %.3f per frame\n",
                 traced_frames, se.seconds_static, per_frame_every, per_frame_inc / per_frame_every);
     ObservationOptions both_layers = inc;  // every re-traced ray through both layers (before kept static hits)
-    both_layers.cache_static_hits = false;
+    both_layers.static_hit_cache_bytes = 0;
     ObservationSummary sb;
     const double per_frame_both = per_frame_of(both_layers, sb);
     std::printf("raytraced s4, %d frames incremental re-tracing both layers (the path before kept static hits): %.2f s per frame; kept "
@@ -351,7 +351,7 @@ void million_scene(bool smoke) {
     ObservationOptions o;
     o.visibility.mode = VisibilityMode::Raytraced;
     o.visibility.stride = 4;
-    o.cache_static_hits = keep;
+    if (!keep) o.static_hit_cache_bytes = 0;
     ObserveOutputOptions oo;
     oo.plots = false;
     const auto t0 = Clock::now();

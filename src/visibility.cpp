@@ -452,7 +452,7 @@ struct PoseCache {
   std::vector<uint64_t> ray_offsets;
   std::vector<uint32_t> ray_ids;
   std::vector<float> ray_end;
-  // raytraced, cache_static_hits: per ray its static hits once a moving Gaussian reached it
+  // raytraced, static_hit_cache_bytes > 0: per ray its static hits once a moving Gaussian reached it
   // (null until then; they live in the run's HitArenas)
   std::vector<const KeyedHit*> static_hits;
   std::vector<uint32_t> static_hit_count;
@@ -507,7 +507,8 @@ struct ViewDelta {
 class ObservationRun {
  public:
   ObservationRun(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const ObservationOptions& options)
-      : cloud_(cloud), cameras_(cameras), vis_(options.visibility), footprints_(options.footprints), cache_static_(options.cache_static_hits) {
+      : cloud_(cloud), cameras_(cameras), vis_(options.visibility), footprints_(options.footprints),
+        cache_budget_(options.static_hit_cache_bytes) {
     pose_of_camera_ = camera_pose_groups(cameras, &pose_count_);
     poses_.resize(pose_count_);
     marks_.assign(cloud.size(), 0);
@@ -604,7 +605,7 @@ class ObservationRun {
       for (size_t r = 0; r < grid.count(); ++r) ray_marks_[r].store(1, std::memory_order_relaxed);
       summary.footprint_rays += grid.count();
     }
-    if (cache_static_ && pc.static_hits.size() != grid.count()) {
+    if (cache_budget_ > 0 && pc.static_hits.size() != grid.count()) {
       pc.static_hits.assign(grid.count(), nullptr);
       pc.static_hit_count.assign(grid.count(), 0);
     }
@@ -626,20 +627,26 @@ class ObservationRun {
           if (!tracer.meets_dynamic(grid.origin, dir, pc.ray_end[ray], grid.match)) continue;
           l.rays.push_back(uint32_t(ray));
           l.rs.hits.clear();
-          if (!cache_static_) {
+          if (cache_budget_ == 0) {
             tracer.trace(grid.origin, dir, TraceLayers::All, l.rs.hits, grid.match);
+          } else if (pc.static_hits[ray]) {
+            tracer.trace_over(grid.origin, dir, pc.static_hits[ray], pc.static_hit_count[ray], l.rs.hits, grid.match);
           } else {
-            // Each ray is handled by one thread per frame: its slot needs no lock.
-            if (!pc.static_hits[ray]) {
-              l.keyed.clear();
-              tracer.trace(grid.origin, dir, TraceLayers::StaticOnly, l.rs.hits, grid.match, &l.keyed);
-              l.rs.hits.clear();
+            // The static layer alone, kept while the budget lasts (each ray is handled by
+            // one thread per frame: its slot needs no lock), then the dynamic layer over it.
+            l.keyed.clear();
+            tracer.trace(grid.origin, dir, TraceLayers::StaticOnly, l.rs.hits, grid.match, &l.keyed);
+            l.rs.hits.clear();
+            const size_t bytes = l.keyed.size() * sizeof(KeyedHit);
+            if (cache_bytes_.fetch_add(bytes) + bytes <= cache_budget_) {
               pc.static_hits[ray] = arenas_.local().keep(l.keyed);
               pc.static_hit_count[ray] = uint32_t(l.keyed.size());
               ++l.cached_rays;
               l.cached_hits += l.keyed.size();
+            } else {
+              cache_bytes_.fetch_sub(bytes);
             }
-            tracer.trace_over(grid.origin, dir, pc.static_hits[ray], pc.static_hit_count[ray], l.rs.hits, grid.match);
+            tracer.trace_over(grid.origin, dir, l.keyed.data(), l.keyed.size(), l.rs.hits, grid.match);
           }
           ++l.rs.rays;
           l.rs.hits_count += l.rs.hits.size();
@@ -691,7 +698,8 @@ class ObservationRun {
   const std::vector<Camera>& cameras_;
   VisibilityOptions vis_;
   bool footprints_ = true;
-  bool cache_static_ = true;
+  size_t cache_budget_ = 0;                  // bytes of kept static hits allowed
+  std::atomic<size_t> cache_bytes_{0};       // bytes kept so far
   tbb::enumerable_thread_specific<HitArena> arenas_;  // the cached static hits of every pose
   std::vector<uint32_t> pose_of_camera_;
   size_t pose_count_ = 0;

@@ -241,6 +241,9 @@ TEST_CASE("fillgs observe writes [T, N] tables that numpy reads, summary.json an
     expect_one_line_error(run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/bad",
                                    "--times", "0.5,1.5"}),
                           {"--times", "1.5"});
+    expect_one_line_error(run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/bad",
+                                   "--mode", "raytraced", "--hit-cache", "-5"}),
+                          {"--hit-cache", "-5"});
     std::ofstream(dir + "/static.ply") << kHeader << "0 0 0 1 0 0 2 -1 -1 -1 1 0 0 0\n0.3 0.2 0.1 0 1 0 1 -2 -2 -2 1 0 0 0\n";
     write_transforms_json(dir + "/rig.json", s.train);  // no times, static scene: the frame count is unknown
     expect_one_line_error(run_cli({"observe", "--scene", dir + "/static.ply", "--cameras", dir + "/rig.json", "--out", dir + "/bad"}),
@@ -305,6 +308,13 @@ TEST_CASE("fillgs observe --shard i/n, then --merge: the single process's tables
                                                std::vector<std::string>{"--mode", "frustum", "--motion-tables", "dynamic"}}) {
     const std::string tag = mode[1];
     observe(tag + "_whole", mode);
+    if (tag == "raytraced") {  // no kept static hits: the same tables
+      std::vector<std::string> extra = mode;
+      extra.insert(extra.end(), {"--hit-cache", "0"});
+      observe("raytraced_no_hit_cache", extra);
+      same_bytes("raytraced_whole/count.npy", "raytraced_no_hit_cache/count.npy");
+      same_bytes("raytraced_whole/deficiency.npy", "raytraced_no_hit_cache/deficiency.npy");
+    }
     std::vector<std::string> parts;
     for (int i = 1; i <= 3; ++i) {
       std::vector<std::string> extra = mode;

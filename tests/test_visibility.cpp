@@ -481,28 +481,37 @@ TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame"
   const auto times = frame_times(7);
   for (VisibilityMode mode : {VisibilityMode::Frustum, VisibilityMode::Raytraced}) {
     INFO(to_string(mode));
-    ObservationOptions inc, full, uncached;
+    ObservationOptions inc, full, uncached, capped;
     inc.visibility = full.visibility = mode_options(mode, 4);
     full.incremental = false;
-    uncached = inc;
-    uncached.cache_static_hits = false;
-    ObservationSummary si, sf, su;
+    uncached = capped = inc;
+    uncached.static_hit_cache_bytes = 0;
+    ObservationSummary si, sf, su, sc;
     // The rig as per-frame cameras with times (as transforms_train.json has it).
     const auto cams = cameras_over_time(s.train, 7);
     const ObservationTables a = observation_tables(s.scene, cams, times, 1.0 / 6, inc, &si);
     const ObservationTables b = observation_tables(s.scene, cams, times, 1.0 / 6, full, &sf);
     const ObservationTables c = observation_tables(s.scene, cams, times, 1.0 / 6, uncached, &su);
+    // A budget for about half the hits the unbounded run keeps: some rays kept, the rest
+    // traced through both layers.
+    capped.static_hit_cache_bytes = size_t(si.cached_static_hits) * sizeof(KeyedHit) / 2;
+    const ObservationTables d = observation_tables(s.scene, cams, times, 1.0 / 6, capped, &sc);
     CHECK(a.counts == b.counts);
     CHECK(a.dynamic_deficiency == b.dynamic_deficiency);
     CHECK(a.visible_per_view == b.visible_per_view);
     CHECK(c.counts == b.counts);
     CHECK(c.visible_per_view == b.visible_per_view);
+    CHECK(d.counts == b.counts);
+    CHECK(d.visible_per_view == b.visible_per_view);
     CHECK(su.cached_static_rays == 0);
     CHECK(su.retraced_rays == si.retraced_rays);
     if (mode == VisibilityMode::Raytraced) {
       // Static hits are kept once per ray a moving Gaussian reaches, then reused.
       CHECK(si.cached_static_rays > 0);
       CHECK(si.cached_static_rays < si.retraced_rays);
+      CHECK(sc.cached_static_hits * sizeof(KeyedHit) <= capped.static_hit_cache_bytes);
+      CHECK(sc.cached_static_rays > 0);
+      CHECK(sc.cached_static_rays < si.cached_static_rays);
     }
     CHECK(si.camera_poses == 16);
     CHECK(si.views == 16 * 7);

@@ -117,10 +117,10 @@ struct ObservationOptions {
   bool footprints = true;
   /// Incremental raytraced: keep the static hits of each ray the first time a moving
   /// Gaussian reaches it, and from then on trace only the dynamic layer over them
-  /// (GaussianTracer::trace_over) instead of both layers again. Memory grows with the rays
-  /// moving Gaussians ever reach (ObservationSummary::cached_static_hits); same counts either
-  /// way.
-  bool cache_static_hits = true;
+  /// (GaussianTracer::trace_over) instead of both layers again, up to this many bytes of
+  /// kept hits (16 a hit); rays reached once the budget is spent are traced through both
+  /// layers every time. 0: keep none. Same counts either way.
+  size_t static_hit_cache_bytes = size_t(2) << 30;
   /// Indices into `times` to evaluate, strictly ascending; empty: every time. Views are
   /// assigned to frames over all of `times`, so the rows of a subset equal the same rows of
   /// the whole (a shard of a job split over processes or machines).
@@ -156,7 +156,7 @@ struct ObservationSummary {
   uint64_t incremental_rays = 0;  ///< incremental raytraced: grid rays of the views evaluated against their static answer
   uint64_t footprint_rays = 0;    ///< of those, rays inside a dynamic proxy's screen footprint (probed)
   uint64_t retraced_rays = 0;     ///< of those, rays whose path met a dynamic proxy (re-traced)
-  uint64_t cached_static_rays = 0;  ///< rays whose static hits are kept (cache_static_hits)
+  uint64_t cached_static_rays = 0;  ///< rays whose static hits are kept (static_hit_cache_bytes)
   uint64_t cached_static_hits = 0;  ///< static hits kept for them (sizeof(KeyedHit) = 16 bytes each)
   double seconds_build = 0, seconds_refit = 0, seconds_static = 0, seconds_frames = 0, seconds_speed = 0,
          seconds_sink = 0, seconds_total = 0;

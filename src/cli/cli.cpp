@@ -253,6 +253,11 @@ ObserveJob observe_job(const Args& a) {
   o.visibility.threads = a.threads();
   o.visibility.dilate = !a.flag("no-raster-match");
   o.incremental = !a.flag("from-scratch");
+  if (a.has("hit-cache")) {
+    const double mb = a.number("hit-cache", 0.0);
+    if (!(mb >= 0 && mb < 1e9)) throw_error("fillgs observe: --hit-cache must be a number of MB, at least 0 (got ", a.get("hit-cache"), ")");
+    o.static_hit_cache_bytes = size_t(mb * 1048576.0);
+  }
   const std::string tables = a.get("motion-tables", "dense");
   if (tables != "dense" && tables != "dynamic") throw_error("fillgs observe: --motion-tables must be dense or dynamic (got '", tables, "')");
   job.output.dense_motion_tables = tables == "dense";
@@ -339,14 +344,14 @@ int observe_over_mpi(const Args& a, const std::string& out_dir, std::ostream& ou
 
 int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   Args a("observe", args, 1,
-         merge(merge({"scene", "cameras", "frames", "times", "mode", "stride", "threads", "out", "tau", "motion-tables", "shard", "merge"},
+         merge(merge({"scene", "cameras", "frames", "times", "mode", "stride", "threads", "out", "tau", "motion-tables", "shard", "merge", "hit-cache"},
                      kSceneOptions),
                kCameraOptions),
          {"quiet", "from-scratch", "no-raster-match", "no-plots", "mpi"});
   const auto t0 = Clock::now();
   const std::string out_dir = a.require("out");
   if (a.has("merge")) {
-    for (const char* k : {"scene", "cameras", "frames", "times", "mode", "stride", "tau", "motion-tables", "shard"})
+    for (const char* k : {"scene", "cameras", "frames", "times", "mode", "stride", "tau", "motion-tables", "shard", "hit-cache"})
       if (a.has(k)) throw_error("fillgs observe: --merge combines finished shards; --", k, " belongs to the shards' own runs");
     const std::vector<std::string> shards = split_commas(a.get("merge"));
     OutputFolder folder(out_dir);
@@ -529,6 +534,7 @@ void print_help(std::ostream& out) {
          "  observe --scene S --cameras C --out DIR   observation counts C[t][g], speeds s, deficiency D = s/(1+C)\n"
          "         [--frames F | --times t1,t2,..] [--mode frustum|raytraced|exact] [--stride s] [--tau w]\n"
          "         [--threads n] [--motion-tables dense|dynamic] [--from-scratch] [--no-raster-match] [--no-plots]\n"
+         "         [--hit-cache MB]                 raytraced: static hits kept for re-traced rays (default 2048; 0: none)\n"
          "         [--shard i/n]                    the i-th of n blocks of frames, for --merge\n"
          "         [--mpi]                          under mpirun: frames shared by the ranks, rank 0 writes\n"
          "  observe --merge DIR1,DIR2,.. --out DIR [--no-plots]   shards combined into the single-process tables\n"
