@@ -452,10 +452,13 @@ struct PoseCache {
   std::vector<uint64_t> ray_offsets;
   std::vector<uint32_t> ray_ids;
   std::vector<float> ray_end;
-  // raytraced, static_hit_cache_bytes > 0: per ray its static hits once a moving Gaussian reached it
-  // (null until then; they live in the run's HitArenas)
-  std::vector<const KeyedHit*> static_hits;
-  std::vector<uint32_t> static_hit_count;
+  // raytraced, static_hit_cache_bytes > 0: per ray its static hits once a moving Gaussian
+  // reached it (null until then; they live in the run's HitArenas)
+  struct KeptHits {
+    const KeyedHit* hits = nullptr;
+    uint32_t count = 0;
+  };
+  std::vector<KeptHits> kept;
 };
 
 /// Storage that never moves what it holds: each ray's hits go contiguously into a block of
@@ -577,6 +580,7 @@ class ObservationRun {
   }
 
   const PoseCache& pose(uint32_t camera) const { return poses_[pose_of_camera_[camera]]; }
+  PoseCache& pose(uint32_t camera) { return poses_[pose_of_camera_[camera]]; }
   uint32_t pose_index(uint32_t camera) const { return pose_of_camera_[camera]; }
   size_t pose_count() const { return pose_count_; }
 
@@ -592,7 +596,7 @@ class ObservationRun {
   /// `boxes`: the dynamic proxies at this time (GaussianTracer::dynamic_boxes); only rays in
   /// their screen footprints are probed.
   ViewDelta raytraced_delta(const GaussianTracer& tracer, const std::vector<ProxyBox>& boxes, uint32_t camera) {
-    PoseCache& pc = poses_[pose_of_camera_[camera]];
+    PoseCache& pc = pose(camera);
     const RayGrid grid(cameras_[camera], vis_.stride, vis_.dilate);
     summary.incremental_rays += grid.count();
     if (grid.count() > ray_marks_size_) {
@@ -605,10 +609,7 @@ class ObservationRun {
       for (size_t r = 0; r < grid.count(); ++r) ray_marks_[r].store(1, std::memory_order_relaxed);
       summary.footprint_rays += grid.count();
     }
-    if (cache_budget_ > 0 && pc.static_hits.size() != grid.count()) {
-      pc.static_hits.assign(grid.count(), nullptr);
-      pc.static_hit_count.assign(grid.count(), 0);
-    }
+    if (cache_budget_ > 0 && pc.kept.size() != grid.count()) pc.kept.assign(grid.count(), {});
     struct Local {
       RayScratch rs;
       std::vector<uint32_t> rays;  // re-traced ray indices
@@ -629,8 +630,8 @@ class ObservationRun {
           l.rs.hits.clear();
           if (cache_budget_ == 0) {
             tracer.trace(grid.origin, dir, TraceLayers::All, l.rs.hits, grid.match);
-          } else if (pc.static_hits[ray]) {
-            tracer.trace_over(grid.origin, dir, pc.static_hits[ray], pc.static_hit_count[ray], l.rs.hits, grid.match);
+          } else if (pc.kept[ray].hits) {
+            tracer.trace_over(grid.origin, dir, pc.kept[ray].hits, pc.kept[ray].count, l.rs.hits, grid.match);
           } else {
             // The static layer alone, kept while the budget lasts (each ray is handled by
             // one thread per frame: its slot needs no lock), then the dynamic layer over it.
@@ -639,8 +640,7 @@ class ObservationRun {
             l.rs.hits.clear();
             const size_t bytes = l.keyed.size() * sizeof(KeyedHit);
             if (cache_bytes_.fetch_add(bytes) + bytes <= cache_budget_) {
-              pc.static_hits[ray] = arenas_.local().keep(l.keyed);
-              pc.static_hit_count[ray] = uint32_t(l.keyed.size());
+              pc.kept[ray] = {arenas_.local().keep(l.keyed), uint32_t(l.keyed.size())};
               ++l.cached_rays;
               l.cached_hits += l.keyed.size();
             } else {
