@@ -465,15 +465,15 @@ struct PoseCache {
 /// at least kBlock entries, appended to by one thread.
 class HitArena {
  public:
-  const KeyedHit* keep(const std::vector<KeyedHit>& hits) {
-    if (blocks_.empty() || used_ + hits.size() > capacity_) {
-      capacity_ = std::max(kBlock, hits.size());
+  const KeyedHit* keep(const KeyedHit* hits, size_t n) {
+    if (blocks_.empty() || used_ + n > capacity_) {
+      capacity_ = std::max(kBlock, n);
       blocks_.emplace_back(new KeyedHit[capacity_]);
       used_ = 0;
     }
     KeyedHit* at = blocks_.back().get() + used_;
-    std::copy(hits.begin(), hits.end(), at);
-    used_ += hits.size();
+    std::copy(hits, hits + n, at);
+    used_ += n;
     return at;
   }
 
@@ -511,7 +511,7 @@ class ObservationRun {
  public:
   ObservationRun(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const ObservationOptions& options)
       : cloud_(cloud), cameras_(cameras), vis_(options.visibility), footprints_(options.footprints),
-        cache_budget_(options.static_hit_cache_bytes) {
+        cache_budget_(options.static_hit_cache_bytes), keep_at_answers_(options.keep_at_static_answers) {
     pose_of_camera_ = camera_pose_groups(cameras, &pose_count_);
     poses_.resize(pose_count_);
     marks_.assign(cloud.size(), 0);
@@ -519,7 +519,11 @@ class ObservationRun {
 
   ObservationSummary summary;
 
-  void static_answer(const FrameGaussians& frame, const GaussianTracer* tracer, uint32_t camera) {
+  /// The pose's static answer, at the first frame that views it. Raytraced with kept hits:
+  /// the static hits of the rays in the footprints of this frame's dynamic proxies (`boxes`)
+  /// are kept as they are traced here, so the frames need not trace the static layer again
+  /// for the rays a moving Gaussian reaches first (those it reaches later are kept then).
+  void static_answer(const FrameGaussians& frame, const GaussianTracer* tracer, const std::vector<ProxyBox>& boxes, uint32_t camera) {
     PoseCache& pc = poses_[pose_of_camera_[camera]];
     if (pc.ready) return;
     const auto start = Clock::now();
@@ -530,29 +534,69 @@ class ObservationRun {
     } else {
       const RayGrid grid(cam, vis_.stride, vis_.dilate);
       const size_t n = grid.count();
+      // Rays to keep hits of: first every ray in a footprint at any depth (known before the
+      // trace), then those whose static ray reaches the proxy's depth (known after it).
+      const bool keep = cache_budget_ > 0 && footprints_ && keep_at_answers_ && !boxes.empty();
+      std::unique_ptr<std::atomic<uint8_t>[]> in_footprint;
+      std::vector<std::vector<KeyedHit>> row_keyed;
+      std::vector<std::vector<uint32_t>> row_keyed_ends;  // per row: end offset in row_keyed of each ray
+      if (keep) {
+        in_footprint.reset(new std::atomic<uint8_t>[n]);
+        const std::vector<float> anywhere(n, std::numeric_limits<float>::infinity());
+        mark_dynamic_footprints(boxes, grid, anywhere.data(), in_footprint.get());
+        row_keyed.resize(size_t(grid.height));
+        row_keyed_ends.resize(size_t(grid.height));
+      }
       // Rows are traced in parallel into per-row lists, then packed.
       std::vector<std::vector<uint32_t>> row_ids(size_t(grid.height)), row_counts(size_t(grid.height));
       pc.ray_end.assign(n, 0.0f);
       tbb::enumerable_thread_specific<RayScratch> scratch;
       tbb::parallel_for(tbb::blocked_range<int>(0, grid.height, 1), [&](const tbb::blocked_range<int>& r) {
         RayScratch& s = scratch.local();
+        std::vector<KeyedHit> keyed;
         for (int j = r.begin(); j < r.end(); ++j) {
           auto& ids = row_ids[size_t(j)];
           auto& counts = row_counts[size_t(j)];
           counts.resize(size_t(grid.width));
+          if (keep) row_keyed_ends[size_t(j)].assign(size_t(grid.width), 0);
           for (int i = 0; i < grid.width; ++i) {
+            const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
+            const bool wanted = keep && in_footprint[ray].load(std::memory_order_relaxed);
             s.hits.clear();
-            const RayOutcome o = tracer->trace(grid.origin, grid.direction(i, j), TraceLayers::StaticOnly, s.hits, grid.match);
+            keyed.clear();
+            const RayOutcome o =
+                tracer->trace(grid.origin, grid.direction(i, j), TraceLayers::StaticOnly, s.hits, grid.match, wanted ? &keyed : nullptr);
             ++s.rays;
             s.hits_count += s.hits.size();
             const size_t before = ids.size();
             observed_ids(s.hits, vis_.min_weight, ids);
             counts[size_t(i)] = uint32_t(ids.size() - before);
-            pc.ray_end[size_t(j) * size_t(grid.width) + size_t(i)] = o.end_key;
+            pc.ray_end[ray] = o.end_key;
+            if (keep) {
+              row_keyed[size_t(j)].insert(row_keyed[size_t(j)].end(), keyed.begin(), keyed.end());
+              row_keyed_ends[size_t(j)][size_t(i)] = uint32_t(row_keyed[size_t(j)].size());
+            }
           }
         }
       });
       merge_ids(scratch, &summary.counters);
+      if (keep) {
+        mark_dynamic_footprints(boxes, grid, pc.ray_end.data(), in_footprint.get());
+        pc.kept.assign(n, {});
+        for (int j = 0; j < grid.height; ++j) {
+          const std::vector<KeyedHit>& hits = row_keyed[size_t(j)];
+          for (int i = 0; i < grid.width; ++i) {
+            const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
+            const uint32_t first = i == 0 ? 0 : row_keyed_ends[size_t(j)][size_t(i - 1)], last = row_keyed_ends[size_t(j)][size_t(i)];
+            if (first == last || !in_footprint[ray].load(std::memory_order_relaxed)) continue;
+            if (!keep_hits(pc.kept[ray], hits.data() + first, last - first)) continue;
+            ++summary.cached_static_rays;
+            ++summary.cached_at_static_answers;
+            summary.cached_static_hits += last - first;
+          }
+          std::vector<KeyedHit>().swap(row_keyed[size_t(j)]);
+        }
+      }
       pc.ray_offsets.assign(n + 1, 0);
       for (int j = 0; j < grid.height; ++j)
         for (int i = 0; i < grid.width; ++i) {
@@ -577,6 +621,17 @@ class ObservationRun {
     }
     pc.ready = true;
     summary.seconds_static += seconds_since(start);
+  }
+
+  /// Keeps a ray's static hits in this thread's arena if the budget allows; false otherwise.
+  bool keep_hits(PoseCache::KeptHits& slot, const KeyedHit* hits, size_t n) {
+    const size_t bytes = n * sizeof(KeyedHit);
+    if (cache_bytes_.fetch_add(bytes) + bytes > cache_budget_) {
+      cache_bytes_.fetch_sub(bytes);
+      return false;
+    }
+    slot = {arenas_.local().keep(hits, n), uint32_t(n)};
+    return true;
   }
 
   const PoseCache& pose(uint32_t camera) const { return poses_[pose_of_camera_[camera]]; }
@@ -638,13 +693,9 @@ class ObservationRun {
             l.keyed.clear();
             tracer.trace(grid.origin, dir, TraceLayers::StaticOnly, l.rs.hits, grid.match, &l.keyed);
             l.rs.hits.clear();
-            const size_t bytes = l.keyed.size() * sizeof(KeyedHit);
-            if (cache_bytes_.fetch_add(bytes) + bytes <= cache_budget_) {
-              pc.kept[ray] = {arenas_.local().keep(l.keyed), uint32_t(l.keyed.size())};
+            if (keep_hits(pc.kept[ray], l.keyed.data(), l.keyed.size())) {
               ++l.cached_rays;
               l.cached_hits += l.keyed.size();
-            } else {
-              cache_bytes_.fetch_sub(bytes);
             }
             tracer.trace_over(grid.origin, dir, l.keyed.data(), l.keyed.size(), l.rs.hits, grid.match);
           }
@@ -699,6 +750,7 @@ class ObservationRun {
   VisibilityOptions vis_;
   bool footprints_ = true;
   size_t cache_budget_ = 0;                  // bytes of kept static hits allowed
+  bool keep_at_answers_ = true;              // keep the first frame's footprint rays' hits at the static answers
   std::atomic<size_t> cache_bytes_{0};       // bytes kept so far
   tbb::enumerable_thread_specific<HitArena> arenas_;  // the cached static hits of every pose
   std::vector<uint32_t> pose_of_camera_;
@@ -795,8 +847,8 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
       fo.time = times[f];
       fo.views = views[f];
       if (incremental) {
-        for (uint32_t c : views[f]) run.static_answer(*frame, tracer.get(), c);
         if (tracer) tracer->dynamic_boxes(boxes);
+        for (uint32_t c : views[f]) run.static_answer(*frame, tracer.get(), boxes, c);
         std::vector<uint32_t> poses;
         for (uint32_t c : views[f]) poses.push_back(run.pose_index(c));
         std::sort(poses.begin(), poses.end());

@@ -481,12 +481,13 @@ TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame"
   const auto times = frame_times(7);
   for (VisibilityMode mode : {VisibilityMode::Frustum, VisibilityMode::Raytraced}) {
     INFO(to_string(mode));
-    ObservationOptions inc, full, uncached, capped;
+    ObservationOptions inc, full, uncached, capped, lazy;
     inc.visibility = full.visibility = mode_options(mode, 4);
     full.incremental = false;
-    uncached = capped = inc;
+    uncached = capped = lazy = inc;
     uncached.static_hit_cache_bytes = 0;
-    ObservationSummary si, sf, su, sc;
+    lazy.keep_at_static_answers = false;
+    ObservationSummary si, sf, su, sc, sl;
     // The rig as per-frame cameras with times (as transforms_train.json has it).
     const auto cams = cameras_over_time(s.train, 7);
     const ObservationTables a = observation_tables(s.scene, cams, times, 1.0 / 6, inc, &si);
@@ -496,6 +497,9 @@ TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame"
     // traced through both layers.
     capped.static_hit_cache_bytes = size_t(si.cached_static_hits) * sizeof(KeyedHit) / 2;
     const ObservationTables d = observation_tables(s.scene, cams, times, 1.0 / 6, capped, &sc);
+    const ObservationTables e = observation_tables(s.scene, cams, times, 1.0 / 6, lazy, &sl);
+    CHECK(e.counts == b.counts);
+    CHECK(e.visible_per_view == b.visible_per_view);
     CHECK(a.counts == b.counts);
     CHECK(a.dynamic_deficiency == b.dynamic_deficiency);
     CHECK(a.visible_per_view == b.visible_per_view);
@@ -506,8 +510,15 @@ TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame"
     CHECK(su.cached_static_rays == 0);
     CHECK(su.retraced_rays == si.retraced_rays);
     if (mode == VisibilityMode::Raytraced) {
-      // Static hits are kept once per ray a moving Gaussian reaches, then reused.
+      // Static hits are kept once per ray a moving Gaussian reaches, then reused: those in the
+      // first frame's dynamic footprints as the static answers trace them, the rest when first
+      // reached.
       CHECK(si.cached_static_rays > 0);
+      CHECK(si.cached_at_static_answers > 0);
+      CHECK(si.cached_at_static_answers < si.cached_static_rays);
+      CHECK(su.cached_at_static_answers == 0);
+      CHECK(sl.cached_at_static_answers == 0);
+      CHECK(sl.cached_static_rays > 0);
       CHECK(si.cached_static_rays < si.retraced_rays);
       CHECK(sc.cached_static_hits * sizeof(KeyedHit) <= capped.static_hit_cache_bytes);
       CHECK(sc.cached_static_rays > 0);

@@ -121,6 +121,11 @@ struct ObservationOptions {
   /// kept hits (16 a hit); rays reached once the budget is spent are traced through both
   /// layers every time. 0: keep none. Same counts either way.
   size_t static_hit_cache_bytes = size_t(2) << 30;
+  /// With kept hits and footprints: keep those of the rays in the dynamic footprints of the
+  /// first frame that views a pose as its static answer traces them, instead of tracing the
+  /// static layer again when a moving Gaussian first reaches them; off: the earlier path,
+  /// kept for the benchmark's ratio. Same counts either way.
+  bool keep_at_static_answers = true;
   /// Indices into `times` to evaluate, strictly ascending; empty: every time. Views are
   /// assigned to frames over all of `times`, so the rows of a subset equal the same rows of
   /// the whole (a shard of a job split over processes or machines).
@@ -158,6 +163,7 @@ struct ObservationSummary {
   uint64_t retraced_rays = 0;     ///< of those, rays whose path met a dynamic proxy (re-traced)
   uint64_t cached_static_rays = 0;  ///< rays whose static hits are kept (static_hit_cache_bytes)
   uint64_t cached_static_hits = 0;  ///< static hits kept for them (sizeof(KeyedHit) = 16 bytes each)
+  uint64_t cached_at_static_answers = 0;  ///< of cached_static_rays, those kept while the static answers traced them
   double seconds_build = 0, seconds_refit = 0, seconds_static = 0, seconds_frames = 0, seconds_speed = 0,
          seconds_sink = 0, seconds_total = 0;
 };
