@@ -66,19 +66,26 @@ Proxy make_proxy(const Vec3f& mean, const Vec3f& scale, const Vec4f& rotation, f
   return p;
 }
 
+/// The view depth of a proxy's mean under a RasterMatch: its order key (as float). The
+/// callbacks compute it once and hand it to respond(), so that their window tests and the
+/// key of the hit are the same number.
+inline double mean_depth(const Proxy& p, const float org[3], const RasterMatch& fp) {
+  const double rel[3] = {double(org[0]) - p.mean[0], double(org[1]) - p.mean[1], double(org[2]) - p.mean[2]};
+  return -(rel[0] * fp.axis[0] + rel[1] * fp.axis[1] + rel[2] * fp.axis[2]);
+}
+
 /// Maximum response of a proxy along origin + t·direction, t >= 0. Returns false when the
 /// ray misses the α_min ellipsoid; otherwise the distance of the maximum, α there and the
 /// order key (that distance, or with a RasterMatch the mean's view depth).
 /// With a RasterMatch every axis gets the variance c·z² (z: the mean's depth along the
 /// camera axis), which is what the rasterizer's +0.3 px² does to a Gaussian at depth z,
-/// and Gaussians with z <= the near plane are not drawn.
-inline bool respond(const Proxy& p, const float org[3], const float dir[3], const RasterMatch* fp, float min_alpha,
+/// and Gaussians with z <= the near plane are not drawn; `z` is mean_depth() under `fp`.
+inline bool respond(const Proxy& p, const float org[3], const float dir[3], const RasterMatch* fp, double z, float min_alpha,
                     float* distance, float* alpha, float* key) {
   if (p.k2 <= 0.0f) return false;
   const double rel[3] = {double(org[0]) - p.mean[0], double(org[1]) - p.mean[1], double(org[2]) - p.mean[2]};
-  double extra = 0.0, z = 0.0;
+  double extra = 0.0;
   if (fp) {
-    z = -(rel[0] * fp->axis[0] + rel[1] * fp->axis[1] + rel[2] * fp->axis[2]);
     if (!(z > double(fp->near_depth))) return false;
     extra = double(fp->variance_per_depth2) * z * z;
   }
@@ -127,6 +134,7 @@ struct KBuffer {
   float floor_key = 0;
   uint32_t floor_id = 0;
   float start_T = 1.0f, min_T = 0.0f;
+  uint32_t traversal_entries = 0;  ///< offers from the BVH traversal that entered
 
   static bool before(float da, uint32_t ia, float db, uint32_t ib) { return da < db || (da == db && ia < ib); }
 
@@ -137,11 +145,17 @@ struct KBuffer {
     start_T = T;
   }
 
+  /// Whether a hit with this key and id could enter (what offer() tests first): proxies whose
+  /// key is known before their response (depth keys) are skipped outside the window.
+  bool admits(float key, uint32_t id) const {
+    if (has_floor && !before(floor_key, floor_id, key, id)) return false;
+    return !((ends || count == kCapacity) && !before(key, id, entries[count - 1].key, entries[count - 1].id));
+  }
+
   /// Offers a hit; returns the key beyond which nothing can enter any more (+inf while the
   /// buffer is neither full nor ended).
   float offer(float key, uint32_t id, float alpha, float ray_distance) {
-    if (has_floor && !before(floor_key, floor_id, key, id)) return limit();
-    if ((ends || count == kCapacity) && !before(key, id, entries[count - 1].key, entries[count - 1].id)) return limit();
+    if (!admits(key, id)) return limit();
     int i = count < kCapacity ? count++ : kCapacity - 1;
     while (i > 0 && before(key, id, entries[i - 1].key, entries[i - 1].id)) {
       entries[i] = entries[i - 1];
@@ -205,11 +219,19 @@ void proxy_intersect(const RTCIntersectFunctionNArguments* args) {
     if (!args->valid[i]) continue;
     const float org[3] = {RTCRayN_org_x(ray, args->N, i), RTCRayN_org_y(ray, args->N, i), RTCRayN_org_z(ray, args->N, i)};
     const float dir[3] = {RTCRayN_dir_x(ray, args->N, i), RTCRayN_dir_y(ray, args->N, i), RTCRayN_dir_z(ray, args->N, i)};
+    const Proxy& p = set->proxies[args->primID];
+    const uint32_t id = set->ids[args->primID];
+    // Under depth keys the key is known before the response: a proxy outside the buffer's
+    // window (the slack lets the BVH offer many) costs no response.
+    const double z = context->match ? mean_depth(p, org, *context->match) : 0.0;
+    if (context->match && !buffer->admits(float(z), id)) continue;
     float distance, alpha, key;
-    if (!respond(set->proxies[args->primID], org, dir, context->match, set->min_alpha, &distance, &alpha, &key)) continue;
+    if (!respond(p, org, dir, context->match, z, set->min_alpha, &distance, &alpha, &key)) continue;
+    if (!buffer->admits(key, id)) continue;
+    ++buffer->traversal_entries;
     // Never commit the hit: Embree keeps looking; shrinking tfar once the buffer is full
     // lets the BVH skip everything that cannot come before its k-th key.
-    const float limit = buffer->offer(key, set->ids[args->primID], alpha, distance);
+    const float limit = buffer->offer(key, id, alpha, distance);
     if (limit < std::numeric_limits<float>::infinity())
       RTCRayN_tfar(ray, args->N, i) = context->match ? (limit + context->slack) / context->depth_per_distance : limit;
   }
@@ -223,8 +245,11 @@ void proxy_occluded(const RTCOccludedFunctionNArguments* args) {
     RTCRayN* ray = args->ray;
     const float org[3] = {RTCRayN_org_x(ray, args->N, i), RTCRayN_org_y(ray, args->N, i), RTCRayN_org_z(ray, args->N, i)};
     const float dir[3] = {RTCRayN_dir_x(ray, args->N, i), RTCRayN_dir_y(ray, args->N, i), RTCRayN_dir_z(ray, args->N, i)};
+    const Proxy& p = set->proxies[args->primID];
+    const double z = context->match ? mean_depth(p, org, *context->match) : 0.0;
+    if (context->match && float(z) > context->max_key) continue;  // the key is known before the response
     float distance, alpha, key;
-    if (!respond(set->proxies[args->primID], org, dir, context->match, set->min_alpha, &distance, &alpha, &key)) continue;
+    if (!respond(p, org, dir, context->match, z, set->min_alpha, &distance, &alpha, &key)) continue;
     if (key > context->max_key) continue;
     RTCRayN_tfar(ray, args->N, i) = -std::numeric_limits<float>::infinity();
   }
@@ -463,6 +488,7 @@ struct GaussianTracer::Impl {
         if (next_T < options.min_transmittance) {
           out.transmittance = T;
           out.end_key = e.key;
+          out.traversal_entries = buffer.traversal_entries;
           return out;
         }
         hits.push_back({e.id, e.ray_distance, e.alpha, e.alpha * T});
@@ -476,6 +502,7 @@ struct GaussianTracer::Impl {
         ++next_seed;
     }
     out.transmittance = T;
+    out.traversal_entries = buffer.traversal_entries;
     return out;
   }
 };

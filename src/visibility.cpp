@@ -680,25 +680,30 @@ class ObservationRun {
           if (!ray_marks_[ray].load(std::memory_order_relaxed)) continue;
           const Vec3f dir = grid.direction(i, j);
           ++l.rs.probes;
-          if (!tracer.meets_dynamic(grid.origin, dir, pc.ray_end[ray], grid.match)) continue;
-          l.rays.push_back(uint32_t(ray));
           l.rs.hits.clear();
-          if (cache_budget_ == 0) {
-            tracer.trace(grid.origin, dir, TraceLayers::All, l.rs.hits, grid.match);
-          } else if (pc.kept[ray].hits) {
-            tracer.trace_over(grid.origin, dir, pc.kept[ray].hits, pc.kept[ray].count, l.rs.hits, grid.match);
+          if (cache_budget_ > 0 && pc.kept[ray].hits) {
+            // With the static hits at hand the trace over them is the probe: a ray that no
+            // dynamic proxy entered has its static answer.
+            const RayOutcome o = tracer.trace_over(grid.origin, dir, pc.kept[ray].hits, pc.kept[ray].count, l.rs.hits, grid.match);
+            if (o.traversal_entries == 0) continue;
           } else {
-            // The static layer alone, kept while the budget lasts (each ray is handled by
-            // one thread per frame: its slot needs no lock), then the dynamic layer over it.
-            l.keyed.clear();
-            tracer.trace(grid.origin, dir, TraceLayers::StaticOnly, l.rs.hits, grid.match, &l.keyed);
-            l.rs.hits.clear();
-            if (keep_hits(pc.kept[ray], l.keyed.data(), l.keyed.size())) {
-              ++l.cached_rays;
-              l.cached_hits += l.keyed.size();
+            if (!tracer.meets_dynamic(grid.origin, dir, pc.ray_end[ray], grid.match)) continue;
+            if (cache_budget_ == 0) {
+              tracer.trace(grid.origin, dir, TraceLayers::All, l.rs.hits, grid.match);
+            } else {
+              // The static layer alone, kept while the budget lasts (each ray is handled by
+              // one thread per frame: its slot needs no lock), then the dynamic layer over it.
+              l.keyed.clear();
+              tracer.trace(grid.origin, dir, TraceLayers::StaticOnly, l.rs.hits, grid.match, &l.keyed);
+              l.rs.hits.clear();
+              if (keep_hits(pc.kept[ray], l.keyed.data(), l.keyed.size())) {
+                ++l.cached_rays;
+                l.cached_hits += l.keyed.size();
+              }
+              tracer.trace_over(grid.origin, dir, l.keyed.data(), l.keyed.size(), l.rs.hits, grid.match);
             }
-            tracer.trace_over(grid.origin, dir, l.keyed.data(), l.keyed.size(), l.rs.hits, grid.match);
           }
+          l.rays.push_back(uint32_t(ray));
           ++l.rs.rays;
           l.rs.hits_count += l.rs.hits.size();
           observed_ids(l.rs.hits, vis_.min_weight, l.rs.ids);

@@ -380,7 +380,7 @@ TEST_CASE("the dynamic layer traced over a ray's kept static hits blends exactly
     TracerOptions to;
     to.dilation_padding = matched ? float(std::sqrt(double(kDilation)) / 200.0 * 8.0) : 0.0f;
     GaussianTracer tracer(frame, dynamic, to);
-    size_t multi_pass = 0, ended_static = 0, ended_dynamic = 0, compared = 0;
+    size_t multi_pass = 0, ended_static = 0, ended_dynamic = 0, compared = 0, entered = 0;
     std::vector<TracedHit> both, statics, over;
     std::vector<KeyedHit> keyed;
     std::vector<char> moving(frame.size(), 0);
@@ -407,6 +407,17 @@ TEST_CASE("the dynamic layer traced over a ray's kept static hits blends exactly
         }
         CHECK(o.transmittance == a.transmittance);
         CHECK((o.end_key == a.end_key || (std::isinf(o.end_key) && std::isinf(a.end_key))));
+        // The trace over the static hits is its own probe: when no dynamic proxy entered its
+        // k-buffer the answer is the static one; a dynamic hit in the answer, or a ray that
+        // meets a dynamic proxy before its static end, has entries.
+        bool dynamic_hit = false;
+        for (const TracedHit& h : both) dynamic_hit = dynamic_hit || moving[h.id];
+        if (dynamic_hit) CHECK(o.traversal_entries > 0);
+        if (o.traversal_entries == 0) CHECK(both.size() == statics.size());
+        const bool meets = tracer.meets_dynamic(Vec3f::Zero(), d, s.end_key, m);
+        CHECK(meets == (o.traversal_entries > 0));
+        CHECK(s.traversal_entries >= keyed.size());  // without seeds every hit entered through the traversal
+        entered += o.traversal_entries > 0;
         compared += both.size();
         multi_pass += a.passes > 1;
         if (!std::isinf(a.end_key)) {
@@ -424,6 +435,7 @@ TEST_CASE("the dynamic layer traced over a ray's kept static hits blends exactly
     CHECK(multi_pass > 100);
     CHECK(ended_static > 20);
     CHECK(ended_dynamic > 20);
+    CHECK(entered > 1000);  // (rays no dynamic proxy enters: the incremental tables' test below)
   }
 }
 

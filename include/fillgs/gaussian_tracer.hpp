@@ -78,6 +78,9 @@ struct RayOutcome {
   /// taken T under T_min: the ray ends there. +inf when the ray ran out of hits first.
   float end_key = std::numeric_limits<float>::infinity();
   uint32_t passes = 0;         ///< k-buffer passes
+  /// Proxies the BVH traversal put into the k-buffer (hits given to trace_over not counted):
+  /// 0 after trace_over means the dynamic layer changed nothing, the hits are the static ones.
+  uint32_t traversal_entries = 0;
 };
 
 /// Which proxies a trace traverses: all, the static ones (built once), or the dynamic ones
