@@ -152,10 +152,9 @@ struct KBuffer {
     return !((ends || count == kCapacity) && !before(key, id, entries[count - 1].key, entries[count - 1].id));
   }
 
-  /// Offers a hit; returns the key beyond which nothing can enter any more (+inf while the
-  /// buffer is neither full nor ended).
-  float offer(float key, uint32_t id, float alpha, float ray_distance) {
-    if (!admits(key, id)) return limit();
+  /// Offers a hit; returns whether it entered (limit() then tells how far others still can).
+  bool offer(float key, uint32_t id, float alpha, float ray_distance) {
+    if (!admits(key, id)) return false;
     int i = count < kCapacity ? count++ : kCapacity - 1;
     while (i > 0 && before(key, id, entries[i - 1].key, entries[i - 1].id)) {
       entries[i] = entries[i - 1];
@@ -174,8 +173,10 @@ struct KBuffer {
         break;
       }
     }
-    return limit();
+    return true;
   }
+  /// The key beyond which nothing can enter any more (+inf while the buffer is neither full
+  /// nor ended).
   float limit() const { return ends || count == kCapacity ? entries[count - 1].key : std::numeric_limits<float>::infinity(); }
 };
 
@@ -227,11 +228,12 @@ void proxy_intersect(const RTCIntersectFunctionNArguments* args) {
     if (context->match && !buffer->admits(float(z), id)) continue;
     float distance, alpha, key;
     if (!respond(p, org, dir, context->match, z, set->min_alpha, &distance, &alpha, &key)) continue;
-    if (!buffer->admits(key, id)) continue;
-    ++buffer->traversal_entries;
     // Never commit the hit: Embree keeps looking; shrinking tfar once the buffer is full
-    // lets the BVH skip everything that cannot come before its k-th key.
-    const float limit = buffer->offer(key, id, alpha, distance);
+    // lets the BVH skip everything that cannot come before its k-th key (which moves only
+    // when a hit enters).
+    if (!buffer->offer(key, id, alpha, distance)) continue;
+    ++buffer->traversal_entries;
+    const float limit = buffer->limit();
     if (limit < std::numeric_limits<float>::infinity())
       RTCRayN_tfar(ray, args->N, i) = context->match ? (limit + context->slack) / context->depth_per_distance : limit;
   }
@@ -451,7 +453,8 @@ struct GaussianTracer::Impl {
       buffer.begin_pass(T);
       for (size_t i = next_seed; i < seed_count; ++i) {
         const KeyedHit& h = seeds[i];
-        if (buffer.offer(h.key, h.id, h.alpha, h.ray_distance) <= h.key) break;  // the rest cannot enter
+        buffer.offer(h.key, h.id, h.alpha, h.ray_distance);
+        if (buffer.limit() <= h.key) break;  // the rest cannot enter
       }
       // Every tier offers its proxies to the one k-buffer; each traversal may stop its own
       // slack beyond the buffer's current k-th key (which only moves closer).

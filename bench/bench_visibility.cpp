@@ -319,7 +319,11 @@ void million_scene(bool smoke) {
     };
     const auto list = [](const std::vector<double>& v) {
       std::string out;
-      for (double x : v) out += (out.empty() ? "" : ", ") + std::to_string(x).substr(0, 5);
+      char number[32];
+      for (double x : v) {
+        std::snprintf(number, sizeof number, "%.3f", x);
+        out += (out.empty() ? "" : ", ") + std::string(number);
+      }
       return out;
     };
     bool same = std::equal(b.counts.begin(), b.counts.end(), a.counts.begin());
