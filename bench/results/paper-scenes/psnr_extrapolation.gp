@@ -1,5 +1,5 @@
 # psnr_extrapolation.png from psnr_extrapolation.csv (written by fillgs); re-plot with: gnuplot psnr_extrapolation.gp
-set terminal pngcairo size 640,480 noenhanced font 'DejaVu Sans,10'
+set terminal pngcairo size 644,480 noenhanced font 'DejaVu Sans,10'
 set datafile separator ','
 set border 3 lc rgb '#404040'
 set tics nomirror
@@ -10,8 +10,8 @@ set title 'extrapolation PSNR per strategy (chair)'
 set xlabel ''
 set ylabel 'PSNR (dB)'
 set key off
-set xtics rotate by -45 left scale 0 ('backbone' 0, 'no-refinement' 1, 'fillgs' 2, 'random' 3, 'negative' 4, 'interpolation' 5, 'fisherrf' 6, 'coverage3d' 7, 'coverage4d' 8)
-set xrange [-0.6:8.6]
+set xtics rotate by -45 left scale 0 ('backbone' 0, 'no-refinement' 1, 'fillgs' 2, 'random' 3, 'negative' 4, 'interpolation' 5, 'fisherrf' 6, 'coverage3d' 7, 'coverage4d' 8, 'upper.test-views' 9, 'upper.dense' 10)
+set xrange [-0.6:10.6]
 set yrange [*<0:*]
 set offsets 0, 0, graph 0.08, 0
 set boxwidth 0.7
