@@ -615,9 +615,10 @@ bool GaussianTracer::meets_dynamic(const Vec3f& origin, const Vec3f& direction, 
   return false;
 }
 
-void GaussianTracer::dynamic_boxes(std::vector<ProxyBox>& out) const {
+void GaussianTracer::dynamic_boxes(std::vector<ProxyBox>& out, std::vector<uint32_t>* ids) const {
   out.clear();
-  for (const Impl::Tier& tier : impl_->tiers)
+  if (ids) ids->clear();
+  for (const Impl::Tier& tier : impl_->tiers) {
     for (const Proxy& p : tier.dynamic_set.proxies) {
       ProxyBox b;
       for (int a = 0; a < 3; ++a) {
@@ -626,6 +627,8 @@ void GaussianTracer::dynamic_boxes(std::vector<ProxyBox>& out) const {
       }
       out.push_back(b);
     }
+    if (ids) ids->insert(ids->end(), tier.dynamic_set.ids.begin(), tier.dynamic_set.ids.end());
+  }
 }
 
 size_t GaussianTracer::static_count() const {

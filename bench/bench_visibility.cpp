@@ -362,6 +362,20 @@ void million_scene(bool smoke) {
                 "%.3f per frame, %.3f for static answers + %d frames\n",
                 traced_frames, sl.seconds_static, per_frame_lazy, per_frame_inc / per_frame_lazy,
                 (si.seconds_static + traced_frames * per_frame_inc) / (sl.seconds_static + traced_frames * per_frame_lazy), traced_frames);
+    ObservationOptions first = inc;  // kept at the static answers: the first frame's footprints only (before sweeping)
+    first.sweep_static_answers = false;
+    ObservationSummary s1;
+    const double per_frame_first = per_frame_of(first, s1);
+    std::printf("raytraced s4, %d frames incremental keeping at the static answers the rays of the first frame's footprints only (the "
+                "path before swept footprints): static answers %.1f s, then %.2f s per frame, kept %llu rays (%llu at the static "
+                "answers, %.0f MB); swept / first frame's = %.3f per frame, %.3f for static answers + %d frames; swept: kept %llu rays "
+                "(%llu at the static answers, %.0f MB)\n",
+                traced_frames, s1.seconds_static, per_frame_first, (unsigned long long)s1.cached_static_rays,
+                (unsigned long long)s1.cached_at_static_answers, double(s1.cached_static_hits) * sizeof(KeyedHit) / 1048576.0,
+                per_frame_inc / per_frame_first,
+                (si.seconds_static + traced_frames * per_frame_inc) / (s1.seconds_static + traced_frames * per_frame_first), traced_frames,
+                (unsigned long long)si.cached_static_rays, (unsigned long long)si.cached_at_static_answers,
+                double(si.cached_static_hits) * sizeof(KeyedHit) / 1048576.0);
     const double rays = double(std::max<uint64_t>(1, si.incremental_rays));
     std::printf("raytraced s4, %d frames incremental: %.1f s (build %.2f s, static answers %.1f s, then %.2f s per frame; of the views' rays "
                 "%.1f%% in a dynamic footprint and probed, %.1f%% re-traced); from scratch: %.2f s per frame; incremental frame / scratch "

@@ -141,8 +141,11 @@ struct RayGrid {
 /// RasterMatch (never drawn at or before the near plane) or the view depth of a point inside
 /// its box otherwise, so rays that end before that depth are left out. Conservative: every
 /// ray GaussianTracer::meets_dynamic can answer yes for is marked; the probe stays the test.
+/// `swept`: each box holds its proxy's path over many times, so the mean may lie anywhere in
+/// it and the key is bounded by the box's nearest corner under a RasterMatch too.
 /// `marks` holds grid.count() flags; returns the number of marked rays.
-size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid& grid, const float* ray_end, std::atomic<uint8_t>* marks) {
+size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid& grid, const float* ray_end, std::atomic<uint8_t>* marks,
+                               bool swept = false) {
   const size_t n = grid.count();
   for (size_t r = 0; r < n; ++r) marks[r].store(0, std::memory_order_relaxed);
   const Camera& cam = *grid.camera;
@@ -172,7 +175,7 @@ size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid
           vmax = std::max(vmax, v);
         }
       }
-      if (!grid.match) min_key = zmin;
+      if (!grid.match || swept) min_key = zmin;
       min_key -= 1e-5 * std::fabs(min_key) + 1e-6;  // the probe computes the key in its own rounding
       int i0 = 0, i1 = grid.width - 1, j0 = 0, j1 = grid.height - 1;
       if (zmin > 1e-9 * std::max(1.0, std::fabs(centre.z()))) {  // bounded footprint
@@ -197,6 +200,36 @@ size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid
   return marked;
 }
 
+/// Every dynamic proxy's box swept over `times`: the hull of its mean's positions there,
+/// grown by its box at the tracer's current frame (empty proxies stay empty). What the
+/// static answers keep hits for (ObservationOptions::sweep_static_answers); a Gaussian whose
+/// extent grows along its path may reach a ray outside it, which is then kept when reached.
+std::vector<ProxyBox> swept_dynamic_boxes(const GaussianCloud& cloud, const GaussianTracer& tracer, const std::vector<double>& times) {
+  std::vector<ProxyBox> boxes;
+  std::vector<uint32_t> ids;
+  tracer.dynamic_boxes(boxes, &ids);
+  const size_t M = cloud.dynamic_count();
+  const float inf = std::numeric_limits<float>::infinity();
+  std::vector<Vec3f> lo(M, Vec3f::Constant(inf)), hi(M, Vec3f::Constant(-inf)), means;
+  for (double t : times) {
+    dynamic_means_at(cloud, t, means);
+    for (size_t m = 0; m < M; ++m) {
+      lo[m] = lo[m].cwiseMin(means[m]);
+      hi[m] = hi[m].cwiseMax(means[m]);
+    }
+  }
+  for (size_t b = 0; b < boxes.size(); ++b) {
+    const size_t m = size_t(std::lower_bound(cloud.dynamic_ids.begin(), cloud.dynamic_ids.end(), ids[b]) - cloud.dynamic_ids.begin());
+    ProxyBox& box = boxes[b];
+    if (box.half_extent[0] < 0.0f || m >= M || times.empty()) continue;
+    for (int a = 0; a < 3; ++a) {
+      box.centre[a] = 0.5f * (lo[m][a] + hi[m][a]);
+      box.half_extent[a] += 0.5f * (hi[m][a] - lo[m][a]);
+    }
+  }
+  return boxes;
+}
+
 /// Appends the ids of hits whose weight reaches τ.
 void observed_ids(const std::vector<TracedHit>& hits, float tau, std::vector<uint32_t>& out) {
   for (const TracedHit& h : hits)
@@ -216,12 +249,25 @@ struct RayScratch {
 };
 
 /// Gathers per-thread id lists into one ascending, duplicate-free list.
-std::vector<uint32_t> merge_ids(tbb::enumerable_thread_specific<RayScratch>& scratch, TraceCounters* counters) {
+/// One ascending, duplicate-free list of several unsorted ones: each sorted on its own (in
+/// parallel), then merged run by run (linear per run, one run per thread).
+std::vector<uint32_t> merge_id_lists(const std::vector<std::vector<uint32_t>*>& lists) {
+  tbb::parallel_for(size_t(0), lists.size(), [&](size_t i) { sort_unique(*lists[i]); });
   std::vector<uint32_t> all;
+  for (std::vector<uint32_t>* list : lists) {
+    const size_t mid = all.size();
+    all.insert(all.end(), list->begin(), list->end());
+    std::inplace_merge(all.begin(), all.begin() + std::ptrdiff_t(mid), all.end());
+    list->clear();
+  }
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  return all;
+}
+
+std::vector<uint32_t> merge_ids(tbb::enumerable_thread_specific<RayScratch>& scratch, TraceCounters* counters) {
+  std::vector<std::vector<uint32_t>*> lists;
   for (RayScratch& s : scratch) {
-    sort_unique(s.ids);
-    all.insert(all.end(), s.ids.begin(), s.ids.end());
-    s.ids.clear();
+    lists.push_back(&s.ids);
     if (counters) {
       counters->rays += s.rays;
       counters->probes += s.probes;
@@ -229,8 +275,7 @@ std::vector<uint32_t> merge_ids(tbb::enumerable_thread_specific<RayScratch>& scr
     }
     s.rays = s.probes = s.hits_count = 0;
   }
-  sort_unique(all);
-  return all;
+  return merge_id_lists(lists);
 }
 
 /// Frustum rule for the listed Gaussians (all when ids is null), ascending.
@@ -523,7 +568,8 @@ class ObservationRun {
   /// the static hits of the rays in the footprints of this frame's dynamic proxies (`boxes`)
   /// are kept as they are traced here, so the frames need not trace the static layer again
   /// for the rays a moving Gaussian reaches first (those it reaches later are kept then).
-  void static_answer(const FrameGaussians& frame, const GaussianTracer* tracer, const std::vector<ProxyBox>& boxes, uint32_t camera) {
+  void static_answer(const FrameGaussians& frame, const GaussianTracer* tracer, const std::vector<ProxyBox>& boxes, uint32_t camera,
+                     bool swept = false) {
     PoseCache& pc = poses_[pose_of_camera_[camera]];
     if (pc.ready) return;
     const auto start = Clock::now();
@@ -543,7 +589,7 @@ class ObservationRun {
       if (keep) {
         in_footprint.reset(new std::atomic<uint8_t>[n]);
         const std::vector<float> anywhere(n, std::numeric_limits<float>::infinity());
-        mark_dynamic_footprints(boxes, grid, anywhere.data(), in_footprint.get());
+        mark_dynamic_footprints(boxes, grid, anywhere.data(), in_footprint.get(), swept);
         row_keyed.resize(size_t(grid.height));
         row_keyed_ends.resize(size_t(grid.height));
       }
@@ -581,14 +627,16 @@ class ObservationRun {
       });
       merge_ids(scratch, &summary.counters);
       if (keep) {
-        mark_dynamic_footprints(boxes, grid, pc.ray_end.data(), in_footprint.get());
+        mark_dynamic_footprints(boxes, grid, pc.ray_end.data(), in_footprint.get(), swept);
         pc.kept.assign(n, {});
         for (int j = 0; j < grid.height; ++j) {
           const std::vector<KeyedHit>& hits = row_keyed[size_t(j)];
           for (int i = 0; i < grid.width; ++i) {
             const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
             const uint32_t first = i == 0 ? 0 : row_keyed_ends[size_t(j)][size_t(i - 1)], last = row_keyed_ends[size_t(j)][size_t(i)];
-            if (first == last || !in_footprint[ray].load(std::memory_order_relaxed)) continue;
+            // A ray with no static hit is kept too (empty): the frames then trace only the
+            // dynamic layer on it, without probing it and tracing the static one first.
+            if (!in_footprint[ray].load(std::memory_order_relaxed)) continue;
             if (!keep_hits(pc.kept[ray], hits.data() + first, last - first)) continue;
             ++summary.cached_static_rays;
             ++summary.cached_at_static_answers;
@@ -710,7 +758,7 @@ class ObservationRun {
         }
     });
     std::vector<uint32_t> retraced;
-    tbb::enumerable_thread_specific<RayScratch> ids_only;
+    std::vector<std::vector<uint32_t>*> id_lists;
     for (Local& l : local) {
       retraced.insert(retraced.end(), l.rays.begin(), l.rays.end());
       summary.counters.probes += l.rs.probes;
@@ -718,11 +766,10 @@ class ObservationRun {
       summary.counters.hits += l.rs.hits_count;
       summary.cached_static_rays += l.cached_rays;
       summary.cached_static_hits += l.cached_hits;
-      sort_unique(l.rs.ids);
-      ids_only.local().ids.insert(ids_only.local().ids.end(), l.rs.ids.begin(), l.rs.ids.end());
+      id_lists.push_back(&l.rs.ids);
     }
     summary.retraced_rays += retraced.size();
-    std::vector<uint32_t> now = merge_ids(ids_only, nullptr);  // observed by re-traced rays
+    std::vector<uint32_t> now = merge_id_lists(id_lists);  // observed by re-traced rays
 
     ViewDelta d;
     // Rays lost per static Gaussian; it leaves the set when it loses all its rays and no
@@ -837,6 +884,11 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
     bool have_base = false;
     std::vector<float> speed, deficiency;
     std::vector<ProxyBox> boxes;
+    // The static answers keep the hits of the rays in the dynamic proxies' footprints: swept
+    // over every frame of this run, or (off) those of the frame that answers.
+    std::vector<ProxyBox> swept;
+    const bool sweep = incremental && tracer && options.keep_at_static_answers && options.sweep_static_answers && options.footprints &&
+                       options.static_hit_cache_bytes > 0;
     progress.start("observe", frames.size());
     for (size_t f : frames) {
       if (f != frames[0]) {
@@ -853,7 +905,14 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
       fo.views = views[f];
       if (incremental) {
         if (tracer) tracer->dynamic_boxes(boxes);
-        for (uint32_t c : views[f]) run.static_answer(*frame, tracer.get(), boxes, c);
+        if (sweep && f == frames[0]) {  // part of the static answers (timed with them)
+          const auto start_sweep = Clock::now();
+          std::vector<double> run_times;
+          for (size_t k : frames) run_times.push_back(times[k]);
+          swept = swept_dynamic_boxes(cloud, *tracer, run_times);
+          summary.seconds_static += seconds_since(start_sweep);
+        }
+        for (uint32_t c : views[f]) run.static_answer(*frame, tracer.get(), swept.empty() ? boxes : swept, c, !swept.empty());
         std::vector<uint32_t> poses;
         for (uint32_t c : views[f]) poses.push_back(run.pose_index(c));
         std::sort(poses.begin(), poses.end());

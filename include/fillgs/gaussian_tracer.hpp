@@ -143,8 +143,9 @@ class GaussianTracer {
                      const RasterMatch* match = nullptr) const;
 
   /// The dynamic proxies' boxes at the last refit (in no particular order): where moving
-  /// Gaussians can change a ray's answer (screen footprints, see visibility.cpp).
-  void dynamic_boxes(std::vector<ProxyBox>& out) const;
+  /// Gaussians can change a ray's answer (screen footprints, see visibility.cpp). `ids`
+  /// (optional): the Gaussian id of each box.
+  void dynamic_boxes(std::vector<ProxyBox>& out, std::vector<uint32_t>* ids = nullptr) const;
 
   size_t static_count() const;
   size_t dynamic_count() const;

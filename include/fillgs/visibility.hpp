@@ -126,6 +126,12 @@ struct ObservationOptions {
   /// static layer again when a moving Gaussian first reaches them; off: the earlier path,
   /// kept for the benchmark's ratio. Same counts either way.
   bool keep_at_static_answers = true;
+  /// With keep_at_static_answers: the footprints are those of every dynamic proxy swept over
+  /// all the run's frames (the hull of its mean's path, grown by its first-frame box), so
+  /// the static answers keep the hits of (nearly) every ray a moving Gaussian will reach and
+  /// no frame traces the static layer again; off: the first frame's footprints only (the
+  /// earlier path, kept for the benchmark's ratio). Same counts either way.
+  bool sweep_static_answers = true;
   /// Indices into `times` to evaluate, strictly ascending; empty: every time. Views are
   /// assigned to frames over all of `times`, so the rows of a subset equal the same rows of
   /// the whole (a shard of a job split over processes or machines).
