@@ -5,7 +5,8 @@
 # generative model), evaluated on held-out cameras between the pair (interpolation) and
 # beyond it (extrapolation); "moving" is the foreground PSNR inside Panoptic's masks.
 #
-#   bench/panoptic_rig.sh [--smoke] [OUT]     (default OUT: bench/results/video/panoptic_rig)
+#   bench/panoptic_rig.sh [--smoke] [--monocular] [OUT]
+#       (default OUT: bench/results/video/panoptic_rig, or panoptic_mono with --monocular)
 #
 # The split, fixed from the cameras' geometry before any run (README "Real captured video"):
 # train on 18 and 12 (the y = -2.4 ring, 72 degrees apart in azimuth); the dome cameras inside
@@ -14,6 +15,19 @@
 # (9 held out, 2 pool, 5 held out, 1 pool, 26 held out, 20 pool, 28 held out, 23 pool); the
 # far side is pool. The rig refiner accepts a pool camera within half the training baseline
 # (1.5 of the pair's 2.98 world units) and 30 degrees of the virtual view's axis.
+#
+# --monocular (the paper's supplementary protocol for the Nvidia scenes: one image per time
+# step, cycling through 8 cameras of a rig; fixed before any run). Panoptic's height rings
+# hold 4-5 cameras, so the 8 are a contiguous azimuth arc of the dome across heights: the 10
+# cameras in azimuth order 23, 1, 9, 18, 4, 3, 22, 7, 12, 2 (-32 to +102 degrees, around the
+# sparse pair 18, 12) without 4 and 22, which stay the interpolation test cameras as in the
+# sparse split. Frame f of the training set is camera [f mod 8] of 23, 1, 9, 18, 3, 7, 12, 2
+# (azimuth order). The cameras beyond the arc within 60 degrees alternate held-out / pool by
+# angular distance from it (19 held out, 5 pool, 16 held out, 14 pool, 26 held out, 20 pool,
+# 28 held out, 27 pool, 24 held out): extrapolation 19, 16, 26, 28, 24; the far side is pool.
+# No pool camera lies inside the arc (every camera there is trained on or held out), so the
+# rig refiner can serve only virtual views near the arc's ends; it keeps the sparse split's
+# tolerances. The dense reference trains on every camera but the held-out ones, all frames.
 #
 # Rows: the two-camera backbone; the dense reference (pair + pool, every camera but the
 # held-out ones, 3,000 iterations); no-refinement (the same fine-tuning, real views only);
@@ -24,16 +38,35 @@
 # OUT/results.md. --smoke: 2 frames at 1/8 size and a few iterations (CI: it must not rot).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-SMOKE=0
-if [ "${1:-}" = --smoke ]; then SMOKE=1; shift; fi
-OUT=${1:-bench/results/video/panoptic_rig}
+SMOKE=0 MONO=0
+while [ $# -gt 0 ]; do
+  case $1 in
+    --smoke) SMOKE=1 ;;
+    --monocular) MONO=1 ;;
+    *) break ;;
+  esac
+  shift
+done
 FILLGS=${FILLGS:-build/bin/fillgs}
 DATA=${FILLGS_SHARED_DATA:-$(cd .. && pwd)/shared/data}
 P=$DATA/video/panoptic_basketball
-TRAIN=18,12
-INTERP=4,22
-EXTRAP=9,5,26,28
-POOL=3,7,2,1,20,23,29,17,25,11,6,8,27,14,16,19,24,21,13
+if [ $MONO = 1 ]; then
+  OUT=${1:-bench/results/video/panoptic_mono}
+  TRAIN=23,1,9,18,3,7,12,2
+  CYCLE=(--monocular-cycle $TRAIN)
+  INTERP=4,22
+  EXTRAP=19,16,26,28,24
+  POOL=5,14,20,27,29,17,25,11,6,8,21,13
+  PICTURE=(22 19)  # one interpolation and the nearest extrapolation camera
+else
+  OUT=${1:-bench/results/video/panoptic_rig}
+  TRAIN=18,12
+  CYCLE=()
+  INTERP=4,22
+  EXTRAP=9,5,26,28
+  POOL=3,7,2,1,20,23,29,17,25,11,6,8,27,14,16,19,24,21,13
+  PICTURE=(22 9)
+fi
 FRAMES=0:150:5 DOWN=4 BB=(--iterations 2000) FT=()
 if [ $SMOKE = 1 ]; then FRAMES=0:150:75 DOWN=8 BB=(--iterations 40 --init-points 3000) FT=(--iterations 30 --select-every 15 --trajectories 1); fi
 STRATEGIES=(fillgs random negative interpolation fisherrf coverage3d coverage4d)
@@ -42,7 +75,7 @@ DS=(--images "$P/ims" --cameras "$P/train_meta.json" --frames "$FRAMES" --downsc
 
 if [ ! -f "$OUT/backbone/summary.json" ]; then
   rm -rf "$OUT/backbone"
-  "$FILLGS" train "${DS[@]}" --train-cameras $TRAIN "${BB[@]}" --out "$OUT/backbone" --quiet
+  "$FILLGS" train "${DS[@]}" "${CYCLE[@]}" --train-cameras $TRAIN "${BB[@]}" --out "$OUT/backbone" --quiet
 fi
 
 evaluate() {  # model folder
@@ -62,7 +95,7 @@ finetune() {  # id, extra finetune options
   shift
   if [ ! -f "$OUT/$id/summary.json" ]; then
     rm -rf "$OUT/$id"
-    "$FILLGS" finetune --model "$OUT/backbone/model.ply" "${DS[@]}" --train-cameras $TRAIN --out "$OUT/$id" \
+    "$FILLGS" finetune --model "$OUT/backbone/model.ply" "${DS[@]}" "${CYCLE[@]}" --train-cameras $TRAIN --out "$OUT/$id" \
       --refiner rig --pool-cameras $POOL --rig-max-distance 1.5 --rig-max-angle 30 "${FT[@]}" "$@" --quiet
   fi
   evaluate "$OUT/$id"
@@ -119,25 +152,25 @@ mv "$OUT/results.md.tmp" "$OUT/results.md"
 cat "$OUT/results.md"
 
 # The picture: ground truth | backbone | FillGS | the best baseline (highest mean of the two
-# splits' PSNR) at held-out cameras 22 (between the pair) and 9 (beyond it), the clip's
-# middle frame (fixed before any run).
+# splits' PSNR) at held-out cameras PICTURE (22 between the training cameras, 9 or 19 beyond
+# them), the clip's middle frame (fixed before any run).
 best=$(for s in random negative interpolation fisherrf coverage3d coverage4d; do
   echo "$s $(value "$OUT/$s/eval_interpolation/metrics.json" psnr) $(value "$OUT/$s/eval_extrapolation/metrics.json" psnr)"
 done | awk '{m = ($2 + $3) / 2; if (NR == 1 || m > b) {b = m; n = $1}} END {print n}')
-NF=$(ls "$P/ims/22" | wc -l)
+NF=$(ls "$P/ims/${PICTURE[0]}" | wc -l)
 SRC=$(( (NF / 2) / ${FRAMES##*:} * ${FRAMES##*:} ))  # a source frame the --frames step keeps
 for id in backbone fillgs "$best"; do
   if [ ! -d "$OUT/$id/picture" ]; then
-    "$FILLGS" eval --model "$OUT/$id/model.ply" "${DS[@]}" --select-cameras 22,9 --splits picture --out "$OUT/$id/picture.tmp" --quiet >/dev/null
+    "$FILLGS" eval --model "$OUT/$id/model.ply" "${DS[@]}" --select-cameras "${PICTURE[0]},${PICTURE[1]}" --splits picture --out "$OUT/$id/picture.tmp" --quiet >/dev/null
     mv "$OUT/$id/picture.tmp" "$OUT/$id/picture"
   fi
 done
 rows=()
-for cam in 22 9; do
+for cam in "${PICTURE[@]}"; do
   name=$(printf '%s_%06d.png' $cam $SRC)
   W=$(( 640 / DOWN )) H=$(( 360 / DOWN ))
   rows+=("$P/ims/$cam/$(printf '%06d' $SRC).jpg" --resize ${W}x$H)
   for id in backbone fillgs "$best"; do rows+=("$OUT/$id/picture/renders/picture/$name"); done
 done
 oiiotool "${rows[@]}" --mosaic 4x2 --resize 200% -o "$OUT/compare.png"
-echo "picture: ground truth | backbone | fillgs | $best at cameras 22 and 9, source frame $SRC -> $OUT/compare.png"
+echo "picture: ground truth | backbone | fillgs | $best at cameras ${PICTURE[0]} and ${PICTURE[1]}, source frame $SRC -> $OUT/compare.png"

@@ -6,6 +6,8 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <string>
 
 #include "fillgs/error.hpp"
 #include "fillgs/random.hpp"
@@ -52,9 +54,19 @@ long pixel_of(const Camera& c, const Vec3d& X) {
 
 ViewInitResult points_from_views(const Dataset& data, const ViewInitOptions& o) {
   if (o.min_views < 1) throw_error("initialisation: min_views must be at least 1");
+  // Each camera's first view: frame 0 of every camera of a multi-view capture; of a
+  // monocular one (one camera per frame), each cycled camera at the first frame it holds.
+  std::map<std::string, size_t> first;  // rig camera -> its view with the smallest frame
+  for (size_t v = 0; v < data.views().size(); ++v) {
+    const TrainView& tv = data.views()[v];
+    const auto [it, inserted] = first.emplace(tv.rig, v);
+    if (!inserted && tv.frame < data.views()[it->second].frame) it->second = v;
+  }
+  std::vector<size_t> order;  // in the dataset's order (frame 0 of a multi-view video: as it lists them)
+  for (const auto& [rig, v] : first) order.push_back(v);
+  std::sort(order.begin(), order.end());
   std::vector<FirstView> views;
-  for (size_t v = 0; v < data.views().size(); ++v)
-    if (data.views()[v].frame == 0) views.push_back({data.views()[v].camera, data.image(v), data.mask(v)});
+  for (size_t v : order) views.push_back({data.views()[v].camera, data.image(v), data.mask(v)});
   std::vector<Camera> cams;
   for (const FirstView& v : views) cams.push_back(v.camera);
   const auto interest = centre_of_interest(cams);  // not a structured binding: lambdas below capture it (C++17)
@@ -105,7 +117,7 @@ ViewInitResult points_from_views(const Dataset& data, const ViewInitOptions& o) 
       }
   }
   if (out.points.positions.empty())
-    throw_error("initialisation: no point is seen by ", need, " first-frame cameras; give --points");
+    throw_error("initialisation: no point is seen by ", need, " of the cameras' first views; give --points");
   return out;
 }
 

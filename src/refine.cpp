@@ -229,8 +229,12 @@ Patch make_patch(const Trajectory& tr, const std::vector<ObservedView>& views, c
   const int V = int(tr.poses.size()) + 1;
   for (size_t fi = 0; fi < tr.patch_frames.size(); ++fi) {
     const int f = tr.patch_frames[fi];
+    // A monocular video holds the start camera at its own frame only: at the patch's other
+    // frames view 0 is the start camera's pose with no photograph, a virtual view like the
+    // others (rendered, refined, weighted).
     const int obs = find_observed(views, pose, f);
-    if (obs < 0) throw_error("patch: trajectory ", tr.index, ": camera ", views[size_t(start)].camera.name, " has no image at frame ", f);
+    if (obs < 0 && f == tr.frame)
+      throw_error("patch: trajectory ", tr.index, ": camera ", views[size_t(start)].camera.name, " has no image at frame ", f);
     for (int k = 0; k < V; ++k) {
       const int v = fi % 2 == 0 ? k : V - 1 - k;  // serpentine
       PatchImage im;
@@ -239,12 +243,12 @@ Patch make_patch(const Trajectory& tr, const std::vector<ObservedView>& views, c
       im.file = file;
       im.frame = f;
       im.view = v;
-      im.observed = v == 0;
+      im.observed = v == 0 && obs >= 0;
       im.order = int(p.images.size());
-      if (v == 0) {
+      if (im.observed) {
         im.camera = views[size_t(obs)].camera;
       } else {
-        im.camera = tr.poses[size_t(v - 1)];
+        im.camera = v == 0 ? views[size_t(start)].camera : tr.poses[size_t(v - 1)];
         im.camera.time = tr.patch_times[fi];
         std::snprintf(file, sizeof file, "%s_v%d_f%04d", name.c_str(), v, f);
         im.camera.name = file;

@@ -616,6 +616,19 @@ class Selector {
     return out;
   }
 
+  /// Each pose's view at its earliest frame (indices into in_.views), ordered by (frame,
+  /// index): at frame 0 of a multi-view video the same as training_at(0).
+  std::vector<uint32_t> first_view_of_each_pose() const {
+    std::vector<uint32_t> first;
+    for (size_t i = 0; i < in_.views.size(); ++i) {
+      auto same = std::find_if(first.begin(), first.end(), [&](uint32_t j) { return in_.views[j].pose == in_.views[i].pose; });
+      if (same == first.end()) first.push_back(uint32_t(i));
+      else if (in_.views[i].frame < in_.views[*same].frame) *same = uint32_t(i);
+    }
+    std::stable_sort(first.begin(), first.end(), [&](uint32_t x, uint32_t y) { return in_.views[x].frame < in_.views[y].frame; });
+    return first;
+  }
+
   /// Nearest observed view at frame f to a point (index into in_.views).
   uint32_t nearest_view(int f, const Vec3d& p) const {
     std::vector<uint32_t> ids;
@@ -730,11 +743,14 @@ class Selector {
   }
 
   /// `interpolation` (GS-GS): poses between neighbouring training cameras, one pair per
-  /// trajectory in turn, at a frame drawn uniformly; centres lerped, rotations slerped.
+  /// trajectory in turn, at a frame drawn uniformly; centres lerped, rotations slerped. The
+  /// cameras are the rig's, each as first seen (frame 0 of a multi-view video; a monocular
+  /// one holds each camera at some frames only): the pair need not be filmed at the frame.
   Trajectory interpolation_trajectory(int k) {
     if (pairs_.empty()) {
-      std::vector<uint32_t> ids;
-      const std::vector<Camera> cams = training_at(0, &ids);
+      std::vector<uint32_t> ids = first_view_of_each_pose();
+      std::vector<Camera> cams;
+      for (uint32_t i : ids) cams.push_back(in_.views[i].camera);
       for (size_t i = 0; i < cams.size(); ++i) {  // each camera with its two nearest
         std::vector<std::pair<double, size_t>> near;
         for (size_t j = 0; j < cams.size(); ++j)
@@ -758,6 +774,12 @@ class Selector {
         if (in_.views[i].pose == pa && !a) a = &in_.views[i].camera, tr.start_view = int(i);
         if (in_.views[i].pose == pb && !b) b = &in_.views[i].camera;
       }
+    // Not filmed at f (monocular video): the camera's pose from its first view; the patch
+    // then starts from the nearest view filmed at f (start_view stays -1).
+    for (uint32_t i : first_view_of_each_pose()) {
+      if (!a && in_.views[i].pose == pa) a = &in_.views[i].camera;
+      if (!b && in_.views[i].pose == pb) b = &in_.views[i].camera;
+    }
     if (!a || !b) return tr;
     for (int j = 1; j <= o_.views; ++j) {
       Camera c = interpolate_camera(*a, *b, double(j) / (o_.views + 1));

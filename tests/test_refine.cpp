@@ -97,6 +97,51 @@ TEST_CASE("patch: 3 frames x 4 views in serpentine order with the observed start
   for (const auto& im : j["images"]) CHECK(fs::exists(join_path(join_path(dir, p.name), im["file"].get<std::string>())));
 }
 
+TEST_CASE("patch of a monocular video: the start camera without a photograph at a patch frame is a virtual view", "[refine]") {
+  // Every camera at every frame but cam04, which the video holds at frame 5 only (one camera
+  // per frame, as --monocular-cycle makes it).
+  const SynthScene s = small_synth(6, 48, 36, 0.05);
+  const std::vector<ObservedView> all = observed_views(cameras_over_time(s.train, 6), 6);
+  const int cam04_at_5 = view_index(all, "cam04", 5);
+  std::vector<ObservedView> views;
+  for (size_t i = 0; i < all.size(); ++i)
+    if (all[i].camera.name.rfind("cam04", 0) != 0 || int(i) == cam04_at_5) views.push_back(all[i]);
+  const int start = view_index(views, "cam04", 5);
+  const Trajectory tr = between(views, s, 4, 5, 5, start);
+  const Patch p = make_patch(tr, views, "patch_000");
+  REQUIRE(p.images.size() == 12);
+  int observed = 0;
+  for (const PatchImage& im : p.images) {
+    CHECK(im.observed == (im.view == 0 && im.frame == 5));
+    observed += im.observed;
+    CHECK(im.camera.time == Approx(im.frame / 5.0));
+    if (im.view == 0) {  // cam04's pose at every frame, its photograph only at frame 5
+      CHECK((im.camera.centre() - views[size_t(start)].camera.centre()).norm() < 1e-12);
+      CHECK((im.camera.R - views[size_t(start)].camera.R).norm() < 1e-12);
+      if (!im.observed) CHECK(im.camera.name == "patch_000_v0_f000" + std::to_string(im.frame));
+    }
+  }
+  CHECK(observed == 1);
+  std::vector<size_t> asked;
+  size_t rendered = 0;
+  write_patch(
+      join_path(scratch("patch_mono"), p.name), p, views,
+      [&](size_t i) {
+        asked.push_back(i);
+        return render_rgb(s.scene, views[i].camera);
+      },
+      [&](const Camera& c) {
+        ++rendered;
+        return render_rgb(s.scene, c);
+      });
+  CHECK(asked == std::vector<size_t>{size_t(start)});
+  CHECK(rendered == 11);
+  // Without the start view at the trajectory's own frame there is no patch.
+  Trajectory orphan = tr;
+  orphan.frame = 4;
+  CHECK_THROWS_WITH(make_patch(orphan, views, "patch_000"), Catch::Contains("has no image at frame 4"));
+}
+
 TEST_CASE("rig refiner: the nearest pool camera in tolerance at the view's frame, its photograph and real pose, the others dropped", "[refine][rig]") {
   // Pool cameras at known centres, 2 frames each; the virtual view at (1, 0, 3) looks at the origin.
   auto cam = [](const Vec3d& eye, const Vec3d& target, double time, const std::string& name) {

@@ -335,6 +335,49 @@ TEST_CASE("selection: interpolation poses lie between neighbouring training came
   }
 }
 
+TEST_CASE("selection: interpolation on a monocular video (one camera per frame) still pairs neighbouring cameras", "[select]") {
+  // Frame f keeps only training camera f mod 16, as --monocular-cycle makes it: no frame holds
+  // a pair, and the pairs come from the cameras' first views.
+  const Fixture& fx = fixture();
+  SelectInput in = fx.input();
+  std::vector<ObservedView> mono;
+  std::vector<std::vector<float>> images;
+  const uint32_t poses = uint32_t(fx.synth.train.size());
+  for (size_t i = 0; i < fx.views.size(); ++i)
+    if (fx.views[i].pose == uint32_t(fx.views[i].frame) % poses) {
+      mono.push_back(fx.views[i]);
+      images.push_back(fx.images[i]);
+    }
+  REQUIRE(mono.size() == size_t(kFrames));
+  in.views = mono;
+  in.image = [&images](size_t i) { return images[i]; };
+  const SelectResult r = select_viewpoints(in, small_options(Strategy::Interpolation, 6));
+  REQUIRE(r.trajectories.size() == 6);
+  // The 10 frames film ring cameras 0..9 (22.5 degrees apart); each is paired with its two
+  // nearest among them, so a pair is 22.5 or (at the ends: 0 with 2, 9 with 7) 45 degrees wide.
+  const auto filmed = [&](const Vec3d& x) {
+    double nearest = 1e9;
+    for (const ObservedView& v : mono) nearest = std::min(nearest, (v.camera.centre() - x).norm());
+    return nearest < 1e-9;
+  };
+  const double chord = 2 * 3.2 * std::sin(22.5 / 2 * kPi / 180), chord2 = 2 * 3.2 * std::sin(45.0 / 2 * kPi / 180);
+  int wide = 0;
+  for (const Trajectory& t : r.trajectories) {
+    REQUIRE(t.poses.size() == 3);
+    const Vec3d d = t.poses[1].centre() - t.poses[0].centre();
+    const Vec3d a = t.poses[0].centre() - d, b = t.poses[2].centre() + d;
+    CHECK(filmed(a));
+    CHECK(filmed(b));
+    const double ab = (b - a).norm();
+    CHECK((std::fabs(ab - chord) < 1e-6 || std::fabs(ab - chord2) < 1e-6));
+    wide += std::fabs(ab - chord2) < 1e-6;
+    for (const Camera& p : t.poses) CHECK(p.time == Approx(t.frame / double(kFrames - 1)));
+    // The start, when set, is the one view filmed at the trajectory's frame.
+    if (t.start_view >= 0) CHECK(mono[size_t(t.start_view)].frame == t.frame);
+  }
+  CHECK(wide == 1);  // pairs in order (0,1), (0,2), (1,2), (2,3), …: the second is the wide one
+}
+
 TEST_CASE("selection: a scene with no motion selects without NaN and says D is zero", "[select]") {
   const Fixture& fx = fixture();
   GaussianCloud still = fx.synth.scene;

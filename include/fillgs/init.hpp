@@ -1,6 +1,9 @@
 #pragma once
 // Initial points for video without SfM points (real rigs such as CMU Panoptic): what the
-// training cameras see at the first frame.
+// training cameras see in their first views — frame 0 of a multi-view capture; for a
+// monocular one (one camera per frame, e.g. --monocular-cycle) each camera's first frame,
+// so the views span the first n frames and the hull of a moving person is where the
+// silhouettes of those frames overlap. Below, "first-frame camera" means a camera's first view.
 //
 //  * random: points drawn uniformly in the cube around the cameras' centre of interest (the
 //    point nearest to every optical axis; half-size = the cameras' mean distance from it),
@@ -40,7 +43,7 @@ struct ViewInitResult {
   size_t random = 0, carved = 0;
 };
 
-/// Points from the first frame of `data` (see above). Carving needs masks (Dataset::has_masks).
+/// Points from the cameras' first views in `data` (see above). Carving needs masks (Dataset::has_masks).
 ViewInitResult points_from_views(const Dataset& data, const ViewInitOptions& options);
 
 }  // namespace fillgs

@@ -37,8 +37,8 @@ struct PatchImage {
   std::string file;     ///< "f<frame:04d>_v<view>.png"
   Camera camera;        ///< with the frame's time
   int frame = 0;
-  int view = 0;         ///< 0 = the observed start view, 1..3 = the trajectory's poses
-  bool observed = false;
+  int view = 0;         ///< 0 = the start camera, 1..3 = the trajectory's poses
+  bool observed = false;  ///< a photograph of the start camera (view 0 where the video holds one)
   int order = 0;        ///< position in the serpentine sequence
 };
 
@@ -51,7 +51,10 @@ struct Patch {
 
 /// The patch of a trajectory: its patch frames × (the start's rig camera, then each pose).
 /// The observed image at each patch frame is the start view's pose at that frame, looked up
-/// in `views` (the ones selection ran on). Throws when a frame has no such observed view.
+/// in `views` (the ones selection ran on). Where the start camera has no image at a patch
+/// frame (a monocular video: one camera per frame) view 0 of that frame is a virtual view
+/// at the start camera's pose (not observed: rendered and refined). Throws when the start
+/// view itself is missing at the trajectory's own frame.
 Patch make_patch(const Trajectory& trajectory, const std::vector<ObservedView>& views, const std::string& name);
 
 /// Writes `dir`/patch.json and every image: observed ones from `observed_image(view index)`,

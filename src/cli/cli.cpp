@@ -436,7 +436,7 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
       vo.random_points = size_t(a.integer("init-points", int(vo.random_points)));
       vo.seed = o.seed;
       const ViewInitResult vi = points_from_views(data, vo);
-      out << "initial points from the first frame's views: " << vi.random << " random in the cameras' common volume"
+      out << "initial points from the cameras' first views: " << vi.random << " random in the cameras' common volume"
           << (vo.method == ViewInit::RandomAndCarve ? ", " + std::to_string(vi.carved) + " carved from the foreground masks" +
                                                           (data.has_masks() ? "" : " (no masks)")
                                                     : "")
