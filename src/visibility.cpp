@@ -135,8 +135,14 @@ struct RayGrid {
 
 /// Marks the rays of `grid` that a dynamic proxy can reach before the ray's static answer
 /// ended (`ray_end`: order keys, +inf for rays that never saturated): a ray meets a box only
-/// through the box's screen footprint, which the projections of its 8 corners bound (half a
-/// pixel of margin against rounding); a box reaching behind the camera plane has no bounded
+/// through the box's screen footprint. The footprint is bounded through the box's
+/// axis-aligned bounds in view space (centre c, half extents |R|·h): for z ∈ [z0, z1], z0 > 0,
+/// and x ∈ [x0, x1], x/z lies in [x0 / (x0 ≥ 0 ? z1 : z0), x1 / (x1 ≥ 0 ? z0 : z1)] (y alike),
+/// which contains the projection of every corner (half a pixel of margin against rounding) —
+/// one rotation and four divisions a box instead of eight projected corners; z0 is the
+/// corners' own nearest depth. Where that bound can be more than half a ray spacing wider
+/// than the corners' (|a|·f·(1/z0 − 1/z1): large boxes, or near the camera), the 8 corners
+/// are projected instead. A box reaching behind the camera plane has no bounded
 /// footprint and marks every ray. A proxy's order key is its mean's view depth under a
 /// RasterMatch (never drawn at or before the near plane) or the view depth of a point inside
 /// its box otherwise, so rays that end before that depth are left out. Conservative: every
@@ -150,7 +156,12 @@ size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid
   for (size_t r = 0; r < n; ++r) marks[r].store(0, std::memory_order_relaxed);
   const Camera& cam = *grid.camera;
   const Vec3d eye = cam.centre();
+  const Mat3d abs_R = cam.R.cwiseAbs();
+  const size_t width = size_t(grid.width);
   constexpr double kMargin = 0.5;  // pixels
+  // Boxes whose view-space bounds are at most this many ray spacings wider than their
+  // corners' footprint use them; the others (large, or near the camera) project 8 corners.
+  constexpr double kLooser = 0.5;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, boxes.size(), 1024), [&](const tbb::blocked_range<size_t>& range) {
     for (size_t b = range.begin(); b < range.end(); ++b) {
       const ProxyBox& box = boxes[b];
@@ -161,24 +172,41 @@ size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid
         if (!(centre.z() > double(grid.match->near_depth))) continue;
         min_key = centre.z();
       }
-      double umin = std::numeric_limits<double>::infinity(), umax = -umin, vmin = umin, vmax = -umin, zmin = umin;
-      for (int k = 0; k < 8; ++k) {
-        const Vec3d corner(k & 1 ? box.half_extent[0] : -box.half_extent[0], k & 2 ? box.half_extent[1] : -box.half_extent[1],
-                           k & 4 ? box.half_extent[2] : -box.half_extent[2]);
-        const Vec3d x = centre + cam.R * corner;
-        zmin = std::min(zmin, x.z());
-        if (x.z() > 0.0) {
-          const double u = cam.fx * x.x() / x.z() + cam.cx, v = cam.fy * x.y() / x.z() + cam.cy;
-          umin = std::min(umin, u);
-          umax = std::max(umax, u);
-          vmin = std::min(vmin, v);
-          vmax = std::max(vmax, v);
-        }
-      }
+      const Vec3d half = abs_R * Vec3d(box.half_extent[0], box.half_extent[1], box.half_extent[2]);
+      const double zmin = centre.z() - half.z(), zmax = centre.z() + half.z();
+      // Bounds of a / z over a ∈ [a0, a1], z ∈ [zmin, zmax] (zmin > 0), mapped to pixels.
+      const auto screen_range = [&](double a0, double a1, double f, double c, double& lo, double& hi) {
+        const double r0 = a0 / (a0 >= 0.0 ? zmax : zmin), r1 = a1 / (a1 >= 0.0 ? zmin : zmax);
+        lo = std::min(f * r0, f * r1) + c;
+        hi = std::max(f * r0, f * r1) + c;
+      };
       if (!grid.match || swept) min_key = zmin;
       min_key -= 1e-5 * std::fabs(min_key) + 1e-6;  // the probe computes the key in its own rounding
       int i0 = 0, i1 = grid.width - 1, j0 = 0, j1 = grid.height - 1;
       if (zmin > 1e-9 * std::max(1.0, std::fabs(centre.z()))) {  // bounded footprint
+        double umin, umax, vmin, vmax;
+        // How much wider (pixels) the view-space bounds can be than the corners' footprint:
+        // a coordinate a is divided by z0 or z1 where a corner may have the other.
+        const double ax = std::max(std::fabs(centre.x() - half.x()), std::fabs(centre.x() + half.x()));
+        const double ay = std::max(std::fabs(centre.y() - half.y()), std::fabs(centre.y() + half.y()));
+        const double looser = std::max(std::fabs(cam.fx) * ax, std::fabs(cam.fy) * ay) * (1.0 / zmin - 1.0 / zmax);
+        if (looser <= kLooser * grid.stride) {
+          screen_range(centre.x() - half.x(), centre.x() + half.x(), cam.fx, cam.cx, umin, umax);
+          screen_range(centre.y() - half.y(), centre.y() + half.y(), cam.fy, cam.cy, vmin, vmax);
+        } else {  // deep in view: the corners themselves (all in front of the camera here)
+          umin = vmin = std::numeric_limits<double>::infinity();
+          umax = vmax = -umin;
+          for (int k = 0; k < 8; ++k) {
+            const Vec3d corner(k & 1 ? box.half_extent[0] : -box.half_extent[0], k & 2 ? box.half_extent[1] : -box.half_extent[1],
+                               k & 4 ? box.half_extent[2] : -box.half_extent[2]);
+            const Vec3d x = centre + cam.R * corner;
+            const double u = cam.fx * x.x() / x.z() + cam.cx, v = cam.fy * x.y() / x.z() + cam.cy;
+            umin = std::min(umin, u);
+            umax = std::max(umax, u);
+            vmin = std::min(vmin, v);
+            vmax = std::max(vmax, v);
+          }
+        }
         const double off = grid.offset + 0.5, s = grid.stride;
         // The first and last ray whose pixel centre (off + i·s) lies in [lo, hi], clamped to the grid.
         const auto first_ray = [&](double lo, int last) { return int(std::clamp(std::ceil((lo - kMargin - off) / s), 0.0, last + 1.0)); };
@@ -188,11 +216,13 @@ size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid
         j0 = first_ray(vmin, grid.height - 1);
         j1 = last_ray(vmax, grid.height - 1);
       }
-      for (int j = j0; j <= j1; ++j)
-        for (int i = i0; i <= i1; ++i) {
-          const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
-          if (double(ray_end[ray]) >= min_key) marks[ray].store(1, std::memory_order_relaxed);
-        }
+      const float key = float(min_key);  // ray ends are floats: compare in float, rounded down
+      const float floor_key = double(key) > min_key ? std::nextafter(key, -std::numeric_limits<float>::infinity()) : key;
+      for (int j = j0; j <= j1; ++j) {
+        const size_t row = size_t(j) * width;
+        for (int i = i0; i <= i1; ++i)
+          if (ray_end[row + size_t(i)] >= floor_key) marks[row + size_t(i)].store(1, std::memory_order_relaxed);
+      }
     }
   });
   size_t marked = 0;
