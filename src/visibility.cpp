@@ -523,10 +523,12 @@ struct PoseCache {
   bool ready = false;
   std::vector<uint32_t> visible;    ///< ascending static ids observed
   std::vector<uint32_t> ray_refs;   ///< raytraced: rays observing visible[k]
-  // raytraced: per ray (row-major over the grid) its static observed ids and end distance
+  // raytraced: per ray (row-major over the grid) its static observed Gaussians, as slots k
+  // of `visible`, and its end distance
   std::vector<uint64_t> ray_offsets;
-  std::vector<uint32_t> ray_ids;
+  std::vector<uint32_t> ray_slots;
   std::vector<float> ray_end;
+  std::vector<uint64_t> visible_bits;  ///< raytraced: bit g set when g is in `visible`
   // raytraced, static_hit_cache_bytes > 0: per ray its static hits once a moving Gaussian
   // reached it (null until then; they live in the run's HitArenas)
   struct KeptHits {
@@ -681,13 +683,13 @@ class ObservationRun {
           const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
           pc.ray_offsets[ray + 1] = pc.ray_offsets[ray] + row_counts[size_t(j)][size_t(i)];
         }
-      pc.ray_ids.reserve(pc.ray_offsets[n]);
+      pc.ray_slots.reserve(pc.ray_offsets[n]);
       for (auto& v : row_ids) {
-        pc.ray_ids.insert(pc.ray_ids.end(), v.begin(), v.end());
+        pc.ray_slots.insert(pc.ray_slots.end(), v.begin(), v.end());
         std::vector<uint32_t>().swap(v);
       }
       // visible set with the number of rays that observe each Gaussian
-      std::vector<uint32_t> sorted = pc.ray_ids;
+      std::vector<uint32_t> sorted = pc.ray_slots;
       std::sort(sorted.begin(), sorted.end());
       for (size_t k = 0; k < sorted.size();) {
         size_t e = k;
@@ -696,6 +698,13 @@ class ObservationRun {
         pc.ray_refs.push_back(uint32_t(e - k));
         k = e;
       }
+      // Ids to slots of `visible` (marks_ lends itself as the map and is left zero), so the
+      // frames find a Gaussian's ray count without a search; membership as a bitmap.
+      for (size_t k = 0; k < pc.visible.size(); ++k) marks_[pc.visible[k]] = uint32_t(k);
+      for (uint32_t& id : pc.ray_slots) id = marks_[id];
+      for (uint32_t g : pc.visible) marks_[g] = 0;
+      pc.visible_bits.assign((cloud_.size() + 63) / 64, 0);
+      for (uint32_t g : pc.visible) pc.visible_bits[g / 64] |= uint64_t(1) << (g % 64);
     }
     pc.ready = true;
     summary.seconds_static += seconds_since(start);
@@ -799,26 +808,31 @@ class ObservationRun {
       id_lists.push_back(&l.rs.ids);
     }
     summary.retraced_rays += retraced.size();
-    std::vector<uint32_t> now = merge_id_lists(id_lists);  // observed by re-traced rays
 
     ViewDelta d;
+    // Observed by re-traced rays (each once; the order of `added` does not matter).
+    std::vector<uint32_t> now;
+    for (const std::vector<uint32_t>* ids : id_lists)
+      for (uint32_t g : *ids)
+        if (!(marks_[g] & kObservedAgain)) {
+          marks_[g] |= kObservedAgain;
+          now.push_back(g);
+        }
     // Rays lost per static Gaussian; it leaves the set when it loses all its rays and no
     // re-traced ray observes it again.
-    std::vector<uint32_t> touched;
+    std::vector<uint32_t> touched;  // slots of pc.visible
     for (uint32_t ray : retraced)
-      for (uint64_t k = pc.ray_offsets[ray]; k < pc.ray_offsets[ray + 1]; ++k) {
-        const uint32_t g = pc.ray_ids[k];
-        if (marks_[g]++ == 0) touched.push_back(g);
+      for (uint64_t r = pc.ray_offsets[ray]; r < pc.ray_offsets[ray + 1]; ++r) {
+        const uint32_t k = pc.ray_slots[r];
+        if ((marks_[pc.visible[k]]++ & ~kObservedAgain) == 0) touched.push_back(k);
       }
-    for (uint32_t g : now) marks_[g] |= kObservedAgain;
-    for (uint32_t g : touched) {
-      const size_t k = size_t(std::lower_bound(pc.visible.begin(), pc.visible.end(), g) - pc.visible.begin());
-      FILLGS_DCHECK(k < pc.visible.size() && pc.visible[k] == g);
-      if (!(marks_[g] & kObservedAgain) && (marks_[g] & ~kObservedAgain) == pc.ray_refs[k]) d.removed.push_back(g);
+    for (uint32_t k : touched) {
+      const uint32_t g = pc.visible[k];
+      if (!(marks_[g] & kObservedAgain) && marks_[g] == pc.ray_refs[k]) d.removed.push_back(g);
     }
     for (uint32_t g : now)
-      if (!std::binary_search(pc.visible.begin(), pc.visible.end(), g)) d.added.push_back(g);
-    for (uint32_t g : touched) marks_[g] = 0;
+      if (!(pc.visible_bits[g / 64] >> (g % 64) & 1)) d.added.push_back(g);
+    for (uint32_t k : touched) marks_[pc.visible[k]] = 0;
     for (uint32_t g : now) marks_[g] = 0;
     std::sort(d.removed.begin(), d.removed.end());
     return d;
