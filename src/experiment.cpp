@@ -434,6 +434,10 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
       c->mask.method = MaskMethod::Sweep;
       c->mask.covisibility = Covisibility::StaticCount;
     }
+    // fillgs's option beyond the paper: starts of one round whose patches do not overlap on
+    // a camera; with FillGS's weights and with none (to see the views without the weights).
+    add("fillgs.spread-starts", "ablation", Strategy::FillGS, Weighting::FillGS, strength, 5)->select.spread_starts = true;
+    add("fillgs.w-none.spread-starts", "weighting", Strategy::FillGS, Weighting::None, strength, 5)->select.spread_starts = true;
     for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), "budget", Strategy::FillGS, Weighting::FillGS, strength, k);
     for (Strategy s : all)
       add(std::string(to_string(s)) + ".clean", "refiner", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);

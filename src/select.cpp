@@ -579,8 +579,11 @@ class Selector {
         if (o_.strategy == Strategy::Interpolation) tr = interpolation_trajectory(k);
         else if (o_.strategy == Strategy::Random) tr = random_trajectory();
         else {
+          while (next_start < starts_.size() && o_.spread_starts && overlaps_earlier_start(starts_[next_start])) ++next_start;
           if (next_start >= starts_.size()) break;
-          tr = grow(starts_[next_start++]);
+          tr = grow(starts_[next_start]);
+          if (!tr.poses.empty()) taken_starts_.push_back(starts_[next_start]);
+          ++next_start;
         }
       }
       if (tr.poses.empty()) {
@@ -602,6 +605,18 @@ class Selector {
 
  private:
   double time_of(int f) const { return frame_time(f, in_.frames); }
+
+  /// Whether a trajectory of this call grew from a starting view of the same pose fewer
+  /// than patch_frames frames from `view` (SelectOptions::spread_starts). The starting view,
+  /// not Trajectory::start_view: a global winner moves that to the nearest training camera.
+  bool overlaps_earlier_start(uint32_t view) const {
+    const ObservedView& v = in_.views[view];
+    for (uint32_t taken : taken_starts_) {
+      const ObservedView& s = in_.views[taken];
+      if (s.pose == v.pose && std::abs(s.frame - v.frame) < o_.patch_frames) return true;
+    }
+    return false;
+  }
 
   /// One camera per distinct pose observing frame f.
   std::vector<Camera> training_at(int f, std::vector<uint32_t>* view_ids = nullptr) const {
@@ -796,6 +811,7 @@ class Selector {
   Progress& progress_;
   std::mt19937_64 rng_;
   std::vector<uint32_t> starts_;
+  std::vector<uint32_t> taken_starts_;  // starting views that grew a trajectory (spread_starts)
   std::vector<std::pair<uint32_t, uint32_t>> pairs_;
   const std::vector<Camera> cameras_;  ///< the observed viewpoints' cameras
   const int vertical_;                 ///< world axis closest to the cameras' up

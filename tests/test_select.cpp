@@ -292,6 +292,44 @@ TEST_CASE("selection: fillgs looks at the moving chair, negative avoids it", "[s
   CHECK(neg.first == 0);
 }
 
+TEST_CASE("selection: spread starts take the best E(v) whose patch overlaps no earlier start of its camera", "[select]") {
+  const Fixture& fx = fixture();
+  const auto overlapping = [&](const SelectResult& r, int patch) {
+    int pairs = 0;
+    for (size_t a = 0; a < r.trajectories.size(); ++a)
+      for (size_t b = 0; b < a; ++b) {
+        const ObservedView& u = fx.views[size_t(r.trajectories[a].start_view)];
+        const ObservedView& v = fx.views[size_t(r.trajectories[b].start_view)];
+        pairs += u.pose == v.pose && std::abs(u.frame - v.frame) < patch;
+      }
+    return pairs;
+  };
+  SelectOptions o = small_options(Strategy::FillGS, 4);
+  o.no_global = true;  // a global winner moves Trajectory::start_view off the starting view
+  const SelectResult plain = select_viewpoints(fx.input(), o);
+  o.spread_starts = true;
+  const SelectResult spread = select_viewpoints(fx.input(), o);
+  REQUIRE(spread.trajectories.size() == 4);
+  // On this scene the best E(v) cluster: without the option patches of one camera overlap.
+  CHECK(overlapping(plain, o.patch_frames) > 0);
+  CHECK(overlapping(spread, o.patch_frames) == 0);
+  // The starts, independently: views by E descending, each taken unless it overlaps one taken.
+  const PriorityScores& p = spread.priority;
+  std::vector<size_t> order(p.views.size());
+  std::iota(order.begin(), order.end(), size_t(0));
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return p.priority[a] > p.priority[b]; });
+  std::vector<uint32_t> expected;
+  for (size_t k : order) {
+    const ObservedView& v = fx.views[p.views[k]];
+    bool clash = false;
+    for (uint32_t e : expected) clash = clash || (fx.views[e].pose == v.pose && std::abs(fx.views[e].frame - v.frame) < o.patch_frames);
+    if (!clash) expected.push_back(p.views[k]);
+    if (expected.size() == 4) break;
+  }
+  REQUIRE(expected.size() == 4);
+  for (size_t k = 0; k < 4; ++k) CHECK(spread.trajectories[k].start_view == int(expected[k]));
+}
+
 TEST_CASE("selection: every strategy returns free, deterministic trajectories whatever the thread count", "[select]") {
   const Fixture& fx = fixture();
   for (Strategy s : {Strategy::FillGS, Strategy::Random, Strategy::Negative, Strategy::Interpolation, Strategy::FisherRF,

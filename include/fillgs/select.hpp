@@ -91,6 +91,11 @@ struct SelectOptions {
   bool no_candidate_scoring = false; ///< a random candidate
   bool no_global = false;            ///< local candidates only
   CandidateScore score = CandidateScore::Deficiency;
+  /// fillgs option beyond the paper (starting viewpoints by E): skip a start whose pose
+  /// already began a trajectory of this call at a frame fewer than patch_frames away, so
+  /// that no two patches of one camera overlap in time (the paper does not say how the top
+  /// starts of one round may repeat; by default they may).
+  bool spread_starts = false;
 
   float fisher_lambda = 1e-6f;       ///< fisherrf: Σ H_cand / (H_train + λ)
 };
