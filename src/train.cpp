@@ -648,14 +648,21 @@ void Trainer::build_change_masks() {
     if (vs.size() < 3) continue;
     const Camera& c0 = data_->views()[vs[0]].camera;
     const size_t P = size_t(c0.width) * size_t(c0.height);
-    std::vector<float> lo(P * 3, 1e9f), hi(P * 3, -1e9f);
-    for (size_t v : vs) {
-      const std::vector<float> im = data_->image(v);
-      for (size_t i = 0; i < P * 3; ++i) lo[i] = std::min(lo[i], im[i]), hi[i] = std::max(hi[i], im[i]);
-    }
     std::vector<uint8_t> mask(P, 0);
-    for (size_t p = 0; p < P; ++p)
-      for (int ch = 0; ch < 3; ++ch) mask[p] |= hi[p * 3 + ch] - lo[p * 3 + ch] > float(options_.change_threshold);
+    if (options_.change_from_masks && data_->has_masks()) {
+      for (size_t v : vs) {
+        const std::vector<uint8_t> fg = data_->mask(v);
+        for (size_t p = 0; p < P; ++p) mask[p] |= fg[p];
+      }
+    } else {
+      std::vector<float> lo(P * 3, 1e9f), hi(P * 3, -1e9f);
+      for (size_t v : vs) {
+        const std::vector<float> im = data_->image(v);
+        for (size_t i = 0; i < P * 3; ++i) lo[i] = std::min(lo[i], im[i]), hi[i] = std::max(hi[i], im[i]);
+      }
+      for (size_t p = 0; p < P; ++p)
+        for (int ch = 0; ch < 3; ++ch) mask[p] |= hi[p * 3 + ch] - lo[p * 3 + ch] > float(options_.change_threshold);
+    }
     // Dilate (square, change_dilation pixels): a Gaussian's mean may sit just outside what it covers.
     const int r = std::max(0, options_.change_dilation), W = c0.width, H = c0.height;
     std::vector<uint8_t> grown(P, 0);

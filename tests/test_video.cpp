@@ -548,3 +548,43 @@ TEST_CASE("N3V frame 0: COLMAP points3D.bin and one image per camera", "[video]"
   CHECK(d.views()[0].camera.width == 2690 / 8);
   CHECK(d.views()[0].camera.height == 2016 / 8);
 }
+
+TEST_CASE("Panoptic: --motion-from-masks makes a camera's changing pixels the union of its dilated foreground masks", "[video][motion]") {
+  const Dataset d = load_panoptic({"1", "5"}, "0:150:50", 8);  // 2 cameras x 3 frames, 80x45
+  REQUIRE(d.has_masks());
+  REQUIRE(d.frames() == 3);
+  GaussianCloud c;
+  add_gaussian(c, Vec3f(0, 0, 0), 0.1f, 0.0f, Vec3f(0.5f, 0.5f, 0.5f));
+  TrainOptions o = TrainOptions::scaled(10);
+  o.change_from_masks = true;
+  const std::vector<double> share = Trainer(d, params_from_cloud<float>(c), o).changing_share();
+  o.change_from_masks = false;
+  const std::vector<double> colour = Trainer(d, params_from_cloud<float>(c), o).changing_share();
+  REQUIRE(share.size() == d.views().size());
+  for (size_t v = 0; v < d.views().size(); ++v) {
+    const Camera& cam = d.views()[v].camera;
+    const int W = cam.width, H = cam.height, r = o.change_dilation;
+    // Union over this camera's frames, then a square dilation of r pixels, counted here.
+    std::vector<uint8_t> any(size_t(W) * size_t(H), 0);
+    for (size_t u = 0; u < d.views().size(); ++u)
+      if (d.views()[u].camera.name.substr(0, d.views()[u].camera.name.find('/')) == cam.name.substr(0, cam.name.find('/'))) {
+        const std::vector<uint8_t> m = d.mask(u);
+        for (size_t p = 0; p < any.size(); ++p) any[p] |= m[p];
+      }
+    size_t grown = 0;
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        bool hit = false;
+        for (int dy = -r; dy <= r && !hit; ++dy)
+          for (int dx = -r; dx <= r && !hit; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            hit = xx >= 0 && yy >= 0 && xx < W && yy < H && any[size_t(yy) * size_t(W) + size_t(xx)];
+          }
+        grown += hit;
+      }
+    INFO("view " << cam.name);
+    CHECK(share[v] == Approx(double(grown) / double(any.size())));
+    CHECK(share[v] > 0.0);
+    CHECK(share[v] != Approx(colour[v]));  // the colour rule marks other pixels
+  }
+}

@@ -186,6 +186,11 @@ struct TrainOptions {
   bool motion_where_images_change = true;
   double change_threshold = 0.1;
   int change_dilation = 2;
+  /// With foreground masks (Dataset::has_masks), a camera's changing pixels are the union
+  /// over its frames of its foreground masks instead of its colour changes: motion only
+  /// where the masks put the movers (objects the masks leave out, e.g. a thrown ball, stay
+  /// static). Off by default.
+  bool change_from_masks = false;
   /// Keys where the images say the content goes: whenever the time window enters a new key
   /// interval, the next two keys of every moving Gaussian are placed by following its
   /// projection through the optical flow of every fixed camera that sees it (front surface,

@@ -379,7 +379,7 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
                 "key-interval", "max-gaussians", "sh-degree", "test-images", "test-cameras", "background", "motion", "time-ramp",
                 "key-lr-scale", "motion-sparsity", "init", "init-points"},
                kDatasetOptions),
-         {"quiet", "static-only", "no-keyed-opacity", "no-flow-keys", "colour-correction"});
+         {"quiet", "static-only", "no-keyed-opacity", "no-flow-keys", "colour-correction", "motion-from-masks"});
   const auto t0 = Clock::now();
   const std::string out_dir = a.require("out");
   const std::string cameras = a.require("cameras");
@@ -399,6 +399,8 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   o.motion = motion_learning_from_string(a.get("motion", to_string(o.motion)));
   o.keyed_opacity = !a.flag("no-keyed-opacity");
   o.flow_keys = !a.flag("no-flow-keys");
+  o.change_from_masks = a.flag("motion-from-masks");
+  if (o.change_from_masks && !data.has_masks()) throw_error("fillgs train: --motion-from-masks needs foreground masks (seg/ beside the meta file)");
   o.time_ramp = a.number("time-ramp", o.time_ramp);
   if (!(o.time_ramp >= 0 && o.time_ramp < 1)) throw_error("fillgs train: --time-ramp must be in [0, 1)");
   o.key_lr_scale = a.number("key-lr-scale", o.key_lr_scale);
@@ -542,6 +544,7 @@ void print_help(std::ostream& out) {
          "         [--resume CKPT] [--checkpoint-every N] [--seed n] [--key-interval F] [--max-gaussians N]\n"
          "         [--sh-degree D] [--test-cameras C --test-images DIR] [--static-only] [--background r,g,b]\n"
          "         [--motion all|promote] [--time-ramp r] [--key-lr-scale s] [--motion-sparsity s] [--no-keyed-opacity] [--no-flow-keys]\n"
+         "         [--motion-from-masks]\n"
          "         [--init points|random|random+carve] [--init-points N] [--colour-correction]\n"
          "                                            train a 4D Gaussian model from multi-view video\n"
          "  explore --scene S --cameras C --out DIR   the exploration grid: exploration.vdb, exploration.png\n"
