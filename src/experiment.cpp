@@ -438,6 +438,13 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
     // a camera; with FillGS's weights and with none (to see the views without the weights).
     add("fillgs.spread-starts", "ablation", Strategy::FillGS, Weighting::FillGS, strength, 5)->select.spread_starts = true;
     add("fillgs.w-none.spread-starts", "weighting", Strategy::FillGS, Weighting::None, strength, 5)->select.spread_starts = true;
+    // ... and candidates scored by the D̂ they see (sum over their visible set), unweighted.
+    add("fillgs.w-none.gain-score", "weighting", Strategy::FillGS, Weighting::None, strength, 5)->select.score_gain = true;
+    {
+      RunConfig* c = add("fillgs.w-none.spread+gain", "weighting", Strategy::FillGS, Weighting::None, strength, 5);
+      c->select.spread_starts = true;
+      c->select.score_gain = true;
+    }
     for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), "budget", Strategy::FillGS, Weighting::FillGS, strength, k);
     for (Strategy s : all)
       add(std::string(to_string(s)) + ".clean", "refiner", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);

@@ -399,7 +399,13 @@ class Scorer {
       }
       default: {
         const std::vector<float> values = field_.values(frame, o_.score);
-        for (size_t i = 0; i < cands.size(); ++i) s[i] = map_mean(cands[i], t, values.data());
+        if (o_.score_gain) {
+          engine_.set_time(t);
+          for (size_t i = 0; i < cands.size(); ++i)
+            for (uint32_t g : engine_.visible_set(cands[i])) s[i] += double(values[g]);
+        } else {
+          for (size_t i = 0; i < cands.size(); ++i) s[i] = map_mean(cands[i], t, values.data());
+        }
       }
     }
     return s;

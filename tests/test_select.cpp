@@ -330,6 +330,31 @@ TEST_CASE("selection: spread starts take the best E(v) whose patch overlaps no e
   for (size_t k = 0; k < 4; ++k) CHECK(spread.trajectories[k].start_view == int(expected[k]));
 }
 
+TEST_CASE("selection: the gain score of a pose is the sum of D-hat over what it sees", "[select]") {
+  const Fixture& fx = fixture();
+  SelectOptions o = small_options(Strategy::FillGS, 2);
+  o.score_gain = true;
+  const SelectResult r = select_viewpoints(fx.input(), o);
+  REQUIRE(r.trajectories.size() == 2);
+  // The first trajectory is scored before any virtual view is observed: D-hat of the
+  // training views' tables, summed here over each pose's visible set at the pose's time.
+  const DeficiencyField field(r.initial_tables, o.deficiency_quantile);
+  VisibilityEngine engine(fx.synth.scene, o.visibility);
+  const Trajectory& t = r.trajectories[0];
+  REQUIRE(t.poses.size() == t.scores.size());
+  const std::vector<float> d = field.values(t.frame, CandidateScore::Deficiency);
+  size_t seeing_motion = 0;
+  for (size_t j = 0; j < t.poses.size(); ++j) {
+    engine.set_time(t.poses[j].time);
+    double expected = 0;
+    for (uint32_t g : engine.visible_set(t.poses[j])) expected += double(d[g]);
+    INFO("pose " << j);
+    CHECK(t.scores[j] == Approx(expected).epsilon(1e-9));
+    seeing_motion += expected > 0;
+  }
+  CHECK(seeing_motion == t.poses.size());
+}
+
 TEST_CASE("selection: every strategy returns free, deterministic trajectories whatever the thread count", "[select]") {
   const Fixture& fx = fixture();
   for (Strategy s : {Strategy::FillGS, Strategy::Random, Strategy::Negative, Strategy::Interpolation, Strategy::FisherRF,

@@ -96,6 +96,11 @@ struct SelectOptions {
   /// that no two patches of one camera overlap in time (the paper does not say how the top
   /// starts of one round may repeat; by default they may).
   bool spread_starts = false;
+  /// fillgs option beyond the paper (candidate scoring): a candidate's score is the sum of
+  /// D̂ over the Gaussians it sees at its time (the visibility rule of the counts C) — the
+  /// information it gains, as the paper reads D — instead of the mean of the rendered D̂
+  /// map, which grows as a view steps closer to a mover and fills its frame with it.
+  bool score_gain = false;
 
   float fisher_lambda = 1e-6f;       ///< fisherrf: Σ H_cand / (H_train + λ)
 };
