@@ -173,17 +173,18 @@ size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid
         min_key = centre.z();
       }
       const Vec3d half = abs_R * Vec3d(box.half_extent[0], box.half_extent[1], box.half_extent[2]);
-      const double zmin = centre.z() - half.z(), zmax = centre.z() + half.z();
-      // Bounds of a / z over a ∈ [a0, a1], z ∈ [zmin, zmax] (zmin > 0), mapped to pixels.
-      const auto screen_range = [&](double a0, double a1, double f, double c, double& lo, double& hi) {
-        const double r0 = a0 / (a0 >= 0.0 ? zmax : zmin), r1 = a1 / (a1 >= 0.0 ? zmin : zmax);
-        lo = std::min(f * r0, f * r1) + c;
-        hi = std::max(f * r0, f * r1) + c;
-      };
+      const double zmin = centre.z() - half.z();
       if (!grid.match || swept) min_key = zmin;
       min_key -= 1e-5 * std::fabs(min_key) + 1e-6;  // the probe computes the key in its own rounding
       int i0 = 0, i1 = grid.width - 1, j0 = 0, j1 = grid.height - 1;
       if (zmin > 1e-9 * std::max(1.0, std::fabs(centre.z()))) {  // bounded footprint
+        const double zmax = centre.z() + half.z();
+        // Bounds of a / z over a ∈ [a0, a1], z ∈ [zmin, zmax], mapped to pixels.
+        const auto screen_range = [&](double a0, double a1, double f, double c, double& lo, double& hi) {
+          const double r0 = a0 / (a0 >= 0.0 ? zmax : zmin), r1 = a1 / (a1 >= 0.0 ? zmin : zmax);
+          lo = std::min(f * r0, f * r1) + c;
+          hi = std::max(f * r0, f * r1) + c;
+        };
         double umin, umax, vmin, vmax;
         // How much wider (pixels) the view-space bounds can be than the corners' footprint:
         // a coordinate a is divided by z0 or z1 where a corner may have the other.
@@ -580,7 +581,7 @@ namespace {
 
 /// Change of one view's visible set at a time against its pose's static answer.
 struct ViewDelta {
-  std::vector<uint32_t> removed;  ///< static ids no longer observed (occluded by moving ones)
+  std::vector<uint32_t> removed;  ///< static ids no longer observed (occluded by moving ones); any order
   std::vector<uint32_t> added;    ///< ids observed that the static answer lacks
 };
 
@@ -834,7 +835,6 @@ class ObservationRun {
       if (!(pc.visible_bits[g / 64] >> (g % 64) & 1)) d.added.push_back(g);
     for (uint32_t k : touched) marks_[pc.visible[k]] = 0;
     for (uint32_t g : now) marks_[g] = 0;
-    std::sort(d.removed.begin(), d.removed.end());
     return d;
   }
 

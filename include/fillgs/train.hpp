@@ -189,7 +189,8 @@ struct TrainOptions {
   /// With foreground masks (Dataset::has_masks), a camera's changing pixels are the union
   /// over its frames of its foreground masks instead of its colour changes: motion only
   /// where the masks put the movers (objects the masks leave out, e.g. a thrown ball, stay
-  /// static). Off by default.
+  /// static). Off by default; a dataset without masks keeps the colour rule (`fillgs train
+  /// --motion-from-masks` refuses one).
   bool change_from_masks = false;
   /// Keys where the images say the content goes: whenever the time window enters a new key
   /// interval, the next two keys of every moving Gaussian are placed by following its
