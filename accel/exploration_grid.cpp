@@ -15,21 +15,13 @@
 #include <chrono>
 #include <cmath>
 
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/exploration.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/visibility.hpp"
 
 namespace fillgs {
-
-const char* to_string(VoxelLabel label) {
-  switch (label) {
-    case VoxelLabel::Free: return "free";
-    case VoxelLabel::Occupied: return "occupied";
-    case VoxelLabel::Unexplored: return "unexplored";
-  }
-  return "?";
-}
 
 struct ExplorationGrid::Impl {
   openvdb::Int32Grid::Ptr grid;
@@ -55,8 +47,8 @@ double quantile(std::vector<float>& v, double q) {
 /// Times the moving Gaussians are swept over when the caller gives none.
 std::vector<double> default_sweep_times(const GaussianCloud& scene) {
   if (scene.dynamic_ids.empty()) return {0.0};
-  if (scene.motion == MotionModel::Keyframed && scene.keyframed.key_count > 1) return frame_times(scene.keyframed.key_count);
-  return frame_times(33);
+  if (scene.motion == MotionModel::Keyframed && scene.keyframed.key_count > 1) return FrameGrid(scene.keyframed.key_count).times();
+  return FrameGrid(33).times();
 }
 
 openvdb::math::Transform::Ptr index_to_world(const Box3& box, const Vec3i& dims) {

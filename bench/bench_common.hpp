@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "fillgs/camera.hpp"
+#include "fillgs/fs_util.hpp"
 #include "fillgs/gaussians.hpp"
 #include "fillgs/timing.hpp"
 
@@ -17,11 +18,6 @@ namespace fillgs::bench {
 
 using fillgs::Clock;
 using fillgs::seconds_since;
-
-inline std::string shared_data() {
-  if (const char* e = std::getenv("FILLGS_SHARED_DATA")) return e;
-  return "../shared/data";
-}
 
 inline std::vector<Camera> orbit(const GaussianCloud& c, int n, int w, int h) {
   // Robust centre and radius: median of the means, 90th percentile distance.
@@ -39,17 +35,16 @@ inline std::vector<Camera> orbit(const GaussianCloud& c, int n, int w, int h) {
   std::vector<float> d;
   for (const Vec3f& p : c.means) d.push_back(float((p.cast<double>() - centre).norm()));
   std::nth_element(d.begin(), d.begin() + d.size() * 9 / 10, d.end());
-  const double radius = 2.2 * d[d.size() * 9 / 10];
-  std::vector<Camera> cams;
-  for (int i = 0; i < n; ++i) {
-    const double a = 2 * kPi * i / n;
-    Camera cam;
-    cam.name = "orbit" + std::to_string(i);
-    cam.set_fov_x(60.0 * kPi / 180.0, w, h);
-    cam.look_at(centre + radius * Vec3d(std::cos(a), 0.3, std::sin(a)), centre, Vec3d(0, -1, 0));
-    cams.push_back(cam);
-  }
-  return cams;
+  RingPlacement r;
+  r.count = n;
+  r.centre = centre;
+  r.radius = 2.2 * d[d.size() * 9 / 10];
+  r.elevation = -(r.radius * 0.3);
+  r.up = Vec3d(0, -1, 0);
+  r.prefix = "orbit";
+  Camera lens;
+  lens.set_fov_x(60.0 * kPi / 180.0, w, h);
+  return camera_ring(r, lens);
 }
 /// `copies` of a cloud on a grid; every Gaussian of the first `moving` copies moves on a
 /// straight line (polynomial motion) at a speed log-uniform over [1e-5, 1] × the copy's size.

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "bench_common.hpp"
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/evaluate.hpp"
 #include "fillgs/fs_util.hpp"
@@ -65,7 +66,7 @@ MotionConfig parse_config(const std::string& spec, int iterations) {
     const size_t eq = kv.find('=');
     if (eq == std::string::npos) throw_error("bench motion: '", kv, "' is not key=value");
     const std::string k = kv.substr(0, eq), v = kv.substr(eq + 1);
-    if (k == "motion") c.options.motion = motion_learning_from_string(v);
+    if (k == "motion") c.options.motion = parse_name<MotionLearning>(v);
     else if (k == "ramp") c.options.time_ramp = std::stod(v);
     else if (k == "frontier") c.options.frontier_share = std::stod(v);
     else if (k == "opacity") c.options.keyed_opacity = v != "0";
@@ -177,7 +178,7 @@ MotionResult measure(const SynthScene& s, const GaussianCloud& m, const Dataset&
   std::vector<uint8_t> near(m.size(), 0);
   FrameEvaluator truth(s.scene);
   for (int f = 0; f < F; ++f) {
-    const double t = double(f) / (F - 1);
+    const double t = FrameGrid(F).time(f);
     const double d = tracking_error(truth.evaluate(t), s.moving_ids, ev.evaluate(t), &near);
     r.track_mean += d / F;
     r.track_worst = std::max(r.track_worst, d);
@@ -188,7 +189,7 @@ MotionResult measure(const SynthScene& s, const GaussianCloud& m, const Dataset&
     double on = 0, all = 0;
     std::vector<float> speed;
     for (int f = 0; f < F; ++f) {
-      dynamic_speeds(m, double(f) / (F - 1), 1.0 / (F - 1), speed);
+      dynamic_speeds(m, FrameGrid(F).time(f), FrameGrid(F).step(), speed);
       for (size_t j = 0; j < speed.size(); ++j) {
         all += speed[j];
         if (near[m.dynamic_ids[j]]) on += speed[j];

@@ -58,7 +58,7 @@ double clock_ghz() {
 
 int bench_render(const std::vector<std::string>& args) {
   bool smoke = false;
-  std::string scene = shared_data() + "/scenes/guitar.ply";
+  std::string scene = shared_data_dir() + "/scenes/guitar.ply";
   int views = 8;
   for (size_t i = 0; i < args.size(); ++i) {
     if (args[i] == "--smoke") smoke = true;

@@ -327,7 +327,7 @@ int bench_select(const std::vector<std::string>& args) {
 
   if (want("large")) {
     // (g) a large scene: guitar.ply replicated, 10 % moving.
-    const GaussianCloud base_cloud = read_scene(shared_data() + "/scenes/guitar.ply");
+    const GaussianCloud base_cloud = read_scene(shared_data_dir() + "/scenes/guitar.ply");
     const int copies = smoke ? 1 : 3, frames = smoke ? 3 : 10, ncam = smoke ? 3 : 8;
     const GaussianCloud big = replicate(base_cloud, copies, 0.10, 7);
     const std::vector<Camera> rig = orbit(big, ncam, smoke ? 169 : 676, smoke ? 127 : 507);

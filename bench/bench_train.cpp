@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "bench_common.hpp"
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/loss.hpp"
@@ -78,7 +79,7 @@ IterationTimes time_iterations(const DiffFrame<float>& df, const std::vector<Cam
 }
 
 void speed(bool smoke, size_t only_count, int only_width, int only_height) {
-  const GaussianCloud full = read_scene(bench::shared_data() + "/scenes/guitar.ply");
+  const GaussianCloud full = read_scene(shared_data_dir() + "/scenes/guitar.ply");
   std::printf("\n## Training iteration speed (guitar.ply subsets, 2 threads, vector kernel on %s): "
               "forward + L1/D-SSIM loss + backward, against the scalar kernel in the same run\n\n", simd_target());
   std::printf("| Gaussians | resolution | scalar ms (fwd / loss / bwd) | simd ms (fwd / loss / bwd) | speed-up | iterations/s scalar | iterations/s simd |\n"
@@ -135,13 +136,13 @@ Quality train_and_eval(const std::string& dir, const SynthScene& s, const std::v
   const int F = s.options.frames;
   std::vector<std::vector<Vec3f>> chair(static_cast<size_t>(F));
   for (int f = 0; f < F; ++f) {
-    const FrameGaussians g = evaluate(s.scene, double(f) / (F - 1));
+    const FrameGaussians g = evaluate(s.scene, FrameGrid(F).time(f));
     for (uint32_t id : s.moving_ids) chair[size_t(f)].push_back(g.means[id]);
   }
   for (size_t j = 0; j < m.dynamic_count(); ++j) {
     bool on = false;
     for (int f = 0; f < F && !on; f += 3) {
-      const Vec3f x = evaluate(m, double(f) / (F - 1)).means[m.dynamic_ids[j]];
+      const Vec3f x = evaluate(m, FrameGrid(F).time(f)).means[m.dynamic_ids[j]];
       for (const Vec3f& c : chair[size_t(f)])
         if ((c - x).squaredNorm() < 0.05f * 0.05f) {
           on = true;

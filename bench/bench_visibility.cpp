@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "bench_common.hpp"
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/gaussian_tracer.hpp"
 #include "fillgs/observe_io.hpp"
@@ -165,8 +166,8 @@ void synthetic_sweep(bool smoke, std::vector<ScatterSeries>& pareto) {
     so.spacing = 0.04;
   }
   const SynthScene s = make_synthetic_scene(so);
-  const auto times = frame_times(so.frames);
-  const double dt = 1.0 / (so.frames - 1);
+  const auto times = FrameGrid(so.frames).times();
+  const double dt = FrameGrid(so.frames).step();
   std::vector<Camera> candidates = s.interpolation;
   candidates.insert(candidates.end(), s.extrapolation.begin(), s.extrapolation.end());
   const int candidate_frame = so.frames / 2;
@@ -209,7 +210,7 @@ void synthetic_sweep(bool smoke, std::vector<ScatterSeries>& pareto) {
 // ------------------------------------------------------------------ (b) guitar
 
 void guitar_sweep(bool smoke, std::vector<ScatterSeries>& pareto) {
-  const std::string path = shared_data() + "/scenes/guitar.ply";
+  const std::string path = shared_data_dir() + "/scenes/guitar.ply";
   if (!std::filesystem::exists(path)) throw_error(path, ": missing (set FILLGS_SHARED_DATA to the shared data folder)");
   const GaussianCloud cloud = read_scene(path);
   const int w = smoke ? 338 : 1352, h = smoke ? 254 : 1014, n = smoke ? 2 : 8;
@@ -246,7 +247,7 @@ void guitar_sweep(bool smoke, std::vector<ScatterSeries>& pareto) {
 // ------------------------------------------------------------------ (c) ~1M Gaussians
 
 void million_scene(bool smoke) {
-  const std::string path = shared_data() + "/scenes/guitar.ply";
+  const std::string path = shared_data_dir() + "/scenes/guitar.ply";
   const GaussianCloud base = read_scene(path);
   const int copies = smoke ? 2 : 11, cameras = smoke ? 4 : 20, frames = smoke ? 4 : 300, traced_frames = smoke ? 2 : 8;
   const int w = smoke ? 338 : 1352, h = smoke ? 254 : 1014;
@@ -270,8 +271,8 @@ void million_scene(bool smoke) {
                 tracer.build_seconds(), cloud.size(), 1000 * refit / 5, cloud.dynamic_count(), tracer.memory_bytes() / 1048576.0,
                 tracer.large_proxy_count(), double(tracer.large_proxy_threshold()));
   }
-  const auto times = frame_times(frames);
-  const double dt = 1.0 / (frames - 1);
+  const auto times = FrameGrid(frames).times();
+  const double dt = FrameGrid(frames).step();
   // One folder per process: two benchmarks at once must not write into each other's tables.
   const std::string tmp =
       (std::filesystem::temp_directory_path() / ("fillgs_bench_visibility." + std::to_string(::getpid()))).string();

@@ -28,6 +28,23 @@ void Camera::look_at(const Vec3d& eye, const Vec3d& target, const Vec3d& up) {
   t = -R * eye;
 }
 
+std::vector<Camera> camera_ring(const RingPlacement& ring, const Camera& lens) {
+  const Vec3d e1 = std::fabs(ring.up.x()) < 0.9 * ring.up.norm() ? Vec3d::UnitX() : Vec3d::UnitY();
+  const Vec3d e2 = ring.up.cross(e1);
+  const Vec3d target = ring.target.allFinite() ? ring.target : ring.centre;
+  std::vector<Camera> cams;
+  for (int i = 0; i < ring.count; ++i) {
+    const double a = ring.phase + 2 * kPi * i / ring.count;
+    Camera c = lens;
+    std::string index = std::to_string(i);
+    if (int(index.size()) < ring.digits) index.insert(0, size_t(ring.digits) - index.size(), '0');
+    c.name = ring.prefix + index;
+    c.look_at(ring.centre + ring.radius * std::cos(a) * e1 + ring.radius * std::sin(a) * e2 + ring.elevation * ring.up, target, ring.up);
+    cams.push_back(c);
+  }
+  return cams;
+}
+
 void Camera::set_fov_x(double fov_x, int w, int h) {
   width = w;
   height = h;

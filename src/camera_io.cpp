@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/camera.hpp"
 #include "fillgs/camera_json.hpp"
 #include "fillgs/error.hpp"
@@ -22,30 +23,6 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace fillgs {
-
-CameraFormat parse_camera_format(const std::string& n) {
-  if (n == "auto") return CameraFormat::Auto;
-  if (n == "colmap") return CameraFormat::Colmap;
-  if (n == "llff") return CameraFormat::Llff;
-  if (n == "transforms" || n == "nerf") return CameraFormat::Transforms;
-  if (n == "3dgs") return CameraFormat::GaussianJson;
-  if (n == "technicolor") return CameraFormat::Technicolor;
-  if (n == "d3dgs" || n == "panoptic") return CameraFormat::D3dgs;
-  throw_error("unknown camera format '", n, "' (expected auto, colmap, llff, transforms, 3dgs, technicolor or d3dgs)");
-}
-
-const char* to_string(CameraFormat f) {
-  switch (f) {
-    case CameraFormat::Auto: return "auto";
-    case CameraFormat::Colmap: return "colmap";
-    case CameraFormat::Llff: return "llff";
-    case CameraFormat::Transforms: return "transforms";
-    case CameraFormat::GaussianJson: return "3dgs";
-    case CameraFormat::Technicolor: return "technicolor";
-    case CameraFormat::D3dgs: return "d3dgs";
-  }
-  return "?";
-}
 
 namespace {
 
@@ -566,7 +543,7 @@ std::vector<Camera> read_d3dgs_meta(const std::string& path) {
       char frame[24];
       std::snprintf(frame, sizeof frame, "%06zu", f);
       c.name = ids[i] + "/" + frame;
-      c.time = F > 1 ? double(f) / double(F - 1) : 0.0;
+      c.time = FrameGrid(int(F)).time(int(f));
       check_camera(path, el, c);
       cams.push_back(c);
     }

@@ -32,16 +32,17 @@ struct LpipsNetwork::Impl {
   cv::dnn::Net net;
 };
 
-LpipsNetwork::LpipsNetwork(const std::string& path) : impl_(new Impl) {
+LpipsNetwork::LpipsNetwork(const std::string& path) : impl_(std::make_unique<Impl>()) {
   try {
     impl_->net = cv::dnn::readNetFromONNX(path);
   } catch (const cv::Exception& e) {
-    delete impl_;
     throw_error(path, ": cannot load the LPIPS network (", e.what(), ")");
   }
 }
 
-LpipsNetwork::~LpipsNetwork() { delete impl_; }
+LpipsNetwork::~LpipsNetwork() = default;
+LpipsNetwork::LpipsNetwork(LpipsNetwork&&) noexcept = default;
+LpipsNetwork& LpipsNetwork::operator=(LpipsNetwork&&) noexcept = default;
 
 double LpipsNetwork::distance(const float* a, const float* b, int W, int H) {
   auto blob = [&](const float* img) {

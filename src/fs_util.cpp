@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -173,6 +174,11 @@ std::string read_file(const std::string& path) {
   std::ostringstream ss;
   ss << in.rdbuf();
   return ss.str();
+}
+
+std::string shared_data_dir() {
+  if (const char* dir = std::getenv("FILLGS_SHARED_DATA")) return dir;
+  return FILLGS_DEFAULT_SHARED_DATA;
 }
 
 }  // namespace fillgs

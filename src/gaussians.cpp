@@ -1,3 +1,4 @@
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/gaussians.hpp"
 
 #include <tbb/parallel_for.h>
@@ -9,15 +10,6 @@
 #include "motion_keys.hpp"
 
 namespace fillgs {
-
-const char* to_string(MotionModel m) {
-  switch (m) {
-    case MotionModel::Static: return "static";
-    case MotionModel::Polynomial: return "polynomial";
-    case MotionModel::Keyframed: return "keyframed";
-  }
-  return "?";
-}
 
 std::vector<uint32_t> GaussianCloud::static_ids() const {
   std::vector<uint32_t> ids;
@@ -494,7 +486,7 @@ KeyframedMotion per_frame_tracks(size_t gaussians, int frames) {
   KeyframedMotion k;
   k.key_count = frames;
   k.first_key_time = 0.0;
-  k.key_spacing = 1.0 / (frames - 1);
+  k.key_spacing = FrameGrid(frames).step();  // one key per frame
   k.positions.assign(gaussians * size_t(frames) * 3, 0.0f);
   k.rotations.assign(gaussians * size_t(frames) * 4, 0.0f);
   return k;

@@ -14,8 +14,6 @@
 
 namespace fillgs {
 
-const char* to_string(ViewInit v) { return v == ViewInit::Random ? "random" : "random+carve"; }
-
 std::pair<Vec3d, double> centre_of_interest(const std::vector<Camera>& cameras) {
   Mat3d A = Mat3d::Zero();
   Vec3d b = Vec3d::Zero();

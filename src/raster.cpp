@@ -71,12 +71,6 @@ void set_default_kernel(Kernel kernel) {
 
 Kernel resolve_kernel(Kernel kernel) { return kernel == Kernel::Default ? g_default_kernel.load() : kernel; }
 
-Kernel parse_kernel(const std::string& name) {
-  if (name == "simd") return Kernel::Simd;
-  if (name == "scalar") return Kernel::Scalar;
-  throw_error("unknown kernel '", name, "' (simd or scalar)");
-}
-
 const char* kernel_name(Kernel kernel) { return resolve_kernel(kernel) == Kernel::Scalar ? "scalar" : "simd"; }
 
 const char* simd_target() { return tiles::simd_target_name(); }

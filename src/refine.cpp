@@ -1,3 +1,4 @@
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/refine.hpp"
 
 #include <fcntl.h>
@@ -142,7 +143,7 @@ class OracleRefiner : public Refiner {
       ro.background = o_.background;
       ro.threads = o_.threads;
       if (limited) {
-        const int f = std::clamp(im.frame, 0, o_.frames - 1);
+        const int f = FrameGrid(o_.frames).clamp(im.frame);
         flags.assign(support_.begin() + ptrdiff_t(size_t(f) * N), support_.begin() + ptrdiff_t(size_t(f + 1) * N));
         ro.features = flags.data();
         ro.feature_channels = 1;
@@ -353,7 +354,7 @@ std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& o, ui
 std::unique_ptr<Refiner> make_identity_refiner() { return std::make_unique<IdentityRefiner>(); }
 
 int nearest_pool_view(const RigPool& pool, const Camera& view, const RigOptions& o) {
-  const int frame = nearest_frame(view.time, pool.frame_count);
+  const int frame = FrameGrid(std::max(1, pool.frame_count)).nearest(view.time);
   const Vec3d centre = view.centre();
   const Vec3d axis = view.R.row(2).transpose();
   const double cos_max = std::cos(o.max_angle_degrees * kPi / 180.0);
@@ -361,7 +362,7 @@ int nearest_pool_view(const RigPool& pool, const Camera& view, const RigOptions&
   double best_distance = 0, best_cos = 0;
   for (size_t i = 0; i < pool.cameras.size(); ++i) {
     const Camera& c = pool.cameras[i];
-    if (nearest_frame(c.time, pool.frame_count) != frame) continue;
+    if (FrameGrid(std::max(1, pool.frame_count)).nearest(c.time) != frame) continue;
     const double d = (c.centre() - centre).norm();
     const double cosine = axis.dot(c.R.row(2).transpose());
     if (d > o.max_distance || cosine < cos_max) continue;
@@ -414,21 +415,14 @@ std::unique_ptr<Refiner> make_rig_refiner(RigPool pool, const RigOptions& option
   return std::make_unique<RigRefiner>(std::move(pool), options);
 }
 
-const char* to_string(OracleSupport s) { return s == OracleSupport::Full ? "full" : "observed"; }
-
-OracleSupport parse_oracle_support(const std::string& name) {
-  if (name == "full") return OracleSupport::Full;
-  if (name == "observed") return OracleSupport::Observed;
-  throw_error("unknown oracle support \"", name, "\" (observed, full)");
-}
-
 std::vector<uint8_t> oracle_support_table(const GaussianCloud& truth, const std::vector<Camera>& observers, int frames, int window,
                                           int threads) {
   const size_t N = truth.size(), F = size_t(std::max(1, frames));
   ObservationOptions oo;
   oo.visibility.mode = VisibilityMode::Exact;
   oo.visibility.threads = threads;
-  const ObservationTables t = observation_tables(truth, observers, frame_times(int(F)), F > 1 ? 1.0 / double(F - 1) : 1.0, oo);
+  const FrameGrid grid(static_cast<int>(F));
+  const ObservationTables t = observation_tables(truth, observers, grid.times(), grid.step(), oo);
   std::vector<uint8_t> moving(N, 0);
   for (uint32_t g : truth.dynamic_ids) moving[g] = 1;
   std::vector<uint8_t> ever(N, 0), out(F * N, 0);
@@ -440,8 +434,8 @@ std::vector<uint8_t> oracle_support_table(const GaussianCloud& truth, const std:
         out[f * N + g] = ever[g];
         continue;
       }
-      const size_t lo = f >= size_t(std::max(0, window)) ? f - size_t(std::max(0, window)) : 0, hi = std::min(F - 1, f + size_t(std::max(0, window)));
-      for (size_t k = lo; k <= hi && !out[f * N + g]; ++k) out[f * N + g] = t.counts[k * N + g] > 0;
+      const auto [lo, hi] = grid.window(int(f), std::max(0, window));
+      for (int k = lo; k <= hi && !out[f * N + g]; ++k) out[f * N + g] = t.counts[size_t(k) * N + g] > 0;
     }
   return out;
 }

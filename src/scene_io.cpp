@@ -1,3 +1,4 @@
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/scene_io.hpp"
 
 #include <algorithm>
@@ -17,26 +18,6 @@
 namespace fs = std::filesystem;
 
 namespace fillgs {
-
-SceneFormat parse_scene_format(const std::string& name) {
-  if (name == "auto") return SceneFormat::Auto;
-  if (name == "3dgs") return SceneFormat::Gaussian3D;
-  if (name == "stg" || name == "spacetime") return SceneFormat::Spacetime;
-  if (name == "ex4dgs") return SceneFormat::Ex4dgs;
-  if (name == "fillgs") return SceneFormat::Fillgs4D;
-  throw_error("unknown scene format '", name, "' (expected auto, 3dgs, stg, ex4dgs or fillgs)");
-}
-
-const char* to_string(SceneFormat f) {
-  switch (f) {
-    case SceneFormat::Auto: return "auto";
-    case SceneFormat::Gaussian3D: return "3dgs";
-    case SceneFormat::Spacetime: return "stg";
-    case SceneFormat::Ex4dgs: return "ex4dgs";
-    case SceneFormat::Fillgs4D: return "fillgs";
-  }
-  return "?";
-}
 
 namespace {
 
@@ -574,7 +555,7 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
   FrameEvaluator ev(cloud);
   bool opacity_varies = false;
   for (size_t k = 0; k < K; ++k) {
-    const FrameGaussians& f = ev.evaluate(double(k) / (frames - 1));
+    const FrameGaussians& f = ev.evaluate(FrameGrid(frames).time(int(k)));
     for (size_t j = 0; j < M; ++j) {
       const uint32_t g = cloud.dynamic_ids[j];
       for (int a = 0; a < 3; ++a) km.positions[(j * K + k) * 3 + a] = f.means[g][a];

@@ -1,3 +1,4 @@
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/select.hpp"
 
 #include <algorithm>
@@ -15,39 +16,9 @@
 
 namespace fillgs {
 
-const char* to_string(Strategy s) {
-  switch (s) {
-    case Strategy::FillGS: return "fillgs";
-    case Strategy::Random: return "random";
-    case Strategy::Negative: return "negative";
-    case Strategy::Interpolation: return "interpolation";
-    case Strategy::FisherRF: return "fisherrf";
-    case Strategy::Coverage3D: return "coverage3d";
-    case Strategy::Coverage4D: return "coverage4d";
-  }
-  return "?";
-}
-
-Strategy parse_strategy(const std::string& name) {
-  for (Strategy s : {Strategy::FillGS, Strategy::Random, Strategy::Negative, Strategy::Interpolation, Strategy::FisherRF,
-                     Strategy::Coverage3D, Strategy::Coverage4D})
-    if (name == to_string(s)) return s;
-  throw_error("unknown strategy '", name, "' (fillgs, random, negative, interpolation, fisherrf, coverage3d, coverage4d)");
-}
-
-const char* to_string(MapRenderer r) { return r == MapRenderer::Raytraced ? "raytraced" : "raster"; }
-
-MapRenderer parse_map_renderer(const std::string& name) {
-  if (name == "raytraced") return MapRenderer::Raytraced;
-  if (name == "raster") return MapRenderer::Raster;
-  throw_error("unknown map renderer '", name, "' (raytraced, raster)");
-}
-
 namespace {
 
 
-/// Normalised time of frame f of F (t = f / (F − 1); 0 for a single frame).
-double frame_time(int f, int frames) { return frames > 1 ? double(f) / (frames - 1) : 0.0; }
 
 std::vector<Camera> cameras_of(const std::vector<ObservedView>& views) {
   std::vector<Camera> c;
@@ -89,15 +60,6 @@ bool same_pose(const Camera& a, const Camera& b, double tol) {
 }  // namespace
 
 // ------------------------------------------------------------------ cameras
-
-std::vector<int> consecutive_frames(int frame, int count, int frames) {
-  FILLGS_CHECK(frames >= 1 && count >= 1);
-  count = std::min(count, frames);
-  const int first = std::clamp(frame - (count - 1) / 2, 0, frames - count);
-  std::vector<int> out(static_cast<size_t>(count));
-  std::iota(out.begin(), out.end(), first);
-  return out;
-}
 
 std::vector<float> render_value_map(const FrameGaussians& frame, const Camera& camera, const float* values, int threads) {
   RenderOptions ro;
@@ -170,13 +132,13 @@ std::vector<ObservedView> observed_views(const std::vector<Camera>& cameras, int
   std::vector<ObservedView> out;
   for (const Camera& c : cameras) {
     if (c.has_time()) {
-      ObservedView v{c, int(std::lround(std::clamp(c.time, 0.0, 1.0) * (frames - 1))), 0};
-      v.camera.time = frame_time(v.frame, frames);
+      ObservedView v{c, FrameGrid(frames).nearest(c.time), 0};
+      v.camera.time = FrameGrid(frames).time(v.frame);
       out.push_back(v);
     } else {
       for (int f = 0; f < frames; ++f) {
         ObservedView v{c, f, 0};
-        v.camera.time = frame_time(f, frames);
+        v.camera.time = FrameGrid(frames).time(f);
         out.push_back(v);
       }
     }
@@ -213,21 +175,6 @@ std::vector<Camera> Trajectory::views() const {
 }
 
 // ------------------------------------------------------------------ deficiency field
-
-const char* to_string(Covisibility c) {
-  switch (c) {
-    case Covisibility::Paper: return "paper";
-    case Covisibility::StaticCount: return "static-count";
-    case Covisibility::Density: return "density";
-  }
-  return "?";
-}
-
-Covisibility parse_covisibility(const std::string& name) {
-  for (Covisibility c : {Covisibility::Paper, Covisibility::StaticCount, Covisibility::Density})
-    if (name == to_string(c)) return c;
-  throw_error("unknown co-visibility rule \"", name, "\" (paper, static-count, density)");
-}
 
 
 DeficiencyField::DeficiencyField(ObservationTables tables, float quantile) : tables_(std::move(tables)) {
@@ -317,11 +264,11 @@ PriorityScores exploration_priority(const SelectInput& in, const SelectOptions& 
     if (v.frame != current) {
       current = v.frame;
       // Time perturbation ±1 frame; at the ends the window moves inward (same span, 2 frames).
-      const std::vector<int> window = consecutive_frames(v.frame, 3, F);
+      const std::vector<int> window = FrameGrid(F).consecutive(v.frame, 3);
       const int lo = window.front(), hi = window.back();
-      ft = &at_t.evaluate(frame_time(v.frame, F));
-      fm = &at_minus.evaluate(frame_time(lo, F));
-      fp = &at_plus.evaluate(frame_time(hi, F));
+      ft = &at_t.evaluate(FrameGrid(F).time(v.frame));
+      fm = &at_minus.evaluate(FrameGrid(F).time(lo));
+      fp = &at_plus.evaluate(FrameGrid(F).time(hi));
     }
     // L at full resolution: a reduced render differs from a reduced image on fine texture
     // (aliasing), which would rank texture, not error.
@@ -441,8 +388,8 @@ class Scorer {
   VisibilityEngine& engine() { return engine_; }
 
  private:
-  double time_of(int f) const { return frame_time(f, in_.frames); }
-  int frame_of(double t) const { return int(std::lround(std::clamp(t, 0.0, 1.0) * (in_.frames - 1))); }
+  double time_of(int f) const { return FrameGrid(in_.frames).time(f); }
+  int frame_of(double t) const { return FrameGrid(in_.frames).nearest(t); }
 
   // ---- fisherrf: Σ_pixels (∂Î/∂θ)² at the selection's render scale
   FisherDiagonal fisher(const Camera& cam, int frame) {
@@ -541,7 +488,7 @@ class Selector {
     auto t0 = Clock::now();
     ObservationOptions oo;
     oo.visibility = o_.visibility;
-    ObservationTables tables = observation_tables(*in_.scene, cameras_, frame_times(F), F > 1 ? 1.0 / (F - 1) : 1.0, oo, nullptr, progress_);
+    ObservationTables tables = observation_tables(*in_.scene, cameras_, FrameGrid(F).times(), FrameGrid(F).step(), oo, nullptr, progress_);
     result_.initial_tables = tables;
     DeficiencyField field(std::move(tables), o_.deficiency_quantile);
     result_.deficiency_scale = field.scale();
@@ -597,7 +544,7 @@ class Selector {
         break;
       }
       tr.index = k;
-      tr.patch_frames = consecutive_frames(tr.frame, o_.patch_frames, F);
+      tr.patch_frames = FrameGrid(F).consecutive(tr.frame, o_.patch_frames);
       for (int f : tr.patch_frames) tr.patch_times.push_back(time_of(f));
       t0 = Clock::now();
       scorer.add(tr);
@@ -610,7 +557,7 @@ class Selector {
   }
 
  private:
-  double time_of(int f) const { return frame_time(f, in_.frames); }
+  double time_of(int f) const { return FrameGrid(in_.frames).time(f); }
 
   /// Whether a trajectory of this call grew from a starting view of the same pose fewer
   /// than patch_frames frames from `view` (SelectOptions::spread_starts). The starting view,

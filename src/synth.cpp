@@ -1,3 +1,4 @@
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/synth.hpp"
 #include "fillgs/train.hpp"
 
@@ -324,7 +325,7 @@ void assemble(SynthScene& out, const Builder& stat, const std::vector<Part>& par
   KeyframedMotion& k = c.keyframed;
   std::vector<Pose> world(parts.size());
   for (int f = 0; f < F; ++f) {
-    const double t = double(f) / (F - 1);
+    const double t = FrameGrid(F).time(f);
     size_t j = 0;
     for (size_t pi = 0; pi < parts.size(); ++pi) {
       const Part& p = parts[pi];
@@ -373,20 +374,18 @@ void ring_scene(SynthScene& out, const SynthOptions& o, const std::string& varia
   parts[0].local = [path, a, b](double t) { return path(smoothstep01((t - a) / (b - a))); };
   assemble(out, stat, parts, o.frames);
 
-  const Vec3d target(0, 0, 0.6), up(0, 0, 1);
+  Camera lens;
+  lens.set_fov_x(o.fov_x_degrees * kPi / 180.0, o.width, o.height);
   auto ring = [&](int n, double phase, double radius, double height, const char* prefix) {
-    std::vector<Camera> cams;
-    for (int i = 0; i < n; ++i) {
-      const double ang = phase + 2 * kPi * i / n;
-      Camera cam;
-      char name[32];
-      std::snprintf(name, sizeof name, "%s%02d", prefix, i);
-      cam.name = name;
-      cam.set_fov_x(o.fov_x_degrees * kPi / 180.0, o.width, o.height);
-      cam.look_at(Vec3d(radius * std::cos(ang), radius * std::sin(ang), height), target, up);
-      cams.push_back(cam);
-    }
-    return cams;
+    RingPlacement r;
+    r.count = n;
+    r.radius = radius;
+    r.elevation = height;
+    r.phase = phase;
+    r.target = Vec3d(0, 0, 0.6);
+    r.prefix = prefix;
+    r.digits = 2;
+    return camera_ring(r, lens);
   };
   out.train = ring(o.train_cameras, kPi / 2, o.camera_radius, o.camera_height, "cam");
   out.interpolation = ring(o.train_cameras, kPi / 2 + kPi / o.train_cameras, o.camera_radius, o.camera_height, "interp");
@@ -476,7 +475,7 @@ std::vector<Camera> cameras_over_time(const std::vector<Camera>& rig, int frames
       std::snprintf(fr, sizeof fr, "%04d", f);
       x.name = c.name + "/" + fr;
       x.image_path = "images/" + c.name + "/" + fr + ".png";
-      x.time = frames > 1 ? double(f) / (frames - 1) : 0.0;
+      x.time = FrameGrid(frames).time(f);
       out.push_back(x);
     }
   return out;
@@ -506,7 +505,7 @@ void write_split_picture(const SynthScene& s, const std::string& path, const std
   const int F = s.options.frames;
   FrameEvaluator ev(s.scene);
   for (int f = 0; f < F; f += std::max(1, F / 10)) {
-    const FrameGaussians& g = ev.evaluate(double(f) / (F - 1));
+    const FrameGaussians& g = ev.evaluate(FrameGrid(F).time(f));
     for (size_t k = 0; k < s.moving_ids.size(); k += 5) moving.push_back(g.means[s.moving_ids[k]]);
   }
   for (const Camera& v : virtual_views) cams.push_back(v), roles.push_back(4);
@@ -544,7 +543,7 @@ void write_synthetic_scene(const SynthScene& s, const std::string& dir, Progress
   ro.threads = threads;
   const std::vector<Camera> shots = cameras_over_time(unique, F);
   for (int f = 0; f < F; ++f) {
-    const FrameGaussians& g = ev.evaluate(double(f) / (F - 1));
+    const FrameGaussians& g = ev.evaluate(FrameGrid(F).time(f));
     for (size_t c = 0; c < unique.size(); ++c) {
       const Camera& cam = shots[c * size_t(F) + size_t(f)];
       Image img(cam.width, cam.height, 3);

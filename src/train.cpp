@@ -1,3 +1,4 @@
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/train.hpp"
 #include "fillgs/json_file.hpp"
 
@@ -174,7 +175,7 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
         for (int f = 0; f < frames; ++f) {
           TrainView v;
           v.camera = *cam;
-          v.camera.time = frames > 1 ? double(f) / (frames - 1) : 0.0;
+          v.camera.time = FrameGrid(frames).time(f);
           char name[24];
           std::snprintf(name, sizeof name, "%06d", f);
           v.camera.name = rig + "/" + name;
@@ -207,7 +208,7 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
       for (int f = 0; f < frames; ++f) {
         TrainView v;
         v.camera = *cam;
-        v.camera.time = frames > 1 ? double(f) / (frames - 1) : 0.0;
+        v.camera.time = FrameGrid(frames).time(f);
         v.camera.name = rig + "/" + fs::path(files[size_t(f)]).stem().string();
         v.rig = rig;
         v.frame = v.source_frame = f;
@@ -292,7 +293,7 @@ void Dataset::keep_frames(const FrameRange& range, std::vector<std::string>* per
   std::vector<std::string> kept_side;
   for (size_t i = 0; i < views_.size(); ++i) {
     TrainView v = views_[i];
-    const int j = renumber[size_t(std::clamp(v.frame, 0, F - 1))];
+    const int j = renumber[size_t(FrameGrid(F).clamp(v.frame))];
     if (j < 0) continue;
     v.frame = j;
     v.camera.time = n > 1 ? double(j) / double(n - 1) : 0.0;
@@ -551,14 +552,6 @@ PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction
 // ---------------------------------------------------------------------------------
 // Options
 
-const char* to_string(MotionLearning m) { return m == MotionLearning::All ? "all" : "promote"; }
-
-MotionLearning motion_learning_from_string(const std::string& name) {
-  if (name == "all") return MotionLearning::All;
-  if (name == "promote") return MotionLearning::Promote;
-  throw_error("unknown motion learning '", name, "' (all, promote)");
-}
-
 TrainOptions TrainOptions::scaled(int iterations) {
   TrainOptions o;
   const double f = iterations / 30000.0;
@@ -605,7 +598,7 @@ Trainer::Trainer(const Dataset& data, ModelParams<float> initial, const TrainOpt
   std::stable_sort(views_by_frame_.begin(), views_by_frame_.end(),
                    [&](size_t a, size_t b) { return data.views()[a].frame < data.views()[b].frame; });
   frame_begin_.assign(size_t(F) + 1, 0);
-  for (const TrainView& v : data.views()) frame_begin_[size_t(std::clamp(v.frame, 0, F - 1)) + 1] += 1;
+  for (const TrainView& v : data.views()) frame_begin_[size_t(FrameGrid(F).clamp(v.frame)) + 1] += 1;
   for (int f = 0; f < F; ++f) frame_begin_[size_t(f) + 1] += frame_begin_[size_t(f)];
   adam_m_ = params_.zeros_like();
   adam_v_ = params_.zeros_like();
@@ -620,7 +613,7 @@ void Trainer::find_fixed_rigs() {
   for (size_t v = 0; v < data_->views().size(); ++v) {
     std::vector<long>& r = by_rig[data_->views()[v].rig];
     r.resize(size_t(F), -1);
-    r[size_t(std::clamp(data_->views()[v].frame, 0, F - 1))] = long(v);
+    r[size_t(FrameGrid(F).clamp(data_->views()[v].frame))] = long(v);
   }
   fixed_rigs_.clear();
   for (const auto& [rig, frames] : by_rig) {
@@ -717,7 +710,7 @@ int Trainer::window_last_frame(int iteration) const {
 int Trainer::key_interval_of_frame(int frame) const {
   const int K = params_.key_count, F = data_->frames();
   if (K < 2 || F < 2) return 0;
-  const double t = double(frame) / (F - 1);
+  const double t = FrameGrid(F).time(frame);
   return std::clamp(int(std::floor((t - params_.first_key_time) / params_.key_spacing + 1e-9)), 0, K - 2);
 }
 
@@ -793,7 +786,7 @@ void Trainer::step() {
   const int B = std::max(1, options_.time_bins);
   // Time bins over the trained window (the whole video once the ramp is over).
   const int F = std::max(2, data_->frames());
-  const double window_end = std::max(1, window_last_frame(iteration_)) / double(F - 1);
+  const double window_end = FrameGrid(F).time(std::max(1, window_last_frame(iteration_)));
   const int bin = std::clamp(int(view.camera.time / window_end * B), 0, B - 1);
   std::vector<uint8_t> moving(params_.size(), 0);
   for (uint32_t g : params_.dynamic_ids) moving[g] = 1;
@@ -883,7 +876,7 @@ void Trainer::place_keys_by_flow(int f0) {
   const int last = frame_end[targets - 1];
   if (last <= f0) return;
   DiffFrame<float> frame;
-  evaluate_params(params_, double(f0) / (F - 1), &frame);
+  evaluate_params(params_, FrameGrid(F).time(f0), &frame);
   const size_t N = frame.size();
   std::vector<Mat3d> A(D * 2, Mat3d::Zero());
   std::vector<Vec3d> b(D * 2, Vec3d::Zero());

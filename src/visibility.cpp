@@ -19,22 +19,6 @@
 
 namespace fillgs {
 
-const char* to_string(VisibilityMode mode) {
-  switch (mode) {
-    case VisibilityMode::Frustum: return "frustum";
-    case VisibilityMode::Raytraced: return "raytraced";
-    case VisibilityMode::Exact: return "exact";
-  }
-  return "?";
-}
-
-VisibilityMode parse_visibility_mode(const std::string& name) {
-  if (name == "frustum") return VisibilityMode::Frustum;
-  if (name == "raytraced") return VisibilityMode::Raytraced;
-  if (name == "exact") return VisibilityMode::Exact;
-  throw_error("unknown visibility mode '", name, "' (expected frustum, raytraced or exact)");
-}
-
 double ViewMaps::score() const {
   if (deficiency.empty()) return 0.0;
   double s = 0;
@@ -47,18 +31,6 @@ std::vector<size_t> shard_frames(size_t total, size_t index, size_t count) {
   std::vector<size_t> out;
   for (size_t f = total * index / count; f < total * (index + 1) / count; ++f) out.push_back(f);
   return out;
-}
-
-int nearest_frame(double t, int frames) {
-  if (frames <= 1 || std::isnan(t)) return 0;
-  return int(std::lround(std::clamp(t, 0.0, 1.0) * (frames - 1)));
-}
-
-std::vector<double> frame_times(int frames) {
-  FILLGS_CHECK(frames >= 1);
-  std::vector<double> t(size_t(frames), 0.0);
-  for (int f = 0; f < frames && frames > 1; ++f) t[size_t(f)] = double(f) / double(frames - 1);
-  return t;
 }
 
 namespace {

@@ -1,3 +1,4 @@
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/weights.hpp"
 
 #include <algorithm>
@@ -12,18 +13,6 @@
 namespace fillgs {
 
 namespace {
-
-struct WeightingName {
-  Weighting w;
-  const char* name;
-};
-constexpr WeightingName kWeightings[] = {{Weighting::FillGS, "fillgs"},
-                                         {Weighting::None, "none"},
-                                         {Weighting::NoConsistency, "no-consistency"},
-                                         {Weighting::NoCovisibility, "no-covisibility"},
-                                         {Weighting::Enhancer3DGS, "3dgs-enhancer"},
-                                         {Weighting::ExploreGS, "exploregs"},
-                                         {Weighting::UA4DGS, "ua-4dgs"}};
 
 /// Gaussians whose maximum blending weight in a view reaches 1/255 (the rasterizer's own
 /// notion of "contributes"), as a 0/1 vector, and the per-Gaussian maximum weights.
@@ -63,21 +52,6 @@ const std::vector<float>& observed_depth(const WeightContext& ctx, const FrameGa
 std::vector<float> ones(const Camera& c) { return std::vector<float>(size_t(c.width) * size_t(c.height), 1.0f); }
 
 }  // namespace
-
-const char* to_string(Weighting w) {
-  for (const WeightingName& n : kWeightings)
-    if (n.w == w) return n.name;
-  return "?";
-}
-
-Weighting parse_weighting(const std::string& name) {
-  std::string all;
-  for (const WeightingName& n : kWeightings) {
-    if (name == n.name) return n.w;
-    all += std::string(all.empty() ? "" : ", ") + n.name;
-  }
-  throw_error("unknown weighting \"", name, "\" (one of ", all, ")");
-}
 
 std::vector<float> expected_depth(const FrameGaussians& frame, const Camera& camera, double min_alpha, int threads) {
   RenderOptions ro;
@@ -136,12 +110,6 @@ std::vector<float> consistency_with(const Image& refined, const Camera& cam, con
       conf[size_t(y) * W + x] = float(std::exp(-m / s2));
     }
   return conf;
-}
-
-MaskMethod parse_mask_method(const std::string& name) {
-  if (name == "depth-warp") return MaskMethod::DepthWarp;
-  if (name == "sweep") return MaskMethod::Sweep;
-  throw_error("unknown mask method \"", name, "\" (depth-warp, sweep)");
 }
 
 std::vector<float> sweep_consistency(const Image& refined, const Camera& cam, const Image& observed, const Camera& ocam, double near, double far,
@@ -231,7 +199,7 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
   if (!ctx.model) throw_error("weights: no model");
   ViewWeights w;
   const size_t P = size_t(camera.width) * size_t(camera.height);
-  const int f = nearest_frame(camera.time, ctx.frames);
+  const int f = FrameGrid(std::max(1, ctx.frames)).nearest(camera.time);
   const FrameGaussians frame = evaluate(*ctx.model, camera.time);
   const std::vector<int> adj = adjacent_observed(ctx.views, camera, f);
   for (size_t k = 0; k < adj.size() && k < 2; ++k) w.adjacent[k] = adj[k];

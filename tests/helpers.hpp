@@ -9,15 +9,16 @@
 #include <string>
 
 #include "fillgs/camera.hpp"
+#include "fillgs/fs_util.hpp"
 #include "fillgs/gaussians.hpp"
 #include "fillgs/sh.hpp"
 #include "fillgs/synth.hpp"
 
 namespace fillgs::test {
 
-/// ../shared/data (or $FILLGS_SHARED_DATA). Tests that need it fail loudly when it is missing.
+/// shared_data_dir() (fs_util.hpp), which tests that need it require to exist.
 inline std::string shared_data() {
-  std::string dir = std::getenv("FILLGS_SHARED_DATA") ? std::getenv("FILLGS_SHARED_DATA") : FILLGS_DEFAULT_SHARED_DATA;
+  const std::string dir = shared_data_dir();
   INFO("shared data folder: " << dir << " (set FILLGS_SHARED_DATA)");
   REQUIRE(std::filesystem::is_directory(dir));
   return dir;

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "fillgs/camera.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/image_io.hpp"
@@ -200,7 +201,7 @@ TEST_CASE("fillgs observe writes [T, N] tables that numpy reads, summary.json an
   ObservationOptions o;
   o.visibility.mode = VisibilityMode::Raytraced;
   o.visibility.stride = 4;
-  const ObservationTables t = observation_tables(s.scene, cameras_over_time(s.train, F), frame_times(F), 1.0 / 3, o);
+  const ObservationTables t = observation_tables(s.scene, cameras_over_time(s.train, F), FrameGrid(F).times(), 1.0 / 3, o);
   const auto c = count.to_doubles("count"), d = deficiency.to_doubles("deficiency"), sp = speed.to_doubles("speed");
   size_t same = 0;
   for (size_t k = 0; k < c.size(); ++k) same += c[k] == t.counts[k];
@@ -244,11 +245,30 @@ TEST_CASE("fillgs observe writes [T, N] tables that numpy reads, summary.json an
     expect_one_line_error(run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/bad",
                                    "--mode", "raytraced", "--hit-cache", "-5"}),
                           {"--hit-cache", "-5"});
-    std::ofstream(dir + "/static.ply") << kHeader << "0 0 0 1 0 0 2 -1 -1 -1 1 0 0 0\n0.3 0.2 0.1 0 1 0 1 -2 -2 -2 1 0 0 0\n";
-    write_transforms_json(dir + "/rig.json", s.train);  // no times, static scene: the frame count is unknown
-    expect_one_line_error(run_cli({"observe", "--scene", dir + "/static.ply", "--cameras", dir + "/rig.json", "--out", dir + "/bad"}),
-                          {"--frames"});
     CHECK_FALSE(fs::exists(dir + "/bad"));
+  }
+  SECTION("a static scene with untimed cameras has one time: tables [1, N], no flags needed") {
+    std::ofstream(dir + "/static.ply") << kHeader << "0 0 0 1 0 0 2 -1 -1 -1 1 0 0 0\n0.3 0.2 0.1 0 1 0 1 -2 -2 -2 1 0 0 0\n";
+    write_transforms_json(dir + "/rig.json", s.train);  // no times: a rig
+    const Result st = run_cli({"observe", "--scene", dir + "/static.ply", "--cameras", dir + "/rig.json", "--out", dir + "/static", "--quiet"});
+    INFO(st.err);
+    REQUIRE(st.code == 0);
+    CHECK(read_npy(dir + "/static/times.npy").to_doubles("times") == std::vector<double>{0.0});
+    const NpyArray sc = read_npy(dir + "/static/count.npy");
+    CHECK(sc.shape == std::vector<size_t>{1, 2});
+    // Frustum counts by hand: cameras in front of the centre whose image holds its projection.
+    const GaussianCloud g = read_scene(dir + "/static.ply");
+    const auto counts = sc.to_doubles("count");
+    for (size_t k = 0; k < 2; ++k) {
+      int seen = 0;
+      for (const Camera& c : s.train) {
+        const Vec3d x = c.R * g.means[k].cast<double>() + c.t;
+        const double u = c.fx * x.x() / x.z() + c.cx, v = c.fy * x.y() / x.z() + c.cy;
+        seen += x.z() > 0 && u >= 0 && u < c.width && v >= 0 && v < c.height;
+      }
+      CHECK(counts[k] == seen);
+    }
+    CHECK(counts[0] > 0);
   }
 }
 
@@ -362,4 +382,159 @@ TEST_CASE("fillgs observe --shard i/n, then --merge: the single process's tables
                             {"--shard"});
     CHECK_FALSE(fs::exists(dir + "/bad"));
   }
+}
+
+// ---------------------------------------------------------------------------------
+// Every command's --help lists exactly what it accepts: each listed flag is fed to the
+// command (with a value of the kind the help names) and accepted; every command takes
+// --threads and --quiet; a bad number names the flag and the value.
+
+namespace {
+
+struct ListedFlag {
+  std::vector<std::string> names;  ///< "--scenes", "--variants"
+  std::string type;                ///< "" for a flag without a value; "N", "PATH", "a|b", ...
+  std::string value;               ///< the default the help shows, if any
+  bool required = false;
+  bool positional = false;
+};
+
+/// The flags a command's help lists: lines "  --name[,--alias] [TYPE][=default] [(required)]  help".
+std::vector<ListedFlag> listed_flags(const std::string& help) {
+  std::vector<ListedFlag> flags;
+  std::istringstream in(help);
+  std::string line;
+  bool positionals = false;
+  while (std::getline(in, line)) {
+    if (line.rfind("Positionals:", 0) == 0) positionals = true;
+    else if (!line.empty() && line[0] != ' ') positionals = false;
+    if (line.rfind("  ", 0) != 0 || line.size() < 3 || line[2] == ' ') continue;
+    std::istringstream words(line.substr(2));
+    std::string spec;
+    words >> spec;
+    ListedFlag f;
+    f.positional = positionals;
+    if (spec.rfind("-h,", 0) == 0) continue;  // --help
+    std::stringstream names(spec);
+    for (std::string n; std::getline(names, n, ',');) f.names.push_back(n);
+    // The type follows the names after a single space; the help text after several.
+    const size_t after = 2 + spec.size();
+    if (after + 1 < line.size() && line[after] == ' ' && line[after + 1] != ' ') {
+      words >> f.type;
+      if (f.type.find('=') != std::string::npos) {
+        f.value = f.type.substr(f.type.find('=') + 1);
+        f.type = f.type.substr(0, f.type.find('='));
+      }
+    }
+    f.required = line.find("(required)") != std::string::npos;
+    if (f.positional || f.names[0].rfind("--", 0) == 0) flags.push_back(f);
+  }
+  return flags;
+}
+
+/// A good value for a flag: its default, else one of the kind its type names.
+std::string value_for(const ListedFlag& f) {
+  const std::string& type = f.type;
+  if (type.empty()) return "";
+  if (!f.value.empty()) return f.value;
+  if (type == "N" || type == "MB" || type == "GB") return "1";
+  if (type == "X") return "0.5";
+  if (type == "R,G,B") return "0,0,0";
+  if (type == "I/N") return "1/1";
+  if (type == "A:B:S") return "0:";
+  if (type == "T1,T2,..") return "0.5";
+  if (type.find('|') != std::string::npos) return type.substr(0, type.find('|'));
+  return "p";  // PATH, DIR, NAME, A,B,.., ...
+}
+
+}  // namespace
+
+TEST_CASE("every command's help lists exactly the flags it accepts, each with its kind of value", "[cli][help]") {
+  const Result overview = run_cli({"help"});
+  REQUIRE(overview.code == 0);
+  std::vector<std::string> commands;
+  {
+    std::istringstream in(overview.out.substr(overview.out.find("commands:")));
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line) && line.rfind("  ", 0) == 0) commands.push_back(line.substr(2, line.find(' ', 2) - 2));
+  }
+  CHECK(commands.size() == 13);
+  for (const std::string& command : commands) {
+    INFO("fillgs " << command);
+    const Result h = run_cli({command, "--help"});
+    REQUIRE(h.code == 0);
+    CHECK(h.out.find("Usage: fillgs " + command) != std::string::npos);
+    CHECK(run_cli({"help", command}).out == h.out);
+    const std::vector<ListedFlag> flags = listed_flags(h.out);
+    auto listed = [&](const std::string& name) {
+      return std::any_of(flags.begin(), flags.end(), [&](const ListedFlag& f) { return std::count(f.names.begin(), f.names.end(), name) > 0; });
+    };
+    CHECK(listed("--threads"));
+    CHECK(listed("--quiet"));
+    CHECK(listed("--kernel"));
+    // The required flags, with stand-in values: the flag under test is then followed by an
+    // unknown one, which must be what the command complains about (so the flag and its
+    // value were taken, and nothing runs).
+    std::vector<std::string> base = {command};
+    for (const ListedFlag& f : flags)
+      if (f.required) {
+        if (!f.positional) base.push_back(f.names[0]);
+        base.push_back(value_for(f));
+      }
+    size_t fed = 0;
+    for (const ListedFlag& f : flags) {
+      if (f.positional) continue;
+      for (const std::string& name : f.names) {
+        INFO(name << " " << value_for(f));
+        std::vector<std::string> args = base;
+        args.push_back(name);
+        if (!f.type.empty()) args.push_back(value_for(f));
+        args.push_back("--not-a-flag");
+        const Result r = run_cli(args);
+        CHECK(r.code == 1);
+        CHECK(r.err == "error: fillgs " + command + ": unknown option --not-a-flag (see 'fillgs " + command + " --help')\n");
+        ++fed;
+        if (f.type == "N" || f.type == "X") {
+          // A bad number: one line naming the flag and the value.
+          std::vector<std::string> bad = base;
+          bad.insert(bad.end(), {name, "1x"});
+          const Result b = run_cli(bad);
+          CHECK(b.code == 1);
+          CHECK(std::count(b.err.begin(), b.err.end(), '\n') == 1);
+          CHECK(b.err.find(name) != std::string::npos);
+          CHECK(b.err.find("'1x'") != std::string::npos);
+        }
+      }
+    }
+    CHECK(fed >= 4);
+    // And a flag the help does not list is refused.
+    const Result u = run_cli({command, "--bogus-flag"});
+    CHECK(u.err.find("unknown option --bogus-flag") != std::string::npos);
+  }
+}
+
+TEST_CASE("enum names: every name parses to its value and back, aliases parse, an unknown name gets the list", "[cli]") {
+  auto round_trip = [](auto tag) {
+    using E = decltype(tag);
+    const std::vector<std::string> names = names_of<E>();
+    CHECK(names.size() >= 2);
+    for (const std::string& n : names) CHECK(to_string(parse_name<E>(n)) == n);
+    try {
+      parse_name<E>("no-such-name");
+      FAIL("parsed an unknown name");
+    } catch (const Error& e) {
+      const std::string m = e.what();
+      CHECK(m.find("'no-such-name'") != std::string::npos);
+      for (const std::string& n : names) CHECK(m.find(n) != std::string::npos);
+    }
+  };
+  round_trip(VisibilityMode{});
+  round_trip(SceneFormat{});
+  round_trip(CameraFormat{});
+  round_trip(Kernel{});
+  CHECK(parse_name<CameraFormat>("nerf") == CameraFormat::Transforms);  // aliases parse, never print
+  CHECK(parse_name<SceneFormat>("spacetime") == SceneFormat::Spacetime);
+  CHECK(std::string(to_string(SceneFormat::Spacetime)) == "stg");
+  CHECK(names_of<CameraFormat>().size() == 7);
 }

@@ -19,15 +19,10 @@ namespace {
 
 /// 8 cameras on a circle of radius 4 in the z = 0 plane, looking at the origin, z up.
 std::vector<Camera> ring(int n = 8, double radius = 4.0) {
-  std::vector<Camera> cams;
-  for (int i = 0; i < n; ++i) {
-    Camera c = axis_camera(64, 48, 40);
-    const double a = 2 * kPi * i / n;
-    c.look_at(Vec3d(radius * std::cos(a), radius * std::sin(a), 0.0), Vec3d::Zero(), Vec3d::UnitZ());
-    c.name = "cam" + std::to_string(i);
-    cams.push_back(c);
-  }
-  return cams;
+  RingPlacement r;
+  r.count = n;
+  r.radius = radius;
+  return camera_ring(r, axis_camera(64, 48, 40));
 }
 
 /// ring() plus a camera at (4, 0, 3) looking away from the scene: the box stretches upwards,

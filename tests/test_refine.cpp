@@ -11,6 +11,7 @@
 #include <numeric>
 #include <sstream>
 
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/evaluate.hpp"
@@ -44,7 +45,7 @@ Trajectory between(const std::vector<ObservedView>& views, const SynthScene& s, 
   tr.start_view = start_view;
   tr.frame = frame;
   for (int j = 1; j <= 3; ++j) tr.poses.push_back(interpolate_camera(s.train[size_t(a)], s.train[size_t(b)], 0.25 * j));
-  tr.patch_frames = consecutive_frames(frame, 3, s.options.frames);
+  tr.patch_frames = FrameGrid(s.options.frames).consecutive(frame, 3);
   for (int f : tr.patch_frames) tr.patch_times.push_back(double(f) / (s.options.frames - 1));
   for (Camera& c : tr.poses) c.time = views[size_t(start_view)].camera.time;
   return tr;
@@ -382,7 +383,7 @@ TEST_CASE("weights: co-visibility is D-hat (1 on an unseen moving Gaussian, 0 on
   view.name = "virtual";
   view.time = 0.5;
   const std::vector<ObservedView> views = observed_views({away}, F);
-  const ObservationTables tables = observation_tables(c, cameras_over_time({away}, F), frame_times(F), 1.0 / (F - 1), ObservationOptions());
+  const ObservationTables tables = observation_tables(c, cameras_over_time({away}, F), FrameGrid(F).times(), 1.0 / (F - 1), ObservationOptions());
   const DeficiencyField field(tables, 0.99f);
   WeightContext ctx;
   ctx.model = &c;
@@ -435,7 +436,7 @@ TEST_CASE("weights: co-visibility is D-hat (1 on an unseen moving Gaussian, 0 on
   CHECK(ex.image_weight == Approx(1.0));
   CHECK(ex.weight[moving_px] == Approx(1.0).margin(1e-3));
   CHECK(compute_weights(ctx, refined, view, Weighting::None, MaskOptions()).weight == std::vector<float>(64 * 48, 1.0f));
-  CHECK_THROWS_WITH(parse_weighting("roma"), Catch::Contains("unknown weighting \"roma\""));
+  CHECK_THROWS_WITH(parse_name<Weighting>("roma"), Catch::Contains("unknown weighting 'roma'"));
 }
 
 TEST_CASE("sweep mask: a model without the chair hides it from the depth warp, not from the sweep", "[refine][weights]") {
@@ -470,8 +471,8 @@ TEST_CASE("sweep mask: a model without the chair hides it from the depth warp, n
   INFO("mean confidence on the chair: depth warp " << ma << ", sweep " << mb);
   CHECK(mb > ma + 0.2);
   CHECK(mb > 0.5);  // measured 0.63 (depth warp 0.17)
-  CHECK(parse_mask_method("sweep") == MaskMethod::Sweep);
-  CHECK_THROWS_WITH(parse_mask_method("roma"), Catch::Contains("unknown mask method \"roma\""));
+  CHECK(parse_name<MaskMethod>("sweep") == MaskMethod::Sweep);
+  CHECK_THROWS_WITH(parse_name<MaskMethod>("roma"), Catch::Contains("unknown mask method 'roma'"));
 }
 
 TEST_CASE("weighted fine-tuning keeps the training views, unweighted fine-tuning on the same artifacts loses more", "[refine][finetune]") {
@@ -650,7 +651,7 @@ TEST_CASE("cli: finetune with the example refiner, eval, and bad input", "[refin
     a.insert(a.end(), extra.begin(), extra.end());
     return a;
   };
-  fails(with({"--weighting", "roma"}), "unknown weighting \"roma\"");
+  fails(with({"--weighting", "roma"}), "unknown weighting 'roma'");
   fails(with({"--refiner", "diffusion"}), "unknown --refiner \"diffusion\"");
   fails(with({"--refiner", "external", "--refiner-command", "denoise"}), "must contain {in} and {out}");
   fails(with({"--refiner", "oracle"}), "missing --truth");

@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/camera.hpp"
@@ -139,16 +140,16 @@ TEST_CASE("priority: the time-subsampling knob evaluates every k-th frame only",
 }
 
 TEST_CASE("patch frames and the time window stay inside the frame range at t = 0 and t = 1", "[select][extremes]") {
-  CHECK(consecutive_frames(0, 3, 30) == std::vector<int>{0, 1, 2});
-  CHECK(consecutive_frames(29, 3, 30) == std::vector<int>{27, 28, 29});
-  CHECK(consecutive_frames(5, 3, 30) == std::vector<int>{4, 5, 6});
-  CHECK(consecutive_frames(5, 4, 30) == std::vector<int>{4, 5, 6, 7});
-  CHECK(consecutive_frames(1, 3, 2) == std::vector<int>{0, 1});
-  CHECK(consecutive_frames(0, 3, 1) == std::vector<int>{0});
+  CHECK(FrameGrid(30).consecutive(0, 3) == std::vector<int>{0, 1, 2});
+  CHECK(FrameGrid(30).consecutive(29, 3) == std::vector<int>{27, 28, 29});
+  CHECK(FrameGrid(30).consecutive(5, 3) == std::vector<int>{4, 5, 6});
+  CHECK(FrameGrid(30).consecutive(5, 4) == std::vector<int>{4, 5, 6, 7});
+  CHECK(FrameGrid(2).consecutive(1, 3) == std::vector<int>{0, 1});
+  CHECK(FrameGrid(1).consecutive(0, 3) == std::vector<int>{0});
   // Trajectories chosen at the first and last frames (a rig: every frame a start).
   const Fixture& fx = fixture();
   for (const Trajectory& t : select_viewpoints(fx.input(), small_options(Strategy::Interpolation, 12)).trajectories) {
-    CHECK(t.patch_frames == consecutive_frames(t.frame, 3, kFrames));
+    CHECK(t.patch_frames == FrameGrid(kFrames).consecutive(t.frame, 3));
     for (size_t i = 0; i < t.patch_frames.size(); ++i) CHECK(t.patch_times[i] == double(t.patch_frames[i]) / (kFrames - 1));
   }
 }
@@ -536,6 +537,6 @@ TEST_CASE("co-visibility rules: paper D-hat, static count, motion-discounted den
   field.observe(0, {0, 2});
   CHECK(near(field.covisibility(0, Covisibility::Density), V{0.25f, 1.0f, 0.3f, 1.0f}));
   CHECK(near(field.covisibility(0, Covisibility::Paper), V{0.0f, 1.0f, 0.2f, 1.0f}));
-  for (const char* name : {"paper", "static-count", "density"}) CHECK(to_string(parse_covisibility(name)) == std::string(name));
-  CHECK_THROWS(parse_covisibility("zero"));
+  for (const char* name : {"paper", "static-count", "density"}) CHECK(to_string(parse_name<Covisibility>(name)) == std::string(name));
+  CHECK_THROWS(parse_name<Covisibility>("zero"));
 }

@@ -28,10 +28,16 @@ Camera orbit_camera(const GaussianCloud& c, double angle, int w, int h) {
   Vec3d centre = Vec3d::Zero();
   for (const Vec3f& p : c.means) centre += p.cast<double>();
   centre /= double(c.size());
-  Camera cam;
-  cam.set_fov_x(1.0, w, h);
-  cam.look_at(centre + Vec3d(4 * std::cos(angle), -0.8, 4 * std::sin(angle)), centre, Vec3d(0, -1, 0));
-  return cam;
+  RingPlacement r;
+  r.count = 1;
+  r.centre = centre;
+  r.radius = 4;
+  r.elevation = 0.8;
+  r.up = Vec3d(0, -1, 0);
+  r.phase = angle;
+  Camera lens;
+  lens.set_fov_x(1.0, w, h);
+  return camera_ring(r, lens)[0];
 }
 
 double max_abs_diff(const std::vector<float>& a, const std::vector<float>& b) {

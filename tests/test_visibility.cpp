@@ -80,16 +80,16 @@ bool reference_3dgs_visible(const Vec3f& mean, const Vec3f& scale, const Vec4f& 
 std::vector<Camera> orbit(const std::pair<Vec3f, Vec3f>& box, int count, int w, int h) {
   const Vec3d centre = ((box.first + box.second) * 0.5f).cast<double>();
   const double radius = 0.9 * (box.second - box.first).cast<double>().norm();
-  std::vector<Camera> cams;
-  for (int i = 0; i < count; ++i) {
-    const double a = 2 * kPi * i / count;
-    Camera c;
-    c.set_fov_x(60.0 * kPi / 180.0, w, h);
-    c.look_at(centre + Vec3d(radius * std::cos(a), 0.3 * radius, radius * std::sin(a)), centre, Vec3d(0, -1, 0));
-    c.name = "orbit" + std::to_string(i);
-    cams.push_back(c);
-  }
-  return cams;
+  RingPlacement r;
+  r.count = count;
+  r.centre = centre;
+  r.radius = radius;
+  r.elevation = -(0.3 * radius);
+  r.up = Vec3d(0, -1, 0);
+  r.prefix = "orbit";
+  Camera lens;
+  lens.set_fov_x(60.0 * kPi / 180.0, w, h);
+  return camera_ring(r, lens);
 }
 
 }  // namespace
@@ -518,7 +518,7 @@ TEST_CASE("frustum agrees exactly with the 3DGS rule on the real scenes", "[visi
 
 TEST_CASE("incremental time-stepping gives the counts of re-tracing every frame", "[visibility][synth]") {
   const SynthScene s = small_synth(7, 160, 120);
-  const auto times = frame_times(7);
+  const auto times = FrameGrid(7).times();
   for (VisibilityMode mode : {VisibilityMode::Frustum, VisibilityMode::Raytraced}) {
     INFO(to_string(mode));
     ObservationOptions inc, full, uncached, capped, lazy, first;
@@ -622,7 +622,7 @@ TEST_CASE("incremental rays: only dynamic footprints are probed, and exactly the
           "[visibility][motion]") {
   const int F = 9;
   const GaussianCloud cloud = wall_and_movers(F);
-  const auto times = frame_times(F);
+  const auto times = FrameGrid(F).times();
   Camera front = axis_camera(64, 48, 60), side = axis_camera(64, 48, 60);
   side.look_at(Vec3d(2.5, 0.3, -1.0), Vec3d(0, 0, 5), Vec3d(0, -1, 0));
   const std::vector<Camera> cams = {front, side};
@@ -679,7 +679,7 @@ TEST_CASE("incremental rays: only dynamic footprints are probed, and exactly the
 
 TEST_CASE("counts equal the sum of per-view visible sets", "[visibility][synth]") {
   const SynthScene s = small_synth(5, 160, 120);
-  const auto times = frame_times(5);
+  const auto times = FrameGrid(5).times();
   ObservationOptions o;
   o.visibility = mode_options(VisibilityMode::Raytraced, 6);
   const ObservationTables tables = observation_tables(s.scene, s.train, times, 0.25, o);
@@ -718,7 +718,7 @@ GaussianCloud moving_gaussian(int frames, double (*path)(double)) {
 TEST_CASE("speeds of known trajectories, including t = 0 and t = 1", "[visibility][motion]") {
   const int F = 11;
   const double dt = 1.0 / (F - 1);
-  const auto times = frame_times(F);
+  const auto times = FrameGrid(F).times();
   SECTION("linear: |v| everywhere") {
     const GaussianCloud cloud = moving_gaussian(F, [](double t) { return 0.5 * t; });
     std::vector<float> s;
@@ -762,7 +762,7 @@ TEST_CASE("a scene with no motion has D = 0 everywhere and no NaN", "[visibility
   for (const GaussianCloud* cloud : {&s.scene, &frozen}) {
     ObservationOptions o;
     o.visibility = mode_options(VisibilityMode::Raytraced, 4);
-    const ObservationTables t = observation_tables(*cloud, s.train, frame_times(5), 0.25, o);
+    const ObservationTables t = observation_tables(*cloud, s.train, FrameGrid(5).times(), 0.25, o);
     CHECK(all_finite(t.dynamic_speed));
     CHECK(all_finite(t.dynamic_deficiency));
     for (int f = 0; f < 5; ++f) {
@@ -787,7 +787,7 @@ TEST_CASE("a single moving camera (monocular) observes one view per frame", "[vi
     INFO(to_string(mode));
     ObservationOptions o;
     o.visibility = mode_options(mode, 2);
-    const ObservationTables t = observation_tables(s.scene, mono, frame_times(6), 0.2, o);
+    const ObservationTables t = observation_tables(s.scene, mono, FrameGrid(6).times(), 0.2, o);
     VisibilityEngine engine(s.scene, o.visibility);
     for (int f = 0; f < 6; ++f) {
       REQUIRE(t.visible_per_view[size_t(f)].size() == 1);

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/names.hpp"
 #include "fillgs/math.hpp"
 
 namespace fillgs {
@@ -35,9 +36,38 @@ struct Camera {
   void set_fov_x(double fov_x, int w, int h);
 };
 
+/// Where the cameras of a ring stand: `count` of them evenly spaced on a circle of
+/// `radius` around `centre` + `elevation`·up, in the plane normal to `up` (from e1 = x, or y
+/// when up is along x, towards e2 = up × e1, starting at angle `phase`), each looking at
+/// `target` (NaN: the centre) with `up` as its up direction. Named prefix + index, the
+/// index zero-padded to `digits`.
+struct RingPlacement {
+  int count = 8;
+  Vec3d centre = Vec3d::Zero();
+  double radius = 1.0, elevation = 0.0, phase = 0.0;
+  Vec3d up = Vec3d::UnitZ();
+  Vec3d target = Vec3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  std::string prefix = "cam";
+  int digits = 0;
+};
+/// The ring's cameras, with the intrinsics and size of `lens`.
+std::vector<Camera> camera_ring(const RingPlacement& ring, const Camera& lens);
+
 enum class CameraFormat { Auto, Colmap, Llff, Transforms, GaussianJson, Technicolor, D3dgs };
-CameraFormat parse_camera_format(const std::string& name);  ///< auto colmap llff transforms 3dgs technicolor d3dgs
-const char* to_string(CameraFormat f);
+template <>
+struct EnumNames<CameraFormat> {
+  static constexpr const char* what = "camera format";
+  static constexpr NameOf<CameraFormat> table[] = {
+      {CameraFormat::Auto, "auto"},
+      {CameraFormat::Colmap, "colmap"},
+      {CameraFormat::Llff, "llff"},
+      {CameraFormat::Transforms, "transforms"},
+      {CameraFormat::GaussianJson, "3dgs"},
+      {CameraFormat::Technicolor, "technicolor"},
+      {CameraFormat::D3dgs, "d3dgs"},
+      {CameraFormat::Transforms, "nerf"},
+      {CameraFormat::D3dgs, "panoptic"}};
+};
 
 struct CameraReadOptions {
   CameraFormat format = CameraFormat::Auto;

@@ -13,6 +13,7 @@
 // 1×3×H×W float RGB in [−1, 1], returning the distance as the first value of its output
 // (the names and layout of the lpips package's forward(in0, in1) exported to ONNX).
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -61,11 +62,13 @@ class LpipsNetwork {
  public:
   explicit LpipsNetwork(const std::string& onnx_path);
   ~LpipsNetwork();
+  LpipsNetwork(LpipsNetwork&&) noexcept;  ///< move-only: it owns the loaded network
+  LpipsNetwork& operator=(LpipsNetwork&&) noexcept;
   double distance(const float* a, const float* b, int width, int height);
 
  private:
   struct Impl;
-  Impl* impl_;
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace fillgs

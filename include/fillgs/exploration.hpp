@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/names.hpp"
 #include "fillgs/camera.hpp"
 #include "fillgs/gaussians.hpp"
 #include "fillgs/progress.hpp"
@@ -29,7 +30,14 @@
 namespace fillgs {
 
 enum class VoxelLabel : uint8_t { Free = 0, Occupied = 1, Unexplored = 2 };
-const char* to_string(VoxelLabel label);
+template <>
+struct EnumNames<VoxelLabel> {
+  static constexpr const char* what = "voxel label";
+  static constexpr NameOf<VoxelLabel> table[] = {
+      {VoxelLabel::Free, "free"},
+      {VoxelLabel::Occupied, "occupied"},
+      {VoxelLabel::Unexplored, "unexplored"}};
+};
 
 struct ExplorationOptions {
   int divisions = 64;             ///< cells along each axis

@@ -23,6 +23,10 @@ void make_directories(const std::string& path);
 /// Joins path components with '/'.
 std::string join_path(const std::string& a, const std::string& b);
 
+/// The shared real data (scenes, captured video): $FILLGS_SHARED_DATA when set, else
+/// ../shared/data beside the source tree (fixed when fillgs is built).
+std::string shared_data_dir();
+
 /// A command's output folder, written as one transaction. Everything goes into a hidden
 /// staging folder beside it (".<name>.partial-<pid>-<n>"); commit() moves the staged files
 /// into place (the folder itself by one rename when it did not exist, else file by file,

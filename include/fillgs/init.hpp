@@ -18,13 +18,20 @@
 #include <string>
 #include <utility>
 
+#include "fillgs/names.hpp"
 #include "fillgs/camera.hpp"
 #include "fillgs/train.hpp"
 
 namespace fillgs {
 
 enum class ViewInit { Random, RandomAndCarve };
-const char* to_string(ViewInit v);
+template <>
+struct EnumNames<ViewInit> {
+  static constexpr const char* what = "initialisation";
+  static constexpr NameOf<ViewInit> table[] = {
+      {ViewInit::Random, "random"},
+      {ViewInit::RandomAndCarve, "random+carve"}};
+};
 
 struct ViewInitOptions {
   ViewInit method = ViewInit::RandomAndCarve;

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/names.hpp"
 #include "fillgs/camera.hpp"
 #include "fillgs/gaussians.hpp"
 
@@ -30,7 +31,13 @@ constexpr float kDilation = 0.3f;
 enum class Kernel : uint8_t { Default, Simd, Scalar };
 void set_default_kernel(Kernel kernel);  ///< Default is not a valid argument
 Kernel resolve_kernel(Kernel kernel);    ///< Default → the process default
-Kernel parse_kernel(const std::string& name);  ///< "simd" | "scalar"; throws otherwise
+template <>
+struct EnumNames<Kernel> {
+  static constexpr const char* what = "kernel";
+  static constexpr NameOf<Kernel> table[] = {
+      {Kernel::Simd, "simd"},
+      {Kernel::Scalar, "scalar"}};
+};
 const char* kernel_name(Kernel kernel);        ///< "simd" | "scalar" (Default resolved)
 /// The instruction set the vector kernel uses on this machine (e.g. "AVX3", "AVX2").
 const char* simd_target();

@@ -25,6 +25,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/names.hpp"
 #include "fillgs/camera.hpp"
 #include "fillgs/gaussians.hpp"
 #include "fillgs/image_io.hpp"
@@ -111,8 +112,13 @@ std::unique_ptr<Refiner> make_identity_refiner();
 ///    colours drifted (±20a %) and a hallucinated blob, a = the artifact strength (0.5 when
 ///    it is 0), seeded per image. The artifacts of ArtifactOptions go on top everywhere.
 enum class OracleSupport { Full, Observed };
-const char* to_string(OracleSupport s);
-OracleSupport parse_oracle_support(const std::string& name);  ///< "full" | "observed"
+template <>
+struct EnumNames<OracleSupport> {
+  static constexpr const char* what = "oracle support";
+  static constexpr NameOf<OracleSupport> table[] = {
+      {OracleSupport::Full, "full"},
+      {OracleSupport::Observed, "observed"}};
+};
 
 struct OracleOptions {
   ArtifactOptions artifacts;

@@ -8,13 +8,23 @@
 //  * the fillgs 4D PLY (baked tracks, documented in README.md), read and written.
 #include <string>
 
+#include "fillgs/names.hpp"
 #include "fillgs/gaussians.hpp"
 
 namespace fillgs {
 
 enum class SceneFormat { Auto, Gaussian3D, Spacetime, Ex4dgs, Fillgs4D };
-SceneFormat parse_scene_format(const std::string& name);  ///< "auto", "3dgs", "stg", "ex4dgs", "fillgs"
-const char* to_string(SceneFormat f);
+template <>
+struct EnumNames<SceneFormat> {
+  static constexpr const char* what = "scene format";
+  static constexpr NameOf<SceneFormat> table[] = {
+      {SceneFormat::Auto, "auto"},
+      {SceneFormat::Gaussian3D, "3dgs"},
+      {SceneFormat::Spacetime, "stg"},
+      {SceneFormat::Ex4dgs, "ex4dgs"},
+      {SceneFormat::Fillgs4D, "fillgs"},
+      {SceneFormat::Spacetime, "spacetime"}};
+};
 
 struct SceneReadOptions {
   SceneFormat format = SceneFormat::Auto;

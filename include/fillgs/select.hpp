@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/names.hpp"
 #include "fillgs/camera.hpp"
 #include "fillgs/exploration.hpp"
 #include "fillgs/gaussians.hpp"
@@ -37,9 +38,18 @@
 namespace fillgs {
 
 enum class Strategy { FillGS, Random, Negative, Interpolation, FisherRF, Coverage3D, Coverage4D };
-const char* to_string(Strategy s);
-/// fillgs | random | negative | interpolation | fisherrf | coverage3d | coverage4d.
-Strategy parse_strategy(const std::string& name);
+template <>
+struct EnumNames<Strategy> {
+  static constexpr const char* what = "strategy";
+  static constexpr NameOf<Strategy> table[] = {
+      {Strategy::FillGS, "fillgs"},
+      {Strategy::Random, "random"},
+      {Strategy::Negative, "negative"},
+      {Strategy::Interpolation, "interpolation"},
+      {Strategy::FisherRF, "fisherrf"},
+      {Strategy::Coverage3D, "coverage3d"},
+      {Strategy::Coverage4D, "coverage4d"}};
+};
 
 /// What a candidate's rendered map holds per Gaussian (the paper's score and its ablations).
 enum class CandidateScore { Deficiency, CountOnly, SpeedOnly };
@@ -56,14 +66,25 @@ enum class Covisibility {
   /// camera sees weighs 1.
   Density,
 };
-const char* to_string(Covisibility c);
-Covisibility parse_covisibility(const std::string& name);  ///< paper | static-count | density
+template <>
+struct EnumNames<Covisibility> {
+  static constexpr const char* what = "co-visibility rule";
+  static constexpr NameOf<Covisibility> table[] = {
+      {Covisibility::Paper, "paper"},
+      {Covisibility::StaticCount, "static-count"},
+      {Covisibility::Density, "density"}};
+};
 
 /// How candidate maps are rendered: rays through the Embree proxies every `stride`
 /// pixels, or the rasterizer at full resolution.
 enum class MapRenderer { Raytraced, Raster };
-const char* to_string(MapRenderer r);
-MapRenderer parse_map_renderer(const std::string& name);
+template <>
+struct EnumNames<MapRenderer> {
+  static constexpr const char* what = "map renderer";
+  static constexpr NameOf<MapRenderer> table[] = {
+      {MapRenderer::Raytraced, "raytraced"},
+      {MapRenderer::Raster, "raster"}};
+};
 
 struct SelectOptions {
   Strategy strategy = Strategy::FillGS;
@@ -194,11 +215,6 @@ std::vector<Camera> local_candidates(const Camera& current, const std::vector<Ca
 /// Intrinsics of `start`.
 std::vector<Camera> global_candidates(const Camera& start, const std::vector<Camera>& training, const ExplorationGrid& grid, int count,
                                       double grow, std::mt19937_64& rng);
-
-/// `count` consecutive frames containing `frame`, centred on it where [0, frames) allows,
-/// shifted inward at the ends (all frames when there are fewer): a patch's frames, and
-/// (count 3) the window of the priority's time perturbation.
-std::vector<int> consecutive_frames(int frame, int count, int frames);
 
 /// Per-Gaussian `values` (one channel) rendered by the rasterizer into `camera`: [H][W].
 std::vector<float> render_value_map(const FrameGaussians& frame, const Camera& camera, const float* values, int threads = 0);

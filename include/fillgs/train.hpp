@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/names.hpp"
 #include "fillgs/camera.hpp"
 #include "fillgs/pixel_store.hpp"
 #include "fillgs/progress.hpp"
@@ -143,8 +144,13 @@ PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction
 
 /// How a model learns motion (see above).
 enum class MotionLearning { All, Promote };
-const char* to_string(MotionLearning m);
-MotionLearning motion_learning_from_string(const std::string& name);
+template <>
+struct EnumNames<MotionLearning> {
+  static constexpr const char* what = "motion learning";
+  static constexpr NameOf<MotionLearning> table[] = {
+      {MotionLearning::All, "all"},
+      {MotionLearning::Promote, "promote"}};
+};
 
 struct TrainOptions {
   int iterations = 3000;

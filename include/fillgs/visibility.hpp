@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/frame_grid.hpp"
+#include "fillgs/names.hpp"
 #include "fillgs/camera.hpp"
 #include "fillgs/gaussians.hpp"
 #include "fillgs/progress.hpp"
@@ -25,9 +27,14 @@
 namespace fillgs {
 
 enum class VisibilityMode { Frustum, Raytraced, Exact };
-const char* to_string(VisibilityMode mode);
-/// "frustum" | "raytraced" | "exact"; throws naming the value otherwise.
-VisibilityMode parse_visibility_mode(const std::string& name);
+template <>
+struct EnumNames<VisibilityMode> {
+  static constexpr const char* what = "visibility mode";
+  static constexpr NameOf<VisibilityMode> table[] = {
+      {VisibilityMode::Frustum, "frustum"},
+      {VisibilityMode::Raytraced, "raytraced"},
+      {VisibilityMode::Exact, "exact"}};
+};
 
 struct VisibilityOptions {
   VisibilityMode mode = VisibilityMode::Frustum;
@@ -202,9 +209,5 @@ ObservationTables observation_tables(const GaussianCloud& cloud, const std::vect
                                      double frame_step, const ObservationOptions& options, ObservationSummary* summary = nullptr,
                                      Progress& progress = null_progress());
 
-/// The frame grid t_f = f / (F − 1) (F = 1: {0}).
-std::vector<double> frame_times(int frames);
-/// The frame of the grid nearest to time t, clamped to [0, F − 1]; 0 for F = 1 or an untimed (NaN) t.
-int nearest_frame(double t, int frames);
 
 }  // namespace fillgs

@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/names.hpp"
 #include "fillgs/camera.hpp"
 #include "fillgs/gaussians.hpp"
 #include "fillgs/image_io.hpp"
@@ -35,15 +36,30 @@
 namespace fillgs {
 
 enum class Weighting { FillGS, None, NoConsistency, NoCovisibility, Enhancer3DGS, ExploreGS, UA4DGS };
-const char* to_string(Weighting w);
-/// fillgs | none | no-consistency | no-covisibility | 3dgs-enhancer | exploregs | ua-4dgs.
-Weighting parse_weighting(const std::string& name);
+template <>
+struct EnumNames<Weighting> {
+  static constexpr const char* what = "weighting";
+  static constexpr NameOf<Weighting> table[] = {
+      {Weighting::FillGS, "fillgs"},
+      {Weighting::None, "none"},
+      {Weighting::NoConsistency, "no-consistency"},
+      {Weighting::NoCovisibility, "no-covisibility"},
+      {Weighting::Enhancer3DGS, "3dgs-enhancer"},
+      {Weighting::ExploreGS, "exploregs"},
+      {Weighting::UA4DGS, "ua-4dgs"}};
+};
 
 /// depth-warp: through the model's rendered depth (occlusion-checked); sweep: the best
 /// match along the epipolar line over `sweep_planes` depths (model-independent, like a
 /// dense matcher); external: maps computed elsewhere.
 enum class MaskMethod { DepthWarp, Sweep, External };
-MaskMethod parse_mask_method(const std::string& name);  ///< depth-warp | sweep
+template <>
+struct EnumNames<MaskMethod> {
+  static constexpr const char* what = "mask method";
+  static constexpr NameOf<MaskMethod> table[] = {
+      {MaskMethod::DepthWarp, "depth-warp"},
+      {MaskMethod::Sweep, "sweep"}};
+};
 struct MaskOptions {
   MaskMethod method = MaskMethod::DepthWarp;
   double sigma = 0.05;            ///< colour difference (RMS, [0,1] units) at which confidence is 1/e

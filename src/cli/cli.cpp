@@ -1,16 +1,14 @@
+// fillgs info, render, synth, convert, cameras, observe and train; the command table, help
+// and the error line.
 #include "fillgs/cli.hpp"
 
 #include <nlohmann/json.hpp>
-#include <unistd.h>
 
 #include <algorithm>
-#include <optional>
-#include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <map>
 #include <memory>
-#include <set>
+#include <optional>
 #include <sstream>
 
 #include "fillgs/error.hpp"
@@ -21,15 +19,56 @@
 #ifdef FILLGS_WITH_MPI
 #include "fillgs/observe_mpi.hpp"
 #endif
+#include "fillgs/plot.hpp"
 #include "fillgs/raster.hpp"
 #include "fillgs/scene_io.hpp"
 #include "fillgs/synth.hpp"
 #include "fillgs/train.hpp"
-#include "fillgs/plot.hpp"
 #include "fillgs/visibility.hpp"
 #include "commands.hpp"
-#include "common.hpp"
+#include "options.hpp"
 #include "progress_bar.hpp"
+
+namespace fillgs::cli {
+
+/// What `fillgs render` writes per pixel, `convert` and `cameras` write to.
+enum class Channel { Rgb, Depth, Alpha };
+enum class ImageFormat { Png, Exr };
+enum class SceneTarget { Gaussian3D, Fillgs, Frames };
+enum class CameraTarget { Transforms, Colmap };
+/// observe's per-frame tables: every Gaussian, or the moving ones only.
+enum class MotionTables { Dense, Dynamic };
+
+}  // namespace fillgs::cli
+
+namespace fillgs {
+template <>
+struct EnumNames<cli::Channel> {
+  static constexpr const char* what = "channel";
+  static constexpr NameOf<cli::Channel> table[] = {{cli::Channel::Rgb, "rgb"}, {cli::Channel::Depth, "depth"}, {cli::Channel::Alpha, "alpha"}};
+};
+template <>
+struct EnumNames<cli::ImageFormat> {
+  static constexpr const char* what = "image format";
+  static constexpr NameOf<cli::ImageFormat> table[] = {{cli::ImageFormat::Png, "png"}, {cli::ImageFormat::Exr, "exr"}};
+};
+template <>
+struct EnumNames<cli::SceneTarget> {
+  static constexpr const char* what = "scene format";
+  static constexpr NameOf<cli::SceneTarget> table[] = {
+      {cli::SceneTarget::Gaussian3D, "3dgs"}, {cli::SceneTarget::Fillgs, "fillgs"}, {cli::SceneTarget::Frames, "frames"}};
+};
+template <>
+struct EnumNames<cli::CameraTarget> {
+  static constexpr const char* what = "camera format";
+  static constexpr NameOf<cli::CameraTarget> table[] = {{cli::CameraTarget::Transforms, "transforms"}, {cli::CameraTarget::Colmap, "colmap"}};
+};
+template <>
+struct EnumNames<cli::MotionTables> {
+  static constexpr const char* what = "motion table layout";
+  static constexpr NameOf<cli::MotionTables> table[] = {{cli::MotionTables::Dense, "dense"}, {cli::MotionTables::Dynamic, "dynamic"}};
+};
+}  // namespace fillgs
 
 namespace fillgs::cli {
 
@@ -54,16 +93,20 @@ nlohmann::json scene_summary(const GaussianCloud& c) {
   return j;
 }
 
-int cmd_info(const std::vector<std::string>& args, std::ostream& out, std::ostream&) {
-  Args a("info", args, 1, kSceneOptions, {"json"});
-  if (a.positional.size() != 1) throw_error("fillgs info: give exactly one scene path");
-  const GaussianCloud c = read_scene(a.positional[0], scene_options(a));
+struct InfoFlags {
+  std::string scene;
+  bool json = false;
+  SceneReadOptions read;
+};
+
+int info(const InfoFlags& f, const Invocation& in) {
+  const GaussianCloud c = read_scene(f.scene, f.read);
   const nlohmann::json j = scene_summary(c);
-  if (a.flag("json")) {
-    out << j.dump(2) << "\n";
+  if (f.json) {
+    in.out << j.dump(2) << "\n";
     return 0;
   }
-  out << "scene        " << a.positional[0] << "\n";
+  in.out << "scene        " << f.scene << "\n";
   for (const char* key : {"gaussians", "sh_degree", "motion_model", "static", "dynamic", "keyframes", "bbox_min", "bbox_max"})
     if (j.contains(key)) {
       std::string label = key;
@@ -73,57 +116,62 @@ int cmd_info(const std::vector<std::string>& args, std::ostream& out, std::ostre
       else if (j[key].is_array())
         for (const auto& x : j[key]) value += (value.empty() ? "" : " ") + x.dump();
       else value = j[key].dump();
-      out << label << std::string(label.size() < 13 ? 13 - label.size() : 1, ' ') << value << "\n";
+      in.out << label << std::string(label.size() < 13 ? 13 - label.size() : 1, ' ') << value << "\n";
     }
-  for (const std::string& n : c.notes) out << "note         " << n << "\n";
+  for (const std::string& n : c.notes) in.out << "note         " << n << "\n";
   return 0;
+}
+
+Action declare_info(CLI::App& app) {
+  auto f = std::make_shared<InfoFlags>();
+  app.add_option("scene", f->scene, "the model (PLY: 3DGS, Spacetime Gaussians, Ex4DGS or fillgs)")->type_name("SCENE")->required();
+  add_flag(app, "--json", f->json, "the summary as JSON");
+  add_scene_flags(app, f->read);
+  return bind(f, info);
 }
 
 // ------------------------------------------------------------------ render
 
-int cmd_render(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("render", args, 1,
-         merge(merge({"scene", "cameras", "time", "channel", "format", "out", "threads", "background"}, kSceneOptions), kCameraOptions),
-         {"quiet"});
+struct RenderFlags {
+  std::string scene, cameras, out;
+  double time = 0.0;
+  Channel channel = Channel::Rgb;
+  ImageFormat format = ImageFormat::Png;
+  Vec3f background = Vec3f::Zero();
+  SceneReadOptions read;
+  CameraReadOptions camera_read;
+};
+
+int render_views(const RenderFlags& f, const Invocation& in) {
   const auto t0 = Clock::now();
-  const std::string out_dir = a.require("out");
-  const std::string channel = a.get("channel", "rgb");
-  if (channel != "rgb" && channel != "depth" && channel != "alpha")
-    throw_error("fillgs render: --channel must be rgb, depth or alpha (got '", channel, "')");
-  const std::string format = a.get("format", "png");
-  if (format != "png" && format != "exr") throw_error("fillgs render: --format must be png or exr (got '", format, "')");
-  const bool fixed_time = a.has("time");
-  const double time = a.number("time", 0.0);
-  if (fixed_time && (time < 0 || time > 1)) throw_error("fillgs render: --time must lie in [0, 1] (got ", time, ")");
+  const bool fixed_time = in.given("--time");
   RenderOptions ro;
-  ro.threads = a.threads();
-  ro.rgb = channel == "rgb";
-  ro.depth = channel == "depth";
-  if (a.has("background")) {
-    const std::vector<double> c = a.numbers("background", 3);
-    ro.background = Vec3f(float(c[0]), float(c[1]), float(c[2]));
-  }
-  const GaussianCloud cloud = read_scene(a.require("scene"), scene_options(a));
-  const std::vector<Camera> cams = read_cameras(a.require("cameras"), camera_options(a));
+  ro.threads = in.common.threads;
+  ro.rgb = f.channel == Channel::Rgb;
+  ro.depth = f.channel == Channel::Depth;
+  ro.background = f.background;
+  const std::string ext = to_string(f.format);
+  const GaussianCloud cloud = read_scene(f.scene, f.read);
+  const std::vector<Camera> cams = read_cameras(f.cameras, f.camera_read);
   const double load_s = seconds_since(t0);
 
-  OutputFolder folder(out_dir);  // nothing replaces the folder's files unless every view renders
+  OutputFolder folder(f.out);  // nothing replaces the folder's files unless every view renders
   FrameEvaluator ev(cloud);
-  TerminalProgress progress(err, progress_enabled(a));
+  TerminalProgress progress(in.err, in.progress());
   progress.start("rendering", cams.size());
   double render_s = 0;
   size_t rendered = 0;
   nlohmann::json views = nlohmann::json::array();
   for (const Camera& cam : cams) {
-    const double t = fixed_time ? time : (cam.has_time() ? cam.time : 0.0);
+    const double t = fixed_time ? f.time : (cam.has_time() ? cam.time : 0.0);
     const auto tr = Clock::now();
     const RenderOutput r = render(ev.evaluate(t), cam, ro);
     render_s += seconds_since(tr);
     rendered += r.rendered;
-    Image img(cam.width, cam.height, channel == "rgb" ? 3 : 1);
+    Image img(cam.width, cam.height, f.channel == Channel::Rgb ? 3 : 1);
     double depth_scale = 1.0;
-    if (channel == "rgb") img.pixels = r.rgb;
-    else if (channel == "alpha") img.pixels = r.alpha;
+    if (f.channel == Channel::Rgb) img.pixels = r.rgb;
+    else if (f.channel == Channel::Alpha) img.pixels = r.alpha;
     else {
       float max_depth = 0.0f;
       for (size_t p = 0; p < r.alpha.size(); ++p) {
@@ -131,12 +179,12 @@ int cmd_render(const std::vector<std::string>& args, std::ostream& out, std::ost
         max_depth = std::max(max_depth, img.pixels[p]);
       }
       // 8-bit output holds [0, 1]: depth is divided by its maximum (recorded in summary.json).
-      if (format == "png" && max_depth > 0) {
+      if (f.format == ImageFormat::Png && max_depth > 0) {
         depth_scale = max_depth;
         for (float& v : img.pixels) v /= max_depth;
       }
     }
-    write_image(join_path(folder.path(), cam.name + "." + format), img);
+    write_image(join_path(folder.path(), cam.name + "." + ext), img);
     views.push_back({{"camera", cam.name}, {"time", t}, {"gaussians_rendered", r.rendered}, {"depth_scale", depth_scale}});
     progress.advance();
   }
@@ -145,92 +193,150 @@ int cmd_render(const std::vector<std::string>& args, std::ostream& out, std::ost
   s["command"] = "render";
   s["scene"] = scene_summary(cloud);
   s["cameras"] = cams.size();
-  s["channel"] = channel;
+  s["channel"] = to_string(f.channel);
   s["seconds"] = {{"load", load_s}, {"render", render_s}, {"total", seconds_since(t0)}};
   s["ms_per_view"] = cams.empty() ? 0.0 : 1000.0 * render_s / cams.size();
   s["kernel"] = {{"name", kernel_name(Kernel::Default)}, {"instruction_set", simd_target()}};
   s["views"] = views;
   write_file_atomically(join_path(folder.path(), "summary.json"), s.dump(2) + "\n");
   folder.commit();
-  out << "rendered " << cams.size() << " views (" << channel << ") into " << out_dir << ": "
-      << (cams.empty() ? 0.0 : 1000.0 * render_s / cams.size()) << " ms per view, " << rendered / std::max<size_t>(1, cams.size())
-      << " Gaussians per view\n";
+  in.out << "rendered " << cams.size() << " views (" << to_string(f.channel) << ") into " << f.out << ": "
+         << (cams.empty() ? 0.0 : 1000.0 * render_s / cams.size()) << " ms per view, " << rendered / std::max<size_t>(1, cams.size())
+         << " Gaussians per view\n";
   return 0;
+}
+
+Action declare_render(CLI::App& app) {
+  auto f = std::make_shared<RenderFlags>();
+  add_text(app, "--scene", f->scene, "the model", "PATH")->required();
+  add_text(app, "--cameras", f->cameras, "the cameras to render", "PATH")->required();
+  add_text(app, "--out", f->out, "the folder for <camera>.<format> and summary.json", "DIR")->required();
+  add_number(app, "--time", f->time, "render every camera at this time (default: each camera's own time, else 0)", within(0, 1))->default_str("");
+  add_choice(app, "--channel", f->channel, "what each pixel holds (depth: divided by its maximum in PNG)");
+  add_choice(app, "--format", f->format, "the image format");
+  add_colour(app, "--background", f->background, "the background colour");
+  add_scene_flags(app, f->read);
+  add_camera_flags(app, f->camera_read);
+  return bind(f, render_views);
 }
 
 // ------------------------------------------------------------------ synth
 
-SynthOptions synth_options(const Args& a) {
-  SynthOptions o;
-  o.frames = a.integer("frames", o.frames);
-  o.width = a.integer("width", o.width);
-  o.height = a.integer("height", o.height);
-  o.seed = uint64_t(a.integer("seed", int(o.seed)));
-  o.spacing = a.number("spacing", o.spacing);
-  o.rig = a.get("rig", o.rig);
-  o.variant = a.get("variant", o.variant);
-  return o;
+struct SynthFlags {
+  std::string out;
+  SynthOptions synth;
+};
+
+int synth(const SynthFlags& f, const Invocation& in) {
+  const auto t0 = Clock::now();
+  const SynthScene s = make_synthetic_scene(f.synth);
+  TerminalProgress progress(in.err, in.progress());
+  OutputFolder folder(f.out);  // a failed or killed run leaves the folder as it was
+  write_synthetic_scene(s, folder.path(), progress, in.common.threads);
+  folder.commit();
+  in.out << "synthetic scene: " << s.scene.size() << " Gaussians (" << s.scene.dynamic_count() << " moving), " << s.train.size()
+         << " rig cameras (" << s.options.rig << ", split: train " << s.split.train.size() << ", interpolation " << s.split.interpolation.size()
+         << ", extrapolation " << s.split.extrapolation.size() << "), " << s.options.frames << " frames, " << s.options.width << "x"
+         << s.options.height << ", written to " << f.out << " in " << seconds_since(t0) << " s\n";
+  return 0;
 }
 
-int cmd_synth(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("synth", args, 1, {"out", "frames", "width", "height", "seed", "spacing", "threads", "rig", "variant"}, {"quiet"});
-  const auto t0 = Clock::now();
-  const std::string dir = a.require("out");
-  const SynthScene s = make_synthetic_scene(synth_options(a));
-  TerminalProgress progress(err, progress_enabled(a));
-  OutputFolder folder(dir);  // a failed or killed run leaves the folder as it was
-  write_synthetic_scene(s, folder.path(), progress, a.threads());
-  folder.commit();
-  out << "synthetic scene: " << s.scene.size() << " Gaussians (" << s.scene.dynamic_count() << " moving), "
-      << s.train.size() << " rig cameras (" << s.options.rig << ", split: train " << s.split.train.size() << ", interpolation "
-      << s.split.interpolation.size() << ", extrapolation " << s.split.extrapolation.size() << "), " << s.options.frames << " frames, " << s.options.width << "x" << s.options.height
-      << ", written to " << dir << " in " << seconds_since(t0) << " s\n";
-  return 0;
+Action declare_synth(CLI::App& app) {
+  auto f = std::make_shared<SynthFlags>();
+  SynthOptions& o = f->synth;
+  add_text(app, "--out", f->out, "the folder for the scene, its cameras and ground-truth images", "DIR")->required();
+  add_number(app, "--frames", o.frames, "frames of the video", at_least(1));
+  add_number(app, "--width", o.width, "image width", at_least(1));
+  add_number(app, "--height", o.height, "image height", at_least(1));
+  add_number(app, "--seed", o.seed, "random seed");
+  add_number(app, "--spacing", o.spacing, "surface sample spacing (metres)", positive());
+  add_text(app, "--rig", o.rig, "the camera rig: ring, n3v or technicolor", "NAME");
+  add_text(app, "--variant", o.variant, "the moving content: chair, orbit or lift (ring); kitchen (n3v, technicolor)", "NAME");
+  return bind(f, synth);
 }
 
 // ------------------------------------------------------------------ convert / cameras
 
-int cmd_convert(const std::vector<std::string>& args, std::ostream& out, std::ostream&) {
-  Args a("convert", args, 1, merge({"scene", "out", "to", "time", "frames"}, kSceneOptions), {});
-  const GaussianCloud c = read_scene(a.require("scene"), scene_options(a));
-  const std::string to = a.get("to", "3dgs"), path = a.require("out");
-  if (to == "frames") {
+struct ConvertFlags {
+  std::string scene, out;
+  SceneTarget to = SceneTarget::Gaussian3D;
+  double time = 0.0;
+  int frames = 0;
+  SceneReadOptions read;
+};
+
+int convert(const ConvertFlags& f, const Invocation& in) {
+  const GaussianCloud c = read_scene(f.scene, f.read);
+  if (f.to == SceneTarget::Frames) {
     // One standard 3DGS PLY per frame, t = f/(F−1): a sequence splat viewers can play.
-    const int frames = a.integer("frames", c.motion == MotionModel::Keyframed ? c.keyframed.key_count : 0);
-    if (frames < 1) throw_error("fillgs convert: --to frames needs --frames F (F >= 1)");
-    OutputFolder folder(path);
-    const std::vector<double> times = frame_times(frames);
-    for (int f = 0; f < frames; ++f) {
+    const int frames = in.given("--frames") ? f.frames : c.motion == MotionModel::Keyframed ? c.keyframed.key_count : 0;
+    if (frames < 1) in.fail("--to frames needs --frames F (F >= 1)");
+    OutputFolder folder(f.out);
+    const std::vector<double> times = FrameGrid(frames).times();
+    for (int k = 0; k < frames; ++k) {
       char name[32];
-      std::snprintf(name, sizeof name, "frame_%04d.ply", f);
-      write_3dgs_ply(join_path(folder.path(), name), c, times[size_t(f)]);
+      std::snprintf(name, sizeof name, "frame_%04d.ply", k);
+      write_3dgs_ply(join_path(folder.path(), name), c, times[size_t(k)]);
     }
     folder.commit();
-    out << "wrote " << frames << " frames to " << path << " (3dgs, frame_0000.ply … at t = f/" << std::max(1, frames - 1) << ", " << c.size()
-        << " Gaussians each)\n";
+    in.out << "wrote " << frames << " frames to " << f.out << " (3dgs, frame_0000.ply … at t = f/" << std::max(1, frames - 1) << ", " << c.size()
+           << " Gaussians each)\n";
     return 0;
   }
-  if (to == "3dgs") write_3dgs_ply(path, c, a.number("time", 0.0));
-  else if (to == "fillgs") write_fillgs_ply(path, c, a.integer("frames", 0));
-  else throw_error("fillgs convert: --to must be 3dgs, fillgs or frames (got '", to, "')");
-  out << "wrote " << path << " (" << to << ", " << c.size() << " Gaussians)\n";
+  if (f.to == SceneTarget::Gaussian3D) write_3dgs_ply(f.out, c, f.time);
+  else write_fillgs_ply(f.out, c, f.frames);
+  in.out << "wrote " << f.out << " (" << to_string(f.to) << ", " << c.size() << " Gaussians)\n";
   return 0;
 }
 
-int cmd_cameras(const std::vector<std::string>& args, std::ostream& out, std::ostream&) {
-  Args a("cameras", args, 1, merge({"cameras", "out", "to"}, kCameraOptions), {});
-  const std::vector<Camera> cams = read_cameras(a.require("cameras"), camera_options(a));
-  const std::string to = a.get("to", "transforms"), path = a.require("out");
-  if (to == "transforms") write_transforms_json(path, cams);
-  else if (to == "colmap") write_colmap_text(path, cams);
-  else throw_error("fillgs cameras: --to must be transforms or colmap (got '", to, "')");
-  out << "wrote " << cams.size() << " cameras to " << path << " (" << to << ")\n";
+Action declare_convert(CLI::App& app) {
+  auto f = std::make_shared<ConvertFlags>();
+  add_text(app, "--scene", f->scene, "the model", "PATH")->required();
+  add_text(app, "--out", f->out, "the PLY file (a folder for --to frames)", "PATH")->required();
+  add_choice(app, "--to", f->to, "3dgs: the model at --time; fillgs: the 4D model; frames: one 3DGS PLY per frame");
+  add_number(app, "--time", f->time, "3dgs: the time the static model shows", within(0, 1));
+  add_number(app, "--frames", f->frames, "frames: how many (default: the model's keys); fillgs: the frame count recorded", at_least(0));
+  add_scene_flags(app, f->read);
+  return bind(f, convert);
+}
+
+struct CamerasFlags {
+  std::string cameras, out;
+  CameraTarget to = CameraTarget::Transforms;
+  CameraReadOptions read;
+};
+
+int convert_cameras(const CamerasFlags& f, const Invocation& in) {
+  const std::vector<Camera> cams = read_cameras(f.cameras, f.read);
+  if (f.to == CameraTarget::Transforms) write_transforms_json(f.out, cams);
+  else write_colmap_text(f.out, cams);
+  in.out << "wrote " << cams.size() << " cameras to " << f.out << " (" << to_string(f.to) << ")\n";
   return 0;
+}
+
+Action declare_cameras(CLI::App& app) {
+  auto f = std::make_shared<CamerasFlags>();
+  add_text(app, "--cameras", f->cameras, "the cameras", "PATH")->required();
+  add_text(app, "--out", f->out, "transforms.json, or the COLMAP text folder", "PATH")->required();
+  add_choice(app, "--to", f->to, "the format written");
+  add_camera_flags(app, f->read);
+  return bind(f, convert_cameras);
 }
 
 // ------------------------------------------------------------------ observe
 
-namespace {
+struct ObserveFlags {
+  std::string scene, cameras, out, shard;
+  std::vector<std::string> merge;
+  TimeFlags time;
+  MotionTables tables = MotionTables::Dense;
+  ObservationOptions options;
+  ObserveOutputOptions output;
+  bool mpi = false;
+  double hit_cache_mb = 0;
+  SceneReadOptions read;
+  CameraReadOptions camera_read;
+};
 
 /// What `fillgs observe` computes: the scene, the cameras, the times and how.
 struct ObserveJob {
@@ -242,43 +348,29 @@ struct ObserveJob {
   double frame_step = 0;
 };
 
-ObserveJob observe_job(const Args& a) {
+ObserveJob observe_job(const ObserveFlags& f, const Invocation& in) {
   ObserveJob job;
-  ObservationOptions& o = job.options;
-  o.visibility.mode = parse_visibility_mode(a.get("mode", "frustum"));
-  o.visibility.stride = a.integer("stride", o.visibility.stride);
-  if (o.visibility.stride < 1) throw_error("fillgs observe: --stride must be at least 1");
-  o.visibility.min_weight = float(a.number("tau", o.visibility.min_weight));
-  if (!(o.visibility.min_weight > 0.0f && o.visibility.min_weight < 1.0f)) throw_error("fillgs observe: --tau must lie in (0, 1)");
-  o.visibility.threads = a.threads();
-  o.visibility.dilate = !a.flag("no-raster-match");
-  o.incremental = !a.flag("from-scratch");
-  if (a.has("hit-cache")) {
-    const double mb = a.number("hit-cache", 0.0);
-    if (!(mb >= 0 && mb < 1e9)) throw_error("fillgs observe: --hit-cache must be a number of MB, at least 0 (got ", a.get("hit-cache"), ")");
-    o.static_hit_cache_bytes = size_t(mb * 1048576.0);
-  }
-  const std::string tables = a.get("motion-tables", "dense");
-  if (tables != "dense" && tables != "dynamic") throw_error("fillgs observe: --motion-tables must be dense or dynamic (got '", tables, "')");
-  job.output.dense_motion_tables = tables == "dense";
-  job.output.plots = !a.flag("no-plots");
-  job.cloud = read_scene(a.require("scene"), scene_options(a));
-  job.cameras = read_cameras(a.require("cameras"), camera_options(a));
-  if (job.cameras.empty()) throw_error(a.get("cameras"), ": no cameras");
-  job.times = observe_times(a, job.cloud, job.cameras, &job.frame_step);
-  if (a.has("shard")) {
+  job.options = f.options;
+  job.options.visibility.threads = in.common.threads;
+  if (in.given("--hit-cache")) job.options.static_hit_cache_bytes = size_t(f.hit_cache_mb * 1048576.0);
+  job.output = f.output;
+  job.output.dense_motion_tables = f.tables == MotionTables::Dense;
+  job.cloud = read_scene(f.scene, f.read);
+  job.cameras = read_cameras(f.cameras, f.camera_read);
+  if (job.cameras.empty()) throw_error(f.cameras, ": no cameras");
+  job.times = observe_times(in, f.time, job.cloud, job.cameras, &job.frame_step);
+  if (in.given("--shard")) {
     // --shard i/n: the i-th of n contiguous blocks of frames (1-based), for observe --merge.
-    const std::string spec = a.get("shard");
+    const std::string& spec = f.shard;
     const size_t slash = spec.find('/');
     size_t index = 0, count = 0;
     if (slash != std::string::npos) {
       index = parse_count(spec.substr(0, slash), 1u << 20, "fillgs observe", "--shard index");
       count = parse_count(spec.substr(slash + 1), 1u << 20, "fillgs observe", "--shard count");
     }
-    if (slash == std::string::npos || index < 1 || count < 1 || index > count)
-      throw_error("fillgs observe: --shard expects i/n with 1 <= i <= n (got '", spec, "')");
-    if (count > job.times.size()) throw_error("fillgs observe: --shard ", spec, ": more shards than the ", job.times.size(), " frames");
-    o.frames = shard_frames(job.times.size(), index - 1, count);
+    if (slash == std::string::npos || index < 1 || count < 1 || index > count) in.fail("--shard expects i/n with 1 <= i <= n (got '", spec, "')");
+    if (count > job.times.size()) in.fail("--shard ", spec, ": more shards than the ", job.times.size(), " frames");
+    job.options.frames = shard_frames(job.times.size(), index - 1, count);
   }
   return job;
 }
@@ -296,7 +388,7 @@ void print_observed(std::ostream& out, const ObserveJob& job, const ObserveRepor
 /// `fillgs observe --mpi` under mpirun: every rank reads the inputs; if any rank fails,
 /// the lowest failing rank says why (one line) and every rank exits 1; then frames go
 /// round the ranks and rank 0 writes the files.
-int observe_over_mpi(const Args& a, const std::string& out_dir, std::ostream& out, std::ostream& err) {
+int observe_over_mpi(const ObserveFlags& f, const Invocation& in) {
 #ifdef FILLGS_WITH_MPI
   const auto t0 = Clock::now();
   mpi::Session session;
@@ -304,9 +396,9 @@ int observe_over_mpi(const Args& a, const std::string& out_dir, std::ostream& ou
   std::optional<OutputFolder> folder;
   std::string failure;
   try {
-    if (a.has("shard")) throw_error("fillgs observe: --mpi shares the whole job between the ranks; --shard splits it between separate runs");
-    job = observe_job(a);
-    if (session.rank() == 0) folder.emplace(out_dir);
+    if (in.given("--shard")) in.fail("--mpi shares the whole job between the ranks; --shard splits it between separate runs");
+    job = observe_job(f, in);
+    if (session.rank() == 0) folder.emplace(f.out);
   } catch (const std::exception& e) {
     failure = e.what();
   }
@@ -321,121 +413,138 @@ int observe_over_mpi(const Args& a, const std::string& out_dir, std::ostream& ou
       source([](const FrameObservation&) {}, null_progress());
       return 0;
     }
-    TerminalProgress progress(err, progress_enabled(a));
+    TerminalProgress progress(in.err, in.progress());
     const ObserveReport r =
         write_observation(job.cloud, job.cameras, job.times, job.frame_step, job.options, source, folder->path(), job.output, progress);
     folder->commit();
-    print_observed(out, job, r, seconds_since(t0), out_dir);
-    out << "(" << session.size() << " MPI ranks)\n";
+    print_observed(in.out, job, r, seconds_since(t0), f.out);
+    in.out << "(" << session.size() << " MPI ranks)\n";
     return 0;
   } catch (const std::exception& e) {
     // The ranks are exchanging frames: one that stops would leave the others waiting.
-    err << "error: " << (session.rank() ? "rank " + std::to_string(session.rank()) + ": " : std::string()) << e.what() << "\n";
-    err.flush();
+    in.err << "error: " << (session.rank() ? "rank " + std::to_string(session.rank()) + ": " : std::string()) << e.what() << "\n";
+    in.err.flush();
     session.abort(1);
   }
 #else
-  (void)a, (void)out_dir, (void)out, (void)err;
-  throw_error("fillgs observe: --mpi needs fillgs built with MPI (scripts/install-deps.sh installs libopenmpi-dev; then rebuild)");
+  (void)f;
+  in.fail("--mpi needs fillgs built with MPI (scripts/install-deps.sh installs libopenmpi-dev; then rebuild)");
 #endif
 }
 
-}  // namespace
-
-int cmd_observe(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("observe", args, 1,
-         merge(merge({"scene", "cameras", "frames", "times", "mode", "stride", "threads", "out", "tau", "motion-tables", "shard", "merge", "hit-cache"},
-                     kSceneOptions),
-               kCameraOptions),
-         {"quiet", "from-scratch", "no-raster-match", "no-plots", "mpi"});
+int observe(const ObserveFlags& f, const Invocation& in) {
   const auto t0 = Clock::now();
-  const std::string out_dir = a.require("out");
-  if (a.has("merge")) {
-    for (const char* k : {"scene", "cameras", "frames", "times", "mode", "stride", "tau", "motion-tables", "shard", "hit-cache"})
-      if (a.has(k)) throw_error("fillgs observe: --merge combines finished shards; --", k, " belongs to the shards' own runs");
-    const std::vector<std::string> shards = split_commas(a.get("merge"));
-    OutputFolder folder(out_dir);
-    const ObserveReport r = merge_observations(shards, folder.path(), !a.flag("no-plots"));
+  if (in.given("--merge")) {
+    for (const char* k : {"--scene", "--cameras", "--frames", "--times", "--mode", "--stride", "--tau", "--motion-tables", "--shard", "--hit-cache"})
+      if (in.given(k)) in.fail("--merge combines finished shards; ", k, " belongs to the shards' own runs");
+    OutputFolder folder(f.out);
+    const ObserveReport r = merge_observations(f.merge, folder.path(), f.output.plots);
     folder.commit();
-    out << "merged " << shards.size() << " shards: " << r.summary.gaussians << " Gaussians over " << r.summary.frames << " frames and "
-        << r.summary.views << " views -> " << out_dir << "\n";
+    in.out << "merged " << f.merge.size() << " shards: " << r.summary.gaussians << " Gaussians over " << r.summary.frames << " frames and "
+           << r.summary.views << " views -> " << f.out << "\n";
     return 0;
   }
-  if (a.flag("mpi")) return observe_over_mpi(a, out_dir, out, err);
-  const ObserveJob job = observe_job(a);
-  TerminalProgress progress(err, progress_enabled(a));
-  OutputFolder folder(out_dir);  // a failed or killed run leaves the folder as it was
+  for (const char* k : {"--scene", "--cameras"})
+    if (!in.given(k)) in.fail("missing ", k);
+  if (f.mpi) return observe_over_mpi(f, in);
+  const ObserveJob job = observe_job(f, in);
+  TerminalProgress progress(in.err, in.progress());
+  OutputFolder folder(f.out);  // a failed or killed run leaves the folder as it was
   const ObserveReport r = observe_to_directory(job.cloud, job.cameras, job.times, job.frame_step, job.options, folder.path(), job.output, progress);
   folder.commit();
-  print_observed(out, job, r, seconds_since(t0), out_dir);
+  print_observed(in.out, job, r, seconds_since(t0), f.out);
   return 0;
+}
+
+Action declare_observe(CLI::App& app) {
+  auto f = std::make_shared<ObserveFlags>();
+  VisibilityOptions& v = f->options.visibility;
+  add_text(app, "--scene", f->scene, "the model (required unless --merge)", "PATH");
+  add_text(app, "--cameras", f->cameras, "the training cameras (required unless --merge)", "PATH");
+  add_text(app, "--out", f->out, "the folder for the tables, summary.json and plots", "DIR")->required();
+  add_time_flags(app, f->time, true);
+  add_choice(app, "--mode", v.mode, "how a camera observes a Gaussian: its centre in the frustum, or traced rays");
+  add_number(app, "--stride", v.stride, "raytraced: one ray every s pixels", at_least(1));
+  add_number(app, "--tau", v.min_weight, "raytraced: the blending weight at which a hit counts", within_open(0, 1));
+  add_switch_off(app, "--no-raster-match", v.dilate, "raytraced: footprints not widened to the rasterizer's");
+  add_switch_off(app, "--from-scratch", f->options.incremental, "raytraced: every frame traced anew, not only what moved");
+  add_number(app, "--hit-cache", f->hit_cache_mb, "raytraced: MB of static hits kept for re-traced rays (default 2048; 0: none)", from_below(0, 1e9))
+      ->type_name("MB");
+  add_choice(app, "--motion-tables", f->tables, "the per-frame tables: every Gaussian, or the moving ones only");
+  add_switch_off(app, "--no-plots", f->output.plots, "no heatmaps or charts");
+  add_text(app, "--shard", f->shard, "the i-th of n blocks of frames, for --merge", "I/N");
+  add_list(app, "--merge", f->merge, "finished shards' folders, combined into the single-process tables");
+  add_flag(app, "--mpi", f->mpi, "under mpirun: frames shared by the ranks, rank 0 writes");
+  add_scene_flags(app, f->read);
+  add_camera_flags(app, f->camera_read);
+  return bind(f, observe);
 }
 
 // ------------------------------------------------------------------ train
 
-int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("train", args, 1,
-         merge({"images", "cameras", "points", "iterations", "out", "train-cameras", "resume", "checkpoint-every", "seed", "threads",
-                "key-interval", "max-gaussians", "sh-degree", "test-images", "test-cameras", "background", "motion", "time-ramp",
-                "key-lr-scale", "motion-sparsity", "init", "init-points"},
-               kDatasetOptions),
-         {"quiet", "static-only", "no-keyed-opacity", "no-flow-keys", "colour-correction", "motion-from-masks"});
+struct TrainFlags {
+  std::string images, cameras, out, points, resume, init, test_images, test_cameras;
+  int iterations = 3000;
+  int checkpoint_every = 0;
+  uint64_t seed = 1;
+  bool static_only = false, colour_correction = false;
+  TrainOptions train = TrainOptions::scaled(3000);
+  ViewInitOptions view_init;
+  DatasetOptions data;
+};
+
+int train(const TrainFlags& f, const Invocation& in) {
+  std::ostream& out = in.out;
   const auto t0 = Clock::now();
-  const std::string out_dir = a.require("out");
-  const std::string cameras = a.require("cameras");
-  const DatasetOptions dopt = dataset_options(a, "train-cameras");
-  const Dataset data = Dataset::load(a.require("images"), cameras, dopt);
-  const int iterations = a.integer("iterations", 3000);
-  if (iterations < 1) throw_error("fillgs train: --iterations must be at least 1");
+  const Dataset data = Dataset::load(f.images, f.cameras, f.data);
+  const int iterations = f.iterations;
+  // The schedule scales with the iteration count; the flags given override it.
   TrainOptions o = TrainOptions::scaled(iterations);
-  o.seed = uint64_t(a.integer("seed", 1));
-  o.threads = a.threads();
-  o.key_interval_frames = a.integer("key-interval", o.key_interval_frames);
-  if (o.key_interval_frames < 1) throw_error("fillgs train: --key-interval must be at least 1 frame");
-  o.max_gaussians = size_t(a.integer("max-gaussians", int(o.max_gaussians)));
-  o.max_sh_degree = a.integer("sh-degree", o.max_sh_degree);
-  if (o.max_sh_degree < 0 || o.max_sh_degree > 3) throw_error("fillgs train: --sh-degree must be 0..3");
-  o.allow_dynamic = !a.flag("static-only");
-  o.motion = motion_learning_from_string(a.get("motion", to_string(o.motion)));
-  o.keyed_opacity = !a.flag("no-keyed-opacity");
-  o.flow_keys = !a.flag("no-flow-keys");
-  o.change_from_masks = a.flag("motion-from-masks");
-  if (o.change_from_masks && !data.has_masks()) throw_error("fillgs train: --motion-from-masks needs foreground masks (seg/ beside the meta file)");
-  o.time_ramp = a.number("time-ramp", o.time_ramp);
-  if (!(o.time_ramp >= 0 && o.time_ramp < 1)) throw_error("fillgs train: --time-ramp must be in [0, 1)");
-  o.key_lr_scale = a.number("key-lr-scale", o.key_lr_scale);
-  if (!(o.key_lr_scale > 0)) throw_error("fillgs train: --key-lr-scale must be positive");
-  o.motion_sparsity = a.number("motion-sparsity", o.motion_sparsity);
-  if (!(o.motion_sparsity >= 0)) throw_error("fillgs train: --motion-sparsity must be at least 0");
-  o.checkpoint_interval = a.integer("checkpoint-every", std::max(1, iterations / 5));
-  o.colour_correction = a.flag("colour-correction");
-  if (a.has("background")) {
-    const std::vector<double> c = a.numbers("background", 3);
-    for (int k = 0; k < 3; ++k) o.background[k] = float(c[size_t(k)]);
-  }
+  o.seed = f.seed;
+  o.threads = in.common.threads;
+  for (const auto& [flag, apply] : std::vector<std::pair<const char*, std::function<void()>>>{
+           {"--key-interval", [&] { o.key_interval_frames = f.train.key_interval_frames; }},
+           {"--max-gaussians", [&] { o.max_gaussians = f.train.max_gaussians; }},
+           {"--sh-degree", [&] { o.max_sh_degree = f.train.max_sh_degree; }},
+           {"--motion", [&] { o.motion = f.train.motion; }},
+           {"--time-ramp", [&] { o.time_ramp = f.train.time_ramp; }},
+           {"--key-lr-scale", [&] { o.key_lr_scale = f.train.key_lr_scale; }},
+           {"--motion-sparsity", [&] { o.motion_sparsity = f.train.motion_sparsity; }},
+           {"--background", [&] { o.background = f.train.background; }}})
+    if (in.given(flag)) apply();
+  o.allow_dynamic = !f.static_only;
+  o.keyed_opacity = f.train.keyed_opacity;
+  o.flow_keys = f.train.flow_keys;
+  o.change_from_masks = f.train.change_from_masks;
+  if (o.change_from_masks && !data.has_masks()) in.fail("--motion-from-masks needs foreground masks (seg/ beside the meta file)");
+  o.checkpoint_interval = in.given("--checkpoint-every") ? f.checkpoint_every : std::max(1, iterations / 5);
+  o.colour_correction = f.colour_correction;
   // Test split (optional): loaded before anything is written, so bad input writes nothing.
   std::unique_ptr<Dataset> test;
-  if (a.has("test-cameras")) test = std::make_unique<Dataset>(Dataset::load(a.get("test-images", a.get("images")), a.get("test-cameras"), dataset_options(a, "")));
+  if (in.given("--test-cameras")) {
+    DatasetOptions to = f.data;
+    to.cameras.clear();
+    test = std::make_unique<Dataset>(Dataset::load(in.given("--test-images") ? f.test_images : f.images, f.test_cameras, to));
+  }
 
   std::unique_ptr<Trainer> trainer;
   PointSet init_points;  // written beside the model when made from the views
-  if (a.has("resume")) {
-    trainer = std::make_unique<Trainer>(Trainer::resume(data, a.get("resume"), o));
+  if (in.given("--resume")) {
+    trainer = std::make_unique<Trainer>(Trainer::resume(data, f.resume, o));
   } else {
     // Initial points: --points, else points.ply beside the cameras, else from the views
     // (init.hpp: random points the first frame's cameras see, plus the foreground's visual
     // hull when the dataset has masks); --init picks explicitly.
-    std::string points = a.get("points");
-    const std::string beside = join_path(std::filesystem::path(cameras).parent_path().string(), "points.ply");
+    std::string points = f.points;
+    const std::string beside = join_path(std::filesystem::path(f.cameras).parent_path().string(), "points.ply");
     if (points.empty() && std::filesystem::exists(beside)) points = beside;
-    const std::string init = a.get("init", points.empty() ? "random+carve" : "points");
+    const std::string init = in.given("--init") ? f.init : points.empty() ? "random+carve" : "points";
     if (init == "points") {
-      if (points.empty()) throw_error("fillgs train: --init points needs --points (no points.ply beside ", cameras, ")");
+      if (points.empty()) in.fail("--init points needs --points (no points.ply beside ", f.cameras, ")");
       trainer = std::make_unique<Trainer>(data, init_from_points(read_points(points)), o);
     } else if (init == "random" || init == "random+carve") {
-      ViewInitOptions vo;
-      vo.method = init == "random" ? ViewInit::Random : ViewInit::RandomAndCarve;
-      vo.random_points = size_t(a.integer("init-points", int(vo.random_points)));
+      ViewInitOptions vo = f.view_init;
+      vo.method = parse_name<ViewInit>(init);
       vo.seed = o.seed;
       const ViewInitResult vi = points_from_views(data, vo);
       out << "initial points from the cameras' first views: " << vi.random << " random in the cameras' common volume"
@@ -446,31 +555,31 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
       init_points = vi.points;
       trainer = std::make_unique<Trainer>(data, init_from_points(vi.points), o);
     } else {
-      throw_error("fillgs train: unknown --init \"", init, "\" (points, random, random+carve)");
+      in.fail("unknown --init \"", init, "\" (points, random, random+carve)");
     }
   }
-  make_directories(join_path(out_dir, "checkpoints"));
-  if (!init_points.positions.empty()) write_points_ply(join_path(out_dir, "init_points.ply"), init_points);
+  make_directories(join_path(f.out, "checkpoints"));
+  if (!init_points.positions.empty()) write_points_ply(join_path(f.out, "init_points.ply"), init_points);
   out << "training on " << data.views().size() << " views (" << data.rigs().size() << " cameras x " << data.frames() << " frames; "
       << (data.image_bytes() >> 20) << " MB of 8-bit images " << (data.images_spilled() ? "in the image cache file, read on demand" : "in memory")
       << "), " << trainer->params().size() << " initial Gaussians, " << iterations << " iterations\n";
-  TerminalProgress progress(err, progress_enabled(a));
+  TerminalProgress progress(in.err, in.progress());
   while (trainer->iteration() < iterations) {
     const int next = std::min(iterations, (trainer->iteration() / o.checkpoint_interval + 1) * o.checkpoint_interval);
     trainer->run(next, progress);
     const TrainStatus st = trainer->status();
     char line[200];
-    std::snprintf(line, sizeof line, "iteration %d: loss %.4f, PSNR %.2f dB, %zu Gaussians (%zu moving), %.1f it/s\n", st.iteration,
-                  st.loss, st.psnr, st.gaussians, st.dynamic, st.iterations_per_second);
+    std::snprintf(line, sizeof line, "iteration %d: loss %.4f, PSNR %.2f dB, %zu Gaussians (%zu moving), %.1f it/s\n", st.iteration, st.loss,
+                  st.psnr, st.gaussians, st.dynamic, st.iterations_per_second);
     out << line << std::flush;
-    trainer->save_checkpoint(join_path(out_dir, "checkpoints/latest.ckpt"));
+    trainer->save_checkpoint(join_path(f.out, "checkpoints/latest.ckpt"));
   }
   const double train_seconds = seconds_since(t0);
   const GaussianCloud model = trainer->model();
-  write_fillgs_ply(join_path(out_dir, "model.ply"), model, data.frames());
-  write_3dgs_ply(join_path(out_dir, "frame0_3dgs.ply"), model, 0.0);
+  write_fillgs_ply(join_path(f.out, "model.ply"), model, data.frames());
+  write_3dgs_ply(join_path(f.out, "frame0_3dgs.ply"), model, 0.0);
   if (o.colour_correction) {
-    write_colour_correction(join_path(out_dir, "colour_correction.json"), trainer->colour_correction());
+    write_colour_correction(join_path(f.out, "colour_correction.json"), trainer->colour_correction());
     out << "colour correction per camera (gain r,g,b / offset r,g,b; " << data.rigs()[0] << " is the reference):";
     for (const ColourCorrection& c : trainer->colour_correction()) {
       char line[160];
@@ -500,8 +609,8 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   const EvalResult tr = evaluate_views(model, data, std::max<int>(1, int(data.views().size() / 32)), o.background, o.threads);
   j["train_psnr"] = tr.psnr;
   j["train_ssim"] = tr.ssim;
-  out << "trained " << model.size() << " Gaussians (" << model.dynamic_count() << " moving) in " << train_seconds << " s; train PSNR "
-      << tr.psnr << " dB";
+  out << "trained " << model.size() << " Gaussians (" << model.dynamic_count() << " moving) in " << train_seconds << " s; train PSNR " << tr.psnr
+      << " dB";
   if (test) {
     const EvalResult te = evaluate_views(model, *test, 1, o.background, o.threads);
     j["test_psnr"] = te.psnr;
@@ -512,97 +621,56 @@ int cmd_train(const std::vector<std::string>& args, std::ostream& out, std::ostr
   // Peak resident memory of the whole run (images held 8-bit, the model, the optimiser).
   j["peak_memory_bytes"] = peak_memory_bytes();
   j["images"] = {{"bytes", data.image_bytes()}, {"spilled", data.images_spilled()}};
-  out << ", peak memory " << (peak_memory_bytes() >> 20) << " MB -> " << out_dir << "\n";
+  out << ", peak memory " << (peak_memory_bytes() >> 20) << " MB -> " << f.out << "\n";
   ScatterSeries loss{"loss", {}, {}, {}};
   const std::vector<float>& h = trainer->loss_history();
   const size_t every = std::max<size_t>(1, h.size() / 400);
   for (size_t i = 0; i < h.size(); i += every) loss.x.push_back(double(i + 1)), loss.y.push_back(h[i]);
-  write_scatter_png(join_path(out_dir, "loss.png"), {loss}, {"training loss (L1 + 0.2 D-SSIM)", "iteration", "loss"}, false);
-  write_file_atomically(join_path(out_dir, "summary.json"), j.dump(2) + "\n");
+  write_scatter_png(join_path(f.out, "loss.png"), {loss}, {"training loss (L1 + 0.2 D-SSIM)", "iteration", "loss"}, false);
+  write_file_atomically(join_path(f.out, "summary.json"), j.dump(2) + "\n");
   return 0;
 }
 
-void print_help(std::ostream& out) {
-  out << "fillgs: fill observation gaps in 4D Gaussian Splatting\n\n"
-         "usage: fillgs <command> [options]\n\n"
-         "  info SCENE [--json]                       Gaussian count, SH degree, motion, static/dynamic, bbox\n"
-         "  render --scene S --cameras C --out DIR    render every camera to DIR/<camera>.png\n"
-         "         [--time t] [--channel rgb|depth|alpha] [--format png|exr] [--threads n] [--background r,g,b]\n"
-         "  synth --out DIR [--frames F] [--width W] [--height H] [--seed n] [--spacing m] [--rig ring|n3v|technicolor]\n"
-         "        [--variant chair|orbit|lift (ring) | kitchen (n3v, technicolor)]\n"
-         "                                            the chair/shelf analysis scene with ground-truth images\n"
-         "  convert --scene S --out F.ply [--to 3dgs|fillgs|frames] [--time t] [--frames F]\n"
-         "  cameras --cameras C --out PATH [--to transforms|colmap]\n"
-         "  observe --scene S --cameras C --out DIR   observation counts C[t][g], speeds s, deficiency D = s/(1+C)\n"
-         "         [--frames F | --times t1,t2,..] [--mode frustum|raytraced|exact] [--stride s] [--tau w]\n"
-         "         [--threads n] [--motion-tables dense|dynamic] [--from-scratch] [--no-raster-match] [--no-plots]\n"
-         "         [--hit-cache MB]                 raytraced: static hits kept for re-traced rays (default 2048; 0: none)\n"
-         "         [--shard i/n]                    the i-th of n blocks of frames, for --merge\n"
-         "         [--mpi]                          under mpirun: frames shared by the ranks, rank 0 writes\n"
-         "  observe --merge DIR1,DIR2,.. --out DIR [--no-plots]   shards combined into the single-process tables\n"
-         "  train --images DIR --cameras C --out DIR [--points P] [--iterations N] [--train-cameras a,b]\n"
-         "         [--resume CKPT] [--checkpoint-every N] [--seed n] [--key-interval F] [--max-gaussians N]\n"
-         "         [--sh-degree D] [--test-cameras C --test-images DIR] [--static-only] [--background r,g,b]\n"
-         "         [--motion all|promote] [--time-ramp r] [--key-lr-scale s] [--motion-sparsity s] [--no-keyed-opacity] [--no-flow-keys]\n"
-         "         [--motion-from-masks]\n"
-         "         [--init points|random|random+carve] [--init-points N] [--colour-correction]\n"
-         "                                            train a 4D Gaussian model from multi-view video\n"
-         "  explore --scene S --cameras C --out DIR   the exploration grid: exploration.vdb, exploration.png\n"
-         "         [--divisions n] [--occupancy-alpha a] [--frames F]\n"
-         "  select --scene S --cameras C --out DIR [--images DIR] [--strategy NAME] [--trajectories K] [--seed n]\n"
-         "         [--views n] [--patch-frames n] [--time-stride k] [--render-scale s] [--renderer raytraced|raster]\n"
-         "         [--stride s] [--global-candidates n] [--grid exploration.vdb | --divisions n] [--mode frustum|raytraced|exact]\n"
-         "         [--no-start-selection] [--no-error-term] [--no-sensitivity-term] [--no-candidate-scoring]\n"
-         "         [--no-global] [--count-only | --speed-only] [--no-renders]\n"
-         "                                            viewpoint-time selection; strategies: fillgs random negative\n"
-         "                                            interpolation fisherrf coverage3d coverage4d\n"
-         "  finetune --model M --images DIR --cameras C --out DIR [--train-cameras a,b] [--iterations N]\n"
-         "         [--select-every M] [--trajectories K] [--strategy NAME] [--weighting NAME] [--paper-schedule]\n"
-         "         [--refiner identity|oracle|external|rig] [--refiner-command 'cmd {in} {out}'] [--refiner-timeout s]\n"
-         "         [--pool-cameras a,b --rig-max-distance d --rig-max-angle deg]\n"
-         "         [--truth SCENE --artifact-strength a --support observed|full --support-window w]\n"
-         "         [--confidence DIR] [--mask depth-warp|sweep]\n"
-         "         [--covis paper|static-count|density] [--mask-sigma s] [--refined-share p] [selection flags]\n"
-         "         [--motion-rates repair|gentle] [--position-lr LR] [--key-lr-scale k]\n"
-         "                                            fine-tune with refined virtual views; weightings: fillgs none\n"
-         "                                            no-consistency no-covisibility 3dgs-enhancer exploregs ua-4dgs\n"
-         "  eval --model M --images DIR --cameras C1[,C2] [--splits n1,n2] [--select-cameras a,b] [--truth SCENE]\n"
-         "         [--colour-correction colour_correction.json] [--ls-gain]\n"
-         "         [--lpips NET.onnx] [--out DIR] [--stride k]     PSNR, SSIM, moving-region PSNR per split\n"
-         "  bench [--out DIR] [--scenes n3v,technicolor,chair,orbit,lift] [--seeds 1,2,3] [--only GROUPS] [--configs IDS]\n"
-         "         [--support observed|full|both] [--iterations N] [--backbone-iterations N] [--width W --height H --frames F]\n"
-         "         [--artifact-strength a] [--baseline-weighting NAME] [--motion-rates repair|gentle] [--position-lr LR]\n"
-         "         [--key-lr-scale k] [--smoke]                the paper's comparison (resumable)\n"
-         "  bench --merge A,B,.. --out DIR             its tables over finished runs: bench folders or results.csv files\n"
-         "  run [--out DIR] [--scene NAME] [--baseline NAME] [--support observed|full] [--motion-rates repair|gentle] [--smoke]\n"
-         "                                            the whole pipeline on the built-in scene, with a report\n\n"
-         "scene options:  --scene-format auto|3dgs|stg|ex4dgs|fillgs --duration F (Ex4DGS) --stg-duration F\n"
-         "                --stg-color auto|sigmoid|clamp|none --static-threshold v\n"
-         "camera options: --camera-format auto|colmap|llff|transforms|3dgs|technicolor|d3dgs --width W --height H\n"
-         "                --llff-downscale s\n"
-         "image options:  --frames first:last:step (Python's slice; the frames kept become the video)\n"
-         "                --downscale k (k×k block average; train, finetune, eval)\n"
-         "                --monocular-cycle a,b,.. (frame f keeps only camera [f mod n])\n"
-         "                --image-memory GB (images beyond it wait in a temporary file in $TMPDIR, read\n"
-         "                on demand; default a quarter of the machine's memory)\n"
-         "common:         --quiet (no progress bar)\n"
-         "                --kernel simd|scalar (the tile kernel: vector, default, or the scalar reference)\n";
+Action declare_train(CLI::App& app) {
+  auto f = std::make_shared<TrainFlags>();
+  TrainOptions& o = f->train;
+  add_text(app, "--images", f->images, "the images folder", "DIR")->required();
+  add_text(app, "--cameras", f->cameras, "the training cameras", "PATH")->required();
+  add_text(app, "--out", f->out, "the folder for model.ply, checkpoints and summary.json", "DIR")->required();
+  add_text(app, "--points", f->points, "initial points (PLY; default: points.ply beside the cameras)", "PATH");
+  add_number(app, "--iterations", f->iterations, "training iterations (the schedule scales with them)", at_least(1));
+  add_text(app, "--resume", f->resume, "continue from this checkpoint", "CKPT");
+  add_number(app, "--checkpoint-every", f->checkpoint_every, "iterations between checkpoints (default: a fifth of the run)", at_least(1))->default_str("");
+  add_number(app, "--seed", f->seed, "random seed");
+  add_number(app, "--key-interval", o.key_interval_frames, "frames between motion keys", at_least(1));
+  add_number(app, "--max-gaussians", o.max_gaussians, "densification stops at this count", at_least(1));
+  add_number(app, "--sh-degree", o.max_sh_degree, "spherical-harmonics degree", within(0, 3));
+  add_text(app, "--test-cameras", f->test_cameras, "held-out cameras, evaluated at the end", "PATH");
+  add_text(app, "--test-images", f->test_images, "their images (default: --images)", "DIR");
+  add_flag(app, "--static-only", f->static_only, "no Gaussian moves");
+  add_colour(app, "--background", o.background, "the background colour");
+  add_choice(app, "--motion", o.motion, "all: every Gaussian may move; promote: static until promoted");
+  add_number(app, "--time-ramp", o.time_ramp, "share of the run over which time opens from frame 0 to the whole clip", from_below(0, 1));
+  add_number(app, "--key-lr-scale", o.key_lr_scale, "learning-rate scale of motion keys", positive());
+  add_number(app, "--motion-sparsity", o.motion_sparsity, "weight of the penalty on motion", at_least(0));
+  add_switch_off(app, "--no-keyed-opacity", o.keyed_opacity, "opacity does not change over time");
+  add_switch_off(app, "--no-flow-keys", o.flow_keys, "motion keys not placed by optical flow");
+  add_flag(app, "--motion-from-masks", o.change_from_masks, "what moves found from the foreground masks, not from image change");
+  add_text(app, "--init", f->init, "initial points: points, random or random+carve (default: points when there are any)", "NAME");
+  add_number(app, "--init-points", f->view_init.random_points, "random: how many points", at_least(1));
+  add_flag(app, "--colour-correction", f->colour_correction, "learn a gain and offset per camera");
+  add_dataset_flags(app, f->data, "--train-cameras");
+  return bind(f, train);
 }
 
-}  // namespace
+// ------------------------------------------------------------------ the command table
 
 /// `--kernel simd|scalar`, accepted by every command: which tile kernel renders, trains and
-/// blurs the loss for this invocation (raster.hpp, Kernel). Removed from the arguments here.
+/// blurs the loss for this invocation (raster.hpp, Kernel); the default again afterwards.
 class KernelChoice {
  public:
-  explicit KernelChoice(std::vector<std::string>* args) {
-    for (size_t i = 1; i < args->size(); ++i) {
-      if ((*args)[i] != "--kernel") continue;
-      if (i + 1 >= args->size()) throw_error("fillgs ", (*args)[0], ": --kernel needs a value (simd or scalar)");
-      set_default_kernel(parse_kernel((*args)[i + 1]));
-      args->erase(args->begin() + long(i), args->begin() + long(i) + 2);
-      break;
-    }
+  explicit KernelChoice(Kernel kernel) {
+    if (kernel != Kernel::Default) set_default_kernel(kernel);
   }
   ~KernelChoice() { set_default_kernel(previous_); }
 
@@ -610,33 +678,114 @@ class KernelChoice {
   Kernel previous_ = resolve_kernel(Kernel::Default);
 };
 
-int run(const std::vector<std::string>& all_args, std::ostream& out, std::ostream& err) {
+void add_common_flags(CLI::App& app, CommonFlags& c) {
+  add_number(app, "--threads", c.threads, "worker threads (0: all cores)", at_least(0))->group("Common options");
+  add_flag(app, "--quiet", c.quiet, "no progress bar")->group("Common options");
+  add_choice(app, "--kernel", c.kernel, "the tile kernel: vector (default) or the scalar reference")->group("Common options");
+}
+
+void print_overview(std::ostream& out) {
+  out << "fillgs: fill observation gaps in 4D Gaussian Splatting\n\nusage: fillgs <command> [options]\n\ncommands:\n";
+  for (const Command& c : commands()) {
+    std::string name = c.name;
+    out << "  " << name << std::string(name.size() < 10 ? 10 - name.size() : 1, ' ') << c.summary << "\n";
+  }
+  out << "\n'fillgs <command> --help' lists a command's options with their defaults; 'fillgs --version'.\n";
+}
+
+/// One command's parser: its flags, the common ones, and help made from them.
+std::unique_ptr<CLI::App> make_app(const Command& c, CommonFlags& common, Action* action) {
+  auto app = std::make_unique<CLI::App>(c.summary, std::string("fillgs ") + c.name);
+  app->allow_extras();  // unknown flags get fillgs's own line (run below)
+  app->option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);  // a flag given twice: the last counts
+  app->get_formatter()->column_width(36);
+  app->get_formatter()->label("REQUIRED", "(required)");
+  *action = c.declare(*app);
+  add_common_flags(*app, common);
+  return app;
+}
+
+std::string help_of(const Command& c) {
+  CommonFlags common;
+  Action action;
+  return make_app(c, common, &action)->help();
+}
+
+/// "--scene is required" → "missing --scene".
+std::string parse_error_line(const CLI::ParseError& e) {
+  std::string m = e.what();
+  const std::string required = " is required";
+  if (m.size() > required.size() && m.compare(m.size() - required.size(), required.size(), required) == 0)
+    return "missing " + m.substr(0, m.size() - required.size());
+  return m;
+}
+
+}  // namespace
+
+const std::vector<Command>& commands() {
+  static const std::vector<Command> all = {
+      {"info", "Gaussian count, SH degree, motion, static/dynamic, bounding box", declare_info},
+      {"render", "render every camera of a camera file", declare_render},
+      {"synth", "the chair/shelf analysis scene with ground-truth images", declare_synth},
+      {"convert", "a model as 3DGS, fillgs or one 3DGS PLY per frame", declare_convert},
+      {"cameras", "cameras as transforms.json or COLMAP text", declare_cameras},
+      {"observe", "observation counts C[t][g], speeds s, deficiency D = s/(1+C)", declare_observe},
+      {"train", "train a 4D Gaussian model from multi-view video", declare_train},
+      {"explore", "the exploration grid: exploration.vdb, exploration.png", declare_explore},
+      {"select", "viewpoint-time selection by a strategy", declare_select},
+      {"finetune", "fine-tune with refined virtual views", declare_finetune},
+      {"eval", "PSNR, SSIM, moving-region PSNR per split", declare_eval},
+      {"bench", "the paper's comparison (resumable); --merge: its tables over finished runs", declare_bench},
+      {"run", "the whole pipeline on the built-in scene, with a report", declare_run},
+  };
+  return all;
+}
+
+std::string command_help(const std::string& name) {
+  for (const Command& c : commands())
+    if (name == c.name) return help_of(c);
+  throw_error("fillgs: unknown command '", name, "' (see 'fillgs help')");
+}
+
+int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   try {
-    std::vector<std::string> args = all_args;
-    const KernelChoice kernel(&args);
     if (args.empty() || args[0] == "help" || args[0] == "--help" || args[0] == "-h") {
-      print_help(out);
+      if (args.size() >= 2 && args[0] == "help") out << command_help(args[1]);
+      else print_overview(out);
       return args.empty() ? 2 : 0;
     }
-    const std::string& cmd = args[0];
-    if (cmd == "info") return cmd_info(args, out, err);
-    if (cmd == "render") return cmd_render(args, out, err);
-    if (cmd == "synth") return cmd_synth(args, out, err);
-    if (cmd == "convert") return cmd_convert(args, out, err);
-    if (cmd == "cameras") return cmd_cameras(args, out, err);
-    if (cmd == "observe") return cmd_observe(args, out, err);
-    if (cmd == "run") return cmd_run(args, out, err);
-    if (cmd == "train") return cmd_train(args, out, err);
-    if (cmd == "explore") return cmd_explore(args, out, err);
-    if (cmd == "select") return cmd_select(args, out, err);
-    if (cmd == "finetune") return cmd_finetune(args, out, err);
-    if (cmd == "eval") return cmd_eval(args, out, err);
-    if (cmd == "bench") return cmd_bench(args, out, err);
-    if (cmd == "--version") {
+    if (args[0] == "--version") {
       out << "fillgs 0.1.0\n";
       return 0;
     }
-    throw_error("fillgs: unknown command '", cmd, "' (see 'fillgs help')");
+    const Command* command = nullptr;
+    for (const Command& c : commands())
+      if (args[0] == c.name) command = &c;
+    if (!command) throw_error("fillgs: unknown command '", args[0], "' (see 'fillgs help')");
+    CommonFlags common;
+    Action action;
+    const std::unique_ptr<CLI::App> app = make_app(*command, common, &action);
+    std::vector<std::string> reversed(args.rbegin(), args.rend() - 1);  // CLI11 takes them last first
+    std::string parse_error;
+    try {
+      app->parse(reversed);
+    } catch (const CLI::CallForHelp&) {
+      out << app->help();
+      return 0;
+    } catch (const CLI::ParseError& e) {
+      parse_error = parse_error_line(e);  // after the unknown flags, which say more
+    }
+    for (const std::string& extra : app->remaining()) {
+      if (extra.rfind("--", 0) == 0) {
+        const std::string flag = extra.substr(0, extra.find('='));
+        throw_error(app->get_name(), ": unknown option ", flag, " (see 'fillgs ", command->name, " --help')");
+      }
+      throw_error(app->get_name(), ": unexpected argument '", extra, "' (see 'fillgs ", command->name, " --help')");
+    }
+    if (!parse_error.empty()) throw_error(app->get_name(), ": ", parse_error);
+    const KernelChoice kernel(common.kernel);
+    const Invocation in{command->name, *app, common, args, out, err};
+    return action(in);
   } catch (const Error& e) {
     err << "error: " << e.what() << "\n";
     return 1;

@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "common.hpp"
+#include "options.hpp"
 #include "progress_bar.hpp"
 #include "fillgs/limits.hpp"
 #include "fillgs/evaluate.hpp"
@@ -28,38 +28,6 @@ namespace fillgs::cli {
 
 namespace {
 
-/// Flags of finetune: the selection ablations, --paper-schedule, --quiet.
-const std::set<std::string> kFinetuneFlags = {"no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring",
-                                            "no-global", "count-only", "speed-only", "quiet", "paper-schedule"};
-
-void apply_select_flags(const Args& a, SelectOptions& s) {
-  s.strategy = parse_strategy(a.get("strategy", "fillgs"));
-  s.time_stride = a.integer("time-stride", s.time_stride);
-  if (s.time_stride < 1) throw_error("fillgs ", a.command(), ": --time-stride must be at least 1");
-  s.seed = uint64_t(a.integer("seed", 1));
-  s.no_start_selection = a.flag("no-start-selection");
-  s.no_error_term = a.flag("no-error-term");
-  s.no_sensitivity_term = a.flag("no-sensitivity-term");
-  s.no_candidate_scoring = a.flag("no-candidate-scoring");
-  s.no_global = a.flag("no-global");
-  if (a.flag("count-only") && a.flag("speed-only")) throw_error("fillgs ", a.command(), ": --count-only and --speed-only exclude each other");
-  if (a.flag("count-only")) s.score = CandidateScore::CountOnly;
-  if (a.flag("speed-only")) s.score = CandidateScore::SpeedOnly;
-}
-
-/// --motion-rates repair|gentle, --position-lr LR, --key-lr-scale k: how fast fine-tuning
-/// moves Gaussians (finetune.hpp, MotionRates); the two numbers override the preset.
-const std::set<std::string> kMotionRateOptions = {"motion-rates", "position-lr", "key-lr-scale"};
-MotionRates motion_rates(const Args& a) {
-  const std::string preset = a.get("motion-rates", "repair");
-  if (preset != "repair" && preset != "gentle") throw_error("fillgs ", a.command(), ": unknown --motion-rates \"", preset, "\" (repair, gentle)");
-  MotionRates r = preset == "gentle" ? MotionRates::gentle() : MotionRates();
-  r.position_lr = a.number("position-lr", r.position_lr);
-  r.key_lr_scale = a.number("key-lr-scale", r.key_lr_scale);
-  if (!(r.position_lr > 0) || !(r.key_lr_scale > 0)) throw_error("fillgs ", a.command(), ": --position-lr and --key-lr-scale must be positive");
-  return r;
-}
-
 std::string fixed(double x, int digits = 2) {
   if (!std::isfinite(x)) return "-";
   char b[32];
@@ -72,93 +40,93 @@ void require_fresh(const std::string& dir, const std::string& command) {
   if (fs::exists(dir) && !fs::is_empty(dir)) throw_error("fillgs ", command, ": ", dir, " exists and is not empty");
 }
 
-}  // namespace
-
 // ------------------------------------------------------------------ finetune
 
-int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("finetune", args, 1,
-         merge({"model", "images", "cameras", "out", "train-cameras", "iterations", "select-every", "trajectories", "strategy", "weighting",
-                "refiner", "refiner-command", "refiner-timeout", "truth", "artifact-strength", "confidence", "seed", "threads",
-                "time-stride", "refined-share", "mask-sigma", "mask", "covis", "support", "support-window", "pool-cameras", "rig-max-distance",
-                "rig-max-angle"},
-               merge(merge(kSceneOptions, kMotionRateOptions), kDatasetOptions)),
-         kFinetuneFlags);
+struct FinetuneFlags {
+  std::string model, images, cameras, out, refiner = "identity", refiner_command, truth, confidence;
+  bool paper_schedule = false;
+  uint64_t seed = 1;
+  double refiner_timeout = 600.0, refined_share = TrainOptions().refined_share;
+  FinetuneOptions finetune;
+  OracleOptions oracle;
+  std::vector<std::string> pool_cameras;
+  RigOptions rig;
+  MotionRateFlags rates;
+  DatasetOptions data;
+  SceneReadOptions read;
+};
+
+int finetune_model(const FinetuneFlags& f, const Invocation& in) {
+  std::ostream& out = in.out;
+  const std::string& out_dir = f.out;
   const auto t0 = Clock::now();
-  const std::string out_dir = a.require("out");
-  const Dataset data = Dataset::load(a.require("images"), a.require("cameras"), dataset_options(a, "train-cameras"));
-  const GaussianCloud model = read_scene(a.require("model"), scene_options(a));
-  FinetuneOptions o = a.flag("paper-schedule") ? FinetuneOptions::paper() : FinetuneOptions();
-  o.iterations = a.integer("iterations", o.iterations);
-  o.select_every = a.integer("select-every", o.select_every);
-  o.trajectories = a.integer("trajectories", o.trajectories);
-  if (o.iterations < 1 || o.select_every < 1 || o.trajectories < 0)
-    throw_error("fillgs finetune: --iterations and --select-every must be at least 1, --trajectories at least 0");
-  o.train = fine_tune_schedule(o.iterations, motion_rates(a));
-  o.train.seed = uint64_t(a.integer("seed", 1));
-  o.train.refined_share = a.number("refined-share", o.train.refined_share);
-  if (!(o.train.refined_share >= 0 && o.train.refined_share <= 1)) throw_error("fillgs finetune: --refined-share must be in [0, 1]");
-  apply_select_flags(a, o.select);
-  o.weighting = parse_weighting(a.get("weighting", "fillgs"));
-  o.mask.sigma = a.number("mask-sigma", o.mask.sigma);
-  o.mask.method = parse_mask_method(a.get("mask", "depth-warp"));
-  o.mask.covisibility = parse_covisibility(a.get("covis", "paper"));
-  if (a.has("confidence")) {
+  const Dataset data = Dataset::load(f.images, f.cameras, f.data);
+  const GaussianCloud model = read_scene(f.model, f.read);
+  // --paper-schedule picks the paper's counts; the flags given override them.
+  FinetuneOptions o = f.paper_schedule ? FinetuneOptions::paper() : FinetuneOptions();
+  if (in.given("--iterations")) o.iterations = f.finetune.iterations;
+  if (in.given("--select-every")) o.select_every = f.finetune.select_every;
+  if (in.given("--trajectories")) o.trajectories = f.finetune.trajectories;
+  o.train = fine_tune_schedule(o.iterations, motion_rates(in, f.rates));
+  o.train.seed = f.seed;
+  if (in.given("--refined-share")) o.train.refined_share = f.refined_share;
+  o.select = f.finetune.select;
+  o.select.seed = f.seed;
+  check_selection(in, o.select);
+  o.weighting = f.finetune.weighting;
+  o.mask = f.finetune.mask;
+  if (in.given("--confidence")) {
     o.mask.method = MaskMethod::External;
-    o.mask.external_dir = a.get("confidence");
-    if (!fs::is_directory(o.mask.external_dir)) throw_error("fillgs finetune: --confidence ", o.mask.external_dir, " is not a folder");
+    o.mask.external_dir = f.confidence;
+    if (!fs::is_directory(o.mask.external_dir)) in.fail("--confidence ", o.mask.external_dir, " is not a folder");
   }
-  o.threads = a.threads();
+  o.threads = in.common.threads;
   o.work_dir = join_path(out_dir, "work");
 
-  const std::string kind = a.get("refiner", "identity");
+  const std::string& kind = f.refiner;
   std::unique_ptr<Refiner> refiner;
   std::unique_ptr<GaussianCloud> truth;
   std::unique_ptr<Dataset> pool_data;
   if (kind == "identity") {
     refiner = make_identity_refiner();
   } else if (kind == "oracle") {
-    truth = std::make_unique<GaussianCloud>(read_scene(a.require("truth"), scene_options(a)));
-    OracleOptions oo;
-    oo.artifacts.strength = a.number("artifact-strength", 0.0);
+    if (!in.given("--truth")) in.fail("missing --truth");
+    truth = std::make_unique<GaussianCloud>(read_scene(f.truth, f.read));
+    OracleOptions oo = f.oracle;
     oo.artifacts.seed = o.train.seed;
-    oo.support = parse_oracle_support(a.get("support", "observed"));
-    oo.window = a.integer("support-window", oo.window);
-    if (oo.window < 0) throw_error("fillgs finetune: --support-window must be at least 0");
     for (const TrainView& v : data.views()) oo.observers.push_back(v.camera);
     oo.frames = data.frames();
     oo.threads = o.threads;
     refiner = make_oracle_refiner(*truth, oo);
   } else if (kind == "external") {
-    refiner = make_external_refiner(a.require("refiner-command"), a.number("refiner-timeout", 600.0));
+    if (!in.given("--refiner-command")) in.fail("missing --refiner-command");
+    refiner = make_external_refiner(f.refiner_command, f.refiner_timeout);
   } else if (kind == "rig") {
     // The pool: rig cameras neither trained on nor held out, every frame the training views have.
-    DatasetOptions po = dataset_options(a, "pool-cameras");
+    DatasetOptions po = f.data;
+    po.cameras = f.pool_cameras;
     po.monocular_cycle.clear();
-    if (po.cameras.empty()) throw_error("fillgs finetune: --refiner rig needs --pool-cameras a,b,.. (rig cameras neither trained on nor held out)");
+    if (po.cameras.empty()) in.fail("--refiner rig needs --pool-cameras a,b,.. (rig cameras neither trained on nor held out)");
     for (const std::string& c : po.cameras)
       for (const std::string& t : data.rigs())
-        if (c == t) throw_error("fillgs finetune: --pool-cameras names ", c, ", a training camera");
-    pool_data = std::make_unique<Dataset>(Dataset::load(a.require("images"), a.require("cameras"), po));
+        if (c == t) in.fail("--pool-cameras names ", c, ", a training camera");
+    pool_data = std::make_unique<Dataset>(Dataset::load(f.images, f.cameras, po));
     if (pool_data->frames() != data.frames())
-      throw_error("fillgs finetune: the pool cameras have ", pool_data->frames(), " frames, the training cameras ", data.frames());
+      in.fail("the pool cameras have ", pool_data->frames(), " frames, the training cameras ", data.frames());
     RigPool pool;
     for (const TrainView& v : pool_data->views()) pool.cameras.push_back(v.camera);
     pool.frame_count = pool_data->frames();
     pool.image = [d = pool_data.get()](size_t i) { return d->image(i); };
-    RigOptions ro;
-    ro.max_distance = a.number("rig-max-distance", ro.max_distance);
-    ro.max_angle_degrees = a.number("rig-max-angle", ro.max_angle_degrees);
-    refiner = make_rig_refiner(std::move(pool), ro);
+    refiner = make_rig_refiner(std::move(pool), f.rig);
   } else {
-    throw_error("fillgs finetune: unknown --refiner \"", kind, "\" (identity, oracle, external, rig)");
+    in.fail("unknown --refiner \"", kind, "\" (identity, oracle, external, rig)");
   }
   require_fresh(out_dir, "finetune");
   make_directories(out_dir);
   out << "fine-tuning " << model.size() << " Gaussians on " << data.views().size() << " views for " << o.iterations << " iterations; "
       << o.trajectories << " trajectories (" << to_string(o.select.strategy) << ") every " << o.select_every << ", refiner "
       << refiner->name() << ", weights " << to_string(o.weighting) << "\n";
-  TerminalProgress progress(err, progress_enabled(a));
+  TerminalProgress progress(in.err, in.progress());
   const FinetuneResult r = finetune(data, model, *refiner, o, progress);
   write_fillgs_ply(join_path(out_dir, "model.ply"), r.model, data.frames());
   write_transforms_json(join_path(out_dir, "virtual_views.json"), r.virtual_views);
@@ -175,7 +143,7 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
                       {"notes", rd.notes},
                       {"seconds", {{"select", rd.seconds_select}, {"render", rd.seconds_render}, {"refine", rd.seconds_refine},
                                    {"weights", rd.seconds_weights}}}});
-    for (const auto& [patch, why] : rd.refine_failures) err << "warning: refinement failed for " << why << "\n";
+    for (const auto& [patch, why] : rd.refine_failures) in.err << "warning: refinement failed for " << why << "\n";
   }
   const EvalResult tr = evaluate_views(r.model, data, std::max<int>(1, int(data.views().size() / 32)), Vec3f::Zero(), o.threads);
   size_t dropped = 0;
@@ -196,42 +164,86 @@ int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::o
   return 0;
 }
 
+}  // namespace
+
+Action declare_finetune(CLI::App& app) {
+  auto f = std::make_shared<FinetuneFlags>();
+  FinetuneOptions& o = f->finetune;
+  f->oracle.support = OracleSupport::Observed;  // the benchmark's protocol: truth only where the cameras looked
+  add_text(app, "--model", f->model, "the trained model", "PATH")->required();
+  add_text(app, "--images", f->images, "the training images", "DIR")->required();
+  add_text(app, "--cameras", f->cameras, "the training cameras", "PATH")->required();
+  add_text(app, "--out", f->out, "the folder for model.ply, virtual_views.json, work/ and summary.json (new or empty)", "DIR")->required();
+  add_number(app, "--iterations", o.iterations, "fine-tuning iterations", at_least(1));
+  add_number(app, "--select-every", o.select_every, "M: a selection round every M iterations", at_least(1));
+  add_number(app, "--trajectories", o.trajectories, "K: trajectories per round", at_least(0));
+  add_flag(app, "--paper-schedule", f->paper_schedule, "the paper's counts: 30,000 iterations, 20 trajectories every 6,000");
+  add_number(app, "--seed", f->seed, "random seed (training and selection)");
+  add_number(app, "--refined-share", f->refined_share, "share of iterations that draw a refined view", within(0, 1));
+  add_choice(app, "--weighting", o.weighting, "how refined pixels are trusted (fillgs: the paper's; the others: baselines and ablations)");
+  add_number(app, "--mask-sigma", o.mask.sigma, "colour difference at which consistency is 1/e", positive());
+  add_choice(app, "--mask", o.mask.method, "how consistency with the real views is measured");
+  add_choice(app, "--covis", o.mask.covisibility, "how the co-visibility weight reads the observation tables");
+  add_text(app, "--confidence", f->confidence, "consistency maps computed elsewhere (a folder)", "DIR");
+  add_text(app, "--refiner", f->refiner, "identity, oracle (the ground truth), external (a command) or rig (real pool cameras)", "NAME");
+  add_text(app, "--refiner-command", f->refiner_command, "external: the command, with {in} and {out}", "CMD");
+  add_number(app, "--refiner-timeout", f->refiner_timeout, "external: seconds per patch", positive());
+  add_text(app, "--truth", f->truth, "oracle: the ground-truth scene", "PATH");
+  add_number(app, "--artifact-strength", f->oracle.artifacts.strength, "oracle: strength of the simulated refiner artifacts", at_least(0));
+  add_choice(app, "--support", f->oracle.support, "oracle: truth everywhere, or only where the training cameras observed");
+  add_number(app, "--support-window", f->oracle.window, "oracle: frames either side that count as observed", at_least(0));
+  add_list(app, "--pool-cameras", f->pool_cameras, "rig: cameras neither trained on nor held out");
+  add_number(app, "--rig-max-distance", f->rig.max_distance, "rig: how far a pool camera may stand from the virtual view", at_least(0));
+  add_number(app, "--rig-max-angle", f->rig.max_angle_degrees, "rig: how far it may look away (degrees)", within(0, 180));
+  add_selection_flags(app, o.select);
+  add_motion_rate_flags(app, f->rates);
+  add_dataset_flags(app, f->data, "--train-cameras");
+  add_scene_flags(app, f->read);
+  return bind(f, finetune_model);
+}
+
+namespace {
+
 // ------------------------------------------------------------------ eval
 
-int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("eval", args, 1,
-         merge(merge({"model", "images", "cameras", "splits", "select-cameras", "truth", "lpips", "out", "stride", "threads", "colour-correction"},
-                     kSceneOptions),
-               kDatasetOptions),
-         {"quiet", "no-renders", "ls-gain"});
-  const GaussianCloud model = read_scene(a.require("model"), scene_options(a));
-  const std::vector<std::string> files = split_commas(a.require("cameras"));
-  std::vector<std::string> names = split_commas(a.get("splits"));
+struct EvalFlags {
+  std::string model, images, out, truth, lpips, colour_correction;
+  std::vector<std::string> cameras, splits;
+  int stride = 1;
+  bool no_renders = false, ls_gain = false;
+  DatasetOptions data;
+  SceneReadOptions read;
+};
+
+int eval(const EvalFlags& f, const Invocation& in) {
+  std::ostream& out = in.out;
+  const GaussianCloud model = read_scene(f.model, f.read);
+  const std::vector<std::string>& files = f.cameras;
+  std::vector<std::string> names = f.splits;
   if (names.empty())
-    for (const std::string& f : files) names.push_back(fs::path(f).stem().string());
-  if (names.size() != files.size()) throw_error("fillgs eval: ", names.size(), " --splits names for ", files.size(), " camera files");
-  const DatasetOptions dopt = dataset_options(a, "select-cameras");
+    for (const std::string& file : files) names.push_back(fs::path(file).stem().string());
+  if (names.size() != files.size()) in.fail(names.size(), " --splits names for ", files.size(), " camera files");
   std::vector<Dataset> splits;
-  for (const std::string& f : files) splits.push_back(Dataset::load(a.require("images"), f, dopt));
+  for (const std::string& file : files) splits.push_back(Dataset::load(f.images, file, f.data));
   std::unique_ptr<GaussianCloud> truth;
-  if (a.has("truth")) truth = std::make_unique<GaussianCloud>(read_scene(a.get("truth"), scene_options(a)));
+  if (in.given("--truth")) truth = std::make_unique<GaussianCloud>(read_scene(f.truth, f.read));
   EvalOptions eo;
-  eo.stride = a.integer("stride", 1);
-  eo.threads = a.threads();
+  eo.stride = f.stride;
+  eo.threads = in.common.threads;
   eo.truth = truth.get();
-  eo.lpips_onnx = a.get("lpips");
-  if (a.has("colour-correction")) eo.colour = read_colour_correction(a.get("colour-correction"));
-  eo.ls_gain = a.flag("ls-gain");
-  if (!eo.lpips_onnx.empty() && !fs::exists(eo.lpips_onnx)) throw_error("fillgs eval: --lpips ", eo.lpips_onnx, " does not exist");
-  const std::string out_dir = a.get("out");
+  eo.lpips_onnx = f.lpips;
+  if (in.given("--colour-correction")) eo.colour = read_colour_correction(f.colour_correction);
+  eo.ls_gain = f.ls_gain;
+  if (!eo.lpips_onnx.empty() && !fs::exists(eo.lpips_onnx)) in.fail("--lpips ", eo.lpips_onnx, " does not exist");
+  const std::string& out_dir = f.out;
   std::optional<OutputFolder> folder;  // a failed or killed run leaves the folder as it was
   if (!out_dir.empty()) folder.emplace(out_dir);
-  TerminalProgress progress(err, progress_enabled(a));
+  TerminalProgress progress(in.err, in.progress());
   json j = json::object();
   out << "split            views   PSNR    SSIM   moving PSNR" << (eo.lpips_onnx.empty() ? "" : "   LPIPS")
       << (eo.ls_gain ? "   PSNR (least-squares gain per image)" : "") << "\n";
   for (size_t k = 0; k < splits.size(); ++k) {
-    eo.save_dir = !folder || a.flag("no-renders") ? "" : join_path(join_path(folder->path(), "renders"), names[k]);
+    eo.save_dir = !folder || f.no_renders ? "" : join_path(join_path(folder->path(), "renders"), names[k]);
     const SplitMetrics m = evaluate_split(model, splits[k], names[k], eo, progress);
     char line[200];
     std::snprintf(line, sizeof line, "%-16s %5zu  %6.2f  %6.4f  %11s", names[k].c_str(), m.views, m.psnr, m.ssim, fixed(m.psnr_moving).c_str());
@@ -251,88 +263,110 @@ int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostre
 
 // ------------------------------------------------------------------ bench
 
-namespace {
+/// The built-in scene's size and the fine-tuning's counts, shared by bench and run; --smoke
+/// shrinks the defaults.
+struct SetupFlags {
+  bool smoke = false;
+  int width = ExperimentOptions().width, height = ExperimentOptions().height, frames = ExperimentOptions().frames;
+  int backbone_iterations = ExperimentOptions().backbone_iterations;
+  int iterations = FinetuneOptions().iterations, select_every = FinetuneOptions().select_every, time_stride = 1;
+  MotionRateFlags rates;
+};
 
 struct BenchSetup {
   ExperimentOptions scene;
   FinetuneOptions finetune;
 };
 
-BenchSetup bench_setup(const Args& a, bool smoke) {
+BenchSetup bench_setup(const SetupFlags& s, const Invocation& in) {
   BenchSetup b;
   ExperimentOptions& e = b.scene;
-  if (smoke) e.width = 64, e.height = 48, e.frames = 6, e.backbone_iterations = 150;
-  e.width = a.integer("width", e.width);
-  e.height = a.integer("height", e.height);
-  e.frames = a.integer("frames", e.frames);
-  e.backbone_iterations = a.integer("backbone-iterations", e.backbone_iterations);
-  e.threads = a.threads();
+  if (s.smoke) e.width = 64, e.height = 48, e.frames = 6, e.backbone_iterations = 150;
+  if (in.given("--width")) e.width = s.width;
+  if (in.given("--height")) e.height = s.height;
+  if (in.given("--frames")) e.frames = s.frames;
+  if (in.given("--backbone-iterations")) e.backbone_iterations = s.backbone_iterations;
+  e.threads = in.common.threads;
   FinetuneOptions& f = b.finetune;
-  f.iterations = a.integer("iterations", smoke ? 60 : f.iterations);
-  f.select_every = a.integer("select-every", smoke ? 30 : f.select_every);
-  if (f.iterations < 1 || f.select_every < 1 || e.backbone_iterations < 1) throw_error("fillgs ", a.command(), ": iteration counts must be at least 1");
-  f.train = fine_tune_schedule(f.iterations, motion_rates(a));
+  f.iterations = in.given("--iterations") ? s.iterations : s.smoke ? 60 : f.iterations;
+  f.select_every = in.given("--select-every") ? s.select_every : s.smoke ? 30 : f.select_every;
+  f.train = fine_tune_schedule(f.iterations, motion_rates(in, s.rates));
   f.threads = e.threads;
-  f.select.time_stride = a.integer("time-stride", 1);
+  f.select.time_stride = s.time_stride;
   f.select.seed = 1;
   return b;
 }
 
-std::vector<OracleSupport> parse_supports(const std::string& s) {
-  if (s == "both") return {OracleSupport::Observed, OracleSupport::Full};
-  return {parse_oracle_support(s)};
-}
+/// --support observed|full|both.
+enum class SupportChoice { Observed, Full, Both };
 
 }  // namespace
+}  // namespace fillgs::cli
 
-int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("bench", args, 1,
-         merge({"out", "scenes", "variants", "seeds", "only", "configs", "iterations", "select-every", "backbone-iterations", "width", "height",
-                "frames", "artifact-strength", "baseline-weighting", "threads", "time-stride", "support", "merge"},
-               kMotionRateOptions),
-         {"quiet", "smoke"});
-  const bool smoke = a.flag("smoke");
-  const std::string root = a.get("out", "fillgs_bench");
-  if (a.has("merge")) {
+namespace fillgs {
+template <>
+struct EnumNames<cli::SupportChoice> {
+  static constexpr const char* what = "oracle support";
+  static constexpr NameOf<cli::SupportChoice> table[] = {
+      {cli::SupportChoice::Observed, "observed"}, {cli::SupportChoice::Full, "full"}, {cli::SupportChoice::Both, "both"}};
+};
+}  // namespace fillgs
+
+namespace fillgs::cli {
+namespace {
+
+std::vector<OracleSupport> supports_of(SupportChoice s) {
+  if (s == SupportChoice::Both) return {OracleSupport::Observed, OracleSupport::Full};
+  return {s == SupportChoice::Full ? OracleSupport::Full : OracleSupport::Observed};
+}
+
+struct BenchFlags {
+  std::string out = "fillgs_bench";
+  std::vector<std::string> scenes = {"n3v"}, seeds, only, configs, merge;
+  double artifact_strength = 0.5;
+  Weighting baseline_weighting = Weighting::ExploreGS;
+  SupportChoice support = SupportChoice::Observed;
+  SetupFlags setup;
+};
+
+int bench(const BenchFlags& f, const Invocation& in) {
+  std::ostream& out = in.out;
+  const bool smoke = f.setup.smoke;
+  const std::string& root = f.out;
+  if (in.given("--merge")) {
     // Tables over finished runs only: bench folders or results.csv files, nothing run.
-    if (!a.has("out")) throw_error("fillgs bench: --merge needs --out DIR (the folder for the merged tables)");
-    for (const std::string& k : merge({"scenes", "variants", "seeds", "only", "configs", "iterations", "select-every", "backbone-iterations", "width",
-                                       "height", "frames", "artifact-strength", "baseline-weighting", "time-stride", "support"},
-                                      kMotionRateOptions))
-      if (a.has(k)) throw_error("fillgs bench: --merge runs nothing, so --", k, " has no meaning with it");
-    if (smoke) throw_error("fillgs bench: --merge runs nothing, so --smoke has no meaning with it");
-    const std::vector<std::string> inputs = split_commas(a.get("merge"));
-    const std::vector<RunResult> all = merge_results(inputs);
+    if (!in.given("--out")) in.fail("--merge needs --out DIR (the folder for the merged tables)");
+    for (const char* k : {"--scenes", "--seeds", "--only", "--configs", "--iterations", "--select-every", "--backbone-iterations", "--width",
+                          "--height", "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--support", "--motion-rates",
+                          "--position-lr", "--key-lr-scale", "--smoke"})
+      if (in.given(k)) in.fail("--merge runs nothing, so ", k, " has no meaning with it");
+    const std::vector<RunResult> all = merge_results(f.merge);
     make_directories(root);
     write_bench_report(root, all);
-    out << "fillgs bench: " << all.size() << " runs from " << inputs.size() << " inputs -> " << join_path(root, "results.md") << ", "
+    out << "fillgs bench: " << all.size() << " runs from " << f.merge.size() << " inputs -> " << join_path(root, "results.md") << ", "
         << join_path(root, "results.csv") << "\n";
     return 0;
   }
-  BenchSetup setup = bench_setup(a, smoke);
-  // --variants is the earlier name of --scenes.
-  const std::vector<std::string> scenes = split_commas(a.get("scenes", a.get("variants", "n3v")));
-  for (const std::string& sc : scenes) parse_scene(sc);  // unknown names fail before any work
+  BenchSetup setup = bench_setup(f.setup, in);
+  for (const std::string& sc : f.scenes) parse_scene(sc);  // unknown names fail before any work
   std::vector<uint64_t> seeds;
-  for (const std::string& s : split_commas(a.get("seeds", smoke ? "1" : "1,2,3")))
+  for (const std::string& s : in.given("--seeds") ? f.seeds : std::vector<std::string>(smoke ? std::vector<std::string>{"1"} : std::vector<std::string>{"1", "2", "3"}))
     seeds.push_back(uint64_t(parse_count(s, size_t(1) << 62, "fillgs bench", "--seeds value")));
-  const double strength = a.number("artifact-strength", 0.5);
-  const std::vector<OracleSupport> supports = parse_supports(a.get("support", "observed"));
-  std::vector<RunConfig> configs = standard_configs(parse_weighting(a.get("baseline-weighting", "exploregs")), strength, supports);
-  const std::vector<std::string> only = split_commas(a.get("only")), ids = split_commas(a.get("configs"));
+  std::vector<RunConfig> configs = standard_configs(f.baseline_weighting, f.artifact_strength, supports_of(f.support));
+  const std::vector<std::string>&only = f.only, &ids = f.configs;
   std::vector<RunConfig> chosen;
   for (const RunConfig& c : configs) {
     const bool by_group = only.empty() || std::count(only.begin(), only.end(), c.group);
     const bool by_id = ids.empty() || std::count(ids.begin(), ids.end(), c.id);
     if (by_group && by_id && (!smoke || c.group == "control" || c.group == "strategy" || c.group == "upper")) chosen.push_back(c);
   }
-  if (chosen.empty()) throw_error("fillgs bench: --only/--configs select no configuration");
+  if (chosen.empty()) in.fail("--only/--configs select no configuration");
   make_directories(root);
-  TerminalProgress progress(err, progress_enabled(a));
+  TerminalProgress progress(in.err, in.progress());
   std::vector<RunResult> results;
-  out << "fillgs bench: " << scenes.size() << " scene(s) x " << seeds.size() << " seed(s) x " << chosen.size() << " configurations -> " << root
+  out << "fillgs bench: " << f.scenes.size() << " scene(s) x " << seeds.size() << " seed(s) x " << chosen.size() << " configurations -> " << root
       << " (resumable: finished runs are reused)\n";
-  for (const std::string& sc : scenes)
+  for (const std::string& sc : f.scenes)
     for (uint64_t seed : seeds) {
       ExperimentOptions eo = setup.scene;
       const SceneChoice choice = parse_scene(sc);
@@ -360,26 +394,32 @@ int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostr
       }
     }
   write_bench_report(root, collect_results(root));
-  out << "fillgs bench: " << results.size() << " runs here, tables over every run in the folder: " << join_path(root, "results.md") << ", " << join_path(root, "results.csv")
-      << "\n";
+  out << "fillgs bench: " << results.size() << " runs here, tables over every run in the folder: " << join_path(root, "results.md") << ", "
+      << join_path(root, "results.csv") << "\n";
   return 0;
 }
 
 // ------------------------------------------------------------------ run
 
-int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("run", args, 1, merge({"out", "threads", "baseline", "scene", "support"}, kMotionRateOptions), {"quiet", "smoke"});
+struct RunFlags {
+  std::string out = "fillgs_run", scene = "n3v";
+  Strategy baseline = Strategy::Coverage4D;
+  OracleSupport support = OracleSupport::Observed;
+  SetupFlags setup;
+};
+
+int run_pipeline(const RunFlags& f, const Invocation& in) {
+  std::ostream& out = in.out;
+  const std::string& dir = f.out;
+  const std::string baseline = to_string(f.baseline);
+  const OracleSupport support = f.support;
+  if (f.baseline == Strategy::FillGS) in.fail("--baseline must be another strategy than fillgs");
   const auto t0 = Clock::now();
-  const std::string dir = a.get("out", "fillgs_run");
-  const std::string baseline = a.get("baseline", "coverage4d");
-  const Strategy baseline_strategy = parse_strategy(baseline);
-  if (baseline_strategy == Strategy::FillGS) throw_error("fillgs run: --baseline must be another strategy than fillgs");
-  const OracleSupport support = parse_oracle_support(a.get("support", "observed"));
-  BenchSetup setup = bench_setup(a, a.flag("smoke"));
-  const SceneChoice choice = parse_scene(a.get("scene", "n3v"));
+  BenchSetup setup = bench_setup(f.setup, in);
+  const SceneChoice choice = parse_scene(f.scene);
   setup.scene.rig = choice.rig;
   setup.scene.variant = choice.variant;
-  TerminalProgress progress(err, progress_enabled(a));
+  TerminalProgress progress(in.err, in.progress());
   const ExperimentOptions eo = setup.scene.resolved();
   out << "fillgs run: the whole pipeline on the built-in scene (" << eo.scene_name() << ", " << eo.width << "x" << eo.height << ", "
       << eo.frames << " frames): train a backbone on 2 cameras, then fine-tune it without generated views, with FillGS's and with "
@@ -457,7 +497,7 @@ int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostrea
       md << "![" << file << "](" << file << ")\n\n";
   }
   md << "## Command\n\n```\nfillgs";
-  for (const std::string& s : args) md << " " << s;  // args[0] is "run"
+  for (const std::string& s : in.args) md << " " << s;  // args[0] is "run"
   md << "\n```\n\n";
   md << "Per-run folders (patches, refined views with their support, consistency mask, co-visibility and weight images): `"
      << join_path(p.dir, "runs") << "`.\n";
@@ -466,6 +506,65 @@ int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   out << "\nfillgs run: finished in " << fixed(seconds_since(t0), 0) << " s; report " << join_path(dir, "report.md") << " and "
       << join_path(dir, "report.html") << "\n";
   return 0;
+}
+
+void add_setup_flags(CLI::App& app, SetupFlags& s, bool sizes) {
+  add_flag(app, "--smoke", s.smoke, "a small, fast version (64x48, 6 frames, short runs)");
+  if (sizes) {
+    add_number(app, "--width", s.width, "image width of the built-in scene (0: the rig's, 160; technicolor 192; smoke 64)", at_least(0));
+    add_number(app, "--height", s.height, "image height (0: the rig's, 120; technicolor 102; smoke 48)", at_least(0));
+    add_number(app, "--frames", s.frames, "frames of the video (smoke 6)", at_least(2));
+    add_number(app, "--backbone-iterations", s.backbone_iterations, "training iterations of the backbone (smoke 150)", at_least(1));
+    add_number(app, "--iterations", s.iterations, "fine-tuning iterations (smoke 60)", at_least(1));
+    add_number(app, "--select-every", s.select_every, "a selection round every M iterations (smoke 30)", at_least(1));
+    add_number(app, "--time-stride", s.time_stride, "starting-view priority on every k-th frame only", at_least(1));
+  }
+  add_motion_rate_flags(app, s.rates);
+}
+
+}  // namespace
+
+Action declare_eval(CLI::App& app) {
+  auto f = std::make_shared<EvalFlags>();
+  add_text(app, "--model", f->model, "the model", "PATH")->required();
+  add_text(app, "--images", f->images, "the images folder", "DIR")->required();
+  add_list(app, "--cameras", f->cameras, "one camera file per split")->required();
+  add_list(app, "--splits", f->splits, "the splits' names (default: the camera files' names)");
+  add_text(app, "--truth", f->truth, "the ground-truth scene: its moving Gaussians mark the moving region", "PATH");
+  add_text(app, "--lpips", f->lpips, "LPIPS network (ONNX)", "PATH");
+  add_text(app, "--colour-correction", f->colour_correction, "a colour_correction.json from train --colour-correction", "PATH");
+  add_flag(app, "--ls-gain", f->ls_gain, "also PSNR after a least-squares gain per image");
+  add_text(app, "--out", f->out, "the folder for metrics.json and renders", "DIR");
+  add_flag(app, "--no-renders", f->no_renders, "no renders in --out");
+  add_number(app, "--stride", f->stride, "every k-th view of each split", at_least(1));
+  add_dataset_flags(app, f->data, "--select-cameras");
+  add_scene_flags(app, f->read);
+  return bind(f, eval);
+}
+
+Action declare_bench(CLI::App& app) {
+  auto f = std::make_shared<BenchFlags>();
+  add_text(app, "--out", f->out, "the benchmark's folder (resumable)", "DIR");
+  add_list(app, "--scenes,--variants", f->scenes, "built-in scenes: n3v, technicolor, chair, orbit, lift");
+  add_list(app, "--seeds", f->seeds, "seeds (default 1,2,3; smoke 1)");
+  add_list(app, "--only", f->only, "only these groups of configurations");
+  add_list(app, "--configs", f->configs, "only these configurations");
+  add_number(app, "--artifact-strength", f->artifact_strength, "strength of the oracle's simulated refiner artifacts", at_least(0));
+  add_choice(app, "--baseline-weighting", f->baseline_weighting, "the weights the baseline strategies fine-tune with");
+  add_choice(app, "--support", f->support, "the oracle's support (both: a row each)");
+  add_list(app, "--merge", f->merge, "tables over finished runs: bench folders or results.csv files (needs --out)");
+  add_setup_flags(app, f->setup, true);
+  return bind(f, bench);
+}
+
+Action declare_run(CLI::App& app) {
+  auto f = std::make_shared<RunFlags>();
+  add_text(app, "--out", f->out, "the folder for the report, pictures and runs", "DIR");
+  add_text(app, "--scene", f->scene, "built-in scene: n3v, technicolor, chair, orbit or lift", "NAME");
+  add_choice(app, "--baseline", f->baseline, "the strategy FillGS is compared with");
+  add_choice(app, "--support", f->support, "the oracle's support");
+  add_setup_flags(app, f->setup, false);
+  return bind(f, run_pipeline);
 }
 
 }  // namespace fillgs::cli

@@ -4,8 +4,9 @@
 #include <filesystem>
 #include <memory>
 
-#include "common.hpp"
 #include "commands.hpp"
+#include "options.hpp"
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/camera_json.hpp"
 #include "fillgs/exploration.hpp"
 #include "fillgs/fs_util.hpp"
@@ -20,16 +21,6 @@
 namespace fillgs::cli {
 
 namespace {
-
-const std::set<std::string> kGridOptions = {"divisions", "occupancy-alpha", "grid"};
-
-ExplorationOptions exploration_options(const Args& a) {
-  ExplorationOptions o;
-  o.divisions = a.integer("divisions", o.divisions);
-  o.occupancy_alpha = float(a.number("occupancy-alpha", o.occupancy_alpha));
-  o.threads = a.threads();
-  return o;
-}
 
 nlohmann::json grid_json(const ExplorationGrid& g, const ExplorationStats* s) {
   const auto c = g.counts();
@@ -57,22 +48,30 @@ std::vector<Camera> timed_cameras(const std::vector<Camera>& cams, int frames) {
   return out;
 }
 
+// ------------------------------------------------------------------ explore
 
-}  // namespace
+struct ExploreFlags {
+  std::string scene, cameras, out;
+  int frames = 0;
+  ExplorationOptions grid;
+  SceneReadOptions read;
+  CameraReadOptions camera_read;
+};
 
-int cmd_explore(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("explore", args, 1, merge(merge(merge({"scene", "cameras", "out", "frames", "threads"}, kGridOptions), kSceneOptions), kCameraOptions),
-         {"quiet"});
+int explore(const ExploreFlags& f, const Invocation& in) {
+  std::ostream& out = in.out;
+  const std::string& out_dir = f.out;
   const auto t0 = Clock::now();
-  const std::string out_dir = a.require("out");
-  const GaussianCloud cloud = read_scene(a.require("scene"), scene_options(a));
-  const std::vector<Camera> cams = read_cameras(a.require("cameras"), camera_options(a));
-  if (cams.empty()) throw_error(a.get("cameras"), ": no cameras");
+  const GaussianCloud cloud = read_scene(f.scene, f.read);
+  const std::vector<Camera> cams = read_cameras(f.cameras, f.camera_read);
+  if (cams.empty()) throw_error(f.cameras, ": no cameras");
   std::vector<double> sweep;
-  if (a.has("frames")) sweep = frame_times(a.integer("frames", 2));
-  TerminalProgress progress(err, progress_enabled(a));
+  if (in.given("--frames")) sweep = FrameGrid(f.frames).times();
+  TerminalProgress progress(in.err, in.progress());
   ExplorationStats stats;
-  const ExplorationGrid grid = ExplorationGrid::build(cloud, cams, sweep, exploration_options(a), &stats, progress);
+  ExplorationOptions go = f.grid;
+  go.threads = in.common.threads;
+  const ExplorationGrid grid = ExplorationGrid::build(cloud, cams, sweep, go, &stats, progress);
   OutputFolder folder(out_dir);  // a failed or killed run leaves the folder as it was
   grid.write(join_path(folder.path(), "exploration.vdb"));
   write_topdown_png(join_path(folder.path(), "exploration.png"), grid, cams, {}, "exploration space");
@@ -85,73 +84,59 @@ int cmd_explore(const std::vector<std::string>& args, std::ostream& out, std::os
   return 0;
 }
 
-int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  Args a("select", args, 1,
-         merge(merge(merge({"scene", "cameras", "images", "out", "strategy", "trajectories", "seed", "threads", "frames", "views",
-                            "patch-frames", "time-stride", "render-scale", "renderer", "stride", "global-candidates", "mode", "background"},
-                           kGridOptions),
-                     kSceneOptions),
-               kCameraOptions),
-         {"quiet", "no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring", "no-global", "count-only",
-          "speed-only", "no-renders"});
+// ------------------------------------------------------------------ select
+
+struct SelectFlags {
+  std::string scene, cameras, images, out, grid;
+  TimeFlags time;
+  SelectOptions select;
+  Vec3f background = Vec3f::Zero();
+  bool no_renders = false;
+  ExplorationOptions grid_options;
+  SceneReadOptions read;
+  CameraReadOptions camera_read;
+};
+
+int select_views(const SelectFlags& f, const Invocation& invocation) {
+  std::ostream& out = invocation.out;
+  const std::string& out_dir = f.out;
   const auto t0 = Clock::now();
-  const std::string out_dir = a.require("out");
-  SelectOptions o;
-  o.strategy = parse_strategy(a.get("strategy", "fillgs"));
-  o.trajectories = a.integer("trajectories", o.trajectories);
-  o.seed = uint64_t(a.integer("seed", int(o.seed)));
-  o.threads = a.threads();
-  o.views = a.integer("views", o.views);
-  o.patch_frames = a.integer("patch-frames", o.patch_frames);
-  o.time_stride = a.integer("time-stride", o.time_stride);
-  o.render_scale = a.number("render-scale", o.render_scale);
-  o.renderer = parse_map_renderer(a.get("renderer", "raster"));
-  o.stride = a.integer("stride", o.stride);
-  o.global_candidates = a.integer("global-candidates", o.global_candidates);
-  o.visibility.mode = parse_visibility_mode(a.get("mode", "frustum"));
+  SelectOptions o = f.select;
+  o.threads = invocation.common.threads;
   o.visibility.threads = o.threads;
-  o.no_start_selection = a.flag("no-start-selection");
-  o.no_error_term = a.flag("no-error-term");
-  o.no_sensitivity_term = a.flag("no-sensitivity-term");
-  o.no_candidate_scoring = a.flag("no-candidate-scoring");
-  o.no_global = a.flag("no-global");
-  if (a.flag("count-only") && a.flag("speed-only")) throw_error("fillgs select: --count-only and --speed-only exclude each other");
-  if (a.flag("count-only")) o.score = CandidateScore::CountOnly;
-  if (a.flag("speed-only")) o.score = CandidateScore::SpeedOnly;
-  if (o.no_error_term && o.no_sensitivity_term) throw_error("fillgs select: --no-error-term and --no-sensitivity-term leave no priority");
+  check_selection(invocation, o);
 
   // Inputs, all read before anything is written.
-  const std::string scene_path = a.require("scene"), cameras_path = a.require("cameras");
-  const GaussianCloud cloud = read_scene(scene_path, scene_options(a));
+  const std::string& cameras_path = f.cameras;
+  const GaussianCloud cloud = read_scene(f.scene, f.read);
   SelectInput in;
   in.scene = &cloud;
-  if (a.has("background")) {
-    const std::vector<double> c = a.numbers("background", 3);
-    for (int k = 0; k < 3; ++k) in.background[k] = float(c[size_t(k)]);
-  }
+  in.background = f.background;
   std::unique_ptr<Dataset> data;
   std::vector<Camera> cams;
-  if (a.has("images")) {
-    data = std::make_unique<Dataset>(Dataset::load(a.get("images"), cameras_path));
+  if (invocation.given("--images")) {
+    data = std::make_unique<Dataset>(Dataset::load(f.images, cameras_path));
     in.frames = data->frames();
     for (const TrainView& v : data->views()) cams.push_back(v.camera);
     in.image = [&](size_t i) { return data->image(i); };
   } else {
-    const std::vector<Camera> read = read_cameras(cameras_path, camera_options(a));
+    const std::vector<Camera> read = read_cameras(cameras_path, f.camera_read);
     if (read.empty()) throw_error(cameras_path, ": no cameras");
     double step = 0;
-    in.frames = int(observe_times(a, cloud, read, &step).size());
+    in.frames = int(observe_times(invocation, f.time, cloud, read, &step).size());
     cams = timed_cameras(read, in.frames);
   }
   in.views = observed_views(cams, in.frames);
   if (data)  // same order as the dataset (observed_views keeps input order)
     for (size_t i = 0; i < in.views.size(); ++i) FILLGS_CHECK_EQ(in.views[i].frame, data->views()[i].frame);
 
-  TerminalProgress progress(err, progress_enabled(a));
+  TerminalProgress progress(invocation.err, invocation.progress());
   ExplorationStats gstats;
   std::unique_ptr<ExplorationGrid> grid;
-  if (a.has("grid")) grid = std::make_unique<ExplorationGrid>(ExplorationGrid::read(a.get("grid")));
-  else grid = std::make_unique<ExplorationGrid>(ExplorationGrid::build(cloud, cams, {}, exploration_options(a), &gstats, progress));
+  ExplorationOptions go = f.grid_options;
+  go.threads = o.threads;
+  if (invocation.given("--grid")) grid = std::make_unique<ExplorationGrid>(ExplorationGrid::read(f.grid));
+  else grid = std::make_unique<ExplorationGrid>(ExplorationGrid::build(cloud, cams, {}, go, &gstats, progress));
   in.grid = grid.get();
   const double grid_s = seconds_since(t0);
 
@@ -191,12 +176,12 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
 
   // Renders: RGB and the normalised deficiency D̂ (initial tables) of every virtual view.
   double mean_selected_deficiency = 0;
-  if (!a.flag("no-renders") && !virtual_cams.empty()) {
+  if (!f.no_renders && !virtual_cams.empty()) {
     DeficiencyField field(r.initial_tables, o.deficiency_quantile);
     FrameEvaluator ev(cloud);
     progress.start("renders", virtual_cams.size());
     for (const Camera& c : virtual_cams) {
-      const int f = int(std::lround(c.time * (in.frames - 1)));
+      const int f = FrameGrid(in.frames).nearest(c.time);
       const std::vector<float> d = field.values(f, CandidateScore::Deficiency);
       RenderOptions ro;
       ro.features = d.data();
@@ -264,7 +249,7 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
                       {"trajectories", r.trajectories.size()},
                       {"virtual_views", virtual_cams.size()},
                       {"mean_deficiency_of_selected_views", mean_selected_deficiency},
-                      {"grid", grid_json(*grid, a.has("grid") ? nullptr : &gstats)},
+                      {"grid", grid_json(*grid, invocation.given("--grid") ? nullptr : &gstats)},
                       {"priority", prio},
                       {"notes", r.notes},
                       {"seconds",
@@ -285,6 +270,47 @@ int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ost
       << tm.candidates_scored << " candidates) -> " << out_dir << "\n";
   for (const std::string& n : r.notes) out << "note: " << n << "\n";
   return 0;
+}
+
+}  // namespace
+
+Action declare_explore(CLI::App& app) {
+  auto f = std::make_shared<ExploreFlags>();
+  add_text(app, "--scene", f->scene, "the model", "PATH")->required();
+  add_text(app, "--cameras", f->cameras, "the training cameras", "PATH")->required();
+  add_text(app, "--out", f->out, "the folder for exploration.vdb, exploration.png and summary.json", "DIR")->required();
+  add_number(app, "--frames", f->frames, "sweep the moving Gaussians over F frames (default: the static scene)", at_least(1))->default_str("");
+  add_grid_flags(app, f->grid);
+  add_scene_flags(app, f->read);
+  add_camera_flags(app, f->camera_read);
+  return bind(f, explore);
+}
+
+Action declare_select(CLI::App& app) {
+  auto f = std::make_shared<SelectFlags>();
+  SelectOptions& o = f->select;
+  add_text(app, "--scene", f->scene, "the model", "PATH")->required();
+  add_text(app, "--cameras", f->cameras, "the training cameras", "PATH")->required();
+  add_text(app, "--out", f->out, "the folder for trajectories.json, renders, priorities and pictures", "DIR")->required();
+  add_text(app, "--images", f->images, "the training images (the priority's error term L needs them)", "DIR");
+  add_time_flags(app, f->time, false);
+  add_number(app, "--trajectories", o.trajectories, "trajectories to select", at_least(0));
+  add_number(app, "--seed", o.seed, "random seed");
+  add_number(app, "--views", o.views, "virtual poses per trajectory", at_least(1));
+  add_number(app, "--patch-frames", o.patch_frames, "consecutive frames each pose is rendered at", at_least(1));
+  add_number(app, "--render-scale", o.render_scale, "priority renders at this fraction of the resolution", within_open(0, 1e3));
+  add_choice(app, "--renderer", o.renderer, "how candidate maps are rendered");
+  add_number(app, "--stride", o.stride, "raytraced candidate maps: one ray every s pixels", at_least(1));
+  add_number(app, "--global-candidates", o.global_candidates, "candidates drawn from the whole exploration space", at_least(0));
+  add_choice(app, "--mode", o.visibility.mode, "how the counts C decide that a camera observes a Gaussian");
+  add_colour(app, "--background", f->background, "the background colour");
+  add_text(app, "--grid", f->grid, "a grid written by fillgs explore (default: built here)", "VDB");
+  add_flag(app, "--no-renders", f->no_renders, "no RGB and deficiency renders of the virtual views");
+  add_selection_flags(app, o);
+  add_grid_flags(app, f->grid_options);
+  add_scene_flags(app, f->read);
+  add_camera_flags(app, f->camera_read);
+  return bind(f, select_views);
 }
 
 }  // namespace fillgs::cli

@@ -1,16 +1,15 @@
 #pragma once
-// Commands implemented outside cli.cpp; each returns the process exit status.
-#include <ostream>
-#include <string>
-#include <vector>
+// The commands declared outside cli.cpp: each declares its flags on `app` and returns what
+// runs once they are parsed (options.hpp).
+#include "options.hpp"
 
 namespace fillgs::cli {
 
-int cmd_explore(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
-int cmd_select(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
-int cmd_finetune(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
-int cmd_eval(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
-int cmd_bench(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
-int cmd_run(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+Action declare_explore(CLI::App& app);
+Action declare_select(CLI::App& app);
+Action declare_finetune(CLI::App& app);
+Action declare_eval(CLI::App& app);
+Action declare_bench(CLI::App& app);
+Action declare_run(CLI::App& app);
 
 }  // namespace fillgs::cli

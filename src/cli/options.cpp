@@ -1,0 +1,240 @@
+#include "options.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "fillgs/frame_grid.hpp"
+#include "fillgs/visibility.hpp"
+
+namespace fillgs::cli {
+
+namespace {
+
+std::string number_text(double x) {
+  std::ostringstream s;
+  s << x;
+  return s.str();
+}
+
+std::vector<std::string> split_commas(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ','))
+    if (!item.empty()) out.push_back(item);
+  return out;
+}
+
+}  // namespace
+
+Bounds at_least(double lo) { return {lo, INFINITY, false, false, "at least " + number_text(lo)}; }
+Bounds positive() { return {0.0, INFINITY, true, false, "positive"}; }
+Bounds within(double lo, double hi) { return {lo, hi, false, false, "in [" + number_text(lo) + ", " + number_text(hi) + "]"}; }
+Bounds within_open(double lo, double hi) { return {lo, hi, true, true, "in (" + number_text(lo) + ", " + number_text(hi) + ")"}; }
+Bounds from_below(double lo, double hi) { return {lo, hi, false, true, "in [" + number_text(lo) + ", " + number_text(hi) + ")"}; }
+
+std::string check_number(const std::string& text, bool integral, const Bounds& bounds, double* out) {
+  double x = 0;
+  if (!parse_number(text, &x)) return std::string("expects ") + (integral ? "an integer" : "a number") + ", got '" + text + "'";
+  if (integral && x != std::floor(x)) return "expects an integer, got '" + text + "'";
+  if (!bounds.holds(x)) return "must be " + (bounds.words.empty() ? "in [" + number_text(bounds.lo) + ", " + number_text(bounds.hi) + "]" : bounds.words) +
+                               ", got " + text;
+  *out = x;
+  return "";
+}
+
+CLI::Option* add_flag(CLI::App& app, const std::string& flag, bool& dest, const std::string& help) {
+  return app.add_flag(flag, dest, help);
+}
+
+CLI::Option* add_switch_off(CLI::App& app, const std::string& flag, bool& dest, const std::string& help) {
+  return app.add_flag_callback(flag, [&dest] { dest = false; }, help);
+}
+
+CLI::Option* add_text(CLI::App& app, const std::string& flag, std::string& dest, const std::string& help, const std::string& type) {
+  CLI::Option* o = app.add_option(flag, dest, help)->type_name(type);
+  if (!dest.empty()) o->default_str(dest);
+  return o;
+}
+
+CLI::Option* add_list(CLI::App& app, const std::string& flag, std::vector<std::string>& dest, const std::string& help) {
+  CLI::Option* o = app.add_option(
+      flag,
+      [&dest](const CLI::results_t& r) {
+        dest = split_commas(r.back());
+        return true;
+      },
+      help);
+  o->type_name("A,B,..");
+  std::string def;
+  for (const std::string& s : dest) def += (def.empty() ? "" : ",") + s;
+  if (!def.empty()) o->default_str(def);
+  return o;
+}
+
+CLI::Option* add_colour(CLI::App& app, const std::string& flag, Vec3f& dest, const std::string& help) {
+  const std::string name = app.get_name();
+  CLI::Option* o = app.add_option(
+      flag,
+      [&dest, flag, name](const CLI::results_t& r) {
+        const std::string v = r.back();
+        std::vector<double> c;
+        std::stringstream ss(v);
+        std::string part;
+        double x = 0;
+        while (std::getline(ss, part, ',') && parse_number(part, &x)) c.push_back(x);
+        if (c.size() != 3 || !ss.eof() || (!v.empty() && v.back() == ','))
+          throw_error(name, ": ", flag, " expects 3 comma-separated numbers, got '", v, "'");
+        dest = Vec3f(float(c[0]), float(c[1]), float(c[2]));
+        return true;
+      },
+      help);
+  o->type_name("R,G,B")->default_str(number_text(dest[0]) + "," + number_text(dest[1]) + "," + number_text(dest[2]));
+  return o;
+}
+
+CLI::Option* add_bytes(CLI::App& app, const std::string& flag, int64_t& dest, double unit, const std::string& unit_name, const std::string& help) {
+  const std::string name = app.get_name();
+  CLI::Option* o = app.add_option(
+      flag,
+      [&dest, flag, name, unit, unit_name](const CLI::results_t& r) {
+        double x = 0;
+        if (!parse_number(r.back(), &x) || !(x >= 0 && x < 1e6 * (double(int64_t(1) << 30) / unit)))
+          throw_error(name, ": ", flag, " must be a number of ", unit_name, ", at least 0 (got ", r.back(), ")");
+        dest = int64_t(x * unit);
+        return true;
+      },
+      help);
+  o->type_name(unit_name);
+  return o;
+}
+
+void add_scene_flags(CLI::App& app, SceneReadOptions& o) {
+  add_choice(app, "--scene-format", o.format, "the scene's format (auto: from the file)")->group("Scene options");
+  add_number(app, "--duration", o.ex4dgs_duration, "Ex4DGS: frames the model covers (0: from cfg_args)", at_least(0))->group("Scene options");
+  add_number(app, "--stg-duration", o.stg_duration, "Spacetime Gaussians: frames one model covers", at_least(1))->group("Scene options");
+  add_text(app, "--stg-color", o.stg_color_activation, "Spacetime Gaussians colour activation: auto, sigmoid, clamp or none", "NAME")
+      ->group("Scene options");
+  add_number(app, "--static-threshold", o.partition.static_speed_threshold, "speed below which a Gaussian counts as static", at_least(0))
+      ->group("Scene options");
+}
+
+void add_camera_flags(CLI::App& app, CameraReadOptions& o) {
+  add_choice(app, "--camera-format", o.format, "the cameras' format (auto: from the path)")->group("Camera options");
+  add_number(app, "--width", o.width, "image width for formats that store none (0: from the image)", at_least(0))->group("Camera options");
+  add_number(app, "--height", o.height, "image height for formats that store none (0: from the image)", at_least(0))->group("Camera options");
+  add_number(app, "--llff-downscale", o.llff_downscale, "LLFF: divide the stored H, W, f by this", positive())->group("Camera options");
+}
+
+void add_dataset_flags(CLI::App& app, DatasetOptions& o, const std::string& cameras_flag) {
+  const std::string name = app.get_name();
+  if (!cameras_flag.empty()) add_list(app, cameras_flag, o.cameras, "the rig cameras to use (names as in the camera file; default: all)")->group("Image options");
+  app.add_option(
+         "--frames",
+         [&o, name](const CLI::results_t& r) {
+           o.frames = FrameRange::parse(r.back());
+           return true;
+         },
+         "frames first:last:step (Python's slice; the frames kept become the video)")
+      ->type_name("A:B:S")
+      ->group("Image options");
+  add_number(app, "--downscale", o.downscale, "images averaged over k x k blocks, cameras scaled to match", at_least(1))->group("Image options");
+  add_list(app, "--monocular-cycle", o.monocular_cycle, "frame f keeps only camera [f mod n]")->group("Image options");
+  add_bytes(app, "--image-memory", o.image_memory, double(int64_t(1) << 30), "GB",
+            "images beyond this wait in a temporary file in $TMPDIR, read on demand (default: a quarter of the machine's memory)")
+      ->group("Image options");
+}
+
+void add_time_flags(CLI::App& app, TimeFlags& f, bool times) {
+  add_number(app, "--frames", f.frames, "frame count F: times t = f/(F-1) (0: from the scene or the cameras)", at_least(0));
+  if (!times) return;
+  const std::string name = app.get_name();
+  app.add_option(
+         "--times",
+         [&f, name](const CLI::results_t& r) {
+           f.times.clear();
+           std::istringstream in(r.back());
+           std::string tok;
+           while (std::getline(in, tok, ',')) {
+             char* end = nullptr;
+             const double t = std::strtod(tok.c_str(), &end);
+             if (end == tok.c_str() || *end != '\0' || !(t >= 0.0 && t <= 1.0))
+               throw_error(name, ": --times expects comma-separated times in [0, 1], got '", tok, "'");
+             f.times.push_back(t);
+           }
+           std::sort(f.times.begin(), f.times.end());
+           f.times.erase(std::unique(f.times.begin(), f.times.end()), f.times.end());
+           if (f.times.empty()) throw_error(name, ": --times is empty");
+           return true;
+         },
+         "only these times of the frame grid (t1,t2,..; needs --frames F)")
+      ->type_name("T1,T2,..");
+}
+
+std::vector<double> observe_times(const Invocation& in, const TimeFlags& tf, const GaussianCloud& cloud, const std::vector<Camera>& cams,
+                                  double* frame_step) {
+  int frames = tf.frames;
+  if (!frames && cloud.motion == MotionModel::Keyframed && cloud.keyframed.first_key_time == 0.0 && cloud.keyframed.key_count >= 2 &&
+      std::fabs(cloud.keyframed.key_spacing * (cloud.keyframed.key_count - 1) - 1.0) < 1e-6)
+    frames = cloud.keyframed.key_count;  // one key per frame
+  if (!frames) {
+    std::set<long long> distinct;
+    for (const Camera& c : cams)
+      if (c.has_time()) distinct.insert(std::llround(c.time * 1e6));
+    if (distinct.size() >= 2) frames = int(distinct.size());
+  }
+  if (!frames && cloud.dynamic_count() == 0) frames = 1;  // a static scene has one time
+  if (!frames) in.fail("cannot tell the frame count from the scene or the cameras; give --frames F");
+  *frame_step = FrameGrid(frames).step();  // the speeds' Δt
+  if (in.given("--times")) {
+    if (frames < 2) in.fail("give --frames F with --times (the speed's Δt is one frame, 1/(F-1))");
+    return tf.times;
+  }
+  return FrameGrid(frames).times();
+}
+
+}  // namespace fillgs::cli
+
+namespace fillgs::cli {
+
+void add_selection_flags(CLI::App& app, SelectOptions& o) {
+  const std::string g = "Selection options";
+  add_choice(app, "--strategy", o.strategy, "how virtual viewpoints are chosen (fillgs: the paper's; the others: baselines)")->group(g);
+  add_number(app, "--time-stride", o.time_stride, "starting-view priority on every k-th frame only", at_least(1))->group(g);
+  add_flag(app, "--no-start-selection", o.no_start_selection, "ablation: random starting viewpoints")->group(g);
+  add_flag(app, "--no-error-term", o.no_error_term, "ablation: priority E = V")->group(g);
+  add_flag(app, "--no-sensitivity-term", o.no_sensitivity_term, "ablation: priority E = L")->group(g);
+  add_flag(app, "--no-candidate-scoring", o.no_candidate_scoring, "ablation: a random candidate")->group(g);
+  add_flag(app, "--no-global", o.no_global, "ablation: local candidates only")->group(g);
+  app.add_flag_callback("--count-only", [&o] { o.score = CandidateScore::CountOnly; }, "ablation: candidates scored by counts only")->group(g);
+  app.add_flag_callback("--speed-only", [&o] { o.score = CandidateScore::SpeedOnly; }, "ablation: candidates scored by speed only")->group(g);
+}
+
+void check_selection(const Invocation& in, const SelectOptions& o) {
+  if (in.given("--count-only") && in.given("--speed-only")) in.fail("--count-only and --speed-only exclude each other");
+  if (o.no_error_term && o.no_sensitivity_term) in.fail("--no-error-term and --no-sensitivity-term leave no priority");
+}
+
+void add_grid_flags(CLI::App& app, ExplorationOptions& o) {
+  add_number(app, "--divisions", o.divisions, "exploration grid cells along each axis", at_least(1))->group("Grid options");
+  add_number(app, "--occupancy-alpha", o.occupancy_alpha, "a Gaussian occupies where its opacity reaches this", within_open(0, 1))
+      ->group("Grid options");
+}
+
+void add_motion_rate_flags(CLI::App& app, MotionRateFlags& f) {
+  const std::string g = "Fine-tuning rates";
+  add_choice(app, "--motion-rates", f.preset, "repair: training's initial rate, keys x10; gentle: its final rate, keys x3")->group(g);
+  add_number(app, "--position-lr", f.position_lr, "initial position learning rate (x the scene extent; overrides the preset)")->group(g);
+  add_number(app, "--key-lr-scale", f.key_lr_scale, "motion keys' rate as a multiple of it (overrides the preset)")->group(g);
+}
+
+MotionRates motion_rates(const Invocation& in, const MotionRateFlags& f) {
+  MotionRates r = f.preset == RatePreset::Gentle ? MotionRates::gentle() : MotionRates();
+  if (in.given("--position-lr")) r.position_lr = f.position_lr;
+  if (in.given("--key-lr-scale")) r.key_lr_scale = f.key_lr_scale;
+  if (!(r.position_lr > 0) || !(r.key_lr_scale > 0)) in.fail("--position-lr and --key-lr-scale must be positive");
+  return r;
+}
+
+}  // namespace fillgs::cli

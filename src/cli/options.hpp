@@ -1,0 +1,234 @@
+#pragma once
+// Declaring a command's flags: each flag is declared once, with its name, its typed
+// destination (a field of the library's option struct where there is one), its default
+// (the destination's value when declared), its help and its check. Parsing, `--help` and
+// the error lines are all made from those declarations (CLI11 underneath).
+//
+//   Action declare_render(CLI::App& app) {
+//     auto f = std::make_shared<RenderFlags>();
+//     add_path(app, "--scene", f->scene, "the model (PLY)")->required();
+//     add_number(app, "--time", f->time, "render every camera at this time", within(0, 1));
+//     return [f](const Invocation& in) { ... };
+//   }
+#include <CLI/CLI.hpp>
+#include <unistd.h>
+
+#include <functional>
+#include <limits>
+#include <memory>
+#include <ostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "fillgs/camera.hpp"
+#include "fillgs/error.hpp"
+#include "fillgs/limits.hpp"
+#include "fillgs/math.hpp"
+#include "fillgs/names.hpp"
+#include "fillgs/raster.hpp"
+#include "fillgs/scene_io.hpp"
+#include "fillgs/timing.hpp"
+#include "fillgs/train.hpp"
+
+namespace fillgs::cli {
+
+using fillgs::Clock;
+using fillgs::seconds_since;
+
+/// The flags every command accepts.
+struct CommonFlags {
+  int threads = 0;  ///< 0: all cores
+  bool quiet = false;
+  Kernel kernel = Kernel::Default;
+};
+
+/// A parsed command line, handed to the command's action.
+struct Invocation {
+  std::string command;  ///< "render"
+  const CLI::App& app;
+  const CommonFlags& common;
+  const std::vector<std::string>& args;  ///< as typed, the command's name first
+  std::ostream& out;
+  std::ostream& err;
+
+  /// Whether the flag was given (rather than left at its default); false for a flag the
+  /// command does not declare.
+  bool given(const std::string& flag) const {
+    const CLI::Option* o = app.get_option_no_throw(flag);
+    return o && o->count() > 0;
+  }
+  /// The progress bar: on a terminal, unless --quiet.
+  bool progress() const { return !common.quiet && ::isatty(2); }
+  /// Throws the one-line error "fillgs <command>: <parts>".
+  template <typename... Parts>
+  [[noreturn]] void fail(const Parts&... parts) const {
+    throw_error("fillgs ", command, ": ", parts...);
+  }
+};
+
+using Action = std::function<int(const Invocation&)>;
+
+/// A command of the front end: its name, one line for `fillgs help`, and the function that
+/// declares its flags and returns what runs once they are parsed.
+struct Command {
+  const char* name;
+  const char* summary;
+  Action (*declare)(CLI::App& app);
+};
+
+/// Every command, in the order `fillgs help` lists them.
+const std::vector<Command>& commands();
+
+// ------------------------------------------------------------------ checks
+
+/// The interval a number must lie in, for the check and its message.
+struct Bounds {
+  double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
+  bool lo_open = false, hi_open = false;
+  std::string words;  ///< "at least 1", "in (0, 1)": the message's wording
+  bool holds(double x) const {
+    return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
+  }
+};
+Bounds at_least(double lo);
+Bounds positive();
+Bounds within(double lo, double hi);       ///< [lo, hi]
+Bounds within_open(double lo, double hi);  ///< (lo, hi)
+Bounds from_below(double lo, double hi);   ///< [lo, hi)
+
+// ------------------------------------------------------------------ declarations
+
+/// A flag without a value: `dest` becomes true when given.
+CLI::Option* add_flag(CLI::App& app, const std::string& flag, bool& dest, const std::string& help);
+/// A flag without a value that turns `dest` off (--no-plots, --from-scratch).
+CLI::Option* add_switch_off(CLI::App& app, const std::string& flag, bool& dest, const std::string& help);
+/// A string; `type` names it in the help (PATH, DIR, NAME, CMD).
+CLI::Option* add_text(CLI::App& app, const std::string& flag, std::string& dest, const std::string& help, const std::string& type = "TEXT");
+/// A comma-separated list ("a,b,c"); empty items are dropped.
+CLI::Option* add_list(CLI::App& app, const std::string& flag, std::vector<std::string>& dest, const std::string& help);
+/// Three comma-separated numbers, "r,g,b".
+CLI::Option* add_colour(CLI::App& app, const std::string& flag, Vec3f& dest, const std::string& help);
+/// A size given in `unit` bytes (MB, GB) as a number >= 0, stored in bytes.
+CLI::Option* add_bytes(CLI::App& app, const std::string& flag, int64_t& dest, double unit, const std::string& unit_name, const std::string& help);
+
+/// One-line message for a value that is not a number of the destination's kind or outside
+/// its bounds; empty when the value is good (the number in *out).
+std::string check_number(const std::string& text, bool integral, const Bounds& bounds, double* out);
+
+/// A number: integral types take integers only; the bounds are checked.
+template <class T>
+CLI::Option* add_number(CLI::App& app, const std::string& flag, T& dest, const std::string& help, Bounds bounds = {}) {
+  static_assert(std::is_arithmetic_v<T>);
+  constexpr bool integral = std::is_integral_v<T>;
+  if (integral) {
+    bounds.lo = std::max(bounds.lo, double(std::numeric_limits<T>::lowest()));
+    bounds.hi = std::min(bounds.hi, std::min(double(std::numeric_limits<T>::max()), 1e15));
+  }
+  const std::string name = app.get_name();
+  CLI::Option* o = app.add_option(
+      flag,
+      [&dest, flag, bounds, name](const CLI::results_t& r) {
+        double x = 0;
+        const std::string why = check_number(r.back(), integral, bounds, &x);
+        if (!why.empty()) throw_error(name, ": ", flag, " ", why);
+        dest = T(x);
+        return true;
+      },
+      help);
+  std::ostringstream def;
+  def << dest;
+  o->type_name(integral ? "N" : "X")->default_str(def.str());
+  return o;
+}
+
+/// One of an enum's names (names.hpp); the help lists them.
+template <class E>
+CLI::Option* add_choice(CLI::App& app, const std::string& flag, E& dest, const std::string& help) {
+  const std::string name = app.get_name();
+  CLI::Option* o = app.add_option(
+      flag,
+      [&dest, flag, name](const CLI::results_t& r) {
+        try {
+          dest = parse_name<E>(r.back());
+        } catch (const Error& e) {
+          throw_error(name, ": ", flag, ": ", e.what());
+        }
+        return true;
+      },
+      help);
+  std::string names;
+  for (const std::string& n : names_of<E>()) names += (names.empty() ? "" : "|") + n;
+  o->type_name(names);
+  if (std::string(to_string(dest)) != "?") o->default_str(to_string(dest));
+  return o;
+}
+
+// ------------------------------------------------------------------ groups shared by commands
+
+/// --scene-format, --duration, --stg-duration, --stg-color, --static-threshold.
+void add_scene_flags(CLI::App& app, SceneReadOptions& o);
+/// --camera-format, --width, --height, --llff-downscale.
+void add_camera_flags(CLI::App& app, CameraReadOptions& o);
+/// --frames first:last:step, --downscale, --monocular-cycle, --image-memory; and, when
+/// `cameras_flag` is given (--train-cameras, --select-cameras), the rig cameras to keep.
+void add_dataset_flags(CLI::App& app, DatasetOptions& o, const std::string& cameras_flag);
+
+/// The time grid of observe and select: --times, or --frames F, or what the scene or the
+/// cameras imply (a static scene with untimed cameras has one time, t = 0).
+struct TimeFlags {
+  int frames = 0;
+  std::vector<double> times;
+};
+/// --frames F and, with `times`, --times t1,t2,...
+void add_time_flags(CLI::App& app, TimeFlags& f, bool times);
+std::vector<double> observe_times(const Invocation& in, const TimeFlags& f, const GaussianCloud& cloud, const std::vector<Camera>& cams,
+                                  double* frame_step);
+
+}  // namespace fillgs::cli
+
+namespace fillgs::cli {
+
+/// The action of a command whose flags live in `flags`: `run(flags, invocation)`.
+template <class Flags>
+Action bind(std::shared_ptr<Flags> flags, int (*run)(const Flags&, const Invocation&)) {
+  return [flags, run](const Invocation& in) { return run(*flags, in); };
+}
+
+}  // namespace fillgs::cli
+
+#include "fillgs/exploration.hpp"
+#include "fillgs/finetune.hpp"
+#include "fillgs/select.hpp"
+
+namespace fillgs::cli {
+
+/// The selection's strategy and ablations, shared by select and finetune: --strategy,
+/// --time-stride, --no-start-selection, --no-error-term, --no-sensitivity-term,
+/// --no-candidate-scoring, --no-global, --count-only | --speed-only.
+void add_selection_flags(CLI::App& app, SelectOptions& o);
+/// What the flags cannot say alone: the two terms switched off together.
+void check_selection(const Invocation& in, const SelectOptions& o);
+
+/// --divisions, --occupancy-alpha: the exploration grid.
+void add_grid_flags(CLI::App& app, ExplorationOptions& o);
+
+/// --motion-rates repair|gentle, --position-lr LR, --key-lr-scale k: how fast fine-tuning
+/// moves Gaussians (finetune.hpp, MotionRates); the two numbers override the preset.
+enum class RatePreset { Repair, Gentle };
+struct MotionRateFlags {
+  RatePreset preset = RatePreset::Repair;
+  double position_lr = MotionRates().position_lr, key_lr_scale = MotionRates().key_lr_scale;
+};
+void add_motion_rate_flags(CLI::App& app, MotionRateFlags& f);
+MotionRates motion_rates(const Invocation& in, const MotionRateFlags& f);
+
+}  // namespace fillgs::cli
+
+namespace fillgs {
+template <>
+struct EnumNames<cli::RatePreset> {
+  static constexpr const char* what = "motion rates";
+  static constexpr NameOf<cli::RatePreset> table[] = {{cli::RatePreset::Repair, "repair"}, {cli::RatePreset::Gentle, "gentle"}};
+};
+}  // namespace fillgs
