@@ -14,6 +14,7 @@
 #include "embree_device.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/math.hpp"
+#include "fillgs/threads.hpp"
 
 namespace fillgs {
 
@@ -346,7 +347,7 @@ struct GaussianTracer::Impl {
   double build_seconds = 0, refit_seconds = 0;
 
   void fill(ProxySet& set, const FrameGaussians& frame) {
-    tbb::task_arena arena(options.threads > 0 ? options.threads : tbb::task_arena::automatic);
+    tbb::task_arena arena(arena_concurrency(options.threads));
     arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, set.ids.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t i = r.begin(); i < r.end(); ++i) {

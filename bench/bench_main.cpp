@@ -17,11 +17,7 @@ int bench_motion(const std::vector<std::string>& args);
 int main(int argc, char** argv) {
   fillgs::keep_freed_memory();
   if (argc < 2) {
-    std::cerr << "usage: fillgs_bench render [--smoke] [--scene PLY] [--frames N]\n"
-                 "       fillgs_bench visibility [--smoke] [--out DIR] [--only synthetic|guitar|million]\n"
-                 "       fillgs_bench train [--smoke] [--out DIR] [--only speed|quality]\n"
-                 "       fillgs_bench select [--smoke] [--only strategies,renderer,priority,grid,large]\n"
-                 "       fillgs_bench motion [--smoke] [--out DIR] [--variant V] [--cameras all|a,b] [--iterations N] [--config label:k=v;..]\n";
+    std::cerr << "usage: fillgs_bench render|visibility|train|select|motion [options]; 'fillgs_bench <benchmark> --help' lists its options\n";
     return 2;
   }
   const std::string name = argv[1];

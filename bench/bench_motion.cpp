@@ -11,6 +11,7 @@
 //  * a picture per configuration: ground truth over model at five moments of one camera.
 // Configurations are written as `label:key=value;key=value` (keys below), so one run prints
 // the before/after rows of the README and any ablation.
+#include <iostream>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -21,6 +22,7 @@
 #include <vector>
 
 #include "bench_common.hpp"
+#include "cli/options.hpp"
 #include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/evaluate.hpp"
@@ -244,24 +246,20 @@ int bench_motion(const std::vector<std::string>& args) {
   std::string out = "bench/results/motion", rig = "ring", variant, cameras = "all", camera;
   int iterations = 2000, width = 160, height = 120, frames = 20;
   std::vector<std::string> specs;
-  for (size_t i = 0; i < args.size(); ++i) {
-    auto next = [&]() -> std::string {
-      if (i + 1 >= args.size()) throw_error("bench motion: ", args[i], " needs a value");
-      return args[++i];
-    };
-    if (args[i] == "--smoke") smoke = true;
-    else if (args[i] == "--out") out = next();
-    else if (args[i] == "--rig") rig = next();
-    else if (args[i] == "--variant") variant = next();
-    else if (args[i] == "--cameras") cameras = next();
-    else if (args[i] == "--iterations") iterations = std::stoi(next());
-    else if (args[i] == "--width") width = std::stoi(next());
-    else if (args[i] == "--height") height = std::stoi(next());
-    else if (args[i] == "--frames") frames = std::stoi(next());
-    else if (args[i] == "--picture-camera") camera = next();
-    else if (args[i] == "--config") specs.push_back(next());
-    else throw_error("bench motion: unknown argument '", args[i], "'");
-  }
+  auto app = cli::make_parser("fillgs_bench motion", "motion learning: a 4D model trained on a rig, its moving region and tracking");
+  cli::add_flag(*app, "--smoke", smoke, "64x48, 6 frames, 60 iterations (overrides the sizes)");
+  cli::add_text(*app, "--out", out, "the folder for pictures and tables", "DIR");
+  cli::add_text(*app, "--rig", rig, "the synthetic rig: ring, n3v or technicolor", "NAME");
+  cli::add_text(*app, "--variant", variant, "the moving content (default: the rig's first)", "NAME");
+  cli::add_text(*app, "--cameras", cameras, "training cameras: all, or names a,b", "A,B,..");
+  cli::add_number(*app, "--iterations", iterations, "training iterations", cli::at_least(1));
+  cli::add_number(*app, "--width", width, "image width", cli::at_least(8));
+  cli::add_number(*app, "--height", height, "image height", cli::at_least(8));
+  cli::add_number(*app, "--frames", frames, "frames of the video", cli::at_least(2));
+  cli::add_text(*app, "--picture-camera", camera, "the camera of the pictures (default: chosen by the moving content)", "NAME");
+  app->add_option("--config", specs, "a configuration label:k=v;.. (repeatable; default: before, after)")->type_name("SPEC")
+      ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
+  if (!cli::parse_flags(*app, args, std::cout)) return 0;
   if (smoke) width = 64, height = 48, frames = 6, iterations = 60;
   if (specs.empty()) specs = {"before", "after"};
   SynthOptions so;

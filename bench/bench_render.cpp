@@ -2,6 +2,7 @@
 // working resolution (1352x1014) and at 640x480, single thread against all threads.
 #include <tbb/info.h>
 
+#include <iostream>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -9,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "cli/options.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/raster.hpp"
 #include "fillgs/scene_io.hpp"
@@ -60,12 +62,11 @@ int bench_render(const std::vector<std::string>& args) {
   bool smoke = false;
   std::string scene = shared_data_dir() + "/scenes/guitar.ply";
   int views = 8;
-  for (size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--smoke") smoke = true;
-    else if (args[i] == "--scene" && i + 1 < args.size()) scene = args[++i];
-    else if (args[i] == "--frames" && i + 1 < args.size()) views = std::atoi(args[++i].c_str());
-    else throw_error("bench render: unknown argument '", args[i], "'");
-  }
+  auto app = cli::make_parser("fillgs_bench render", "the tile kernel: ms per frame, vector against scalar, by size and threads");
+  cli::add_flag(*app, "--smoke", smoke, "small sizes, few views");
+  cli::add_text(*app, "--scene", scene, "the scene rendered", "PLY");
+  cli::add_number(*app, "--frames", views, "views rendered per size", cli::at_least(1));
+  if (!cli::parse_flags(*app, args, std::cout)) return 0;
   if (!std::filesystem::exists(scene)) throw_error(scene, ": missing (set FILLGS_SHARED_DATA to the shared data folder)");
   const GaussianCloud cloud = read_scene(scene);
   const FrameGaussians g = evaluate(cloud, 0.0);

@@ -10,6 +10,7 @@
 //      full-resolution every-frame top-20 priority captured;
 //  (e) voxel resolution and (f) global candidate count: time vs mean D̂ of the chosen views;
 //  (g) a large scene (guitar.ply replicated, 10 % moving): phases for 20 trajectories.
+#include <iostream>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -18,6 +19,7 @@
 #include <vector>
 
 #include "bench_common.hpp"
+#include "cli/options.hpp"
 #include "fillgs/exploration.hpp"
 #include "fillgs/raster.hpp"
 #include "fillgs/scene_io.hpp"
@@ -135,10 +137,12 @@ const char* kPhaseHeader =
 }  // namespace
 
 int bench_select(const std::vector<std::string>& args) {
-  const bool smoke = std::find(args.begin(), args.end(), "--smoke") != args.end();
+  bool smoke = false;
   std::string only;
-  for (size_t i = 0; i + 1 < args.size(); ++i)
-    if (args[i] == "--only") only = args[i + 1];
+  auto app = cli::make_parser("fillgs_bench select", "selection: the strategies, the map renderer, the priority, the grid, a large scene");
+  cli::add_flag(*app, "--smoke", smoke, "a small scene, 2 trajectories");
+  cli::add_text(*app, "--only", only, "parts: strategies, renderer, priority, grid, large (comma-separated)", "A,B,..");
+  if (!cli::parse_flags(*app, args, std::cout)) return 0;
   const int K = smoke ? 2 : 20;
   auto want = [&](const std::string& name) { return only.empty() || ("," + only + ",").find("," + name + ",") != std::string::npos; };
 
@@ -182,8 +186,7 @@ int bench_select(const std::vector<std::string>& args) {
   if (want("strategies")) {
     std::printf("\n### Strategies (%d trajectories, seed 1; mean D̂ rendered at full resolution from the initial tables)\n\n", K);
     std::printf("| strategy | select s | mean D̂ of chosen views | chosen views seeing the chair move | global wins |\n|---|---|---|---|---|\n");
-    for (Strategy st : {Strategy::FillGS, Strategy::Random, Strategy::Negative, Strategy::Interpolation, Strategy::FisherRF,
-                        Strategy::Coverage3D, Strategy::Coverage4D}) {
+    for (Strategy st : values_of<Strategy>()) {
       SelectOptions o = base;
       o.strategy = st;
       SelectInput in = s.input();

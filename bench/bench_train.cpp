@@ -14,6 +14,8 @@
 #include <vector>
 
 #include "bench_common.hpp"
+#include "cli/options.hpp"
+#include "fillgs/evaluate.hpp"
 #include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
@@ -127,11 +129,11 @@ Quality train_and_eval(const std::string& dir, const SynthScene& s, const std::v
   const GaussianCloud m = t.model();
   q.gaussians = m.size();
   q.moving = m.dynamic_count();
-  q.interp = evaluate_views(m, Dataset::load(dir + "/images", dir + "/transforms_interpolation.json")).psnr;
-  q.extrap = evaluate_views(m, Dataset::load(dir + "/images", dir + "/transforms_extrapolation.json")).psnr;
+  q.interp = evaluate_split(m, Dataset::load(dir + "/images", dir + "/transforms_interpolation.json"), "views").psnr;
+  q.extrap = evaluate_split(m, Dataset::load(dir + "/images", dir + "/transforms_extrapolation.json"), "views").psnr;
   DatasetOptions a;
   a.cameras = arc;
-  q.arc = evaluate_views(m, Dataset::load(dir + "/images", dir + "/transforms_interpolation.json", a)).psnr;
+  q.arc = evaluate_split(m, Dataset::load(dir + "/images", dir + "/transforms_interpolation.json", a), "views").psnr;
   // A moving Gaussian is "on the chair" when some frame puts it within 5 cm of a chair Gaussian.
   const int F = s.options.frames;
   std::vector<std::vector<Vec3f>> chair(static_cast<size_t>(F));
@@ -186,14 +188,16 @@ int bench_train(const std::vector<std::string>& args) {
   std::string out = "bench/results/train", only;
   size_t count = 0;  // --gaussians N: one subset only
   int width = 0, height = 0;  // --resolution WxH: one size only
-  for (size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--smoke") smoke = true;
-    else if (args[i] == "--out" && i + 1 < args.size()) out = args[++i];
-    else if (args[i] == "--only" && i + 1 < args.size()) only = args[++i];
-    else if (args[i] == "--gaussians" && i + 1 < args.size()) count = size_t(std::stoul(args[++i]));
-    else if (args[i] == "--resolution" && i + 1 < args.size() && std::sscanf(args[i + 1].c_str(), "%dx%d", &width, &height) == 2 && width > 0 && height > 0) ++i;
-    else throw_error("bench train: unknown argument '", args[i], "'");
-  }
+  std::string resolution;
+  auto app = cli::make_parser("fillgs_bench train", "training: iterations per second by model size and resolution, and quality");
+  cli::add_flag(*app, "--smoke", smoke, "small sizes, few iterations");
+  cli::add_text(*app, "--out", out, "the folder for the quality results", "DIR");
+  cli::add_text(*app, "--only", only, "one part: speed or quality", "NAME");
+  cli::add_number(*app, "--gaussians", count, "speed: one subset of this many Gaussians only (0: all sizes)");
+  cli::add_text(*app, "--resolution", resolution, "speed: one image size only", "WxH");
+  if (!cli::parse_flags(*app, args, std::cout)) return 0;
+  if (!resolution.empty() && (std::sscanf(resolution.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0))
+    throw_error("fillgs_bench train: --resolution expects WxH, got '", resolution, "'");
   make_directories(out);
   if (only.empty() || only == "speed") speed(smoke, count, width, height);
   if (only.empty() || only == "quality") quality(smoke, out);

@@ -7,6 +7,7 @@
 //      in frustum mode, raytraced stride 4 per frame (incremental against from scratch),
 //      and the static/dynamic threshold.
 // Prints tables (markdown) and writes a Pareto plot (time against recall) into --out.
+#include <iostream>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -20,6 +21,7 @@
 #include <unistd.h>
 
 #include "bench_common.hpp"
+#include "cli/options.hpp"
 #include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/gaussian_tracer.hpp"
@@ -470,12 +472,11 @@ int bench_visibility(const std::vector<std::string>& args) {
   bool smoke = false;
   std::string out = "bench/results";
   std::string only;
-  for (size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--smoke") smoke = true;
-    else if (args[i] == "--out" && i + 1 < args.size()) out = args[++i];
-    else if (args[i] == "--only" && i + 1 < args.size()) only = args[++i];
-    else throw_error("bench visibility: unknown argument '", args[i], "'");
-  }
+  auto app = cli::make_parser("fillgs_bench visibility", "observation tables: modes against exact, incremental against from scratch, at scale");
+  cli::add_flag(*app, "--smoke", smoke, "small scenes, few frames");
+  cli::add_text(*app, "--out", out, "the folder for the Pareto plot", "DIR");
+  cli::add_text(*app, "--only", only, "one part: synthetic, guitar or million", "NAME");
+  if (!cli::parse_flags(*app, args, std::cout)) return 0;
   std::vector<ScatterSeries> pareto;
   if (only.empty() || only == "synthetic") synthetic_sweep(smoke, pareto);
   if (only.empty() || only == "guitar") guitar_sweep(smoke, pareto);

@@ -100,7 +100,7 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
     m.psnr += psnr(out.rgb.data(), target.data(), W, H, 3);
     m.ssim += ssim(out.rgb.data(), target.data(), W, H, 3);
     if (lpips) m.lpips += lpips->distance(out.rgb.data(), target.data(), W, H);
-    if (o.truth || split.has_masks()) {
+    if (o.moving && (o.truth || split.has_masks())) {
       // The moving region: the truth's moving Gaussians, else the dataset's foreground masks.
       const std::vector<unsigned char> mask = o.truth ? moving_region(*o.truth, view.camera, o.threads) : split.mask(v);
       for (size_t p = 0; p < mask.size(); ++p) {
@@ -135,6 +135,15 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
   }
   m.seconds = seconds_since(t0);
   return m;
+}
+
+SplitMetrics evaluate_training_sample(const GaussianCloud& model, const Dataset& data, const Vec3f& background, int threads) {
+  EvalOptions o;
+  o.stride = std::max<int>(1, int(data.views().size() / 32));
+  o.background = background;
+  o.threads = threads;
+  o.moving = false;
+  return evaluate_split(model, data, "train", o);
 }
 
 }  // namespace fillgs

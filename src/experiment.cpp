@@ -18,6 +18,7 @@
 #include "fillgs/html_report.hpp"
 #include "fillgs/limits.hpp"
 #include "fillgs/plot.hpp"
+#include "fillgs/raster.hpp"
 #include "fillgs/scene_io.hpp"
 
 namespace fs = std::filesystem;
@@ -388,8 +389,6 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& op
 
 std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double strength, const std::vector<OracleSupport>& supports) {
   std::vector<RunConfig> out;
-  const Strategy all[] = {Strategy::FillGS,     Strategy::Random,     Strategy::Negative,  Strategy::Interpolation,
-                          Strategy::FisherRF,   Strategy::Coverage3D, Strategy::Coverage4D};
   for (size_t si = 0; si < supports.size(); ++si) {
     const OracleSupport support = supports[si];
     const std::string suffix = si == 0 ? "" : std::string("@") + to_string(support);
@@ -406,7 +405,7 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
       return &out.back();
     };
     add("no-refinement", "control", Strategy::FillGS, Weighting::None, strength, 0);
-    for (Strategy s : all) add(to_string(s), "strategy", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, strength, 5);
+    for (Strategy s : values_of<Strategy>()) add(to_string(s), "strategy", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, strength, 5);
     const char* ablations[] = {"no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring",
                                "no-global",          "count-only",    "speed-only"};
     for (const char* a : ablations) {
@@ -446,7 +445,7 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
       c->select.score_gain = true;
     }
     for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), "budget", Strategy::FillGS, Weighting::FillGS, strength, k);
-    for (Strategy s : all)
+    for (Strategy s : values_of<Strategy>())
       add(std::string(to_string(s)) + ".clean", "refiner", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);
   }
   RunConfig tv;
@@ -763,6 +762,67 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
     if (fs::exists(join_path(root, std::string(f) + ".png"))) md << "![" << f << "](" << f << ".png)\n\n";
   write_file_atomically(join_path(root, "results.md"), md.str());
   write_html_report(join_path(root, "results.md"), join_path(root, "results.html"));
+}
+
+void write_run_report(const std::string& dir, const RunReportInput& in) {
+  const ExperimentOptions& o = in.scene->options;
+  // Side-by-side pictures: ground truth | backbone | each fine-tuned model, at the moment of
+  // each split where the moving content covers most of a view (a moving moment).
+  std::vector<GaussianCloud> models = {in.scene->backbone};
+  for (const std::string& id : in.run_ids) models.push_back(read_scene(join_path(join_path(join_path(in.scene->dir, "runs"), id), "model.ply")));
+  std::vector<std::string> pictures;
+  for (const auto* split : {in.scene->extrapolation.get(), in.scene->interpolation.get()}) {
+    size_t best = 0, most = 0;
+    for (size_t v = 0; v < split->views().size(); ++v) {
+      const std::vector<unsigned char> m = moving_region(in.scene->synth.scene, split->views()[v].camera, in.threads);
+      const size_t n = size_t(std::count(m.begin(), m.end(), 1));
+      if (n > most) most = n, best = v;
+    }
+    const TrainView& view = split->views()[best];
+    std::vector<std::vector<float>> imgs = {split->image(best)};
+    std::vector<std::string> caps = {"ground truth"};
+    for (size_t m = 0; m < models.size(); ++m) {
+      RenderOptions ro;
+      ro.threads = in.threads;
+      imgs.push_back(render(evaluate(models[m], view.camera.time), view.camera, ro).rgb);
+      caps.push_back(m == 0 ? "backbone" : in.run_ids[m - 1]);
+    }
+    const std::string file = "compare_" + view.rig + "_f" + std::to_string(view.frame) + ".png";
+    write_side_by_side_png(join_path(dir, file), imgs, view.camera.width, view.camera.height, caps, 2);
+    pictures.push_back(file);
+  }
+  // Report.
+  std::ostringstream md;
+  md << "# fillgs run\n\nScene: built-in synthetic (" << o.scene_name() << "), " << o.width << "x" << o.height << ", " << o.frames
+     << " frames; backbone trained on " << in.scene->train->rigs().size() << " cameras (";
+  for (size_t k = 0; k < in.scene->options.train_cameras.size(); ++k) md << (k ? ", " : "") << in.scene->options.train_cameras[k];
+  md << ") for " << o.backbone_iterations << " iterations; each fine-tuning: " << in.finetune.iterations << " iterations, "
+     << in.finetune.trajectories << " trajectories every " << in.finetune.select_every << " iterations, oracle refiner ("
+     << to_string(in.support) << " support) with artifacts (strength " << in.artifact_strength << "). Baselines use ExploreGS weights (the paper's protocol); FillGS its own.\n\n"
+     << "| Method | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | seconds |\n|---|---|---|---|---|---|---|---|---|\n";
+  for (const RunResult& r : in.results) {
+    md << "| " << r.id << " | " << fmt(r.interpolation.psnr) << " | " << fmt(r.interpolation.ssim, 3) << " | " << fmt(r.interpolation.psnr_moving)
+       << " | " << fmt(r.extrapolation.psnr) << " | " << fmt(r.extrapolation.ssim, 3) << " | " << fmt(r.extrapolation.psnr_moving) << " | "
+       << fmt(r.train.psnr) << " | " << fmt(r.seconds_total, 0) << " |\n";
+  }
+  md << "\n## Renders\n\nGround truth, the backbone and each fine-tuned model at the view and moment of each split where the moving content "
+        "covers most of the image.\n\n";
+  for (const std::string& f : pictures) md << "![" << f << "](" << f << ")\n\n";
+  for (const char* chart : {"psnr_interpolation", "psnr_extrapolation"})
+    if (fs::exists(join_path(dir, std::string(chart) + ".png"))) md << "![" << chart << "](" << chart << ".png)\n\n";
+  // The virtual views each strategy chose (top view), copied beside the report.
+  md << "## Virtual views\n\n";
+  for (const std::string& id : in.run_ids) {
+    const std::string from = join_path(join_path(join_path(in.scene->dir, "runs"), id), "views.png"), file = "views_" + id + ".png";
+    std::error_code ec;
+    if (id != "no-refinement" && fs::exists(from, ec) && fs::copy_file(from, join_path(dir, file), fs::copy_options::overwrite_existing, ec))
+      md << "![" << file << "](" << file << ")\n\n";
+  }
+  md << "## Command\n\n```\n" << in.command << "\n```\n\n";
+  md << "Per-run folders (patches, refined views with their support, consistency mask, co-visibility and weight images): `"
+     << join_path(in.scene->dir, "runs") << "`.\n";
+  write_file_atomically(join_path(dir, "report.md"), md.str());
+  write_html_report(join_path(dir, "report.md"), join_path(dir, "report.html"));
 }
 
 }  // namespace fillgs

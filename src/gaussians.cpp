@@ -1,4 +1,3 @@
-#include "fillgs/frame_grid.hpp"
 #include "fillgs/gaussians.hpp"
 
 #include <tbb/parallel_for.h>
@@ -6,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "motion_keys.hpp"
 

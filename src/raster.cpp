@@ -10,6 +10,7 @@
 #include <numeric>
 
 #include "fillgs/error.hpp"
+#include "fillgs/threads.hpp"
 #include "raster_internal.hpp"
 #include "render/preprocess.hpp"
 #include "render/tile_kernel.hpp"
@@ -93,7 +94,7 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
   out.height = H;
   out.radii.assign(N, 0);
 
-  tbb::task_arena arena(opt.threads > 0 ? opt.threads : tbb::task_arena::automatic);
+  tbb::task_arena arena(arena_concurrency(opt.threads));
   arena.execute([&] {
     // ---- preprocess: project every Gaussian, set up the visible ones ----
     static_assert(sizeof(Vec3f) == 3 * sizeof(float) && sizeof(Vec4f) == 4 * sizeof(float), "packed Eigen vectors");

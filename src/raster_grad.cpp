@@ -10,6 +10,7 @@
 
 #include "fillgs/error.hpp"
 #include "fillgs/sh.hpp"
+#include "fillgs/threads.hpp"
 #include "raster_internal.hpp"
 #include "render/preprocess.hpp"
 #include "render/tile_kernel.hpp"
@@ -190,7 +191,7 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
   const int C = 3 + F;
   channels_ = C;
 
-  tbb::task_arena arena(opt.threads > 0 ? opt.threads : tbb::task_arena::automatic);
+  tbb::task_arena arena(arena_concurrency(opt.threads));
   arena.execute([&] {
     tiles::SplatSource<Real> source;
     source.count = N;
@@ -266,7 +267,7 @@ template <typename MakeVisitor>
 void DiffRasterizer<Real>::backward_tiles(MakeVisitor&& make_visitor) const {
   const size_t tiles = tile_start_.empty() ? 0 : tile_start_.size() - 1;
   const tiles::TileSplats<Real> splats{splat_data_.data(), half_extent_.data(), colour_.data(), channels_};
-  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  tbb::task_arena arena(arena_concurrency(options_.threads));
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
       auto visitor = make_visitor();
@@ -285,7 +286,7 @@ void DiffRasterizer<Real>::backward_tiles_simd(const Real* dL_dimage, const Real
     const int W = width_, C = channels_, F = C - 3, R = 6 + C;
     const size_t tiles = tile_start_.empty() ? 0 : tile_start_.size() - 1;
     const tiles::TileSplats<float> splats{splat_data_.data(), half_extent_.data(), colour_.data(), C};
-    tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+    tbb::task_arena arena(arena_concurrency(options_.threads));
     arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
         alignas(64) float final_T[tiles::kTilePixels];
@@ -395,7 +396,7 @@ void DiffRasterizer<Real>::backward(const Real* dL_dimage, const Real* dL_dfeatu
   grad->reset(G.size(), K, F);
   const Vec3d centre = camera_.centre();
   const Real campos[3] = {Real(centre.x()), Real(centre.y()), Real(centre.z())};
-  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  tbb::task_arena arena(arena_concurrency(options_.threads));
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 512), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
@@ -447,7 +448,7 @@ void DiffRasterizer<Real>::accumulate_fisher(FisherDiagonal* fisher) const {
   if (fisher->values.size() != G.size() * P) fisher->values.assign(G.size() * P, 0.0);
   // Per visible Gaussian: Jacobian of (u, v, A, B, C) w.r.t. (mean, log-scale, rotation).
   std::vector<double> jac(V * 50, 0.0);
-  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  tbb::task_arena arena(arena_concurrency(options_.threads));
   arena.execute([&] {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 512), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {

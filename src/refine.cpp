@@ -1,4 +1,3 @@
-#include "fillgs/frame_grid.hpp"
 #include "fillgs/refine.hpp"
 
 #include <fcntl.h>
@@ -15,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 #include <thread>
 
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/camera_json.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"

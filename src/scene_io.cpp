@@ -1,4 +1,3 @@
-#include "fillgs/frame_grid.hpp"
 #include "fillgs/scene_io.hpp"
 
 #include <algorithm>
@@ -9,6 +8,7 @@
 #include <map>
 #include <sstream>
 
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/limits.hpp"

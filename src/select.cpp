@@ -1,18 +1,16 @@
-#include "fillgs/frame_grid.hpp"
 #include "fillgs/select.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <map>
 #include <numeric>
 #include <random>
 
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/timing.hpp"
 #include "fillgs/raster.hpp"
-#include "fillgs/raster_grad.hpp"
-#include "fillgs/train_model.hpp"
+#include "selection_strategy.hpp"
 
 namespace fillgs {
 
@@ -35,16 +33,6 @@ Camera with_pose(const Camera& c, const Mat3d& R, const Vec3d& centre) {
 
 Mat3d axis_rotation(int axis, double radians) { return Eigen::AngleAxisd(radians, Vec3d::Unit(axis)).toRotationMatrix(); }
 
-/// Intrinsics scaled by s (image size rounded, at least one pixel).
-Camera scaled_camera(const Camera& c, double s) {
-  if (s == 1.0) return c;
-  Camera out = c;
-  out.width = std::max(1, int(std::lround(c.width * s)));
-  out.height = std::max(1, int(std::lround(c.height * s)));
-  const double sx = double(out.width) / c.width, sy = double(out.height) / c.height;
-  out.fx *= sx, out.cx *= sx, out.fy *= sy, out.cy *= sy;
-  return out;
-}
 
 double mean_squared_difference(const std::vector<float>& a, const std::vector<float>& b) {
   FILLGS_CHECK_EQ(a.size(), b.size());
@@ -58,6 +46,16 @@ bool same_pose(const Camera& a, const Camera& b, double tol) {
 }
 
 }  // namespace
+
+Camera scaled_camera(const Camera& c, double s) {
+  if (s == 1.0) return c;
+  Camera out = c;
+  out.width = std::max(1, int(std::lround(c.width * s)));
+  out.height = std::max(1, int(std::lround(c.height * s)));
+  const double sx = double(out.width) / c.width, sy = double(out.height) / c.height;
+  out.fx *= sx, out.cx *= sx, out.fy *= sy, out.cy *= sy;
+  return out;
+}
 
 // ------------------------------------------------------------------ cameras
 
@@ -310,160 +308,6 @@ PriorityScores exploration_priority(const SelectInput& in, const SelectOptions& 
 
 namespace {
 
-/// Scores candidates with the strategy's own measure and records what each trajectory adds.
-class Scorer {
- public:
-  Scorer(const SelectInput& in, const SelectOptions& o, DeficiencyField& field, int vertical)
-      : in_(in), o_(o), field_(field), engine_(*in.scene, o.visibility), eval_(*in.scene), vertical_(vertical) {
-    if (o.strategy == Strategy::FisherRF) params_ = params_from_cloud<float>(*in.scene);
-    if (o.strategy == Strategy::Coverage3D || o.strategy == Strategy::Coverage4D) {
-      const size_t sets = o.strategy == Strategy::Coverage3D ? 1 : size_t(in.frames);
-      coverage_.assign(sets * in.scene->size(), 0u);
-      for (const ObservedView& v : in.views) cover(v.camera, v.frame);
-    }
-  }
-
-  /// Higher is better for every strategy (negative inverts outside).
-  std::vector<double> score(const std::vector<Camera>& cands, int frame) {
-    std::vector<double> s(cands.size(), 0.0);
-    const double t = time_of(frame);
-    switch (o_.strategy) {
-      case Strategy::FisherRF: {
-        const std::vector<double>& train = fisher_train(frame);
-        for (size_t i = 0; i < cands.size(); ++i) {
-          const FisherDiagonal h = fisher(cands[i], frame);
-          double total = 0;
-          for (size_t k = 0; k < h.values.size(); ++k) total += h.values[k] / (train[k] + double(o_.fisher_lambda));
-          s[i] = total;
-        }
-        break;
-      }
-      case Strategy::Coverage3D:
-      case Strategy::Coverage4D: {
-        engine_.set_time(t);
-        for (size_t i = 0; i < cands.size(); ++i) s[i] = double(new_cells(cands[i], frame));
-        break;
-      }
-      default: {
-        const std::vector<float> values = field_.values(frame, o_.score);
-        if (o_.score_gain) {
-          engine_.set_time(t);
-          for (size_t i = 0; i < cands.size(); ++i)
-            for (uint32_t g : engine_.visible_set(cands[i])) s[i] += double(values[g]);
-        } else {
-          for (size_t i = 0; i < cands.size(); ++i) s[i] = map_mean(cands[i], t, values.data());
-        }
-      }
-    }
-    return s;
-  }
-
-  /// The mean of the rendered per-Gaussian `values` at time t (the candidate score).
-  double map_mean(const Camera& cam, double t, const float* values) {
-    if (o_.renderer == MapRenderer::Raytraced) {
-      engine_.set_time(t);
-      return engine_.render_maps(cam, values, nullptr, o_.stride).score();
-    }
-    return mean_value(render_value_map(eval_.evaluate(t), cam, values, o_.threads));
-  }
-
-  /// Every virtual view of a trajectory becomes an observation for every strategy's state.
-  void add(const Trajectory& tr) {
-    for (const Camera& v : tr.views()) observe(v);
-  }
-
-  /// One virtual view (with its time) becomes an observation.
-  void observe(const Camera& v) {
-    const int f = frame_of(v.time);
-    engine_.set_time(time_of(f));
-    field_.observe(f, engine_.visible_set(v));
-    if (o_.strategy == Strategy::Coverage3D || o_.strategy == Strategy::Coverage4D) cover(v, f);
-    if (o_.strategy == Strategy::FisherRF) {
-      std::vector<double>& train = fisher_train(f);
-      const FisherDiagonal h = fisher(v, f);
-      for (size_t k = 0; k < h.values.size(); ++k) train[k] += h.values[k];
-    }
-  }
-
-  VisibilityEngine& engine() { return engine_; }
-
- private:
-  double time_of(int f) const { return FrameGrid(in_.frames).time(f); }
-  int frame_of(double t) const { return FrameGrid(in_.frames).nearest(t); }
-
-  // ---- fisherrf: Σ_pixels (∂Î/∂θ)² at the selection's render scale
-  FisherDiagonal fisher(const Camera& cam, int frame) {
-    if (frame != diff_frame_index_) {
-      evaluate_params(params_, time_of(frame), &diff_frame_);
-      diff_frame_index_ = frame;
-    }
-    DiffRenderOptions ro;
-    ro.background = in_.background;
-    ro.threads = o_.threads;
-    raster_.forward(diff_frame_, scaled_camera(cam, o_.render_scale), ro);
-    FisherDiagonal h;
-    raster_.accumulate_fisher(&h);
-    if (h.values.empty()) h.values.assign(in_.scene->size() * FisherDiagonal::kParams, 0.0);
-    return h;
-  }
-  std::vector<double>& fisher_train(int frame) {
-    auto it = fisher_train_.find(frame);
-    if (it != fisher_train_.end()) return it->second;
-    std::vector<double> sum(in_.scene->size() * FisherDiagonal::kParams, 0.0);
-    for (const ObservedView& v : in_.views)
-      if (v.frame == frame) {
-        const FisherDiagonal h = fisher(v.camera, frame);
-        for (size_t k = 0; k < sum.size(); ++k) sum[k] += h.values[k];
-      }
-    return fisher_train_.emplace(frame, std::move(sum)).first->second;
-  }
-
-  // ---- coverage: (Gaussian × direction bin) cells, 8 azimuth × 4 elevation bins of 45°
-  uint32_t direction_bit(const Vec3d& from_gaussian) const {
-    const int a = (vertical_ + 1) % 3, b = (vertical_ + 2) % 3;
-    const Vec3d d = from_gaussian.normalized();
-    const double el = std::asin(std::clamp(d[vertical_], -1.0, 1.0)) * 180.0 / kPi;  // [-90, 90]
-    const double az = std::atan2(d[b], d[a]) * 180.0 / kPi;                            // (-180, 180]
-    const int e = std::clamp(int(std::floor((el + 90.0) / 45.0)), 0, 3);
-    const int z = std::clamp(int(std::floor((az + 180.0) / 45.0)), 0, 7);
-    return 1u << (e * 8 + z);
-  }
-  uint32_t* coverage_row(int frame) {
-    return coverage_.data() + (o_.strategy == Strategy::Coverage3D ? 0 : size_t(frame) * in_.scene->size());
-  }
-  size_t new_cells(const Camera& cam, int frame) {
-    const uint32_t* row = coverage_row(frame);
-    const FrameGaussians& fg = engine_.frame();
-    const Vec3d c = cam.centre();
-    size_t n = 0;
-    for (uint32_t g : engine_.visible_set(cam))
-      if (!(row[g] & direction_bit(c - fg.means[g].cast<double>()))) ++n;
-    return n;
-  }
-  void cover(const Camera& cam, int frame) {
-    engine_.set_time(time_of(frame));
-    uint32_t* row = coverage_row(frame);
-    const FrameGaussians& fg = engine_.frame();
-    const Vec3d c = cam.centre();
-    for (uint32_t g : engine_.visible_set(cam)) row[g] |= direction_bit(c - fg.means[g].cast<double>());
-  }
-
-  const SelectInput& in_;
-  const SelectOptions& o_;
-  DeficiencyField& field_;
-  VisibilityEngine engine_;
-  FrameEvaluator eval_;
-  // fisherrf
-  ModelParams<float> params_;
-  DiffFrame<float> diff_frame_;
-  int diff_frame_index_ = -1;
-  DiffRasterizer<float> raster_;
-  std::map<int, std::vector<double>> fisher_train_;
-  // coverage
-  int vertical_;
-  std::vector<uint32_t> coverage_;
-};
-
 struct Candidate {
   Camera camera;
   bool global = false;
@@ -495,8 +339,16 @@ class Selector {
     result_.timings.observe = seconds_since(t0);
     if (in_.scene->dynamic_ids.empty()) result_.notes.push_back("the scene has no moving Gaussians: D = 0 everywhere");
 
+    // The strategy, with what it shares.
+    VisibilityEngine engine(*in_.scene, o_.visibility);
+    FrameEvaluator eval(*in_.scene);
+    SelectionContext context{in_, o_, field, engine, eval, vertical_};
+    const std::unique_ptr<SelectionStrategy> strategy = make_strategy(o_.strategy, context);
+    strategy_ = strategy.get();
+    engine_ = &engine;
+
     // Starting viewpoints.
-    const bool uses_priority = (o_.strategy == Strategy::FillGS || o_.strategy == Strategy::Negative) && !o_.no_start_selection;
+    const bool uses_priority = strategy->starts() != SelectionStrategy::Starts::Shuffled && !o_.no_start_selection;
     if (uses_priority) {
       t0 = Clock::now();
       result_.priority = in_.priority ? *in_.priority : exploration_priority(in_, o_, progress_);
@@ -506,7 +358,7 @@ class Selector {
       const std::vector<double>& e = result_.priority.priority;
       std::vector<size_t> order(starts_.size());
       std::iota(order.begin(), order.end(), 0);
-      const bool ascending = o_.strategy == Strategy::Negative;
+      const bool ascending = strategy->starts() == SelectionStrategy::Starts::LowestPriority;
       std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return ascending ? e[a] < e[b] : e[a] > e[b]; });
       std::vector<uint32_t> sorted;
       for (size_t k : order) sorted.push_back(starts_[k]);
@@ -517,11 +369,9 @@ class Selector {
       for (size_t i = starts_.size(); i > 1; --i) std::swap(starts_[i - 1], starts_[size_t(rng_() % i)]);
     }
 
-    Scorer scorer(in_, o_, field, vertical_);
-    scorer_ = &scorer;
     for (const Camera& v : in_.earlier_views) {
       if (!v.has_time()) throw_error("select: earlier virtual view ", v.name, " has no time");
-      scorer.observe(v);
+      observe(v, field);
     }
     progress_.start(std::string("select (") + to_string(o_.strategy) + ")", size_t(o_.trajectories));
     size_t next_start = 0;
@@ -529,8 +379,8 @@ class Selector {
       Trajectory tr;
       // A start whose neighbourhood has no free candidate yields nothing: try the next one.
       for (int attempt = 0; attempt < 64 && tr.poses.empty(); ++attempt) {
-        if (o_.strategy == Strategy::Interpolation) tr = interpolation_trajectory(k);
-        else if (o_.strategy == Strategy::Random) tr = random_trajectory();
+        if (strategy->paths() == SelectionStrategy::Paths::BetweenCameras) tr = interpolation_trajectory(k);
+        else if (strategy->paths() == SelectionStrategy::Paths::RandomWalk) tr = random_trajectory();
         else {
           while (next_start < starts_.size() && o_.spread_starts && overlaps_earlier_start(starts_[next_start])) ++next_start;
           if (next_start >= starts_.size()) break;
@@ -547,7 +397,7 @@ class Selector {
       tr.patch_frames = FrameGrid(F).consecutive(tr.frame, o_.patch_frames);
       for (int f : tr.patch_frames) tr.patch_times.push_back(time_of(f));
       t0 = Clock::now();
-      scorer.add(tr);
+      for (const Camera& v : tr.views()) observe(v, field);
       result_.timings.update += seconds_since(t0);
       result_.trajectories.push_back(std::move(tr));
       progress_.advance();
@@ -558,6 +408,15 @@ class Selector {
 
  private:
   double time_of(int f) const { return FrameGrid(in_.frames).time(f); }
+
+  /// One virtual view (with its time) becomes an observation: the counts C, then the
+  /// strategy's own state.
+  void observe(const Camera& v, DeficiencyField& field) {
+    const int f = FrameGrid(in_.frames).nearest(v.time);
+    engine_->set_time(time_of(f));
+    field.observe(f, engine_->visible_set(v));
+    strategy_->observe(v, f);
+  }
 
   /// Whether a trajectory of this call grew from a starting view of the same pose fewer
   /// than patch_frames frames from `view` (SelectOptions::spread_starts). The starting view,
@@ -642,9 +501,9 @@ class Selector {
       } else {
         std::vector<Camera> cc;
         for (const Candidate& c : cands) cc.push_back(c.camera);
-        scores = scorer_->score(cc, f);
+        scores = strategy_->score(cc, f);
         result_.timings.candidates_scored += cands.size();
-        const bool lowest = o_.strategy == Strategy::Negative;
+        const bool lowest = strategy_->lowest_wins();
         for (size_t i = 1; i < scores.size(); ++i)
           if (lowest ? scores[i] < scores[pick] : scores[i] > scores[pick]) pick = i;
       }
@@ -680,8 +539,8 @@ class Selector {
     tr.frame = f;
     const std::vector<Vec3d> p = in_.grid->sample_free(in_.grid->box(), 1, rng_);
     if (p.empty()) return tr;
-    scorer_->engine().set_time(time_of(f));
-    const FrameGaussians& fg = scorer_->engine().frame();
+    engine_->set_time(time_of(f));
+    const FrameGaussians& fg = engine_->frame();
     Vec3d target = p[0];
     for (int tries = 0; tries < 100 && (target - p[0]).norm() < 1e-6; ++tries) {
       const uint32_t g = uint32_t(rng_() % uint64_t(fg.size()));
@@ -768,7 +627,8 @@ class Selector {
   std::vector<std::pair<uint32_t, uint32_t>> pairs_;
   const std::vector<Camera> cameras_;  ///< the observed viewpoints' cameras
   const int vertical_;                 ///< world axis closest to the cameras' up
-  Scorer* scorer_ = nullptr;
+  SelectionStrategy* strategy_ = nullptr;  ///< made in run()
+  VisibilityEngine* engine_ = nullptr;     ///< the strategies' engine, made in run()
 };
 
 }  // namespace

@@ -1,5 +1,5 @@
-#include "fillgs/frame_grid.hpp"
 #include "fillgs/synth.hpp"
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/train.hpp"
 
 #include <nlohmann/json.hpp>

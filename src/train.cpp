@@ -1,5 +1,5 @@
-#include "fillgs/frame_grid.hpp"
 #include "fillgs/train.hpp"
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/json_file.hpp"
 
 #include <nlohmann/json.hpp>
@@ -31,6 +31,7 @@
 #include "fillgs/raster.hpp"
 #include "fillgs/sh.hpp"
 #include "fillgs/video.hpp"
+#include "fillgs/threads.hpp"
 
 namespace fs = std::filesystem;
 
@@ -1049,7 +1050,7 @@ void Trainer::adam_step() {
       }
     });
   };
-  tbb::task_arena arena(options_.threads > 0 ? options_.threads : tbb::task_arena::automatic);
+  tbb::task_arena arena(arena_concurrency(options_.threads));
   arena.execute([&] {
     update(params_.means, grad_.means, adam_m_.means, adam_v_.means, pos_lr);
     update(params_.key_positions, grad_.key_positions, adam_m_.key_positions, adam_v_.key_positions, key_lr);
@@ -1606,23 +1607,5 @@ Trainer Trainer::resume(const Dataset& data, const std::string& path, const Trai
 }
 
 // ---------------------------------------------------------------------------------
-
-EvalResult evaluate_views(const GaussianCloud& model, const Dataset& data, int stride, const Vec3f& background, int threads) {
-  EvalResult r;
-  FrameEvaluator ev(model);
-  RenderOptions ro;
-  ro.background = background;
-  ro.threads = threads;
-  for (size_t v = 0; v < data.views().size(); v += size_t(std::max(1, stride))) {
-    const TrainView& view = data.views()[v];
-    const RenderOutput out = render(ev.evaluate(view.camera.time), view.camera, ro);
-    const std::vector<float> target = data.image(v);
-    r.psnr += psnr(out.rgb.data(), target.data(), view.camera.width, view.camera.height, 3);
-    r.ssim += ssim(out.rgb.data(), target.data(), view.camera.width, view.camera.height, 3);
-    ++r.views;
-  }
-  if (r.views) r.psnr /= double(r.views), r.ssim /= double(r.views);
-  return r;
-}
 
 }  // namespace fillgs

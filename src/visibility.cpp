@@ -16,6 +16,7 @@
 #include "fillgs/error.hpp"
 #include "fillgs/timing.hpp"
 #include "fillgs/gaussian_tracer.hpp"
+#include "fillgs/threads.hpp"
 
 namespace fillgs {
 
@@ -354,7 +355,7 @@ struct VisibilityEngine::Impl {
   bool have_extent = false;
 
   Impl(const GaussianCloud& c, const VisibilityOptions& o)
-      : cloud(c), options(o), evaluator(c), arena(o.threads > 0 ? o.threads : tbb::task_arena::automatic) {}
+      : cloud(c), options(o), evaluator(c), arena(arena_concurrency(o.threads)) {}
 
   /// The proxies, (re)built when a camera's dilated matchs need more bound padding
   /// than they have (with 25% headroom, so a rig of similar cameras builds once).
@@ -869,7 +870,7 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
   summary.camera_poses = run.pose_count();
   summary.max_views_per_frame = uint16_t(max_views);
 
-  tbb::task_arena arena(vis.threads > 0 ? vis.threads : tbb::task_arena::automatic);
+  tbb::task_arena arena(arena_concurrency(vis.threads));
   arena.execute([&] {
     FrameEvaluator evaluator(cloud);
     const FrameGaussians* frame = &evaluator.evaluate(times[frames[0]]);

@@ -1,4 +1,3 @@
-#include "fillgs/frame_grid.hpp"
 #include "fillgs/weights.hpp"
 
 #include <algorithm>
@@ -6,6 +5,7 @@
 #include <numeric>
 #include <opencv2/imgproc.hpp>
 
+#include "fillgs/frame_grid.hpp"
 #include "fillgs/error.hpp"
 #include "fillgs/fs_util.hpp"
 #include "fillgs/raster.hpp"
@@ -194,9 +194,148 @@ std::vector<int> adjacent_observed(const std::vector<ObservedView>& views, const
   return out;
 }
 
+namespace {
+
+/// What a weighting reads for one refined view.
+struct WeighInputs {
+  const WeightContext& ctx;
+  const Image& refined;
+  const Camera& camera;
+  const FrameGaussians& frame;  ///< the model at the view's time
+  int f;                        ///< the view's frame
+  const std::vector<int>& adjacent;
+};
+
+/// A weighting (weights.hpp, Weighting): which of the two fillgs maps it needs, and how it
+/// turns them (or its own measure) into the view's weight map and image weight.
+class WeightingRule {
+ public:
+  virtual ~WeightingRule() = default;
+  virtual bool uses_consistency() const { return false; }
+  virtual bool uses_covisibility() const { return false; }
+  /// Sets w.weight (all ones on entry) and w.image_weight.
+  virtual void weigh(const WeighInputs& in, ViewWeights& w) const = 0;
+};
+
+/// none: every refined pixel counts fully.
+class Unweighted : public WeightingRule {
+ public:
+  void weigh(const WeighInputs&, ViewWeights&) const override {}
+};
+
+/// fillgs: consistency × co-visibility; no-consistency and no-covisibility keep one of them.
+class FillgsWeights : public WeightingRule {
+ public:
+  FillgsWeights(bool consistency, bool covisibility) : consistency_(consistency), covisibility_(covisibility) {}
+  bool uses_consistency() const override { return consistency_; }
+  bool uses_covisibility() const override { return covisibility_; }
+  void weigh(const WeighInputs&, ViewWeights& w) const override {
+    for (size_t p = 0; p < w.weight.size(); ++p)
+      w.weight[p] = (w.consistency.empty() ? 1.0f : w.consistency[p]) * (w.covisibility.empty() ? 1.0f : w.covisibility[p]);
+  }
+
+ private:
+  bool consistency_, covisibility_;
+};
+
+/// 3dgs-enhancer: an image weight from the distance to the nearest training camera against
+/// the cameras' own spacing, times the rendered Gaussian size (over its 99th percentile).
+class EnhancerWeights : public WeightingRule {
+ public:
+  void weigh(const WeighInputs& in, ViewWeights& w) const override {
+    std::vector<Vec3d> centres;
+    for (const ObservedView& v : in.ctx.views)
+      if (v.frame == in.f) centres.push_back(v.camera.centre());
+    double d = 1e30;
+    for (const Vec3d& c : centres) d = std::min(d, (c - in.camera.centre()).norm());
+    std::vector<double> spacing;
+    for (size_t i = 0; i < centres.size(); ++i) {
+      double s = 1e30;
+      for (size_t j = 0; j < centres.size(); ++j)
+        if (i != j && (centres[i] - centres[j]).norm() > 1e-9) s = std::min(s, (centres[i] - centres[j]).norm());
+      if (s < 1e30) spacing.push_back(s);
+    }
+    std::sort(spacing.begin(), spacing.end());
+    const double ref = spacing.empty() ? 1.0 : spacing[spacing.size() / 2];
+    w.image_weight = centres.empty() ? 1.0 : std::exp(-d / ref);
+    std::vector<float> size(in.frame.size());
+    for (size_t g = 0; g < in.frame.size(); ++g) size[g] = in.frame.scales[g].maxCoeff();
+    std::vector<float> sorted = size;
+    const size_t q = std::min(sorted.size() - 1, size_t(0.99 * double(sorted.size())));
+    std::nth_element(sorted.begin(), sorted.begin() + long(q), sorted.end());
+    const float scale = std::max(sorted[q], 1e-12f);
+    for (float& s : size) s = std::min(1.0f, s / scale);
+    w.weight = render_value_map(in.frame, in.camera, size.data(), in.ctx.threads);
+    for (float& x : w.weight) x = float(x * w.image_weight);
+  }
+};
+
+/// exploregs: an image weight 1 − IoU of the Gaussians seen with the nearest observed view,
+/// times the SSIM of the refined image against the model's render.
+class ExploreGSWeights : public WeightingRule {
+ public:
+  void weigh(const WeighInputs& in, ViewWeights& w) const override {
+    double iou = 0;
+    if (!in.adjacent.empty()) {
+      const std::vector<float> a = max_weights(in.frame, in.camera, in.ctx.threads);
+      const std::vector<float> b = max_weights(in.frame, in.ctx.views[size_t(in.adjacent[0])].camera, in.ctx.threads);
+      size_t inter = 0, uni = 0;
+      for (size_t g = 0; g < a.size(); ++g) {
+        const bool va = a[g] >= kMinAlpha, vb = b[g] >= kMinAlpha;
+        inter += va && vb;
+        uni += va || vb;
+      }
+      iou = uni ? double(inter) / double(uni) : 0.0;
+    }
+    w.image_weight = 1.0 - iou;
+    RenderOptions ro;
+    ro.background = in.ctx.background;
+    ro.threads = in.ctx.threads;
+    const RenderOutput r = render(in.frame, in.camera, ro);
+    Image rendered(in.camera.width, in.camera.height, 3);
+    rendered.pixels = r.rgb;
+    const std::vector<float> s = ssim_map(in.refined, rendered);
+    for (size_t p = 0; p < w.weight.size(); ++p) w.weight[p] = float(w.image_weight * std::clamp(s[p], 0.0f, 1.0f));
+  }
+};
+
+/// ua-4dgs: the rendered 1 / (1 + Σ blending weights over the training views at the frame).
+class UncertaintyWeights : public WeightingRule {
+ public:
+  void weigh(const WeighInputs& in, ViewWeights& w) const override {
+    std::vector<float> seen(in.frame.size(), 0.0f);
+    for (const ObservedView& v : in.ctx.views) {
+      if (v.frame != in.f) continue;
+      const std::vector<float> m = max_weights(in.frame, v.camera, in.ctx.threads);
+      for (size_t g = 0; g < seen.size(); ++g) seen[g] += m[g];
+    }
+    for (float& s : seen) s = 1.0f / (1.0f + s);
+    w.weight = render_value_map(in.frame, in.camera, seen.data(), in.ctx.threads);
+  }
+};
+
+/// The registry: each weighting's rule, by its value (whose name is in weights.hpp).
+const WeightingRule& rule_of(Weighting weighting) {
+  static const Unweighted none;
+  static const FillgsWeights fillgs(true, true), no_consistency(false, true), no_covisibility(true, false);
+  static const EnhancerWeights enhancer;
+  static const ExploreGSWeights exploregs;
+  static const UncertaintyWeights ua4dgs;
+  static const std::pair<Weighting, const WeightingRule*> kRules[] = {
+      {Weighting::FillGS, &fillgs},         {Weighting::None, &none},         {Weighting::NoConsistency, &no_consistency},
+      {Weighting::NoCovisibility, &no_covisibility}, {Weighting::Enhancer3DGS, &enhancer}, {Weighting::ExploreGS, &exploregs},
+      {Weighting::UA4DGS, &ua4dgs}};
+  for (const auto& [id, rule] : kRules)
+    if (id == weighting) return *rule;
+  throw_error("weights: weighting '", to_string(weighting), "' has no rule in the registry");
+}
+
+}  // namespace
+
 ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, const Camera& camera, Weighting weighting,
                             const MaskOptions& o, const std::string& external_name) {
   if (!ctx.model) throw_error("weights: no model");
+  const WeightingRule& rule = rule_of(weighting);
   ViewWeights w;
   const size_t P = size_t(camera.width) * size_t(camera.height);
   const int f = FrameGrid(std::max(1, ctx.frames)).nearest(camera.time);
@@ -204,9 +343,7 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
   const std::vector<int> adj = adjacent_observed(ctx.views, camera, f);
   for (size_t k = 0; k < adj.size() && k < 2; ++k) w.adjacent[k] = adj[k];
 
-  const bool use_consistency = weighting == Weighting::FillGS || weighting == Weighting::NoCovisibility;
-  const bool use_covis = weighting == Weighting::FillGS || weighting == Weighting::NoConsistency;
-  if (use_consistency) {
+  if (rule.uses_consistency()) {
     if (o.method == MaskMethod::External) {
       const std::string path = join_path(o.external_dir, external_name);
       const Image m = read_image(path);
@@ -229,87 +366,13 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
       }
     }
   }
-  if (use_covis) {
+  if (rule.uses_covisibility()) {
     if (!ctx.deficiency) throw_error("weights: the co-visibility weight needs the deficiency tables");
     const std::vector<float> v = ctx.deficiency->covisibility(f, o.covisibility);
     w.covisibility = render_value_map(frame, camera, v.data(), ctx.threads);
   }
-
   w.weight = ones(camera);
-  switch (weighting) {
-    case Weighting::None:
-      break;
-    case Weighting::FillGS:
-    case Weighting::NoConsistency:
-    case Weighting::NoCovisibility:
-      for (size_t p = 0; p < P; ++p)
-        w.weight[p] = (w.consistency.empty() ? 1.0f : w.consistency[p]) * (w.covisibility.empty() ? 1.0f : w.covisibility[p]);
-      break;
-    case Weighting::Enhancer3DGS: {
-      // Image level: distance to the nearest training camera against their own spacing.
-      std::vector<Vec3d> centres;
-      for (const ObservedView& v : ctx.views)
-        if (v.frame == f) centres.push_back(v.camera.centre());
-      double d = 1e30;
-      for (const Vec3d& c : centres) d = std::min(d, (c - camera.centre()).norm());
-      std::vector<double> spacing;
-      for (size_t i = 0; i < centres.size(); ++i) {
-        double s = 1e30;
-        for (size_t j = 0; j < centres.size(); ++j)
-          if (i != j && (centres[i] - centres[j]).norm() > 1e-9) s = std::min(s, (centres[i] - centres[j]).norm());
-        if (s < 1e30) spacing.push_back(s);
-      }
-      std::sort(spacing.begin(), spacing.end());
-      const double ref = spacing.empty() ? 1.0 : spacing[spacing.size() / 2];
-      w.image_weight = centres.empty() ? 1.0 : std::exp(-d / ref);
-      // Pixel level: rendered Gaussian size, normalised by its 99th percentile.
-      std::vector<float> size(frame.size());
-      for (size_t g = 0; g < frame.size(); ++g) size[g] = frame.scales[g].maxCoeff();
-      std::vector<float> sorted = size;
-      const size_t q = std::min(sorted.size() - 1, size_t(0.99 * double(sorted.size())));
-      std::nth_element(sorted.begin(), sorted.begin() + long(q), sorted.end());
-      const float scale = std::max(sorted[q], 1e-12f);
-      for (float& s : size) s = std::min(1.0f, s / scale);
-      w.weight = render_value_map(frame, camera, size.data(), ctx.threads);
-      for (float& x : w.weight) x = float(x * w.image_weight);
-      break;
-    }
-    case Weighting::ExploreGS: {
-      double iou = 0;
-      if (!adj.empty()) {
-        const std::vector<float> a = max_weights(frame, camera, ctx.threads);
-        const std::vector<float> b = max_weights(frame, ctx.views[size_t(adj[0])].camera, ctx.threads);
-        size_t inter = 0, uni = 0;
-        for (size_t g = 0; g < a.size(); ++g) {
-          const bool va = a[g] >= kMinAlpha, vb = b[g] >= kMinAlpha;
-          inter += va && vb;
-          uni += va || vb;
-        }
-        iou = uni ? double(inter) / double(uni) : 0.0;
-      }
-      w.image_weight = 1.0 - iou;
-      RenderOptions ro;
-      ro.background = ctx.background;
-      ro.threads = ctx.threads;
-      const RenderOutput r = render(frame, camera, ro);
-      Image rendered(camera.width, camera.height, 3);
-      rendered.pixels = r.rgb;
-      const std::vector<float> s = ssim_map(refined, rendered);
-      for (size_t p = 0; p < P; ++p) w.weight[p] = float(w.image_weight * std::clamp(s[p], 0.0f, 1.0f));
-      break;
-    }
-    case Weighting::UA4DGS: {
-      std::vector<float> seen(frame.size(), 0.0f);
-      for (const ObservedView& v : ctx.views) {
-        if (v.frame != f) continue;
-        const std::vector<float> m = max_weights(frame, v.camera, ctx.threads);
-        for (size_t g = 0; g < seen.size(); ++g) seen[g] += m[g];
-      }
-      for (float& s : seen) s = 1.0f / (1.0f + s);
-      w.weight = render_value_map(frame, camera, seen.data(), ctx.threads);
-      break;
-    }
-  }
+  rule.weigh({ctx, refined, camera, frame, f, adj}, w);
   for (float& x : w.weight)
     if (!std::isfinite(x)) x = 0;
   return w;

@@ -32,9 +32,18 @@ run observe --scene scene/scene.ply --cameras scene/transforms_train.json --out 
 run observe --scene scene/scene.ply --cameras scene/transforms_train.json --out observe_ray --mode raytraced --stride 2 "${q[@]}"
 run explore --scene scene/scene.ply --cameras scene/transforms_train.json --out explore --frames 6 "${q[@]}"
 run select --scene scene/scene.ply --cameras scene/transforms_train.json --out select --trajectories 2 --views 3 "${q[@]}"
+# Every strategy and every weighting (their classes, issue 16), small.
+for strategy in fillgs random negative interpolation fisherrf coverage3d coverage4d; do
+  run select --scene scene/scene.ply --cameras scene/transforms_train.json --out "select_$strategy" --strategy "$strategy" \
+    --trajectories 2 --views 2 --no-renders "${q[@]}"
+done
 run train --images scene --cameras scene/transforms_train.json --out train --iterations 60 "${q[@]}"
 run finetune --model train/model.ply --images scene --cameras scene/transforms_train.json --out finetune --iterations 20 --select-every 10 \
   --trajectories 1 --refiner oracle --truth scene/scene.ply "${q[@]}"
+for weighting in fillgs none no-consistency no-covisibility 3dgs-enhancer exploregs ua-4dgs; do
+  run finetune --model train/model.ply --images scene --cameras scene/transforms_train.json --out "finetune_$weighting" --iterations 4 \
+    --select-every 4 --trajectories 1 --refiner oracle --truth scene/scene.ply --artifact-strength 0.5 --weighting "$weighting" "${q[@]}"
+done
 run eval --model finetune/model.ply --images scene --cameras scene/transforms_interpolation.json,scene/transforms_extrapolation.json \
   --truth scene/scene.ply --out eval "${q[@]}"
 run run --smoke --out run_smoke "${q[@]}"

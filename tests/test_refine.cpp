@@ -486,7 +486,7 @@ TEST_CASE("weighted fine-tuning keeps the training views, unweighted fine-tuning
   Trainer backbone(data, init_from_points(read_points(join_path(dir, "scene/points.ply"))), to);
   backbone.run(400, null_progress());
   const GaussianCloud start = backbone.model();
-  const double psnr0 = evaluate_views(start, data).psnr;
+  const double psnr0 = evaluate_split(start, data, "views").psnr;
 
   ArtifactOptions ao;
   ao.strength = 1.0;
@@ -506,8 +506,8 @@ TEST_CASE("weighted fine-tuning keeps the training views, unweighted fine-tuning
   const FinetuneResult weighted = tune(Weighting::FillGS), plain = tune(Weighting::None), masked = tune(Weighting::NoCovisibility);
   REQUIRE(weighted.virtual_views.size() == plain.virtual_views.size());
   REQUIRE(weighted.virtual_views.size() >= 27);
-  const double pw = evaluate_views(weighted.model, data).psnr, pn = evaluate_views(plain.model, data).psnr;
-  const double pm = evaluate_views(masked.model, data).psnr;
+  const double pw = evaluate_split(weighted.model, data, "views").psnr, pn = evaluate_split(plain.model, data, "views").psnr;
+  const double pm = evaluate_split(masked.model, data, "views").psnr;
   INFO("train PSNR: start " << psnr0 << ", weighted " << pw << ", consistency mask only " << pm << ", unweighted " << pn << "; mean weights "
                             << weighted.rounds[0].mean_weight << ", " << masked.rounds[0].mean_weight);
   CHECK(pw >= psnr0 - 0.5);

@@ -54,20 +54,10 @@ struct RingPlacement {
 std::vector<Camera> camera_ring(const RingPlacement& ring, const Camera& lens);
 
 enum class CameraFormat { Auto, Colmap, Llff, Transforms, GaussianJson, Technicolor, D3dgs };
-template <>
-struct EnumNames<CameraFormat> {
-  static constexpr const char* what = "camera format";
-  static constexpr NameOf<CameraFormat> table[] = {
-      {CameraFormat::Auto, "auto"},
-      {CameraFormat::Colmap, "colmap"},
-      {CameraFormat::Llff, "llff"},
-      {CameraFormat::Transforms, "transforms"},
-      {CameraFormat::GaussianJson, "3dgs"},
-      {CameraFormat::Technicolor, "technicolor"},
-      {CameraFormat::D3dgs, "d3dgs"},
-      {CameraFormat::Transforms, "nerf"},
-      {CameraFormat::D3dgs, "panoptic"}};
-};
+FILLGS_ENUM_NAMES(CameraFormat, "camera format",
+    {CameraFormat::Auto, "auto"}, {CameraFormat::Colmap, "colmap"}, {CameraFormat::Llff, "llff"}, {CameraFormat::Transforms, "transforms"},
+    {CameraFormat::GaussianJson, "3dgs"}, {CameraFormat::Technicolor, "technicolor"}, {CameraFormat::D3dgs, "d3dgs"},
+    {CameraFormat::Transforms, "nerf"}, {CameraFormat::D3dgs, "panoptic"});
 
 struct CameraReadOptions {
   CameraFormat format = CameraFormat::Auto;

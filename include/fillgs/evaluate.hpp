@@ -36,6 +36,8 @@ struct EvalOptions {
   /// Also the PSNR after a per-image, per-channel least-squares gain g = Σ r·t / Σ r² on the
   /// render (how some papers evaluate held-out cameras of a real rig): psnr_ls_gain.
   bool ls_gain = false;
+  /// The moving region's PSNR where `truth` or the split's foreground masks allow.
+  bool moving = true;
 };
 
 struct SplitMetrics {
@@ -50,8 +52,11 @@ struct SplitMetrics {
 };
 
 /// Metrics of `model` on every view of a split.
-SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, const std::string& name, const EvalOptions& options,
+SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, const std::string& name, const EvalOptions& options = {},
                             Progress& progress = null_progress());
+
+/// PSNR and SSIM on every max(1, V/32)-th training view: what the training summaries report.
+SplitMetrics evaluate_training_sample(const GaussianCloud& model, const Dataset& data, const Vec3f& background, int threads);
 
 /// The moving region of a camera at its time: 1 where the moving Gaussians of `truth`
 /// make up at least half of the rendered opacity ([H][W]).

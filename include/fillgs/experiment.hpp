@@ -158,4 +158,21 @@ std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& r
 /// budget.png, time_per_phase.png.
 void write_bench_report(const std::string& root, const std::vector<RunResult>& results);
 
+/// What `fillgs run` compared, for its report.
+struct RunReportInput {
+  const PreparedScene* scene = nullptr;
+  std::vector<RunResult> results;    ///< the backbone first, then each run
+  std::vector<std::string> run_ids;  ///< the fine-tuned runs, their models under <scene dir>/runs/<id>
+  FinetuneOptions finetune;          ///< their schedule
+  OracleSupport support = OracleSupport::Observed;
+  double artifact_strength = 0;
+  std::string command;               ///< the command line, as typed
+  int threads = 0;
+};
+/// report.md and report.html into `dir`: the scene and schedule, a table of every result,
+/// side-by-side renders (ground truth, backbone, each model) at the view and moment of each
+/// split where the moving content covers most of the image, the bench charts, and the
+/// virtual views each strategy chose.
+void write_run_report(const std::string& dir, const RunReportInput& in);
+
 }  // namespace fillgs

@@ -30,14 +30,8 @@
 namespace fillgs {
 
 enum class VoxelLabel : uint8_t { Free = 0, Occupied = 1, Unexplored = 2 };
-template <>
-struct EnumNames<VoxelLabel> {
-  static constexpr const char* what = "voxel label";
-  static constexpr NameOf<VoxelLabel> table[] = {
-      {VoxelLabel::Free, "free"},
-      {VoxelLabel::Occupied, "occupied"},
-      {VoxelLabel::Unexplored, "unexplored"}};
-};
+FILLGS_ENUM_NAMES(VoxelLabel, "voxel label",
+    {VoxelLabel::Free, "free"}, {VoxelLabel::Occupied, "occupied"}, {VoxelLabel::Unexplored, "unexplored"});
 
 struct ExplorationOptions {
   int divisions = 64;             ///< cells along each axis

@@ -18,14 +18,8 @@
 namespace fillgs {
 
 enum class MotionModel { Static, Polynomial, Keyframed };
-template <>
-struct EnumNames<MotionModel> {
-  static constexpr const char* what = "motion model";
-  static constexpr NameOf<MotionModel> table[] = {
-      {MotionModel::Static, "static"},
-      {MotionModel::Polynomial, "polynomial"},
-      {MotionModel::Keyframed, "keyframed"}};
-};
+FILLGS_ENUM_NAMES(MotionModel, "motion model",
+    {MotionModel::Static, "static"}, {MotionModel::Polynomial, "polynomial"}, {MotionModel::Keyframed, "keyframed"});
 
 /// Spacetime Gaussians motion (polynomial position, linear rotation, temporal RBF opacity).
 /// Model time is t_model = t * time_scale (STG uses (frame)/D, so time_scale = (D-1)/D).

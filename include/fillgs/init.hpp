@@ -25,13 +25,7 @@
 namespace fillgs {
 
 enum class ViewInit { Random, RandomAndCarve };
-template <>
-struct EnumNames<ViewInit> {
-  static constexpr const char* what = "initialisation";
-  static constexpr NameOf<ViewInit> table[] = {
-      {ViewInit::Random, "random"},
-      {ViewInit::RandomAndCarve, "random+carve"}};
-};
+FILLGS_ENUM_NAMES(ViewInit, "initialisation", {ViewInit::Random, "random"}, {ViewInit::RandomAndCarve, "random+carve"});
 
 struct ViewInitOptions {
   ViewInit method = ViewInit::RandomAndCarve;

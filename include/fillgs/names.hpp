@@ -3,13 +3,12 @@
 // (to_string), parsing (parse_name), the command line's choices and their help all read
 // that table, so a value gains or changes its name in one place.
 //
-//   template <> struct EnumNames<VisibilityMode> {
-//     static constexpr const char* what = "visibility mode";
-//     static constexpr NameOf<VisibilityMode> table[] = {{VisibilityMode::Frustum, "frustum"}, ...};
-//   };
+//   FILLGS_ENUM_NAMES(VisibilityMode, "visibility mode",
+//       {VisibilityMode::Frustum, "frustum"}, {VisibilityMode::Raytraced, "raytraced"}, ...);
 //
-// A value's first entry is its name; later entries for the same value are aliases that
-// parse but are never printed.
+// (in namespace fillgs) specialises EnumNames<VisibilityMode>: `what` names the kind for
+// messages, `table` the values. A value's first entry is its name; later entries for the
+// same value are aliases that parse but are never printed.
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -24,9 +23,16 @@ struct NameOf {
   const char* name;
 };
 
-/// Specialised beside each named enum: `what` (for messages) and `table`.
+/// Specialised beside each named enum (FILLGS_ENUM_NAMES): `what` (for messages) and `table`.
 template <class E>
 struct EnumNames;
+
+#define FILLGS_ENUM_NAMES(Enum, What, ...)                 \
+  template <>                                              \
+  struct EnumNames<Enum> {                                 \
+    static constexpr const char* what = What;              \
+    static constexpr NameOf<Enum> table[] = {__VA_ARGS__}; \
+  }
 
 template <class E, class = void>
 struct HasNames : std::false_type {};
@@ -47,6 +53,15 @@ std::vector<std::string> names_of() {
   std::vector<std::string> out;
   for (const NameOf<E>& n : EnumNames<E>::table)
     if (std::string(to_string(n.value)) == n.name) out.push_back(n.name);
+  return out;
+}
+
+/// Every value, in table order, each once.
+template <class E>
+std::vector<E> values_of() {
+  std::vector<E> out;
+  for (const NameOf<E>& n : EnumNames<E>::table)
+    if (std::string(to_string(n.value)) == n.name) out.push_back(n.value);
   return out;
 }
 

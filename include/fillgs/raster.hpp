@@ -31,13 +31,7 @@ constexpr float kDilation = 0.3f;
 enum class Kernel : uint8_t { Default, Simd, Scalar };
 void set_default_kernel(Kernel kernel);  ///< Default is not a valid argument
 Kernel resolve_kernel(Kernel kernel);    ///< Default → the process default
-template <>
-struct EnumNames<Kernel> {
-  static constexpr const char* what = "kernel";
-  static constexpr NameOf<Kernel> table[] = {
-      {Kernel::Simd, "simd"},
-      {Kernel::Scalar, "scalar"}};
-};
+FILLGS_ENUM_NAMES(Kernel, "kernel", {Kernel::Simd, "simd"}, {Kernel::Scalar, "scalar"});
 const char* kernel_name(Kernel kernel);        ///< "simd" | "scalar" (Default resolved)
 /// The instruction set the vector kernel uses on this machine (e.g. "AVX3", "AVX2").
 const char* simd_target();

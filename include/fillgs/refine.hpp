@@ -112,13 +112,7 @@ std::unique_ptr<Refiner> make_identity_refiner();
 ///    colours drifted (±20a %) and a hallucinated blob, a = the artifact strength (0.5 when
 ///    it is 0), seeded per image. The artifacts of ArtifactOptions go on top everywhere.
 enum class OracleSupport { Full, Observed };
-template <>
-struct EnumNames<OracleSupport> {
-  static constexpr const char* what = "oracle support";
-  static constexpr NameOf<OracleSupport> table[] = {
-      {OracleSupport::Full, "full"},
-      {OracleSupport::Observed, "observed"}};
-};
+FILLGS_ENUM_NAMES(OracleSupport, "oracle support", {OracleSupport::Full, "full"}, {OracleSupport::Observed, "observed"});
 
 struct OracleOptions {
   ArtifactOptions artifacts;

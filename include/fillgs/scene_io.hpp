@@ -14,17 +14,9 @@
 namespace fillgs {
 
 enum class SceneFormat { Auto, Gaussian3D, Spacetime, Ex4dgs, Fillgs4D };
-template <>
-struct EnumNames<SceneFormat> {
-  static constexpr const char* what = "scene format";
-  static constexpr NameOf<SceneFormat> table[] = {
-      {SceneFormat::Auto, "auto"},
-      {SceneFormat::Gaussian3D, "3dgs"},
-      {SceneFormat::Spacetime, "stg"},
-      {SceneFormat::Ex4dgs, "ex4dgs"},
-      {SceneFormat::Fillgs4D, "fillgs"},
-      {SceneFormat::Spacetime, "spacetime"}};
-};
+FILLGS_ENUM_NAMES(SceneFormat, "scene format",
+    {SceneFormat::Auto, "auto"}, {SceneFormat::Gaussian3D, "3dgs"}, {SceneFormat::Spacetime, "stg"}, {SceneFormat::Ex4dgs, "ex4dgs"},
+    {SceneFormat::Fillgs4D, "fillgs"}, {SceneFormat::Spacetime, "spacetime"});
 
 struct SceneReadOptions {
   SceneFormat format = SceneFormat::Auto;

@@ -38,18 +38,10 @@
 namespace fillgs {
 
 enum class Strategy { FillGS, Random, Negative, Interpolation, FisherRF, Coverage3D, Coverage4D };
-template <>
-struct EnumNames<Strategy> {
-  static constexpr const char* what = "strategy";
-  static constexpr NameOf<Strategy> table[] = {
-      {Strategy::FillGS, "fillgs"},
-      {Strategy::Random, "random"},
-      {Strategy::Negative, "negative"},
-      {Strategy::Interpolation, "interpolation"},
-      {Strategy::FisherRF, "fisherrf"},
-      {Strategy::Coverage3D, "coverage3d"},
-      {Strategy::Coverage4D, "coverage4d"}};
-};
+FILLGS_ENUM_NAMES(Strategy, "strategy",
+    {Strategy::FillGS, "fillgs"}, {Strategy::Random, "random"}, {Strategy::Negative, "negative"},
+    {Strategy::Interpolation, "interpolation"}, {Strategy::FisherRF, "fisherrf"}, {Strategy::Coverage3D, "coverage3d"},
+    {Strategy::Coverage4D, "coverage4d"});
 
 /// What a candidate's rendered map holds per Gaussian (the paper's score and its ablations).
 enum class CandidateScore { Deficiency, CountOnly, SpeedOnly };
@@ -66,25 +58,13 @@ enum class Covisibility {
   /// camera sees weighs 1.
   Density,
 };
-template <>
-struct EnumNames<Covisibility> {
-  static constexpr const char* what = "co-visibility rule";
-  static constexpr NameOf<Covisibility> table[] = {
-      {Covisibility::Paper, "paper"},
-      {Covisibility::StaticCount, "static-count"},
-      {Covisibility::Density, "density"}};
-};
+FILLGS_ENUM_NAMES(Covisibility, "co-visibility rule",
+    {Covisibility::Paper, "paper"}, {Covisibility::StaticCount, "static-count"}, {Covisibility::Density, "density"});
 
 /// How candidate maps are rendered: rays through the Embree proxies every `stride`
 /// pixels, or the rasterizer at full resolution.
 enum class MapRenderer { Raytraced, Raster };
-template <>
-struct EnumNames<MapRenderer> {
-  static constexpr const char* what = "map renderer";
-  static constexpr NameOf<MapRenderer> table[] = {
-      {MapRenderer::Raytraced, "raytraced"},
-      {MapRenderer::Raster, "raster"}};
-};
+FILLGS_ENUM_NAMES(MapRenderer, "map renderer", {MapRenderer::Raytraced, "raytraced"}, {MapRenderer::Raster, "raster"});
 
 struct SelectOptions {
   Strategy strategy = Strategy::FillGS;

@@ -144,13 +144,7 @@ PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction
 
 /// How a model learns motion (see above).
 enum class MotionLearning { All, Promote };
-template <>
-struct EnumNames<MotionLearning> {
-  static constexpr const char* what = "motion learning";
-  static constexpr NameOf<MotionLearning> table[] = {
-      {MotionLearning::All, "all"},
-      {MotionLearning::Promote, "promote"}};
-};
+FILLGS_ENUM_NAMES(MotionLearning, "motion learning", {MotionLearning::All, "all"}, {MotionLearning::Promote, "promote"});
 
 struct TrainOptions {
   int iterations = 3000;
@@ -359,13 +353,5 @@ class Trainer {
   std::vector<size_t> views_by_frame_;  // view indices sorted by frame
   std::vector<size_t> frame_begin_;     // [F + 1] offsets into views_by_frame_
 };
-
-/// PSNR and SSIM of a model against every view of a dataset (optionally every k-th).
-struct EvalResult {
-  double psnr = 0, ssim = 0;
-  size_t views = 0;
-};
-EvalResult evaluate_views(const GaussianCloud& model, const Dataset& data, int stride = 1, const Vec3f& background = Vec3f::Zero(),
-                          int threads = 0);
 
 }  // namespace fillgs

@@ -27,14 +27,8 @@
 namespace fillgs {
 
 enum class VisibilityMode { Frustum, Raytraced, Exact };
-template <>
-struct EnumNames<VisibilityMode> {
-  static constexpr const char* what = "visibility mode";
-  static constexpr NameOf<VisibilityMode> table[] = {
-      {VisibilityMode::Frustum, "frustum"},
-      {VisibilityMode::Raytraced, "raytraced"},
-      {VisibilityMode::Exact, "exact"}};
-};
+FILLGS_ENUM_NAMES(VisibilityMode, "visibility mode",
+    {VisibilityMode::Frustum, "frustum"}, {VisibilityMode::Raytraced, "raytraced"}, {VisibilityMode::Exact, "exact"});
 
 struct VisibilityOptions {
   VisibilityMode mode = VisibilityMode::Frustum;

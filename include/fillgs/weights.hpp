@@ -36,30 +36,16 @@
 namespace fillgs {
 
 enum class Weighting { FillGS, None, NoConsistency, NoCovisibility, Enhancer3DGS, ExploreGS, UA4DGS };
-template <>
-struct EnumNames<Weighting> {
-  static constexpr const char* what = "weighting";
-  static constexpr NameOf<Weighting> table[] = {
-      {Weighting::FillGS, "fillgs"},
-      {Weighting::None, "none"},
-      {Weighting::NoConsistency, "no-consistency"},
-      {Weighting::NoCovisibility, "no-covisibility"},
-      {Weighting::Enhancer3DGS, "3dgs-enhancer"},
-      {Weighting::ExploreGS, "exploregs"},
-      {Weighting::UA4DGS, "ua-4dgs"}};
-};
+FILLGS_ENUM_NAMES(Weighting, "weighting",
+    {Weighting::FillGS, "fillgs"}, {Weighting::None, "none"}, {Weighting::NoConsistency, "no-consistency"},
+    {Weighting::NoCovisibility, "no-covisibility"}, {Weighting::Enhancer3DGS, "3dgs-enhancer"}, {Weighting::ExploreGS, "exploregs"},
+    {Weighting::UA4DGS, "ua-4dgs"});
 
 /// depth-warp: through the model's rendered depth (occlusion-checked); sweep: the best
 /// match along the epipolar line over `sweep_planes` depths (model-independent, like a
 /// dense matcher); external: maps computed elsewhere.
 enum class MaskMethod { DepthWarp, Sweep, External };
-template <>
-struct EnumNames<MaskMethod> {
-  static constexpr const char* what = "mask method";
-  static constexpr NameOf<MaskMethod> table[] = {
-      {MaskMethod::DepthWarp, "depth-warp"},
-      {MaskMethod::Sweep, "sweep"}};
-};
+FILLGS_ENUM_NAMES(MaskMethod, "mask method", {MaskMethod::DepthWarp, "depth-warp"}, {MaskMethod::Sweep, "sweep"});
 struct MaskOptions {
   MaskMethod method = MaskMethod::DepthWarp;
   double sigma = 0.05;            ///< colour difference (RMS, [0,1] units) at which confidence is 1/e

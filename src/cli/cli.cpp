@@ -19,8 +19,8 @@
 #ifdef FILLGS_WITH_MPI
 #include "fillgs/observe_mpi.hpp"
 #endif
-#include "fillgs/plot.hpp"
 #include "fillgs/raster.hpp"
+#include "fillgs/reports.hpp"
 #include "fillgs/scene_io.hpp"
 #include "fillgs/synth.hpp"
 #include "fillgs/train.hpp"
@@ -42,32 +42,12 @@ enum class MotionTables { Dense, Dynamic };
 }  // namespace fillgs::cli
 
 namespace fillgs {
-template <>
-struct EnumNames<cli::Channel> {
-  static constexpr const char* what = "channel";
-  static constexpr NameOf<cli::Channel> table[] = {{cli::Channel::Rgb, "rgb"}, {cli::Channel::Depth, "depth"}, {cli::Channel::Alpha, "alpha"}};
-};
-template <>
-struct EnumNames<cli::ImageFormat> {
-  static constexpr const char* what = "image format";
-  static constexpr NameOf<cli::ImageFormat> table[] = {{cli::ImageFormat::Png, "png"}, {cli::ImageFormat::Exr, "exr"}};
-};
-template <>
-struct EnumNames<cli::SceneTarget> {
-  static constexpr const char* what = "scene format";
-  static constexpr NameOf<cli::SceneTarget> table[] = {
-      {cli::SceneTarget::Gaussian3D, "3dgs"}, {cli::SceneTarget::Fillgs, "fillgs"}, {cli::SceneTarget::Frames, "frames"}};
-};
-template <>
-struct EnumNames<cli::CameraTarget> {
-  static constexpr const char* what = "camera format";
-  static constexpr NameOf<cli::CameraTarget> table[] = {{cli::CameraTarget::Transforms, "transforms"}, {cli::CameraTarget::Colmap, "colmap"}};
-};
-template <>
-struct EnumNames<cli::MotionTables> {
-  static constexpr const char* what = "motion table layout";
-  static constexpr NameOf<cli::MotionTables> table[] = {{cli::MotionTables::Dense, "dense"}, {cli::MotionTables::Dynamic, "dynamic"}};
-};
+FILLGS_ENUM_NAMES(cli::Channel, "channel", {cli::Channel::Rgb, "rgb"}, {cli::Channel::Depth, "depth"}, {cli::Channel::Alpha, "alpha"});
+FILLGS_ENUM_NAMES(cli::ImageFormat, "image format", {cli::ImageFormat::Png, "png"}, {cli::ImageFormat::Exr, "exr"});
+FILLGS_ENUM_NAMES(cli::SceneTarget, "scene format",
+    {cli::SceneTarget::Gaussian3D, "3dgs"}, {cli::SceneTarget::Fillgs, "fillgs"}, {cli::SceneTarget::Frames, "frames"});
+FILLGS_ENUM_NAMES(cli::CameraTarget, "camera format", {cli::CameraTarget::Transforms, "transforms"}, {cli::CameraTarget::Colmap, "colmap"});
+FILLGS_ENUM_NAMES(cli::MotionTables, "motion table layout", {cli::MotionTables::Dense, "dense"}, {cli::MotionTables::Dynamic, "dynamic"});
 }  // namespace fillgs
 
 namespace fillgs::cli {
@@ -494,7 +474,6 @@ struct TrainFlags {
 };
 
 int train(const TrainFlags& f, const Invocation& in) {
-  std::ostream& out = in.out;
   const auto t0 = Clock::now();
   const Dataset data = Dataset::load(f.images, f.cameras, f.data);
   const int iterations = f.iterations;
@@ -547,7 +526,7 @@ int train(const TrainFlags& f, const Invocation& in) {
       vo.method = parse_name<ViewInit>(init);
       vo.seed = o.seed;
       const ViewInitResult vi = points_from_views(data, vo);
-      out << "initial points from the cameras' first views: " << vi.random << " random in the cameras' common volume"
+      in.out << "initial points from the cameras' first views: " << vi.random << " random in the cameras' common volume"
           << (vo.method == ViewInit::RandomAndCarve ? ", " + std::to_string(vi.carved) + " carved from the foreground masks" +
                                                           (data.has_masks() ? "" : " (no masks)")
                                                     : "")
@@ -560,7 +539,7 @@ int train(const TrainFlags& f, const Invocation& in) {
   }
   make_directories(join_path(f.out, "checkpoints"));
   if (!init_points.positions.empty()) write_points_ply(join_path(f.out, "init_points.ply"), init_points);
-  out << "training on " << data.views().size() << " views (" << data.rigs().size() << " cameras x " << data.frames() << " frames; "
+  in.out << "training on " << data.views().size() << " views (" << data.rigs().size() << " cameras x " << data.frames() << " frames; "
       << (data.image_bytes() >> 20) << " MB of 8-bit images " << (data.images_spilled() ? "in the image cache file, read on demand" : "in memory")
       << "), " << trainer->params().size() << " initial Gaussians, " << iterations << " iterations\n";
   TerminalProgress progress(in.err, in.progress());
@@ -571,7 +550,7 @@ int train(const TrainFlags& f, const Invocation& in) {
     char line[200];
     std::snprintf(line, sizeof line, "iteration %d: loss %.4f, PSNR %.2f dB, %zu Gaussians (%zu moving), %.1f it/s\n", st.iteration, st.loss,
                   st.psnr, st.gaussians, st.dynamic, st.iterations_per_second);
-    out << line << std::flush;
+    in.out << line << std::flush;
     trainer->save_checkpoint(join_path(f.out, "checkpoints/latest.ckpt"));
   }
   const double train_seconds = seconds_since(t0);
@@ -580,54 +559,20 @@ int train(const TrainFlags& f, const Invocation& in) {
   write_3dgs_ply(join_path(f.out, "frame0_3dgs.ply"), model, 0.0);
   if (o.colour_correction) {
     write_colour_correction(join_path(f.out, "colour_correction.json"), trainer->colour_correction());
-    out << "colour correction per camera (gain r,g,b / offset r,g,b; " << data.rigs()[0] << " is the reference):";
+    in.out << "colour correction per camera (gain r,g,b / offset r,g,b; " << data.rigs()[0] << " is the reference):";
     for (const ColourCorrection& c : trainer->colour_correction()) {
       char line[160];
       std::snprintf(line, sizeof line, " %s %.3f,%.3f,%.3f/%+.3f,%+.3f,%+.3f;", c.rig.c_str(), c.gain[0], c.gain[1], c.gain[2], c.offset[0],
                     c.offset[1], c.offset[2]);
-      out << line;
+      in.out << line;
     }
-    out << "\n";
+    in.out << "\n";
   }
-  nlohmann::json j;
-  j["iterations"] = trainer->iteration();
-  j["seconds"] = train_seconds;
-  j["views"] = data.views().size();
-  j["cameras"] = data.rigs();
-  j["frames"] = data.frames();
-  j["gaussians"] = model.size();
-  j["moving_gaussians"] = model.dynamic_count();
-  j["final_loss_ema"] = trainer->status().loss;
-  j["motion"] = {{"learning", to_string(o.motion)}, {"keyed_opacity", o.keyed_opacity}, {"time_ramp", o.time_ramp},
-                 {"key_lr_scale", o.key_lr_scale}, {"motion_sparsity", o.motion_sparsity}, {"key_interval_frames", o.key_interval_frames},
-                 {"flow_keys", o.flow_keys}, {"keys_placed_by_flow", trainer->flow_placed().first}};
-  nlohmann::json dens = nlohmann::json::array();
-  for (const DensifyRecord& r : trainer->densify_log())
-    dens.push_back({{"iteration", r.iteration}, {"gaussians", r.gaussians}, {"keyed", r.dynamic}, {"promoted", r.promoted},
-                    {"cloned", r.cloned}, {"split", r.split}, {"pruned", r.pruned}});
-  j["densification"] = dens;
-  const EvalResult tr = evaluate_views(model, data, std::max<int>(1, int(data.views().size() / 32)), o.background, o.threads);
-  j["train_psnr"] = tr.psnr;
-  j["train_ssim"] = tr.ssim;
-  out << "trained " << model.size() << " Gaussians (" << model.dynamic_count() << " moving) in " << train_seconds << " s; train PSNR " << tr.psnr
-      << " dB";
-  if (test) {
-    const EvalResult te = evaluate_views(model, *test, 1, o.background, o.threads);
-    j["test_psnr"] = te.psnr;
-    j["test_ssim"] = te.ssim;
-    j["test_views"] = te.views;
-    out << ", test PSNR " << te.psnr << " dB over " << te.views << " views";
-  }
-  // Peak resident memory of the whole run (images held 8-bit, the model, the optimiser).
-  j["peak_memory_bytes"] = peak_memory_bytes();
-  j["images"] = {{"bytes", data.image_bytes()}, {"spilled", data.images_spilled()}};
-  out << ", peak memory " << (peak_memory_bytes() >> 20) << " MB -> " << f.out << "\n";
-  ScatterSeries loss{"loss", {}, {}, {}};
-  const std::vector<float>& h = trainer->loss_history();
-  const size_t every = std::max<size_t>(1, h.size() / 400);
-  for (size_t i = 0; i < h.size(); i += every) loss.x.push_back(double(i + 1)), loss.y.push_back(h[i]);
-  write_scatter_png(join_path(f.out, "loss.png"), {loss}, {"training loss (L1 + 0.2 D-SSIM)", "iteration", "loss"}, false);
-  write_file_atomically(join_path(f.out, "summary.json"), j.dump(2) + "\n");
+  const TrainingReport report = write_training_report(f.out, *trainer, model, data, o, test.get(), train_seconds);
+  in.out << "trained " << model.size() << " Gaussians (" << model.dynamic_count() << " moving) in " << train_seconds << " s; train PSNR "
+         << report.train.psnr << " dB";
+  if (test) in.out << ", test PSNR " << report.test.psnr << " dB over " << report.test.views << " views";
+  in.out << ", peak memory " << (report.peak_memory_bytes >> 20) << " MB -> " << f.out << "\n";
   return 0;
 }
 
@@ -695,11 +640,7 @@ void print_overview(std::ostream& out) {
 
 /// One command's parser: its flags, the common ones, and help made from them.
 std::unique_ptr<CLI::App> make_app(const Command& c, CommonFlags& common, Action* action) {
-  auto app = std::make_unique<CLI::App>(c.summary, std::string("fillgs ") + c.name);
-  app->allow_extras();  // unknown flags get fillgs's own line (run below)
-  app->option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);  // a flag given twice: the last counts
-  app->get_formatter()->column_width(36);
-  app->get_formatter()->label("REQUIRED", "(required)");
+  auto app = make_parser(std::string("fillgs ") + c.name, c.summary);
   *action = c.declare(*app);
   add_common_flags(*app, common);
   return app;
@@ -709,15 +650,6 @@ std::string help_of(const Command& c) {
   CommonFlags common;
   Action action;
   return make_app(c, common, &action)->help();
-}
-
-/// "--scene is required" → "missing --scene".
-std::string parse_error_line(const CLI::ParseError& e) {
-  std::string m = e.what();
-  const std::string required = " is required";
-  if (m.size() > required.size() && m.compare(m.size() - required.size(), required.size(), required) == 0)
-    return "missing " + m.substr(0, m.size() - required.size());
-  return m;
 }
 
 }  // namespace
@@ -765,24 +697,7 @@ int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     CommonFlags common;
     Action action;
     const std::unique_ptr<CLI::App> app = make_app(*command, common, &action);
-    std::vector<std::string> reversed(args.rbegin(), args.rend() - 1);  // CLI11 takes them last first
-    std::string parse_error;
-    try {
-      app->parse(reversed);
-    } catch (const CLI::CallForHelp&) {
-      out << app->help();
-      return 0;
-    } catch (const CLI::ParseError& e) {
-      parse_error = parse_error_line(e);  // after the unknown flags, which say more
-    }
-    for (const std::string& extra : app->remaining()) {
-      if (extra.rfind("--", 0) == 0) {
-        const std::string flag = extra.substr(0, extra.find('='));
-        throw_error(app->get_name(), ": unknown option ", flag, " (see 'fillgs ", command->name, " --help')");
-      }
-      throw_error(app->get_name(), ": unexpected argument '", extra, "' (see 'fillgs ", command->name, " --help')");
-    }
-    if (!parse_error.empty()) throw_error(app->get_name(), ": ", parse_error);
+    if (!parse_flags(*app, std::vector<std::string>(args.begin() + 1, args.end()), out)) return 0;  // --help
     const KernelChoice kernel(common.kernel);
     const Invocation in{command->name, *app, common, args, out, err};
     return action(in);

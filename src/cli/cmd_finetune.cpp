@@ -5,7 +5,6 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <nlohmann/json.hpp>
 
 #include "commands.hpp"
 #include "options.hpp"
@@ -15,14 +14,10 @@
 #include "fillgs/experiment.hpp"
 #include "fillgs/finetune.hpp"
 #include "fillgs/fs_util.hpp"
-#include "fillgs/html_report.hpp"
-#include "fillgs/plot.hpp"
-#include "fillgs/ply.hpp"
-#include "fillgs/raster.hpp"
+#include "fillgs/reports.hpp"
 #include "fillgs/scene_io.hpp"
 
 namespace fs = std::filesystem;
-using nlohmann::json;
 
 namespace fillgs::cli {
 
@@ -57,8 +52,6 @@ struct FinetuneFlags {
 };
 
 int finetune_model(const FinetuneFlags& f, const Invocation& in) {
-  std::ostream& out = in.out;
-  const std::string& out_dir = f.out;
   const auto t0 = Clock::now();
   const Dataset data = Dataset::load(f.images, f.cameras, f.data);
   const GaussianCloud model = read_scene(f.model, f.read);
@@ -81,7 +74,7 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     if (!fs::is_directory(o.mask.external_dir)) in.fail("--confidence ", o.mask.external_dir, " is not a folder");
   }
   o.threads = in.common.threads;
-  o.work_dir = join_path(out_dir, "work");
+  o.work_dir = join_path(f.out, "work");
 
   const std::string& kind = f.refiner;
   std::unique_ptr<Refiner> refiner;
@@ -106,7 +99,7 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     DatasetOptions po = f.data;
     po.cameras = f.pool_cameras;
     po.monocular_cycle.clear();
-    if (po.cameras.empty()) in.fail("--refiner rig needs --pool-cameras a,b,.. (rig cameras neither trained on nor held out)");
+    if (po.cameras.empty()) in.fail("--refiner rig needs --pool-cameras a,b,.. (rig cameras neither trained on nor held in.out)");
     for (const std::string& c : po.cameras)
       for (const std::string& t : data.rigs())
         if (c == t) in.fail("--pool-cameras names ", c, ", a training camera");
@@ -121,46 +114,21 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   } else {
     in.fail("unknown --refiner \"", kind, "\" (identity, oracle, external, rig)");
   }
-  require_fresh(out_dir, "finetune");
-  make_directories(out_dir);
-  out << "fine-tuning " << model.size() << " Gaussians on " << data.views().size() << " views for " << o.iterations << " iterations; "
+  require_fresh(f.out, "finetune");
+  make_directories(f.out);
+  in.out << "fine-tuning " << model.size() << " Gaussians on " << data.views().size() << " views for " << o.iterations << " iterations; "
       << o.trajectories << " trajectories (" << to_string(o.select.strategy) << ") every " << o.select_every << ", refiner "
       << refiner->name() << ", weights " << to_string(o.weighting) << "\n";
   TerminalProgress progress(in.err, in.progress());
   const FinetuneResult r = finetune(data, model, *refiner, o, progress);
-  write_fillgs_ply(join_path(out_dir, "model.ply"), r.model, data.frames());
-  write_transforms_json(join_path(out_dir, "virtual_views.json"), r.virtual_views);
-  json rounds = json::array();
-  for (const FinetuneRound& rd : r.rounds) {
-    json f = json::array();
-    for (const auto& [patch, why] : rd.refine_failures) f.push_back({{"patch", patch}, {"error", why}});
-    rounds.push_back({{"iteration", rd.iteration},
-                      {"trajectories", rd.trajectories},
-                      {"views_added", rd.views_added},
-                      {"views_dropped", rd.views_dropped},
-                      {"mean_weight", rd.mean_weight},
-                      {"refine_failures", f},
-                      {"notes", rd.notes},
-                      {"seconds", {{"select", rd.seconds_select}, {"render", rd.seconds_render}, {"refine", rd.seconds_refine},
-                                   {"weights", rd.seconds_weights}}}});
+  const FinetuneReport report = write_finetune_report(f.out, r, data, o, refiner->name(), seconds_since(t0));
+  for (const FinetuneRound& rd : r.rounds)
     for (const auto& [patch, why] : rd.refine_failures) in.err << "warning: refinement failed for " << why << "\n";
-  }
-  const EvalResult tr = evaluate_views(r.model, data, std::max<int>(1, int(data.views().size() / 32)), Vec3f::Zero(), o.threads);
-  size_t dropped = 0;
-  for (const FinetuneRound& rd : r.rounds) dropped += rd.views_dropped;
-  const json j = {{"iterations", o.iterations}, {"select_every", o.select_every}, {"trajectories_per_round", o.trajectories},
-                  {"strategy", to_string(o.select.strategy)}, {"weighting", to_string(o.weighting)}, {"refiner", refiner->name()},
-                  {"rounds", rounds}, {"virtual_views", r.virtual_views.size()}, {"virtual_views_dropped", dropped}, {"train_psnr", tr.psnr}, {"train_ssim", tr.ssim},
-                  {"gaussians", r.model.size()}, {"moving_gaussians", r.model.dynamic_count()},
-                  {"seconds", {{"train", r.seconds_train}, {"total", seconds_since(t0)}}}};
-  ScatterSeries loss{"loss", {}, {}, {}};
-  const size_t every = std::max<size_t>(1, r.loss_history.size() / 400);
-  for (size_t i = 0; i < r.loss_history.size(); i += every) loss.x.push_back(double(i + 1)), loss.y.push_back(r.loss_history[i]);
-  write_scatter_png(join_path(out_dir, "loss.png"), {loss}, {"fine-tuning loss (weighted on refined views)", "iteration", "loss"}, false);
-  write_file_atomically(join_path(out_dir, "summary.json"), j.dump(2) + "\n");
-  out << "fine-tuned in " << fixed(seconds_since(t0), 1) << " s: " << r.virtual_views.size() << " refined views added"
+  const size_t dropped = report.dropped;
+  const SplitMetrics& tr = report.train;
+  in.out << "fine-tuned in " << fixed(seconds_since(t0), 1) << " s: " << r.virtual_views.size() << " refined views added"
       << (dropped ? " (" + std::to_string(dropped) + " dropped by the refiner)" : "") << ", train PSNR "
-      << fixed(tr.psnr) << " dB -> " << out_dir << "\n";
+      << fixed(tr.psnr) << " dB -> " << f.out << "\n";
   return 0;
 }
 
@@ -216,7 +184,6 @@ struct EvalFlags {
 };
 
 int eval(const EvalFlags& f, const Invocation& in) {
-  std::ostream& out = in.out;
   const GaussianCloud model = read_scene(f.model, f.read);
   const std::vector<std::string>& files = f.cameras;
   std::vector<std::string> names = f.splits;
@@ -235,29 +202,26 @@ int eval(const EvalFlags& f, const Invocation& in) {
   if (in.given("--colour-correction")) eo.colour = read_colour_correction(f.colour_correction);
   eo.ls_gain = f.ls_gain;
   if (!eo.lpips_onnx.empty() && !fs::exists(eo.lpips_onnx)) in.fail("--lpips ", eo.lpips_onnx, " does not exist");
-  const std::string& out_dir = f.out;
   std::optional<OutputFolder> folder;  // a failed or killed run leaves the folder as it was
-  if (!out_dir.empty()) folder.emplace(out_dir);
+  if (!f.out.empty()) folder.emplace(f.out);
   TerminalProgress progress(in.err, in.progress());
-  json j = json::object();
-  out << "split            views   PSNR    SSIM   moving PSNR" << (eo.lpips_onnx.empty() ? "" : "   LPIPS")
+  std::vector<SplitMetrics> metrics;
+  in.out << "split            views   PSNR    SSIM   moving PSNR" << (eo.lpips_onnx.empty() ? "" : "   LPIPS")
       << (eo.ls_gain ? "   PSNR (least-squares gain per image)" : "") << "\n";
   for (size_t k = 0; k < splits.size(); ++k) {
     eo.save_dir = !folder || f.no_renders ? "" : join_path(join_path(folder->path(), "renders"), names[k]);
     const SplitMetrics m = evaluate_split(model, splits[k], names[k], eo, progress);
     char line[200];
     std::snprintf(line, sizeof line, "%-16s %5zu  %6.2f  %6.4f  %11s", names[k].c_str(), m.views, m.psnr, m.ssim, fixed(m.psnr_moving).c_str());
-    out << line << (eo.lpips_onnx.empty() ? "" : "   " + fixed(m.lpips, 4)) << (eo.ls_gain ? "   " + fixed(m.psnr_ls_gain) : "") << "\n";
-    auto num = [](double x) { return std::isfinite(x) ? json(x) : json(nullptr); };
-    j[names[k]] = {{"views", m.views}, {"psnr", m.psnr}, {"ssim", m.ssim}, {"psnr_moving", num(m.psnr_moving)},
-                   {"moving_pixels", m.moving_pixels}, {"lpips", num(m.lpips)}, {"psnr_ls_gain", num(m.psnr_ls_gain)}};
+    in.out << line << (eo.lpips_onnx.empty() ? "" : "   " + fixed(m.lpips, 4)) << (eo.ls_gain ? "   " + fixed(m.psnr_ls_gain) : "") << "\n";
+    metrics.push_back(m);
   }
   if (folder) {
-    write_file_atomically(join_path(folder->path(), "metrics.json"), j.dump(2) + "\n");
+    write_metrics_json(join_path(folder->path(), "metrics.json"), metrics);
     folder->commit();
   }
   if (!truth && !std::any_of(splits.begin(), splits.end(), [](const Dataset& d) { return d.has_masks(); }))
-    out << "(moving-region PSNR needs --truth SCENE, the ground truth with its moving Gaussians, or foreground masks in seg/ beside the cameras)\n";
+    in.out << "(moving-region PSNR needs --truth SCENE, the ground truth with its moving Gaussians, or foreground masks in seg/ beside the cameras)\n";
   return 0;
 }
 
@@ -304,12 +268,8 @@ enum class SupportChoice { Observed, Full, Both };
 }  // namespace fillgs::cli
 
 namespace fillgs {
-template <>
-struct EnumNames<cli::SupportChoice> {
-  static constexpr const char* what = "oracle support";
-  static constexpr NameOf<cli::SupportChoice> table[] = {
-      {cli::SupportChoice::Observed, "observed"}, {cli::SupportChoice::Full, "full"}, {cli::SupportChoice::Both, "both"}};
-};
+FILLGS_ENUM_NAMES(cli::SupportChoice, "oracle support",
+    {cli::SupportChoice::Observed, "observed"}, {cli::SupportChoice::Full, "full"}, {cli::SupportChoice::Both, "both"});
 }  // namespace fillgs
 
 namespace fillgs::cli {
@@ -330,7 +290,6 @@ struct BenchFlags {
 };
 
 int bench(const BenchFlags& f, const Invocation& in) {
-  std::ostream& out = in.out;
   const bool smoke = f.setup.smoke;
   const std::string& root = f.out;
   if (in.given("--merge")) {
@@ -343,7 +302,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
     const std::vector<RunResult> all = merge_results(f.merge);
     make_directories(root);
     write_bench_report(root, all);
-    out << "fillgs bench: " << all.size() << " runs from " << f.merge.size() << " inputs -> " << join_path(root, "results.md") << ", "
+    in.out << "fillgs bench: " << all.size() << " runs from " << f.merge.size() << " inputs -> " << join_path(root, "results.md") << ", "
         << join_path(root, "results.csv") << "\n";
     return 0;
   }
@@ -364,7 +323,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
   make_directories(root);
   TerminalProgress progress(in.err, in.progress());
   std::vector<RunResult> results;
-  out << "fillgs bench: " << f.scenes.size() << " scene(s) x " << seeds.size() << " seed(s) x " << chosen.size() << " configurations -> " << root
+  in.out << "fillgs bench: " << f.scenes.size() << " scene(s) x " << seeds.size() << " seed(s) x " << chosen.size() << " configurations -> " << root
       << " (resumable: finished runs are reused)\n";
   for (const std::string& sc : f.scenes)
     for (uint64_t seed : seeds) {
@@ -373,7 +332,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
       eo.rig = choice.rig;
       eo.variant = choice.variant;
       eo.seed = seed;
-      const PreparedScene p = prepare_scene(root, eo, progress, out);
+      const PreparedScene p = prepare_scene(root, eo, progress, in.out);
       const std::string bb_path = join_path(join_path(p.dir, "backbone"), "result.json");
       RunResult bb;
       if (fs::exists(bb_path)) {
@@ -383,23 +342,26 @@ int bench(const BenchFlags& f, const Invocation& in) {
         bb.group = "control";
         save_result(bb_path, bb);
       }
-      out << sc << " seed " << seed << " backbone: interpolation " << fixed(bb.interpolation.psnr) << " dB, extrapolation "
+      in.out << sc << " seed " << seed << " backbone: interpolation " << fixed(bb.interpolation.psnr) << " dB, extrapolation "
           << fixed(bb.extrapolation.psnr) << " dB, train " << fixed(bb.train.psnr) << " dB\n";
       for (const RunConfig& c : chosen) {
         FinetuneOptions fo = setup.finetune;
-        results.push_back(run_config(p, c, fo, progress, out));
+        results.push_back(run_config(p, c, fo, progress, in.out));
         // After every run, over everything the folder holds (earlier invocations included):
         // an interrupted bench still has its tables.
         write_bench_report(root, collect_results(root));
       }
     }
   write_bench_report(root, collect_results(root));
-  out << "fillgs bench: " << results.size() << " runs here, tables over every run in the folder: " << join_path(root, "results.md") << ", "
+  in.out << "fillgs bench: " << results.size() << " runs here, tables over every run in the folder: " << join_path(root, "results.md") << ", "
       << join_path(root, "results.csv") << "\n";
   return 0;
 }
 
 // ------------------------------------------------------------------ run
+
+/// The oracle's artifact strength in `fillgs run` (the benchmark's default).
+constexpr double kRunArtifactStrength = 0.5;
 
 struct RunFlags {
   std::string out = "fillgs_run", scene = "n3v";
@@ -409,7 +371,6 @@ struct RunFlags {
 };
 
 int run_pipeline(const RunFlags& f, const Invocation& in) {
-  std::ostream& out = in.out;
   const std::string& dir = f.out;
   const std::string baseline = to_string(f.baseline);
   const OracleSupport support = f.support;
@@ -421,89 +382,43 @@ int run_pipeline(const RunFlags& f, const Invocation& in) {
   setup.scene.variant = choice.variant;
   TerminalProgress progress(in.err, in.progress());
   const ExperimentOptions eo = setup.scene.resolved();
-  out << "fillgs run: the whole pipeline on the built-in scene (" << eo.scene_name() << ", " << eo.width << "x" << eo.height << ", "
+  in.out << "fillgs run: the whole pipeline on the built-in scene (" << eo.scene_name() << ", " << eo.width << "x" << eo.height << ", "
       << eo.frames << " frames): train a backbone on 2 cameras, then fine-tune it without generated views, with FillGS's and with "
       << baseline << "'s viewpoints (oracle refiner, " << to_string(support) << " support, artifacts) -> " << dir << "\n";
-  const PreparedScene p = prepare_scene(dir, setup.scene, progress, out);
+  const PreparedScene p = prepare_scene(dir, setup.scene, progress, in.out);
   RunResult bb = evaluate_model(p, p.backbone, "backbone", eo.threads, "", progress);
   bb.group = "control";
   std::vector<RunResult> results;
   std::vector<std::string> run_ids;
-  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, 0.5, {support}))
+  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, kRunArtifactStrength, {support}))
     if (c.id == "no-refinement" || c.id == "fillgs" || c.id == baseline) {
-      results.push_back(run_config(p, c, setup.finetune, progress, out));
+      results.push_back(run_config(p, c, setup.finetune, progress, in.out));
       run_ids.push_back(c.id);
     }
   std::vector<RunResult> all = {bb};
   all.insert(all.end(), results.begin(), results.end());
   write_bench_report(dir, all);
 
-  // Side-by-side pictures: ground truth | backbone | each fine-tuned model, at the moment of
-  // each split where the moving content covers most of a view (a moving moment).
-  std::vector<GaussianCloud> models = {p.backbone};
-  for (const std::string& id : run_ids) models.push_back(read_scene(join_path(join_path(join_path(p.dir, "runs"), id), "model.ply")));
-  std::vector<std::string> pictures;
-  for (const auto* split : {p.extrapolation.get(), p.interpolation.get()}) {
-    size_t best = 0, most = 0;
-    for (size_t v = 0; v < split->views().size(); ++v) {
-      const std::vector<unsigned char> m = moving_region(p.synth.scene, split->views()[v].camera, eo.threads);
-      const size_t n = size_t(std::count(m.begin(), m.end(), 1));
-      if (n > most) most = n, best = v;
-    }
-    const TrainView& view = split->views()[best];
-    std::vector<std::vector<float>> imgs = {split->image(best)};
-    std::vector<std::string> caps = {"ground truth"};
-    for (size_t m = 0; m < models.size(); ++m) {
-      RenderOptions ro;
-      ro.threads = eo.threads;
-      imgs.push_back(render(evaluate(models[m], view.camera.time), view.camera, ro).rgb);
-      caps.push_back(m == 0 ? "backbone" : run_ids[m - 1]);
-    }
-    const std::string file = "compare_" + view.rig + "_f" + std::to_string(view.frame) + ".png";
-    write_side_by_side_png(join_path(dir, file), imgs, view.camera.width, view.camera.height, caps, 2);
-    pictures.push_back(file);
-  }
-  // Report.
-  std::ostringstream md;
-  md << "# fillgs run\n\nScene: built-in synthetic (" << eo.scene_name() << "), " << eo.width << "x" << eo.height << ", " << eo.frames
-     << " frames; backbone trained on " << p.train->rigs().size() << " cameras (";
-  for (size_t k = 0; k < p.options.train_cameras.size(); ++k) md << (k ? ", " : "") << p.options.train_cameras[k];
-  md << ") for " << eo.backbone_iterations << " iterations; each fine-tuning: " << setup.finetune.iterations << " iterations, "
-     << setup.finetune.trajectories << " trajectories every " << setup.finetune.select_every << " iterations, oracle refiner ("
-     << to_string(support) << " support) with artifacts (strength 0.5). Baselines use ExploreGS weights (the paper's protocol); FillGS its own.\n\n"
-     << "| Method | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | seconds |\n|---|---|---|---|---|---|---|---|---|\n";
-  out << "\nmethod           interp PSNR (moving)   extrap PSNR (moving)   train PSNR\n";
+  RunReportInput report;
+  report.scene = &p;
+  report.results = all;
+  report.run_ids = run_ids;
+  report.finetune = setup.finetune;
+  report.support = support;
+  report.artifact_strength = kRunArtifactStrength;
+  report.command = "fillgs";
+  for (const std::string& s : in.args) report.command += " " + s;  // args[0] is "run"
+  report.threads = eo.threads;
+  write_run_report(dir, report);
+  in.out << "\nmethod           interp PSNR (moving)   extrap PSNR (moving)   train PSNR\n";
   for (const RunResult& r : all) {
-    md << "| " << r.id << " | " << fixed(r.interpolation.psnr) << " | " << fixed(r.interpolation.ssim, 3) << " | " << fixed(r.interpolation.psnr_moving)
-       << " | " << fixed(r.extrapolation.psnr) << " | " << fixed(r.extrapolation.ssim, 3) << " | " << fixed(r.extrapolation.psnr_moving) << " | "
-       << fixed(r.train.psnr) << " | " << fixed(r.seconds_total, 0) << " |\n";
     char line[200];
     std::snprintf(line, sizeof line, "%-16s %6s (%6s)        %6s (%6s)        %6s\n", r.id.c_str(), fixed(r.interpolation.psnr).c_str(),
                   fixed(r.interpolation.psnr_moving).c_str(), fixed(r.extrapolation.psnr).c_str(), fixed(r.extrapolation.psnr_moving).c_str(),
                   fixed(r.train.psnr).c_str());
-    out << line;
+    in.out << line;
   }
-  md << "\n## Renders\n\nGround truth, the backbone and each fine-tuned model at the view and moment of each split where the moving content "
-        "covers most of the image.\n\n";
-  for (const std::string& f : pictures) md << "![" << f << "](" << f << ")\n\n";
-  for (const char* chart : {"psnr_interpolation", "psnr_extrapolation"})
-    if (fs::exists(join_path(dir, std::string(chart) + ".png"))) md << "![" << chart << "](" << chart << ".png)\n\n";
-  // The virtual views each strategy chose (top view), copied beside the report.
-  md << "## Virtual views\n\n";
-  for (const std::string& id : run_ids) {
-    const std::string from = join_path(join_path(join_path(p.dir, "runs"), id), "views.png"), file = "views_" + id + ".png";
-    std::error_code ec;
-    if (id != "no-refinement" && fs::exists(from, ec) && fs::copy_file(from, join_path(dir, file), fs::copy_options::overwrite_existing, ec))
-      md << "![" << file << "](" << file << ")\n\n";
-  }
-  md << "## Command\n\n```\nfillgs";
-  for (const std::string& s : in.args) md << " " << s;  // args[0] is "run"
-  md << "\n```\n\n";
-  md << "Per-run folders (patches, refined views with their support, consistency mask, co-visibility and weight images): `"
-     << join_path(p.dir, "runs") << "`.\n";
-  write_file_atomically(join_path(dir, "report.md"), md.str());
-  write_html_report(join_path(dir, "report.md"), join_path(dir, "report.html"));
-  out << "\nfillgs run: finished in " << fixed(seconds_since(t0), 0) << " s; report " << join_path(dir, "report.md") << " and "
+  in.out << "\nfillgs run: finished in " << fixed(seconds_since(t0), 0) << " s; report " << join_path(dir, "report.md") << " and "
       << join_path(dir, "report.html") << "\n";
   return 0;
 }

@@ -28,6 +28,38 @@ std::vector<std::string> split_commas(const std::string& s) {
 
 }  // namespace
 
+std::unique_ptr<CLI::App> make_parser(const std::string& name, const std::string& summary) {
+  auto app = std::make_unique<CLI::App>(summary, name);
+  app->allow_extras();  // unknown flags get fillgs's own line (parse_flags)
+  app->option_defaults()->multi_option_policy(CLI::MultiOptionPolicy::TakeLast);
+  app->get_formatter()->column_width(36);
+  app->get_formatter()->label("REQUIRED", "(required)");
+  return app;
+}
+
+bool parse_flags(CLI::App& app, const std::vector<std::string>& args, std::ostream& out) {
+  std::string parse_error;
+  try {
+    std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes them last first
+    app.parse(reversed);
+  } catch (const CLI::CallForHelp&) {
+    out << app.help();
+    return false;
+  } catch (const CLI::ParseError& e) {
+    parse_error = e.what();  // reported after the unknown flags, which say more
+    const std::string required = " is required";  // "--scene is required" → "missing --scene"
+    if (parse_error.size() > required.size() && parse_error.compare(parse_error.size() - required.size(), required.size(), required) == 0)
+      parse_error = "missing " + parse_error.substr(0, parse_error.size() - required.size());
+  }
+  for (const std::string& extra : app.remaining()) {
+    if (extra.rfind("--", 0) == 0)
+      throw_error(app.get_name(), ": unknown option ", extra.substr(0, extra.find('=')), " (see '", app.get_name(), " --help')");
+    throw_error(app.get_name(), ": unexpected argument '", extra, "' (see '", app.get_name(), " --help')");
+  }
+  if (!parse_error.empty()) throw_error(app.get_name(), ": ", parse_error);
+  return true;
+}
+
 Bounds at_least(double lo) { return {lo, INFINITY, false, false, "at least " + number_text(lo)}; }
 Bounds positive() { return {0.0, INFINITY, true, false, "positive"}; }
 Bounds within(double lo, double hi) { return {lo, hi, false, false, "in [" + number_text(lo) + ", " + number_text(hi) + "]"}; }

@@ -80,6 +80,14 @@ struct Command {
 /// Every command, in the order `fillgs help` lists them.
 const std::vector<Command>& commands();
 
+/// An empty parser named `name` ("fillgs render"), with `summary` heading its help: unknown
+/// flags are collected for parse_flags to name, and a flag given twice counts the last time.
+std::unique_ptr<CLI::App> make_parser(const std::string& name, const std::string& summary);
+/// Parses a command's own arguments (its name left out) into the flags declared on `app`.
+/// Returns false when --help was asked for (the help is then printed to `out`); otherwise
+/// an unknown flag, a bad value or a missing one throws the one-line Error.
+bool parse_flags(CLI::App& app, const std::vector<std::string>& args, std::ostream& out);
+
 // ------------------------------------------------------------------ checks
 
 /// The interval a number must lie in, for the check and its message.
@@ -226,9 +234,5 @@ MotionRates motion_rates(const Invocation& in, const MotionRateFlags& f);
 }  // namespace fillgs::cli
 
 namespace fillgs {
-template <>
-struct EnumNames<cli::RatePreset> {
-  static constexpr const char* what = "motion rates";
-  static constexpr NameOf<cli::RatePreset> table[] = {{cli::RatePreset::Repair, "repair"}, {cli::RatePreset::Gentle, "gentle"}};
-};
+FILLGS_ENUM_NAMES(cli::RatePreset, "motion rates", {cli::RatePreset::Repair, "repair"}, {cli::RatePreset::Gentle, "gentle"});
 }  // namespace fillgs
