@@ -67,7 +67,7 @@ void build(Setup& s, const GaussianCloud& scene, const std::vector<Camera>& rig,
   for (const ObservedView& v : s.views) cams.push_back(v.camera);
   ExplorationOptions eo;
   eo.divisions = divisions;
-  s.grid = ExplorationGrid::build(scene, cams, {}, eo);
+  s.grid = build_exploration_grid(scene, cams, {}, eo);
 }
 
 /// Mean D̂ (initial tables) over the chosen poses, rendered by the rasterizer at full resolution.
@@ -311,7 +311,7 @@ int bench_select(const std::vector<std::string>& args) {
       for (const ObservedView& v : s.views) cams.push_back(v.camera);
       ExplorationOptions eo;
       eo.divisions = div;
-      g.grid = ExplorationGrid::build(*s.scene, cams, {}, eo);
+      g.grid = build_exploration_grid(*s.scene, cams, {}, eo);
       const double gs = seconds_since(tg);
       SelectOptions o = base;
       o.global_candidates = globals;

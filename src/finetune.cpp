@@ -83,7 +83,7 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
     if (o.trajectories > 0) {
       const GaussianCloud current = round == 0 ? model : trainer.model();
       auto t0 = Clock::now();
-      const ExplorationGrid grid = ExplorationGrid::build(current, cameras, FrameGrid(F).times(), o.grid, nullptr, progress);
+      const ExplorationGrid grid = build_exploration_grid(current, cameras, FrameGrid(F).times(), o.grid, nullptr, progress);
       SelectInput in;
       in.scene = &current;
       in.views = views;

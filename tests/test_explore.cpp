@@ -68,7 +68,7 @@ TEST_CASE("exploration grid: the occupied voxels of a box of Gaussians are exact
   o.divisions = 64;  // voxels (0.066) finer than the Gaussians' reach (0.16): the boundary matters
   o.bounds_quantile = 0.0;
   ExplorationStats stats;
-  const ExplorationGrid g = ExplorationGrid::build(box, six_cameras(2.0), {}, o, &stats);
+  const ExplorationGrid g = build_exploration_grid(box, six_cameras(2.0), {}, o, &stats);
   // Reference: every voxel centre within k·s + ½·diagonal of some mean, k = √(2 ln(o / α_occ)).
   const double k = std::sqrt(2.0 * std::log(double(opacity) / double(o.occupancy_alpha)));
   const double reach = k * s + 0.5 * g.voxel_size().norm();
@@ -100,7 +100,7 @@ TEST_CASE("exploration grid: a tiny Gaussian at a voxel centre occupies that vox
   o.bounds_quantile = 0.0;
   o.margin = 0.0;
   // Cubic voxels: half the diagonal is shorter than one voxel.
-  const ExplorationGrid g = ExplorationGrid::build(c, six_cameras(1.0), {}, o);
+  const ExplorationGrid g = build_exploration_grid(c, six_cameras(1.0), {}, o);
   const Vec3i centre = g.voxel_of(Vec3d::Zero());
   CHECK((g.voxel_centre(centre) - Vec3d::Zero()).norm() < 1e-9);
   CHECK(g.counts()[1] == 1);
@@ -109,7 +109,7 @@ TEST_CASE("exploration grid: a tiny Gaussian at a voxel centre occupies that vox
 
 TEST_CASE("exploration grid: sampling never lands inside the box, and lands only in free voxels", "[explore]") {
   const GaussianCloud box = lattice_box(0.5, 6, 0.05f, 0.9f);
-  const ExplorationGrid g = ExplorationGrid::build(box, ring(), {});
+  const ExplorationGrid g = build_exploration_grid(box, ring(), {});
   std::mt19937_64 rng(7);
   Box3 all = g.box();
   const std::vector<Vec3d> pts = g.sample_free(all, 5000, rng);
@@ -136,7 +136,7 @@ TEST_CASE("exploration grid: free-segment queries on both sides of a wall", "[ex
   for (Vec3f& s : wall.log_scales) s.x() = std::log(0.005f);
   ExplorationOptions o;
   o.divisions = 48;
-  const ExplorationGrid g = ExplorationGrid::build(wall, ring(), {}, o);
+  const ExplorationGrid g = build_exploration_grid(wall, ring(), {}, o);
   const double v = g.voxel_size().maxCoeff();
   CHECK(g.segment_free(Vec3d(-1.5, 0.2, 0.1), Vec3d(-3 * v, -0.3, 0.2)));    // stays on the −x side
   CHECK(g.segment_free(Vec3d(3 * v, 0.2, 0.1), Vec3d(1.5, -0.5, 0.3)));      // stays on the +x side
@@ -165,7 +165,7 @@ TEST_CASE("exploration grid: moving Gaussians occupy what they sweep and unexplo
   Camera high = cams[0];  // at (4, 0, 3) looking away from the scene: stretches the box upwards
   high.look_at(Vec3d(4, 0, 3), Vec3d(8, 0, 3), Vec3d::UnitZ());
   cams.push_back(high);
-  const ExplorationGrid g = ExplorationGrid::build(c, cams, {}, o, &stats);
+  const ExplorationGrid g = build_exploration_grid(c, cams, {}, o, &stats);
   CHECK(stats.occupied_by_static == 0);
   CHECK(stats.time_samples == 11);
   for (int f = 0; f < 11; ++f) CHECK(g.label_at(Vec3d(-1.0 + 0.2 * f, 0, 0)) == VoxelLabel::Occupied);
@@ -181,7 +181,7 @@ TEST_CASE("exploration grid: the .vdb file opens in OpenVDB and reads back to th
   const GaussianCloud box = lattice_box(0.5, 4, 0.08f, 0.9f);
   ExplorationOptions o;
   o.divisions = 24;
-  const ExplorationGrid g = ExplorationGrid::build(box, ring_and_high(), {}, o);
+  const ExplorationGrid g = build_exploration_grid(box, ring_and_high(), {}, o);
   const std::string dir = scratch("explore_vdb"), path = join_path(dir, "exploration.vdb");
   g.write(path);
   // Plain OpenVDB, no fillgs: BoolGrids "occupied" and "unexplored", active where the label is.
@@ -232,7 +232,7 @@ TEST_CASE("exploration grid: files of the first layout (one Int32Grid 'labels') 
   const GaussianCloud box = lattice_box(0.5, 4, 0.08f, 0.9f);
   ExplorationOptions o;
   o.divisions = 12;
-  const ExplorationGrid g = ExplorationGrid::build(box, ring_and_high(), {}, o);
+  const ExplorationGrid g = build_exploration_grid(box, ring_and_high(), {}, o);
   // The first layout, written here with plain OpenVDB: labels 1 occupied, 2 unexplored.
   openvdb::initialize();
   auto labels = openvdb::Int32Grid::create(0);
@@ -272,7 +272,7 @@ TEST_CASE("exploration grid: the .vdb file opens in the OpenVDB Python binding (
   const GaussianCloud box = lattice_box(0.5, 4, 0.08f, 0.9f);
   ExplorationOptions o;
   o.divisions = 20;
-  const ExplorationGrid g = ExplorationGrid::build(box, ring_and_high(), {}, o);
+  const ExplorationGrid g = build_exploration_grid(box, ring_and_high(), {}, o);
   const std::string dir = scratch("explore_pyvdb"), path = join_path(dir, "exploration.vdb"), out = join_path(dir, "py.txt");
   g.write(path);
   // What a user's script does: read every grid, count its voxels, map an index to the world.

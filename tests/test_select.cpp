@@ -42,7 +42,7 @@ struct Fixture {
     }
     std::vector<Camera> cams;
     for (const ObservedView& v : views) cams.push_back(v.camera);
-    grid = ExplorationGrid::build(synth.scene, cams, {});
+    grid = build_exploration_grid(synth.scene, cams, {});
   }
   SelectInput input() const {
     SelectInput in;

@@ -15,7 +15,9 @@
 // `bounds_quantile` and 1 − `bounds_quantile` quantiles per axis, so floaters do not
 // stretch it), grown by `margin` of its size. `divisions` cells along each axis (the
 // paper's rule; voxels are boxes, not cubes, unless the scene box is a cube).
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <random>
@@ -32,6 +34,9 @@ namespace fillgs {
 enum class VoxelLabel : uint8_t { Free = 0, Occupied = 1, Unexplored = 2 };
 FILLGS_ENUM_NAMES(VoxelLabel, "voxel label",
     {VoxelLabel::Free, "free"}, {VoxelLabel::Occupied, "occupied"}, {VoxelLabel::Unexplored, "unexplored"});
+
+/// The most cells along an axis a grid may have (built or read).
+constexpr int kMaxDivisions = 512;
 
 struct ExplorationOptions {
   int divisions = 64;             ///< cells along each axis
@@ -57,13 +62,15 @@ struct Box3 {
   bool contains(const Vec3d& p) const { return (p.array() >= lo.array()).all() && (p.array() <= hi.array()).all(); }
 };
 
+/// The labelled voxels of the exploration space, stored in OpenVDB (accel/): queries, and
+/// the file. build_exploration_grid (below) decides the labels.
 class ExplorationGrid {
  public:
-  /// Builds the grid from a scene, its training cameras and the times the moving
-  /// Gaussians are swept over (empty: every frame of a keyframed scene, else 33 samples).
-  static ExplorationGrid build(const GaussianCloud& scene, const std::vector<Camera>& training, const std::vector<double>& times,
-                               const ExplorationOptions& options = {}, ExplorationStats* stats = nullptr,
-                               Progress& progress = null_progress());
+  /// The grid of `dims` voxels over `box` with these labels (x fastest, then y, then z;
+  /// VoxelLabel values); `occupancy_alpha` is recorded in the file. Counts the labels into
+  /// stats->occupied, unexplored and free when given.
+  static ExplorationGrid from_labels(const Box3& box, const Vec3i& dims, const std::vector<uint8_t>& labels, float occupancy_alpha,
+                                     ExplorationStats* stats = nullptr);
   /// Reads a grid written by write(); throws naming the file when it is not one.
   static ExplorationGrid read(const std::string& path);
   /// Writes an OpenVDB file (atomically): BoolGrids "occupied" and "unexplored" (free = in
@@ -83,9 +90,13 @@ class ExplorationGrid {
   double step() const { return 2.0 * voxel_size().norm(); }
 
   /// Voxel index of a point (may lie outside [0, dims)).
-  Vec3i voxel_of(const Vec3d& p) const;
-  Vec3d voxel_centre(const Vec3i& ijk) const;
-  bool inside(const Vec3i& ijk) const;
+  Vec3i voxel_of(const Vec3d& p) const {
+    const Vec3d u = (p - box_.lo).cwiseQuotient(voxel_size());
+    return Vec3i(int(std::floor(std::clamp(u.x(), -1e9, 1e9))), int(std::floor(std::clamp(u.y(), -1e9, 1e9))),
+                 int(std::floor(std::clamp(u.z(), -1e9, 1e9))));
+  }
+  Vec3d voxel_centre(const Vec3i& ijk) const { return box_.lo + (ijk.cast<double>() + Vec3d::Constant(0.5)).cwiseProduct(voxel_size()); }
+  bool inside(const Vec3i& ijk) const { return (ijk.array() >= 0).all() && (ijk.array() < dims_.array()).all(); }
   /// Label of a voxel; outside the grid counts as unexplored.
   VoxelLabel label(const Vec3i& ijk) const;
   VoxelLabel label_at(const Vec3d& p) const { return label(voxel_of(p)); }
@@ -106,6 +117,15 @@ class ExplorationGrid {
   Box3 box_;
   Vec3i dims_ = Vec3i::Zero();
 };
+
+/// The exploration space of a scene (METHOD.md §4): a box around the training cameras and
+/// the robust bounds of the Gaussians that reach `occupancy_alpha`; occupied where such a
+/// Gaussian's ellipsoid (grown by half a voxel diagonal) holds a voxel's centre at any of
+/// `times` (empty: every frame of a keyframed scene, else 33 samples), unexplored where no
+/// training camera sees the centre, free elsewhere and where a training camera stands.
+ExplorationGrid build_exploration_grid(const GaussianCloud& scene, const std::vector<Camera>& training, const std::vector<double>& times,
+                                       const ExplorationOptions& options = {}, ExplorationStats* stats = nullptr,
+                                       Progress& progress = null_progress());
 
 /// World axis (0, 1, 2) closest to the training cameras' mean up direction.
 int vertical_axis(const std::vector<Camera>& cameras);

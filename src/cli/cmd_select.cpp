@@ -44,7 +44,7 @@ int explore(const ExploreFlags& f, const Invocation& in) {
   ExplorationStats stats;
   ExplorationOptions go = f.grid;
   go.threads = in.common.threads;
-  const ExplorationGrid grid = ExplorationGrid::build(cloud, cams, sweep, go, &stats, progress);
+  const ExplorationGrid grid = build_exploration_grid(cloud, cams, sweep, go, &stats, progress);
   OutputFolder folder(f.out);  // a failed or killed run leaves the folder as it was
   write_exploration(folder.path(), grid, cams, stats, seconds_since(t0));
   folder.commit();
@@ -104,7 +104,7 @@ int select_views(const SelectFlags& f, const Invocation& invocation) {
   ExplorationOptions go = f.grid_options;
   go.threads = o.threads;
   if (invocation.given("--grid")) grid = std::make_unique<ExplorationGrid>(ExplorationGrid::read(f.grid));
-  else grid = std::make_unique<ExplorationGrid>(ExplorationGrid::build(cloud, cams, {}, go, &gstats, progress));
+  else grid = std::make_unique<ExplorationGrid>(build_exploration_grid(cloud, cams, {}, go, &gstats, progress));
   in.grid = grid.get();
   const double grid_s = seconds_since(t0);
 
