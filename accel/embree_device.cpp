@@ -2,8 +2,8 @@
 
 #include <string>
 
-#include "fillgs/accel.hpp"
-#include "fillgs/error.hpp"
+#include "fillgs/visibility/accel.hpp"
+#include "fillgs/base/error.hpp"
 
 namespace fillgs::accel {
 

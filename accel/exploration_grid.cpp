@@ -9,9 +9,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include "fillgs/error.hpp"
-#include "fillgs/exploration.hpp"
-#include "fillgs/fs_util.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/explore/exploration.hpp"
+#include "fillgs/base/fs_util.hpp"
 
 namespace fillgs {
 

@@ -1,6 +1,6 @@
 // Embree Gaussian proxies: user-geometry ellipsoids, a k-buffer inside the intersect
 // callback, a static BVH built once and a dynamic one rebuilt per time step, in two size tiers.
-#include "fillgs/gaussian_tracer.hpp"
+#include "fillgs/visibility/gaussian_tracer.hpp"
 
 #include <embree3/rtcore.h>
 #include <tbb/blocked_range.h>
@@ -12,9 +12,9 @@
 #include <cmath>
 
 #include "embree_device.hpp"
-#include "fillgs/error.hpp"
-#include "fillgs/math.hpp"
-#include "fillgs/threads.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/math.hpp"
+#include "fillgs/base/threads.hpp"
 
 namespace fillgs {
 

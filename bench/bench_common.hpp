@@ -9,10 +9,10 @@
 #include <string>
 #include <vector>
 
-#include "fillgs/camera.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/gaussians.hpp"
-#include "fillgs/timing.hpp"
+#include "fillgs/model/camera.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/model/gaussians.hpp"
+#include "fillgs/base/timing.hpp"
 
 namespace fillgs::bench {
 

@@ -5,8 +5,8 @@
 #include <string>
 #include <vector>
 
-#include "fillgs/error.hpp"
-#include "fillgs/memory.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/memory.hpp"
 
 int bench_render(const std::vector<std::string>& args);
 int bench_visibility(const std::vector<std::string>& args);

@@ -23,16 +23,16 @@
 
 #include "bench_common.hpp"
 #include "cli/options.hpp"
-#include "fillgs/frame_grid.hpp"
-#include "fillgs/error.hpp"
-#include "fillgs/evaluate.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/loss.hpp"
-#include "fillgs/plot.hpp"
-#include "fillgs/raster.hpp"
-#include "fillgs/synth.hpp"
-#include "fillgs/train.hpp"
-#include "fillgs/visibility.hpp"
+#include "fillgs/model/frame_grid.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/experiment/evaluate.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/render/loss.hpp"
+#include "fillgs/io/plot.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/experiment/synth.hpp"
+#include "fillgs/train/train.hpp"
+#include "fillgs/visibility/visibility.hpp"
 
 using namespace fillgs;
 using namespace fillgs::bench;

@@ -11,9 +11,9 @@
 #include <vector>
 
 #include "cli/options.hpp"
-#include "fillgs/error.hpp"
-#include "fillgs/raster.hpp"
-#include "fillgs/scene_io.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/io/scene_io.hpp"
 #include "bench_common.hpp"
 
 using namespace fillgs;

@@ -20,12 +20,12 @@
 
 #include "bench_common.hpp"
 #include "cli/options.hpp"
-#include "fillgs/exploration.hpp"
-#include "fillgs/raster.hpp"
-#include "fillgs/scene_io.hpp"
-#include "fillgs/select.hpp"
-#include "fillgs/synth.hpp"
-#include "fillgs/visibility.hpp"
+#include "fillgs/explore/exploration.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/method/select.hpp"
+#include "fillgs/experiment/synth.hpp"
+#include "fillgs/visibility/visibility.hpp"
 
 using namespace fillgs;
 using namespace fillgs::bench;

@@ -22,14 +22,14 @@
 
 #include "bench_common.hpp"
 #include "cli/options.hpp"
-#include "fillgs/frame_grid.hpp"
-#include "fillgs/error.hpp"
-#include "fillgs/gaussian_tracer.hpp"
-#include "fillgs/observe_io.hpp"
-#include "fillgs/plot.hpp"
-#include "fillgs/scene_io.hpp"
-#include "fillgs/synth.hpp"
-#include "fillgs/visibility.hpp"
+#include "fillgs/model/frame_grid.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/visibility/gaussian_tracer.hpp"
+#include "fillgs/visibility/observe_io.hpp"
+#include "fillgs/io/plot.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/experiment/synth.hpp"
+#include "fillgs/visibility/visibility.hpp"
 
 using namespace fillgs;
 using namespace fillgs::bench;

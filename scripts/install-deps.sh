@@ -20,7 +20,7 @@ packages=(
   clang libclang-rt-14-dev # the sanitizer + libFuzzer tree (scripts/build-fuzz.sh, README "Robustness")
   python3-openvdb          # the OpenVDB Python binding: a test opens exploration.vdb with it
   colmap                   # COLMAP 3.8: a test round-trips the COLMAP export; triangulated initial points
-  gnuplot-nox              # the plots (src/plot.cpp drives gnuplot through a pipe)
+  gnuplot-nox              # the plots (src/io/plot.cpp drives gnuplot through a pipe)
   libopenmpi-dev openmpi-bin  # observation tables over MPI ranks (fillgs observe --mpi)
 )
 

@@ -8,11 +8,11 @@
 #include <filesystem>
 #include <string>
 
-#include "fillgs/camera.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/gaussians.hpp"
-#include "fillgs/sh.hpp"
-#include "fillgs/synth.hpp"
+#include "fillgs/model/camera.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/model/gaussians.hpp"
+#include "fillgs/model/sh.hpp"
+#include "fillgs/experiment/synth.hpp"
 
 namespace fillgs::test {
 

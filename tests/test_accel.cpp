@@ -1,5 +1,5 @@
 // fillgs_accel is linked against the Embree 3 and OpenVDB the build found.
-#include "fillgs/accel.hpp"
+#include "fillgs/visibility/accel.hpp"
 #include "helpers.hpp"
 
 TEST_CASE("Embree 3.13 device and OpenVDB 10 initialise", "[accel]") {

@@ -10,10 +10,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "fillgs/camera.hpp"
-#include "fillgs/error.hpp"
-#include "fillgs/npy.hpp"
-#include "fillgs/train.hpp"
+#include "fillgs/model/camera.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/io/npy.hpp"
+#include "fillgs/train/train.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

@@ -8,15 +8,15 @@
 
 #include <nlohmann/json.hpp>
 
-#include "fillgs/camera.hpp"
+#include "fillgs/model/camera.hpp"
 #include "fillgs/cli.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/image_io.hpp"
-#include "fillgs/npy.hpp"
-#include "fillgs/visibility.hpp"
-#include "fillgs/ply.hpp"
-#include "fillgs/raster.hpp"
-#include "fillgs/scene_io.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/io/image_io.hpp"
+#include "fillgs/io/npy.hpp"
+#include "fillgs/visibility/visibility.hpp"
+#include "fillgs/io/ply.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/io/scene_io.hpp"
 #include "cli_run.hpp"
 #include "helpers.hpp"
 

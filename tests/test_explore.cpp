@@ -7,9 +7,9 @@
 #include <fstream>
 #include <random>
 
-#include "fillgs/error.hpp"
-#include "fillgs/exploration.hpp"
-#include "fillgs/fs_util.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/explore/exploration.hpp"
+#include "fillgs/base/fs_util.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

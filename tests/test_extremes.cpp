@@ -1,7 +1,7 @@
 // Numerics at the extremes: tiny and huge Gaussians, saturated opacities, cameras inside
 // Gaussians, the near plane, t = 0 and t = 1, and an empty scene. Finite output, no crash.
-#include "fillgs/raster.hpp"
-#include "fillgs/synth.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/experiment/synth.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

@@ -4,10 +4,10 @@
 #include <cmath>
 #include <random>
 
-#include "fillgs/loss.hpp"
-#include "fillgs/raster.hpp"
-#include "fillgs/raster_grad.hpp"
-#include "fillgs/train_model.hpp"
+#include "fillgs/render/loss.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/render/raster_grad.hpp"
+#include "fillgs/train/train_model.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

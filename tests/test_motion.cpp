@@ -6,13 +6,13 @@
 #include <algorithm>
 #include <cmath>
 
-#include "fillgs/camera.hpp"
-#include "fillgs/flow.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/image_io.hpp"
-#include "fillgs/raster_grad.hpp"
-#include "fillgs/train.hpp"
-#include "fillgs/train_model.hpp"
+#include "fillgs/model/camera.hpp"
+#include "fillgs/train/flow.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/io/image_io.hpp"
+#include "fillgs/render/raster_grad.hpp"
+#include "fillgs/train/train.hpp"
+#include "fillgs/train/train_model.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

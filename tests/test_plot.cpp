@@ -1,4 +1,4 @@
-// Charts through gnuplot (src/chart.cpp): the CSV beside each figure holds exactly the
+// Charts through gnuplot (src/io/chart.cpp): the CSV beside each figure holds exactly the
 // numbers given, the script re-plots from it alone, the PNG is whole, and without gnuplot a
 // run goes on with the CSV and script and one warning line.
 #include <cstdlib>
@@ -7,10 +7,10 @@
 #include <iostream>
 #include <sstream>
 
-#include "fillgs/fs_util.hpp"
-#include "fillgs/html_report.hpp"
-#include "fillgs/image_io.hpp"
-#include "fillgs/plot.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/io/html_report.hpp"
+#include "fillgs/io/image_io.hpp"
+#include "fillgs/io/plot.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

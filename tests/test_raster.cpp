@@ -3,9 +3,9 @@
 // transmittance stop, and threads against a single thread, bit for bit.
 #include <cstring>
 
-#include "fillgs/raster.hpp"
-#include "fillgs/scene_io.hpp"
-#include "fillgs/synth.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/experiment/synth.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

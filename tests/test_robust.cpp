@@ -22,10 +22,10 @@
 #endif
 
 #include "fillgs/cli.hpp"
-#include "fillgs/image_io.hpp"
-#include "fillgs/limits.hpp"
-#include "fillgs/npy.hpp"
-#include "fillgs/train.hpp"
+#include "fillgs/io/image_io.hpp"
+#include "fillgs/base/limits.hpp"
+#include "fillgs/io/npy.hpp"
+#include "fillgs/train/train.hpp"
 #include "cli_run.hpp"
 #include "helpers.hpp"
 

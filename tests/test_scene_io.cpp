@@ -4,10 +4,10 @@
 #include <cstring>
 #include <fstream>
 
-#include "fillgs/error.hpp"
-#include "fillgs/ply.hpp"
-#include "fillgs/scene_io.hpp"
-#include "fillgs/synth.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/io/ply.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/experiment/synth.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

@@ -9,14 +9,14 @@
 #include <set>
 #include <sstream>
 
-#include "fillgs/frame_grid.hpp"
+#include "fillgs/model/frame_grid.hpp"
 #include "fillgs/cli.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/camera.hpp"
-#include "fillgs/exploration.hpp"
-#include "fillgs/raster.hpp"
-#include "fillgs/select.hpp"
-#include "fillgs/visibility.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/model/camera.hpp"
+#include "fillgs/explore/exploration.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/method/select.hpp"
+#include "fillgs/visibility/visibility.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

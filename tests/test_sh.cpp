@@ -1,6 +1,6 @@
 // SH evaluation against values computed by hand (Python, double precision, from the
 // constants in the 3DGS sh_utils.py) for d = (1, 2, 3)/sqrt(14).
-#include "fillgs/sh.hpp"
+#include "fillgs/model/sh.hpp"
 
 #include "helpers.hpp"
 

@@ -2,9 +2,9 @@
 // [0.2, 0.8], and the shelf hides it from the cameras on the far side.
 #include <algorithm>
 
-#include "fillgs/raster.hpp"
-#include "fillgs/rigs.hpp"
-#include "fillgs/synth.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/experiment/rigs.hpp"
+#include "fillgs/experiment/synth.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

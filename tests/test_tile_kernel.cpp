@@ -7,12 +7,12 @@
 #include <sstream>
 
 #include "fillgs/cli.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/loss.hpp"
-#include "fillgs/raster.hpp"
-#include "fillgs/raster_grad.hpp"
-#include "fillgs/scene_io.hpp"
-#include "fillgs/train_model.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/render/loss.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/render/raster_grad.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/train/train_model.hpp"
 #include "helpers.hpp"
 #include "render/tile_kernel.hpp"
 

@@ -5,11 +5,11 @@
 #include <fstream>
 #include <sstream>
 
-#include "fillgs/evaluate.hpp"
+#include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/cli.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/image_io.hpp"
-#include "fillgs/train.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/io/image_io.hpp"
+#include "fillgs/train/train.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

@@ -12,13 +12,13 @@
 #include <fstream>
 
 #include "helpers.hpp"
-#include "fillgs/error.hpp"
-#include "fillgs/evaluate.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/image_io.hpp"
-#include "fillgs/init.hpp"
-#include "fillgs/npy.hpp"
-#include "fillgs/train.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/experiment/evaluate.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/io/image_io.hpp"
+#include "fillgs/train/init.hpp"
+#include "fillgs/io/npy.hpp"
+#include "fillgs/train/train.hpp"
 
 using namespace fillgs;
 using namespace fillgs::test;

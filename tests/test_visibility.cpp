@@ -6,10 +6,10 @@
 #include <cmath>
 #include <random>
 
-#include "fillgs/gaussian_tracer.hpp"
-#include "fillgs/raster.hpp"
-#include "fillgs/scene_io.hpp"
-#include "fillgs/visibility.hpp"
+#include "fillgs/visibility/gaussian_tracer.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/visibility/visibility.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;

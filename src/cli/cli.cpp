@@ -11,20 +11,20 @@
 #include <optional>
 #include <sstream>
 
-#include "fillgs/error.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/image_io.hpp"
-#include "fillgs/init.hpp"
-#include "fillgs/observe_io.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/io/image_io.hpp"
+#include "fillgs/train/init.hpp"
+#include "fillgs/visibility/observe_io.hpp"
 #ifdef FILLGS_WITH_MPI
-#include "fillgs/observe_mpi.hpp"
+#include "fillgs/visibility/observe_mpi.hpp"
 #endif
-#include "fillgs/raster.hpp"
-#include "fillgs/reports.hpp"
-#include "fillgs/scene_io.hpp"
-#include "fillgs/synth.hpp"
-#include "fillgs/train.hpp"
-#include "fillgs/visibility.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/experiment/reports.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/experiment/synth.hpp"
+#include "fillgs/train/train.hpp"
+#include "fillgs/visibility/visibility.hpp"
 #include "commands.hpp"
 #include "options.hpp"
 #include "progress_bar.hpp"

@@ -9,13 +9,13 @@
 #include "commands.hpp"
 #include "options.hpp"
 #include "progress_bar.hpp"
-#include "fillgs/limits.hpp"
-#include "fillgs/evaluate.hpp"
-#include "fillgs/experiment.hpp"
-#include "fillgs/finetune.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/reports.hpp"
-#include "fillgs/scene_io.hpp"
+#include "fillgs/base/limits.hpp"
+#include "fillgs/experiment/evaluate.hpp"
+#include "fillgs/experiment/experiment.hpp"
+#include "fillgs/method/finetune.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/experiment/reports.hpp"
+#include "fillgs/io/scene_io.hpp"
 
 namespace fs = std::filesystem;
 

@@ -4,12 +4,12 @@
 
 #include "commands.hpp"
 #include "options.hpp"
-#include "fillgs/frame_grid.hpp"
-#include "fillgs/exploration.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/reports.hpp"
-#include "fillgs/select.hpp"
-#include "fillgs/train.hpp"
+#include "fillgs/model/frame_grid.hpp"
+#include "fillgs/explore/exploration.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/experiment/reports.hpp"
+#include "fillgs/method/select.hpp"
+#include "fillgs/train/train.hpp"
 #include "progress_bar.hpp"
 
 namespace fillgs::cli {

@@ -1,7 +1,7 @@
 #include <iostream>
 
 #include "fillgs/cli.hpp"
-#include "fillgs/memory.hpp"
+#include "fillgs/base/memory.hpp"
 
 int main(int argc, char** argv) {
   fillgs::keep_freed_memory();

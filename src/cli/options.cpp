@@ -4,8 +4,8 @@
 #include <cmath>
 #include <set>
 
-#include "fillgs/frame_grid.hpp"
-#include "fillgs/visibility.hpp"
+#include "fillgs/model/frame_grid.hpp"
+#include "fillgs/visibility/visibility.hpp"
 
 namespace fillgs::cli {
 

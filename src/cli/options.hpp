@@ -21,15 +21,15 @@
 #include <string>
 #include <vector>
 
-#include "fillgs/camera.hpp"
-#include "fillgs/error.hpp"
-#include "fillgs/limits.hpp"
-#include "fillgs/math.hpp"
-#include "fillgs/names.hpp"
-#include "fillgs/raster.hpp"
-#include "fillgs/scene_io.hpp"
-#include "fillgs/timing.hpp"
-#include "fillgs/train.hpp"
+#include "fillgs/model/camera.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/limits.hpp"
+#include "fillgs/base/math.hpp"
+#include "fillgs/base/names.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/base/timing.hpp"
+#include "fillgs/train/train.hpp"
 
 namespace fillgs::cli {
 
@@ -205,9 +205,9 @@ Action bind(std::shared_ptr<Flags> flags, int (*run)(const Flags&, const Invocat
 
 }  // namespace fillgs::cli
 
-#include "fillgs/exploration.hpp"
-#include "fillgs/finetune.hpp"
-#include "fillgs/select.hpp"
+#include "fillgs/explore/exploration.hpp"
+#include "fillgs/method/finetune.hpp"
+#include "fillgs/method/select.hpp"
 
 namespace fillgs::cli {
 

@@ -2,7 +2,7 @@
 #include <chrono>
 #include <ostream>
 
-#include "fillgs/progress.hpp"
+#include "fillgs/base/progress.hpp"
 
 namespace fillgs::cli {
 

@@ -6,7 +6,7 @@
 #include <cstring>
 #include <vector>
 
-#include "raster_internal.hpp"
+#include "render/raster_internal.hpp"
 
 namespace fillgs::internal {
 

@@ -11,10 +11,10 @@
 #include <cstdint>
 #include <vector>
 
-#include "fillgs/raster.hpp"
-#include "fillgs/raster_grad.hpp"
-#include "fillgs/sh.hpp"
-#include "raster_internal.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/render/raster_grad.hpp"
+#include "fillgs/model/sh.hpp"
+#include "render/raster_internal.hpp"
 
 namespace fillgs::tiles {
 

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "raster_internal.hpp"
+#include "render/raster_internal.hpp"
 
 namespace fillgs::tiles {
 

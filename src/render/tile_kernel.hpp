@@ -19,8 +19,8 @@
 #include <type_traits>
 #include <vector>
 
-#include "fillgs/raster.hpp"
-#include "raster_internal.hpp"
+#include "fillgs/render/raster.hpp"
+#include "render/raster_internal.hpp"
 
 namespace fillgs::tiles {
 

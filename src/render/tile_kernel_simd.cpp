@@ -15,7 +15,7 @@
 #include <cmath>
 #include <vector>
 
-#include "raster_internal.hpp"
+#include "render/raster_internal.hpp"
 #include "render/tile_kernel.hpp"
 
 HWY_BEFORE_NAMESPACE();

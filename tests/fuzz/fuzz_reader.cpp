@@ -16,14 +16,14 @@
 #include <string>
 #include <vector>
 
-#include "fillgs/camera.hpp"
-#include "fillgs/error.hpp"
-#include "fillgs/fs_util.hpp"
-#include "fillgs/image_io.hpp"
-#include "fillgs/npy.hpp"
-#include "fillgs/ply.hpp"
-#include "fillgs/scene_io.hpp"
-#include "fillgs/train.hpp"
+#include "fillgs/model/camera.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/io/image_io.hpp"
+#include "fillgs/io/npy.hpp"
+#include "fillgs/io/ply.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/train/train.hpp"
 
 namespace fs = std::filesystem;
 using namespace fillgs;

@@ -1,0 +1,63 @@
+#pragma once
+// Sizes taken on a file's word are checked before memory is taken (README "Robustness").
+//
+// Readers never allocate from a count they read without first checking it against the
+// bytes left in the file (a record cannot be smaller than its fixed fields) or against
+// allocation_cap(); arithmetic on sizes goes through checked_mul. Library exceptions a
+// reader's input can provoke (nlohmann-json's type errors, std::sto*, bad_alloc) are turned
+// into one-line fillgs::Errors naming the file by reading().
+#include <cstddef>
+#include <exception>
+#include <new>
+#include <string>
+
+#include "fillgs/base/error.hpp"
+
+namespace fillgs {
+
+/// The largest image side fillgs accepts, in pixels (cameras, image files, video frames).
+constexpr int kMaxImageSide = 65536;
+
+/// An image side stored as a number: a whole number in [1, kMaxImageSide], else one line
+/// "SOURCE: ELEMENT WHAT v is not a whole number of pixels in [1, 65536]".
+int image_side(double v, const std::string& source, const std::string& element, const char* what);
+
+/// The most bytes one allocation may take: this machine's physical memory, or the
+/// FILLGS_MAX_ALLOC environment variable (bytes) when set (tests use it).
+size_t allocation_cap();
+
+/// a · b, or an Error "SOURCE: WHAT overflows (a × b)".
+size_t checked_mul(size_t a, size_t b, const std::string& source, const std::string& what);
+
+/// Throws "SOURCE: WHAT would need N bytes, more than this machine's M" when bytes > allocation_cap().
+void check_allocation(size_t bytes, const std::string& source, const std::string& what);
+
+/// A non-negative integer from decimal text (digits only, optional surrounding blanks), at
+/// most `max`; throws "SOURCE: WHAT 'text' is not an integer in [0, max]".
+size_t parse_count(const std::string& text, size_t max, const std::string& source, const std::string& what);
+
+/// A finite number from the whole of `text` (blanks around it allowed) into *out; false
+/// (and *out untouched) when the text is anything else.
+bool parse_number(const std::string& text, double* out);
+
+/// As above, but throws
+/// "SOURCE: WHAT 'text' is not a number" (the text is cut to 40 characters in the message).
+double parse_number(const std::string& text, const std::string& source, const std::string& what);
+
+/// Runs a reader. fillgs::Errors pass through; any other exception the input can provoke
+/// becomes "SOURCE: malformed (what)" or "SOURCE: a size in the file needs more memory than
+/// this machine has", so no message names nothing.
+template <typename F>
+auto reading(const std::string& source, F&& read) -> decltype(read()) {
+  try {
+    return read();
+  } catch (const Error&) {
+    throw;
+  } catch (const std::bad_alloc&) {
+    throw_error(source, ": a size in the file needs more memory than this machine has");
+  } catch (const std::exception& e) {
+    throw_error(source, ": malformed (", e.what(), ")");
+  }
+}
+
+}  // namespace fillgs

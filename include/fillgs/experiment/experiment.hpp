@@ -1,0 +1,178 @@
+#pragma once
+// The paper's comparison on synthetic scenes (what `fillgs bench` and `fillgs run` run):
+// a scene is rendered, a backbone is trained on the 2 training cameras of its split, and
+// every configuration (a selection strategy or ablation, a weighting, an oracle refiner with
+// or without artifacts and with full or observation-limited support, a budget, an upper
+// bound) fine-tunes that backbone and is evaluated on the interpolation and extrapolation
+// cameras. Everything lands in a folder and is reused: an interrupted benchmark continues
+// where it stopped.
+//
+// Layout: <root>/<scene>_s<seed>/scene/ (synth), backbone/ (model.ply, summary.json,
+// result.json), dense/ (the upper.dense backbone), runs/<config id>/ (work folders,
+// model.ply, result.json). <scene> is the rig ("n3v", "technicolor") or the ring's variant
+// ("chair", "orbit", "lift").
+#include <iosfwd>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "fillgs/experiment/evaluate.hpp"
+#include "fillgs/method/finetune.hpp"
+#include "fillgs/experiment/synth.hpp"
+#include "fillgs/train/train.hpp"
+
+namespace fillgs {
+
+/// A scene of the comparison by name: "n3v", "technicolor" (the kitchen on those rigs) or a
+/// ring variant ("chair", "orbit", "lift"). Throws for other names.
+struct SceneChoice {
+  std::string rig, variant;
+};
+SceneChoice parse_scene(const std::string& name);
+std::vector<std::string> bench_scenes();  ///< every name parse_scene knows
+
+struct ExperimentOptions {
+  std::string rig = "n3v";
+  std::string variant;          ///< empty: the rig's default
+  uint64_t seed = 1;
+  int width = 0, height = 0;    ///< 0: the rig's default (160×120; technicolor 192×102)
+  int frames = 20;
+  /// Cameras of the split; empty: the scene's own (SynthScene::split).
+  std::vector<std::string> train_cameras, interpolation_cameras, extrapolation_cameras;
+  int backbone_iterations = 2000;
+  int threads = 0;
+  /// The scene's folder name: the rig, or the ring's variant.
+  std::string scene_name() const;
+  /// The options with the rig's defaults filled in.
+  ExperimentOptions resolved() const;
+};
+
+struct PreparedScene {
+  SynthScene synth;
+  ExperimentOptions options;  ///< resolved
+  std::string dir;  ///< <root>/<scene>_s<seed>
+  std::unique_ptr<Dataset> train, interpolation, extrapolation;
+  GaussianCloud backbone;
+  double seconds_synth = 0, seconds_backbone = 0;  ///< 0 when reused
+  bool reused_scene = false, reused_backbone = false;
+  std::string scene_dir() const;
+};
+
+/// Renders the scene and trains the backbone, or reuses what an earlier run left (checked
+/// against the options it was made with).
+PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& options, Progress& progress, std::ostream& log);
+
+/// What a configuration does with the backbone.
+enum class RunKind {
+  Finetune,   ///< select, refine (oracle), weight, fine-tune
+  TestViews,  ///< upper.test-views: fine-tune on clean ground truth at every test camera and frame, weight 1,
+              ///< drawn as often as the real views
+  Dense,      ///< upper.dense: a backbone trained on every camera of the scene's rig
+};
+
+/// One configuration of the comparison.
+struct RunConfig {
+  std::string id;           ///< folder name and table row, e.g. "fillgs", "random", "fillgs.no-global", "fillgs@full"
+  std::string group;        ///< "control", "strategy", "ablation", "weighting", "budget", "refiner", "upper"
+  RunKind kind = RunKind::Finetune;
+  SelectOptions select;     ///< strategy and ablation flags
+  Weighting weighting = Weighting::FillGS;
+  MaskOptions mask;
+  double artifact_strength = 0.5;  ///< oracle artifacts (0: clean ground truth)
+  int trajectories = 5;     ///< per round; 0: fine-tune on the real views only (the control)
+  OracleSupport support = OracleSupport::Observed;
+};
+
+/// The paper's comparison, for every oracle support in `supports` (ids of the Full support
+/// end in "@full"; the first support's have no suffix): the control (no refined views),
+/// every strategy (FillGS with its weights, baselines with `baseline_weighting`, the
+/// paper's protocol: ExploreGS), FillGS's selection ablations, weighting ablations, budgets
+/// 1/10/20, the clean oracle; then the two upper bounds (once).
+std::vector<RunConfig> standard_configs(Weighting baseline_weighting = Weighting::ExploreGS, double artifact_strength = 0.5,
+                                        const std::vector<OracleSupport>& supports = {OracleSupport::Observed});
+
+struct RunResult {
+  std::string id, group, variant;  ///< variant: the scene name
+  uint64_t seed = 0;
+  SplitMetrics interpolation, extrapolation, train;
+  int trajectories = 0;
+  size_t views_added = 0;
+  double mean_weight = 0;
+  std::string support;             ///< "observed", "full", or "" (no oracle)
+  double support_share = 0;        ///< mean support of the refined pixels (1 for full)
+  double seconds_select = 0, seconds_refine = 0, seconds_weights = 0, seconds_train = 0, seconds_eval = 0, seconds_total = 0;
+  int refine_failures = 0;
+};
+
+/// Evaluates a model on the prepared scene's splits (moving region from the ground truth).
+RunResult evaluate_model(const PreparedScene& scene, const GaussianCloud& model, const std::string& id, int threads,
+                         const std::string& save_dir = "", Progress& progress = null_progress());
+
+/// Runs `config` on the backbone (fine-tuning with the oracle refiner, or an upper bound),
+/// evaluates, writes <scene.dir>/runs/<id>/result.json; returns the stored result when it
+/// exists already.
+RunResult run_config(const PreparedScene& scene, const RunConfig& config, const FinetuneOptions& base, Progress& progress,
+                     std::ostream& log);
+
+/// A result as JSON on disk (atomic) and back.
+void save_result(const std::string& path, const RunResult& result);
+RunResult load_result(const std::string& path);
+
+/// Every result stored under a benchmark root: <scene>_s<seed>/backbone/result.json and
+/// <scene>_s<seed>/runs/*/result.json, sorted by scene then configuration order of
+/// standard_configs (backbone first).
+std::vector<RunResult> collect_results(const std::string& root);
+
+/// The first line of a bench's results.csv (one run a row; write_bench_report writes it).
+inline constexpr const char* kResultsCsvHeader =
+    "scene,seed,id,group,support,interp_psnr,interp_ssim,interp_psnr_moving,extrap_psnr,extrap_ssim,extrap_psnr_moving,train_psnr,"
+    "trajectories,views_added,mean_weight,support_share,refine_failures,s_select,s_refine,s_weights,s_train,s_eval,s_total";
+
+/// The runs of a results.csv. What the CSV does not hold (view and pixel counts, LPIPS,
+/// per-split seconds) stays at its default. Bad rows: one error naming file, line and column.
+std::vector<RunResult> read_results_csv(const std::string& path);
+
+/// The union of several benches' runs — each input a bench folder (its result.json files)
+/// or a results.csv — ordered by scene, seed, then as collect_results orders a folder: seeds
+/// run on different machines, or kept only as CSV, make one table. A run (scene, seed, id)
+/// found in two inputs must agree to the CSV's 6 significant digits, else one error names
+/// both inputs.
+std::vector<RunResult> merge_results(const std::vector<std::string>& inputs);
+
+/// `reference` minus another configuration, paired by scene and seed: the way to read a
+/// comparison whose spread between seeds is larger than the differences between methods.
+struct PairedDifference {
+  std::string variant, id, group;
+  int seeds = 0;  ///< seeds where both ran
+  /// interpolation PSNR, its moving region, extrapolation PSNR, its moving region (dB)
+  double mean[4] = {}, sd[4] = {};
+};
+
+/// For every configuration but the reference (and the backbone): `reference` − it, over
+/// the seeds both have in the same scene. A configuration run with the second oracle
+/// support ("random@full") is paired with the reference of that support ("fillgs@full").
+std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& results, const std::string& reference = "fillgs");
+
+/// results.csv (every run), results.md (mean ± standard deviation over seeds per scene,
+/// shaped like the paper's tables, FillGS paired against each method), psnr_interpolation.png, psnr_extrapolation.png,
+/// budget.png, time_per_phase.png.
+void write_bench_report(const std::string& root, const std::vector<RunResult>& results);
+
+/// What `fillgs run` compared, for its report.
+struct RunReportInput {
+  const PreparedScene* scene = nullptr;
+  std::vector<RunResult> results;    ///< the backbone first, then each run
+  std::vector<std::string> run_ids;  ///< the fine-tuned runs, their models under <scene dir>/runs/<id>
+  FinetuneOptions finetune;          ///< their schedule
+  OracleSupport support = OracleSupport::Observed;
+  double artifact_strength = 0;
+  std::string command;               ///< the command line, as typed
+  int threads = 0;
+};
+/// report.md and report.html into `dir`: the scene and schedule, a table of every result,
+/// side-by-side renders (ground truth, backbone, each model) at the view and moment of each
+/// split where the moving content covers most of the image, the bench charts, and the
+/// virtual views each strategy chose.
+void write_run_report(const std::string& dir, const RunReportInput& in);
+
+}  // namespace fillgs

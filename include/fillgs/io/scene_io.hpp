@@ -1,0 +1,57 @@
+#pragma once
+// Readers and writers for Gaussian scene files.
+//
+//  * standard 3DGS PLY (any property order; binary LE/BE or ASCII; SH degree 0..3);
+//  * Spacetime Gaussians PLY (polynomial motion; its 6/9-channel colour features have no
+//    SH meaning: the first three, activated, become the base colour);
+//  * Ex4DGS keyframed pair (point_cloud.ply + dynamic_point_cloud.ply, cfg_args);
+//  * the fillgs 4D PLY (baked tracks, documented in README.md), read and written.
+#include <string>
+
+#include "fillgs/base/names.hpp"
+#include "fillgs/model/gaussians.hpp"
+
+namespace fillgs {
+
+enum class SceneFormat { Auto, Gaussian3D, Spacetime, Ex4dgs, Fillgs4D };
+FILLGS_ENUM_NAMES(SceneFormat, "scene format",
+    {SceneFormat::Auto, "auto"}, {SceneFormat::Gaussian3D, "3dgs"}, {SceneFormat::Spacetime, "stg"}, {SceneFormat::Ex4dgs, "ex4dgs"},
+    {SceneFormat::Fillgs4D, "fillgs"}, {SceneFormat::Spacetime, "spacetime"});
+
+struct SceneReadOptions {
+  SceneFormat format = SceneFormat::Auto;
+  /// Spacetime Gaussians: frames one model covers (configs use 50).
+  int stg_duration = 50;
+  /// Spacetime Gaussians colour activation for f_dc_0..2: "auto" (sigmoid for the full
+  /// model, none for the lite model), "sigmoid", "clamp", "none".
+  std::string stg_color_activation = "auto";
+  /// Ex4DGS: overrides for cfg_args values (0 / empty: take them from cfg_args or defaults).
+  int ex4dgs_duration = 0;
+  int ex4dgs_interval = 0;
+  int ex4dgs_pad = -1;
+  PartitionOptions partition;
+};
+
+/// Reads a scene, detecting the format from the path and header unless told.
+/// Throws fillgs::Error with one line naming the file and element on bad input.
+GaussianCloud read_scene(const std::string& path, const SceneReadOptions& options = {});
+
+/// Detected format of a path (a directory or a .ply).
+SceneFormat detect_scene_format(const std::string& path);
+
+/// Writes a standard 3DGS PLY of the scene at time t (62 floats at degree 3; opens in
+/// common splat viewers). Values are stored raw (logits, log-scales), like 3DGS.
+void write_3dgs_ply(const std::string& path, const GaussianCloud& cloud, double t = 0.0);
+
+/// Samples any motion model into the fillgs convention: one key per frame,
+/// t_f = f / (frames - 1), Catmull-Rom positions, shortest-arc slerp rotations, and
+/// per-key opacities where opacity changes in time.
+GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames);
+
+/// Writes the fillgs 4D PLY. Keyframed clouds in the fillgs convention are written as they
+/// are; other motion is baked to `frames` keys first (frames >= 2 required then).
+/// Static Gaussians come first in the file, then the dynamic ones, row for row with the
+/// `track` element.
+void write_fillgs_ply(const std::string& path, const GaussianCloud& cloud, int frames = 0);
+
+}  // namespace fillgs

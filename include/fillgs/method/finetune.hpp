@@ -1,0 +1,81 @@
+#pragma once
+// Fine-tuning with refined virtual views (METHOD.md §5–§7): continue training the 4D model
+// on its real views; every `select_every` iterations select `trajectories` new ones with a
+// strategy, export their patches, refine them, weight every refined view and add it.
+//
+// Defaults are scaled down from the paper's (30,000 iterations, 20 trajectories every
+// 6,000) to a laptop CPU: 1,200 iterations, 5 trajectories every 400 (3 rounds, 15
+// trajectories). `FinetuneOptions::paper()` gives the paper's schedule.
+#include <string>
+#include <vector>
+
+#include "fillgs/explore/exploration.hpp"
+#include "fillgs/model/gaussians.hpp"
+#include "fillgs/base/progress.hpp"
+#include "fillgs/method/refine.hpp"
+#include "fillgs/method/select.hpp"
+#include "fillgs/train/train.hpp"
+#include "fillgs/method/weights.hpp"
+
+namespace fillgs {
+
+struct FinetuneOptions {
+  int iterations = 2400;
+  int select_every = 800;     ///< M: a selection round at iterations 0, M, 2M, ... (< iterations)
+  int trajectories = 5;       ///< K per round
+  SelectOptions select;       ///< strategy and its knobs (trajectories is overridden by K)
+  Weighting weighting = Weighting::FillGS;
+  MaskOptions mask;
+  ExplorationOptions grid;
+  TrainOptions train;         ///< see fine_tune_schedule
+  std::string work_dir;       ///< patches/, refined/ (with masks and weights) per round
+  int threads = 0;
+  /// Views with their weights added before the first iteration, beside any selected ones
+  /// (the upper bound upper.test-views: ground truth at the test cameras).
+  std::vector<RefinedView> extra_views;
+  /// Paper: 30,000 iterations, 20 trajectories every 6,000.
+  static FinetuneOptions paper();
+};
+
+/// How fast fine-tuning moves Gaussians: the initial position learning rate (× the scene
+/// extent, decaying to a tenth of it over the run) and the keys' rate as a multiple of it.
+/// The default, `repair`, is training's initial rate with keys ×10: what repairing motion
+/// from new views takes (the upper bound upper.test-views came within 0.4 / 1.5 dB of the
+/// dense model's moving-region PSNR with it, 4.5 / 6.3 dB short before; README, "What
+/// limited the upper bound"). `gentle()` continues where training ended (its final rate
+/// ×10, keys ×3), the earlier default.
+struct MotionRates {
+  double position_lr = 1.6e-4;
+  double key_lr_scale = 10.0;
+  static MotionRates gentle() { return {1.6e-5, 3.0}; }
+};
+
+/// The training schedule for fine-tuning a trained model for `iterations`: the 3DGS one
+/// scaled, positions and keys at `rates`, no opacity reset (it would erase the trained
+/// model), densification over the first 60%.
+TrainOptions fine_tune_schedule(int iterations, const MotionRates& rates = {});
+
+struct FinetuneRound {
+  int iteration = 0;
+  int trajectories = 0;
+  size_t views_added = 0;
+  size_t views_dropped = 0;  ///< virtual views the refiner left out (the rig refiner: no pool camera in tolerance)
+  std::vector<std::pair<int, std::string>> refine_failures;
+  double seconds_select = 0, seconds_render = 0, seconds_refine = 0, seconds_weights = 0;
+  std::vector<std::string> notes;
+  double mean_weight = 0;  ///< mean per-pixel weight of the added views
+};
+
+struct FinetuneResult {
+  GaussianCloud model;
+  std::vector<FinetuneRound> rounds;
+  std::vector<Camera> virtual_views;  ///< every refined view added, in order
+  double seconds_train = 0, seconds_total = 0;
+  std::vector<float> loss_history;
+};
+
+/// Fine-tunes `model` (trained on `data`) with views refined by `refiner`.
+FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner& refiner, const FinetuneOptions& options,
+                        Progress& progress = null_progress());
+
+}  // namespace fillgs

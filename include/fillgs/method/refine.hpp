@@ -1,0 +1,196 @@
+#pragma once
+// Spatiotemporal patches for a generative refiner (METHOD.md §6) and the refiners fillgs
+// drives: `external` (any program, through a folder protocol), `oracle` (synthetic scenes:
+// the ground truth at the virtual view where the training cameras support it, with optional
+// injected generation artifacts), `rig` (real captures: the photograph of the nearest pool
+// camera of the rig, at its real pose) and `identity` (the render itself).
+//
+// A patch is 3 consecutive frames × 4 views of one trajectory: the observed start image,
+// then the trajectory's 3 virtual poses rendered by the current model. Order: serpentine
+// over views per frame (view k for even frame index, 3 − k for odd), frames increasing, so
+// neighbours in the sequence are neighbours in space or time.
+//
+// The folder protocol (what an external refiner sees):
+//   <in>/patch.json   {"trajectory", "frames", "views", "images": [{"file", "order",
+//                      "frame", "time", "view", "observed", "camera": {...}}]}
+//   <in>/<file>       8-bit PNG per image (observed ones are the real photographs)
+// The refiner writes <out>/<file> for every image with "observed": false, same size; it
+// may also copy the observed ones (ignored). Extra files are ignored. fillgs checks that
+// every expected image came back with the right size, applies a timeout, and reports which
+// patch failed while keeping the others.
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "fillgs/base/names.hpp"
+#include "fillgs/model/camera.hpp"
+#include "fillgs/model/gaussians.hpp"
+#include "fillgs/io/image_io.hpp"
+#include "fillgs/base/progress.hpp"
+#include "fillgs/method/select.hpp"
+
+namespace fillgs {
+
+struct PatchImage {
+  std::string file;     ///< "f<frame:04d>_v<view>.png"
+  Camera camera;        ///< with the frame's time
+  int frame = 0;
+  int view = 0;         ///< 0 = the start camera, 1..3 = the trajectory's poses
+  bool observed = false;  ///< a photograph of the start camera (view 0 where the video holds one)
+  int order = 0;        ///< position in the serpentine sequence
+};
+
+struct Patch {
+  int trajectory = 0;
+  std::string name;                ///< folder name, "patch_<trajectory:03d>" (prefix configurable)
+  std::vector<PatchImage> images;  ///< in serpentine order
+  int observed_view = -1;          ///< index into the observed views of the start (frame of the trajectory)
+};
+
+/// The patch of a trajectory: its patch frames × (the start's rig camera, then each pose).
+/// The observed image at each patch frame is the start view's pose at that frame, looked up
+/// in `views` (the ones selection ran on). Where the start camera has no image at a patch
+/// frame (a monocular video: one camera per frame) view 0 of that frame is a virtual view
+/// at the start camera's pose (not observed: rendered and refined). Throws when the start
+/// view itself is missing at the trajectory's own frame.
+Patch make_patch(const Trajectory& trajectory, const std::vector<ObservedView>& views, const std::string& name);
+
+/// Writes `dir`/patch.json and every image: observed ones from `observed_image(view index)`,
+/// virtual ones from `render(camera)` (float RGB [H][W][3]). Files are written atomically.
+void write_patch(const std::string& dir, const Patch& patch, const std::vector<ObservedView>& views,
+                 const std::function<std::vector<float>(size_t)>& observed_image,
+                 const std::function<std::vector<float>(const Camera&)>& render);
+
+/// Oracle generation artifacts (synthetic scenes only), each drawn per image from the seed:
+/// a blurred region, a colour drift over a region, hallucinated blobs and a shifted region.
+/// `strength` 0 gives the clean ground truth; 1 is strong (blur σ up to 5 px, colour ±30%,
+/// blobs up to 12% of the width, shifts up to 6 px).
+struct ArtifactOptions {
+  double strength = 0.0;
+  uint64_t seed = 1;
+  double region_fraction = 0.18;  ///< radius of an artifact region as a fraction of the width
+};
+/// A change counts as an artifact above this (≈ 8/255 in some channel): fainter changes (the
+/// soft rims of the regions) are below what any check of agreement could see.
+constexpr float kArtifactVisible = 0.03f;
+/// Applies artifacts to `image` in place; returns the artifact mask ([H][W], 1 where the
+/// image changed by more than kArtifactVisible in some channel).
+std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& options, uint64_t key);
+
+/// What a refiner made of one virtual view, where it is not "an image at the view's own pose".
+struct RefinedPose {
+  bool dropped = false;          ///< no image: the view is left out (and counted)
+  std::optional<Camera> camera;  ///< the image shows this pose instead of the virtual one
+};
+
+class Refiner {
+ public:
+  virtual ~Refiner() = default;
+  virtual std::string name() const = 0;
+  /// Reads the patch in `in_dir`, writes refined images of the virtual views into `out_dir`
+  /// (every one that pose() does not drop). Throws on failure.
+  virtual void refine(const std::string& in_dir, const std::string& out_dir, const Patch& patch) = 0;
+  /// The pose of the image refine() returns for a virtual view; the default: its own.
+  virtual RefinedPose pose(const PatchImage& /*image*/) const { return {}; }
+};
+
+/// Copies the rendered images.
+std::unique_ptr<Refiner> make_identity_refiner();
+/// What the oracle may restore (METHOD.md §9: a generative model conditioned on the observed
+/// views restores what they support and hallucinates the rest).
+///  * Full: the ground truth everywhere (the earlier behaviour; rewards looking away from
+///    the capture).
+///  * Observed: the ground truth only where the surface is seen by some training camera —
+///    a static Gaussian seen at any frame, a moving one seen within ±window frames of the
+///    view's frame (exact visibility of the truth, α·T ≥ 1/255, through the visibility
+///    engine; a pixel is supported when such surfaces make up at least half of its rendered
+///    opacity); elsewhere the patch's own render (the
+///    current model) degraded as diffusion models fail there: blurred (σ 2 + 3a px), its
+///    colours drifted (±20a %) and a hallucinated blob, a = the artifact strength (0.5 when
+///    it is 0), seeded per image. The artifacts of ArtifactOptions go on top everywhere.
+enum class OracleSupport { Full, Observed };
+FILLGS_ENUM_NAMES(OracleSupport, "oracle support", {OracleSupport::Full, "full"}, {OracleSupport::Observed, "observed"});
+
+struct OracleOptions {
+  ArtifactOptions artifacts;
+  OracleSupport support = OracleSupport::Full;
+  std::vector<Camera> observers;  ///< Observed: the training cameras (with times, or a rig without)
+  int frames = 0;                 ///< Observed: the video's frame count
+  int window = 2;                 ///< Observed: ± frames within which a moving surface counts as seen
+  Vec3f background = Vec3f::Zero();
+  int threads = 0;
+};
+
+/// Mean support of the virtual views an oracle refined (1 for Full).
+struct SupportStats {
+  double support_sum = 0;
+  size_t pixels = 0;
+  double share() const { return pixels ? support_sum / double(pixels) : 0.0; }
+};
+
+/// The support of every Gaussian of `truth` at every frame ([F][N], 1 = seen), as the
+/// Observed oracle uses it: exact visibility from `observers`, static Gaussians at any frame,
+/// moving ones within ±window frames.
+std::vector<uint8_t> oracle_support_table(const GaussianCloud& truth, const std::vector<Camera>& observers, int frames, int window,
+                                          int threads = 0);
+
+/// Renders `truth` at each virtual view (its time), limits it to the supported pixels (see
+/// OracleSupport; the support mask goes to `out_dir`/support/<file>), applies artifacts
+/// when strength > 0 and writes the artifact masks to `out_dir`/masks/<file>. `stats`, when
+/// given, accumulates the support of every refined pixel.
+std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const OracleOptions& options, SupportStats* stats = nullptr);
+/// The full-support oracle (ground truth everywhere).
+std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const ArtifactOptions& artifacts, const Vec3f& background,
+                                             int threads = 0);
+/// The real-capture refiner (`--refiner rig`): the refined image of a virtual view is the
+/// real photograph of the nearest *pool* camera — a camera of the rig neither trained on nor
+/// held out — at the view's frame, and that camera's real pose replaces the virtual one.
+/// Nearest: the smallest distance between camera centres among the pool cameras within
+/// `max_distance` (world units) whose optical axis is within `max_angle_degrees` of the
+/// view's (ties: the smaller angle, then the earlier camera). A virtual view with no pool
+/// camera in tolerance at its frame is dropped (RefineReport::dropped). No generative model
+/// is involved: the comparison on real data of which camera-times help most.
+struct RigOptions {
+  double max_distance = 1.0;
+  double max_angle_degrees = 30.0;
+};
+struct RigPool {
+  std::vector<Camera> cameras;  ///< every pool view, with its time (frame f at f / (frame_count − 1))
+  std::function<std::vector<float>(size_t)> image;  ///< float RGB [H][W][3] of view i
+  int frame_count = 1;
+};
+/// Index into `pool` of the photograph for `view` (its time picks the frame), or −1.
+int nearest_pool_view(const RigPool& pool, const Camera& view, const RigOptions& options);
+std::unique_ptr<Refiner> make_rig_refiner(RigPool pool, const RigOptions& options);
+
+/// Runs `command` through /bin/sh with {in} and {out} replaced by the folders (quoted);
+/// killed after `timeout_seconds`. Its output goes to `out_dir`/refiner.log.
+std::unique_ptr<Refiner> make_external_refiner(const std::string& command, double timeout_seconds);
+
+/// Runs a command line with a timeout (its process group is killed when it expires).
+/// Returns the exit status, or −1 when it timed out; stdout and stderr go to `log_path`.
+int run_command(const std::string& command, double timeout_seconds, const std::string& log_path);
+
+/// One refined virtual view, read back.
+struct RefinedImage {
+  int patch = 0;
+  PatchImage image;
+  Image rgb;  ///< 3 channels
+  std::string path;
+};
+struct RefineReport {
+  std::vector<RefinedImage> images;                    ///< every virtual view of every patch that succeeded
+  size_t dropped = 0;                                  ///< virtual views the refiner left out (Refiner::pose)
+  std::vector<std::pair<int, std::string>> failures;   ///< (patch index, reason)
+  double seconds = 0;
+};
+/// Refines every patch: `<in_root>/<patch.name>` in, `<out_root>/<patch.name>` out. A patch
+/// whose refiner throws, times out, or misses an image (or returns a wrong size) is reported
+/// and skipped; the others are kept.
+RefineReport refine_patches(Refiner& refiner, const std::vector<Patch>& patches, const std::string& in_root, const std::string& out_root,
+                            Progress& progress = null_progress());
+
+}  // namespace fillgs

@@ -1,0 +1,155 @@
+#pragma once
+// The 4D Gaussian scene model: structure of arrays, static and dynamic index sets.
+//
+// Time convention (everywhere in fillgs): normalised t in [0, 1]; a video of F frames
+// has frame f at t = f / (F - 1). Readers convert other conventions into this one.
+//
+// Stored values are the raw (pre-activation) values the 3DGS family stores:
+// log-scales, opacity logits, unnormalised quaternions (w, x, y, z), SH coefficients.
+// Static Gaussians carry no motion data; motion arrays are indexed by position in
+// `dynamic_ids`, not by Gaussian id.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "fillgs/base/names.hpp"
+#include "fillgs/base/math.hpp"
+
+namespace fillgs {
+
+enum class MotionModel { Static, Polynomial, Keyframed };
+FILLGS_ENUM_NAMES(MotionModel, "motion model",
+    {MotionModel::Static, "static"}, {MotionModel::Polynomial, "polynomial"}, {MotionModel::Keyframed, "keyframed"});
+
+/// Spacetime Gaussians motion (polynomial position, linear rotation, temporal RBF opacity).
+/// Model time is t_model = t * time_scale (STG uses (frame)/D, so time_scale = (D-1)/D).
+struct PolynomialMotion {
+  std::vector<float> coeffs;          ///< [M][9]: x,y,z coefficients of Δ, then Δ², then Δ³
+  std::vector<float> omega;           ///< [M][4]: quaternion rate
+  std::vector<float> trbf_center;     ///< [M]: temporal centre, model time
+  std::vector<float> trbf_log_scale;  ///< [M]: log temporal scale
+  double time_scale = 1.0;
+};
+
+enum class KeyInterp { CatmullRom, Linear, Pchip };
+
+/// Keyframed motion (Ex4DGS dynamic set, fillgs baked tracks). Keys are uniformly spaced:
+/// key k sits at t = first_key_time + k * key_spacing (normalised time).
+struct KeyframedMotion {
+  int key_count = 0;
+  double first_key_time = 0.0;
+  double key_spacing = 1.0;
+  KeyInterp position_interp = KeyInterp::CatmullRom;
+  /// false: fillgs convention (interval index clamped to [0, K-2], end keys repeated
+  /// for tangents, shortest-arc slerp). true: Ex4DGS convention (index clamped to
+  /// [1, K-3] and extrapolated, slerp without sign flip).
+  bool ex4dgs_edges = false;
+  std::vector<float> positions;       ///< [M][K][3]
+  std::vector<float> rotations;       ///< [M][K][4] raw quaternions; empty: constant (cloud value)
+  std::vector<float> log_scales;      ///< [M][K][3]; empty: constant
+  std::vector<float> opacity_logits;  ///< [M][K]; empty: constant
+  /// Ex4DGS temporal opacity, [M][4]: c0, c1, v0, v1 in key units; empty: none.
+  std::vector<float> temporal_opacity;
+  double temporal_width_pad = 0.0;  ///< Ex4DGS var_pad / (2.36 * I)
+};
+
+/// A 4D Gaussian cloud. Every per-Gaussian array has size() entries.
+struct GaussianCloud {
+  int sh_degree = 0;
+  std::vector<Vec3f> means;           ///< canonical world-space means
+  std::vector<Vec3f> log_scales;
+  std::vector<Vec4f> rotations;       ///< (w, x, y, z), not necessarily unit
+  std::vector<float> opacity_logits;
+  std::vector<float> sh;              ///< [N][sh_count()][3], coefficient-major per Gaussian
+
+  MotionModel motion = MotionModel::Static;
+  std::vector<uint32_t> dynamic_ids;  ///< ascending Gaussian ids that move
+  PolynomialMotion polynomial;
+  KeyframedMotion keyframed;
+
+  std::vector<std::string> notes;     ///< what the reader approximated, for `info`
+
+  size_t size() const { return means.size(); }
+  int sh_count() const { return (sh_degree + 1) * (sh_degree + 1); }
+  size_t dynamic_count() const { return dynamic_ids.size(); }
+  size_t static_count() const { return size() - dynamic_ids.size(); }
+  /// Ascending ids of the Gaussians that do not move.
+  std::vector<uint32_t> static_ids() const;
+  /// Resizes every per-Gaussian array (SH zero-filled).
+  void resize(size_t n);
+  /// Throws Error naming `source` and the element if any array is inconsistent or non-finite.
+  void validate(const std::string& source) const;
+};
+
+/// Gaussians evaluated at one time: activated, world space. Static entries are written
+/// once; FrameEvaluator rewrites only the dynamic ones per time.
+struct FrameGaussians {
+  double time = 0.0;
+  int sh_degree = 0;
+  std::vector<Vec3f> means;
+  std::vector<Vec3f> scales;     ///< exp(log-scale)
+  std::vector<Vec4f> rotations;  ///< unit quaternions
+  std::vector<float> opacities;  ///< sigmoid(logit) times any temporal factor
+  const float* sh = nullptr;     ///< the cloud's SH array ([N][K][3]); constant in time
+  size_t size() const { return means.size(); }
+};
+
+/// Evaluates a cloud at any time, touching only the dynamic set after the first call.
+class FrameEvaluator {
+ public:
+  explicit FrameEvaluator(const GaussianCloud& cloud);
+  /// Gaussians at normalised time t (values outside [0, 1] are clamped to it).
+  const FrameGaussians& evaluate(double t);
+  const GaussianCloud& cloud() const { return cloud_; }
+
+ private:
+  const GaussianCloud& cloud_;
+  FrameGaussians frame_;
+};
+
+/// One-shot evaluation (copies the static set).
+FrameGaussians evaluate(const GaussianCloud& cloud, double t);
+
+/// World-space means of the dynamic set at time t, in `dynamic_ids` order.
+void dynamic_means_at(const GaussianCloud& cloud, double t, std::vector<Vec3f>& out);
+
+struct PartitionOptions {
+  /// A Gaussian whose speed (world units per unit normalised time) never exceeds this,
+  /// and whose rotation, scale and opacity do not change, is static.
+  float static_speed_threshold = 1e-4f;
+  int samples = 64;  ///< time samples used to bound the speed of polynomial motion
+};
+
+/// Moves dynamic Gaussians that do not move (per PartitionOptions) into the static set,
+/// freezing them at their time-averaged position. Returns how many were moved.
+size_t partition_static_dynamic(GaussianCloud& cloud, const PartitionOptions& options = {});
+
+/// How little a keyframed Gaussian may change to count as still (fold_still_keys).
+struct StillTolerance {
+  float position = 1e-3f;         ///< largest distance of a key from the keys' mean, world units
+  float rotation_degrees = 1.0f;  ///< largest angle between a key's rotation and the keys' mean
+  float opacity_logit = 0.1f;     ///< largest difference of a key's opacity logit from the mean
+};
+
+/// Sets every key of each keyframed Gaussian that changes less than `tolerance` to the keys'
+/// mean (position, normalised mean rotation, mean opacity logit), so that
+/// partition_static_dynamic then folds it into the static set. Returns how many were set.
+size_t fold_still_keys(GaussianCloud& cloud, const StillTolerance& tolerance);
+
+/// Reorders the cloud so that its static Gaussians come first, then the moving ones (each
+/// in their order): the order fillgs 4D PLY files store, so that a model written and read
+/// back is the same cloud, Gaussian for Gaussian.
+void static_first(GaussianCloud& cloud);
+
+/// Keyframed motion with one key per frame (key f at t = f / (frames - 1)), fillgs
+/// conventions, positions and rotations sized for `gaussians` tracks (zero-filled).
+KeyframedMotion per_frame_tracks(size_t gaussians, int frames);
+
+/// Sets every dynamic Gaussian's canonical mean and rotation to its first key, so that
+/// tools that read only the canonical values (splat viewers, bounds) see time 0.
+void canonical_from_first_key(GaussianCloud& cloud);
+
+/// Axis-aligned bounds of the canonical means (min, max).
+std::pair<Vec3f, Vec3f> bounding_box(const GaussianCloud& cloud);
+
+}  // namespace fillgs

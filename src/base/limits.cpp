@@ -1,0 +1,82 @@
+#include "fillgs/base/limits.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <unistd.h>
+
+namespace fillgs {
+
+size_t allocation_cap() {
+  if (const char* env = std::getenv("FILLGS_MAX_ALLOC")) {
+    char* end = nullptr;
+    const unsigned long long v = std::strtoull(env, &end, 10);
+    if (end != env && *end == '\0' && v > 0) return size_t(v);
+  }
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || page <= 0) return size_t(1) << 36;  // 64 GiB when the system does not say
+  return size_t(pages) * size_t(page);
+}
+
+int image_side(double v, const std::string& source, const std::string& element, const char* what) {
+  if (!(v >= 1 && v <= kMaxImageSide) || v != std::floor(v))
+    throw_error(source, ": ", element, " ", what, " ", v, " is not a whole number of pixels in [1, ", kMaxImageSide, "]");
+  return int(v);
+}
+
+size_t checked_mul(size_t a, size_t b, const std::string& source, const std::string& what) {
+  if (a != 0 && b > std::numeric_limits<size_t>::max() / a) throw_error(source, ": ", what, " overflows (", a, " x ", b, ")");
+  return a * b;
+}
+
+void check_allocation(size_t bytes, const std::string& source, const std::string& what) {
+  const size_t cap = allocation_cap();
+  if (bytes > cap) throw_error(source, ": ", what, " would need ", bytes, " bytes, more than this machine's ", cap);
+}
+
+namespace {
+std::string excerpt(const std::string& text) { return text.size() > 40 ? text.substr(0, 40) + "..." : text; }
+size_t trim_front(const std::string& s) {
+  size_t i = 0;
+  while (i < s.size() && (s[i] == ' ' || s[i] == '\t')) ++i;
+  return i;
+}
+size_t trim_back(const std::string& s, size_t from) {
+  size_t e = s.size();
+  while (e > from && (s[e - 1] == ' ' || s[e - 1] == '\t' || s[e - 1] == '\r' || s[e - 1] == '\n')) --e;
+  return e;
+}
+}  // namespace
+
+size_t parse_count(const std::string& text, size_t max, const std::string& source, const std::string& what) {
+  const size_t b = trim_front(text), e = trim_back(text, b);
+  bool ok = e > b;
+  size_t v = 0;
+  for (size_t i = b; ok && i < e; ++i) {
+    const char c = text[i];
+    if (c < '0' || c > '9') ok = false;
+    else if (v > (max - size_t(c - '0')) / 10) ok = false;  // v·10 + digit > max
+    else v = v * 10 + size_t(c - '0');
+  }
+  if (!ok) throw_error(source, ": ", what, " '", excerpt(text), "' is not an integer in [0, ", max, "]");
+  return v;
+}
+
+bool parse_number(const std::string& text, double* out) {
+  const size_t b = trim_front(text), e = trim_back(text, b);
+  const std::string t = text.substr(b, e - b);
+  char* end = nullptr;
+  const double v = t.empty() ? 0.0 : std::strtod(t.c_str(), &end);
+  if (t.empty() || end != t.c_str() + t.size() || !std::isfinite(v)) return false;
+  *out = v;
+  return true;
+}
+
+double parse_number(const std::string& text, const std::string& source, const std::string& what) {
+  double v = 0;
+  if (!parse_number(text, &v)) throw_error(source, ": ", what, " '", excerpt(text), "' is not a number");
+  return v;
+}
+
+}  // namespace fillgs

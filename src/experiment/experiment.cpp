@@ -1,0 +1,828 @@
+#include "fillgs/experiment/experiment.hpp"
+#include "fillgs/base/json_file.hpp"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <ostream>
+#include <set>
+#include <sstream>
+
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/timing.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/io/html_report.hpp"
+#include "fillgs/base/limits.hpp"
+#include "fillgs/io/plot.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/io/scene_io.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace fillgs {
+
+namespace {
+
+
+json options_json(const ExperimentOptions& o) {
+  return {{"rig", o.rig},
+          {"variant", o.variant},
+          {"seed", o.seed},
+          {"width", o.width},
+          {"height", o.height},
+          {"frames", o.frames},
+          {"train_cameras", o.train_cameras},
+          {"interpolation_cameras", o.interpolation_cameras},
+          {"extrapolation_cameras", o.extrapolation_cameras},
+          {"backbone_iterations", o.backbone_iterations}};
+}
+
+/// Every frame of the named cameras (looked up in the scene's rigs), for a Dataset.
+std::vector<Camera> split_cameras(const SynthScene& s, const std::vector<std::string>& names) {
+  std::vector<Camera> rig;
+  for (const std::string& n : names) {
+    const Camera* found = s.camera(n);
+    if (!found) throw_error("experiment: no camera named ", n, " in the synthetic scene");
+    rig.push_back(*found);
+  }
+  return cameras_over_time(rig, s.options.frames);
+}
+
+std::unique_ptr<Dataset> load_split(const std::string& dir, const std::string& scene_dir, const SynthScene& s, const std::string& name,
+                                    const std::vector<std::string>& cameras) {
+  const std::string path = join_path(dir, "split_" + name + ".json");
+  write_transforms_json(path, split_cameras(s, cameras));
+  return std::make_unique<Dataset>(Dataset::load(scene_dir, path));
+}
+
+json metrics_json(const SplitMetrics& m) {
+  auto num = [](double x) { return std::isfinite(x) ? json(x) : json(nullptr); };
+  return {{"views", m.views},         {"psnr", num(m.psnr)}, {"ssim", num(m.ssim)}, {"psnr_moving", num(m.psnr_moving)},
+          {"moving_pixels", m.moving_pixels}, {"lpips", num(m.lpips)}, {"seconds", m.seconds}};
+}
+SplitMetrics metrics_from(const json& j, const std::string& split) {
+  auto num = [](const json& v) { return v.is_null() ? std::nan("") : v.get<double>(); };
+  SplitMetrics m;
+  m.split = split;
+  m.views = j.at("views").get<size_t>();
+  m.psnr = num(j.at("psnr"));
+  m.ssim = num(j.at("ssim"));
+  m.psnr_moving = num(j.at("psnr_moving"));
+  m.moving_pixels = j.at("moving_pixels").get<size_t>();
+  m.lpips = num(j.at("lpips"));
+  m.seconds = j.at("seconds").get<double>();
+  return m;
+}
+
+json result_json(const RunResult& r) {
+  return {{"id", r.id},
+          {"group", r.group},
+          {"variant", r.variant},
+          {"seed", r.seed},
+          {"interpolation", metrics_json(r.interpolation)},
+          {"extrapolation", metrics_json(r.extrapolation)},
+          {"train", metrics_json(r.train)},
+          {"trajectories", r.trajectories},
+          {"views_added", r.views_added},
+          {"mean_weight", r.mean_weight},
+          {"support", r.support},
+          {"support_share", r.support_share},
+          {"refine_failures", r.refine_failures},
+          {"seconds",
+           {{"select", r.seconds_select},
+            {"refine", r.seconds_refine},
+            {"weights", r.seconds_weights},
+            {"train", r.seconds_train},
+            {"eval", r.seconds_eval},
+            {"total", r.seconds_total}}}};
+}
+
+RunResult result_from(const json& j) {
+  RunResult r;
+  r.id = j.at("id");
+  r.group = j.at("group");
+  r.variant = j.at("variant");
+  r.seed = j.at("seed");
+  r.interpolation = metrics_from(j.at("interpolation"), "interpolation");
+  r.extrapolation = metrics_from(j.at("extrapolation"), "extrapolation");
+  r.train = metrics_from(j.at("train"), "train");
+  r.trajectories = j.at("trajectories");
+  r.views_added = j.at("views_added");
+  r.mean_weight = j.at("mean_weight");
+  r.support = j.value("support", "");
+  r.support_share = j.value("support_share", 0.0);
+  r.refine_failures = j.at("refine_failures");
+  const json& s = j.at("seconds");
+  r.seconds_select = s.at("select");
+  r.seconds_refine = s.at("refine");
+  r.seconds_weights = s.at("weights");
+  r.seconds_train = s.at("train");
+  r.seconds_eval = s.at("eval");
+  r.seconds_total = s.at("total");
+  return r;
+}
+
+std::string fmt(double x, int digits = 2) {
+  if (!std::isfinite(x)) return "–";
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(digits);
+  s << x;
+  return s.str();
+}
+
+/// The backbone: trained from the scene's points on `data` for the experiment's iterations.
+GaussianCloud train_backbone(const Dataset& data, const std::string& points, const ExperimentOptions& o, Progress& progress) {
+  TrainOptions to = TrainOptions::scaled(o.backbone_iterations);
+  to.seed = o.seed;
+  to.threads = o.threads;
+  Trainer trainer(data, init_from_points(read_points(points)), to);
+  trainer.run(o.backbone_iterations, progress);
+  return trainer.model();
+}
+
+/// Mean and sample standard deviation of values added one at a time.
+struct Moments {
+  double sum = 0, squares = 0;
+  int n = 0;
+  void add(double x) { sum += x, squares += x * x, ++n; }
+  double mean() const { return sum / n; }
+  double sd() const { return n > 1 ? std::sqrt(std::max(0.0, (squares - sum * sum / n) / (n - 1))) : 0.0; }
+};
+
+}  // namespace
+
+void save_result(const std::string& path, const RunResult& r) { write_file_atomically(path, result_json(r).dump(1) + "\n"); }
+
+RunResult load_result(const std::string& path) {
+  try {
+    return result_from(read_json_file(path));
+  } catch (const json::exception& e) {
+    throw_error(path, ": not a fillgs result (", e.what(), ")");
+  }
+}
+
+namespace {
+
+/// Runs of one scene and seed in the order of standard_configs (backbone first, then by id).
+void sort_by_configuration(std::vector<RunResult>::iterator first, std::vector<RunResult>::iterator last) {
+  std::vector<std::string> order = {"backbone"};
+  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, 0.5, {OracleSupport::Observed, OracleSupport::Full})) order.push_back(c.id);
+  auto rank = [&](const std::string& id) { return size_t(std::find(order.begin(), order.end(), id) - order.begin()); };
+  std::stable_sort(first, last, [&](const RunResult& a, const RunResult& b) { return rank(a.id) != rank(b.id) ? rank(a.id) < rank(b.id) : a.id < b.id; });
+}
+
+}  // namespace
+
+std::vector<RunResult> collect_results(const std::string& root) {
+  if (!fs::is_directory(root)) return {};
+  std::vector<fs::path> scenes;
+  for (const auto& e : fs::directory_iterator(root))
+    if (e.is_directory() && fs::exists(e.path() / "options.json")) scenes.push_back(e.path());
+  std::sort(scenes.begin(), scenes.end());
+  std::vector<RunResult> out;
+  for (const fs::path& sc : scenes) {
+    std::vector<RunResult> rs;
+    if (fs::exists(sc / "backbone" / "result.json")) rs.push_back(load_result((sc / "backbone" / "result.json").string()));
+    if (fs::is_directory(sc / "runs"))
+      for (const auto& e : fs::directory_iterator(sc / "runs"))
+        if (fs::exists(e.path() / "result.json")) rs.push_back(load_result((e.path() / "result.json").string()));
+    sort_by_configuration(rs.begin(), rs.end());
+    out.insert(out.end(), rs.begin(), rs.end());
+  }
+  return out;
+}
+
+std::vector<RunResult> read_results_csv(const std::string& path) {
+  const std::string text = read_file(path);
+  std::istringstream in(text);
+  std::string line;
+  if (!std::getline(in, line) || line != kResultsCsvHeader)
+    throw_error(path, ": not a fillgs bench results.csv (the first line must be the header '", kResultsCsvHeader, "')");
+  constexpr size_t kColumns = 23;
+  std::vector<RunResult> out;
+  for (size_t row = 2; std::getline(in, line); ++row) {
+    if (line.empty()) continue;
+    std::vector<std::string> f;
+    std::stringstream ls(line);
+    for (std::string cell; std::getline(ls, cell, ',');) f.push_back(cell);
+    if (!line.empty() && line.back() == ',') f.emplace_back();
+    if (f.size() != kColumns) throw_error(path, ": line ", row, " has ", f.size(), " columns, the header ", kColumns);
+    if (f[0].empty() || f[2].empty()) throw_error(path, ": line ", row, ": empty scene or id");
+    const std::string where = "line " + std::to_string(row);
+    auto num = [&](size_t k) {
+      // The writer prints a missing metric (no moving pixels) as nan.
+      if (f[k] == "nan" || f[k] == "-nan") return std::nan("");
+      double x = 0;
+      if (!parse_number(f[k], &x)) throw_error(path, ": ", where, " column ", k + 1, ": '", f[k], "' is not a number");
+      return x;
+    };
+    auto count = [&](size_t k) {
+      const double x = num(k);
+      if (!(x >= 0 && x == std::floor(x) && x < 9.0e15)) throw_error(path, ": ", where, " column ", k + 1, ": '", f[k], "' is not a count");
+      return x;
+    };
+    RunResult r;
+    r.variant = f[0];
+    r.seed = uint64_t(count(1));
+    r.id = f[2];
+    r.group = f[3];
+    r.support = f[4];
+    r.interpolation.split = "interpolation", r.extrapolation.split = "extrapolation", r.train.split = "train";
+    r.interpolation.psnr = num(5), r.interpolation.ssim = num(6), r.interpolation.psnr_moving = num(7);
+    r.extrapolation.psnr = num(8), r.extrapolation.ssim = num(9), r.extrapolation.psnr_moving = num(10);
+    r.train.psnr = num(11);
+    r.trajectories = int(count(12));
+    r.views_added = size_t(count(13));
+    r.mean_weight = num(14), r.support_share = num(15);
+    r.refine_failures = int(count(16));
+    r.seconds_select = num(17), r.seconds_refine = num(18), r.seconds_weights = num(19), r.seconds_train = num(20), r.seconds_eval = num(21),
+    r.seconds_total = num(22);
+    out.push_back(std::move(r));
+  }
+  return out;
+}
+
+std::vector<RunResult> merge_results(const std::vector<std::string>& inputs) {
+  struct Found {
+    RunResult result;
+    std::string source;
+  };
+  std::vector<Found> all;
+  for (const std::string& in : inputs) {
+    if (!fs::exists(in)) throw_error(in, ": no such bench folder or results.csv");
+    const std::vector<RunResult> rs = fs::is_directory(in) ? collect_results(in) : read_results_csv(in);
+    if (rs.empty()) throw_error(in, ": holds no finished run");
+    for (const RunResult& r : rs) all.push_back({r, in});
+  }
+  // A run found twice must be the same run: equal to the CSV's 6 significant digits.
+  auto same = [](double a, double b) { return (std::isnan(a) && std::isnan(b)) || std::abs(a - b) <= 1e-5 * std::max(1.0, std::abs(a)); };
+  std::vector<RunResult> out;
+  std::vector<std::string> sources;
+  for (const Found& f : all) {
+    const RunResult& r = f.result;
+    auto it = std::find_if(out.begin(), out.end(), [&](const RunResult& x) { return x.variant == r.variant && x.seed == r.seed && x.id == r.id; });
+    if (it == out.end()) {
+      out.push_back(r);
+      sources.push_back(f.source);
+      continue;
+    }
+    const std::pair<double, double> metrics[] = {{it->interpolation.psnr, r.interpolation.psnr},
+                                                 {it->interpolation.psnr_moving, r.interpolation.psnr_moving},
+                                                 {it->extrapolation.psnr, r.extrapolation.psnr},
+                                                 {it->extrapolation.psnr_moving, r.extrapolation.psnr_moving},
+                                                 {it->train.psnr, r.train.psnr},
+                                                 {it->mean_weight, r.mean_weight}};
+    for (const auto& [a, b] : metrics)
+      if (!same(a, b))
+        throw_error(sources[size_t(it - out.begin())], " and ", f.source, " disagree on ", r.variant, " seed ", r.seed, " ", r.id, " (", a, " against ",
+                    b, "): two different runs under one name");
+  }
+  std::stable_sort(out.begin(), out.end(), [](const RunResult& a, const RunResult& b) { return a.variant != b.variant ? a.variant < b.variant : a.seed < b.seed; });
+  for (auto first = out.begin(); first != out.end();) {
+    auto last = std::find_if(first, out.end(), [&](const RunResult& x) { return x.variant != first->variant || x.seed != first->seed; });
+    sort_by_configuration(first, last);
+    first = last;
+  }
+  return out;
+}
+
+SceneChoice parse_scene(const std::string& name) {
+  if (name == "n3v" || name == "technicolor") return {name, ""};
+  const std::vector<std::string> ring = synthetic_variants("ring");
+  if (std::count(ring.begin(), ring.end(), name)) return {"ring", name};
+  throw_error("unknown scene \"", name, "\" (n3v, technicolor, chair, orbit, lift)");
+}
+
+std::vector<std::string> bench_scenes() { return {"n3v", "technicolor", "chair", "orbit", "lift"}; }
+
+std::string ExperimentOptions::scene_name() const {
+  SynthOptions so;
+  so.rig = rig;
+  so.variant = variant;
+  return so.scene_name();
+}
+
+ExperimentOptions ExperimentOptions::resolved() const {
+  ExperimentOptions o = *this;
+  SynthOptions so;
+  so.rig = rig;
+  so.variant = variant;
+  o.variant = so.resolved_variant();
+  if (o.width <= 0 || o.height <= 0) {
+    if (rig == "technicolor") o.width = 192, o.height = 102;  // 2048×1088 aspect
+    else o.width = 160, o.height = 120;
+  }
+  return o;
+}
+
+std::string PreparedScene::scene_dir() const { return join_path(dir, "scene"); }
+
+PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& options, Progress& progress, std::ostream& log) {
+  PreparedScene p;
+  ExperimentOptions o = options.resolved();
+  SynthOptions so;
+  so.rig = o.rig;
+  so.variant = o.variant;
+  so.seed = o.seed;
+  so.width = o.width;
+  so.height = o.height;
+  so.frames = o.frames;
+  auto t0 = Clock::now();
+  p.synth = make_synthetic_scene(so);
+  if (o.train_cameras.empty()) o.train_cameras = p.synth.split.train;
+  if (o.interpolation_cameras.empty()) o.interpolation_cameras = p.synth.split.interpolation;
+  if (o.extrapolation_cameras.empty()) o.extrapolation_cameras = p.synth.split.extrapolation;
+  p.options = o;
+  p.dir = join_path(root, o.scene_name() + "_s" + std::to_string(o.seed));
+  const std::string scene_dir = p.scene_dir(), stamp_path = join_path(p.dir, "options.json");
+  const json stamp = options_json(o);
+  if (fs::exists(stamp_path)) {
+    const json old = read_json_file(stamp_path);
+    if (old != stamp)
+      throw_error(stamp_path, ": this folder holds a run made with other options (", old.dump(), "); use another --out");
+  }
+  make_directories(p.dir);
+  p.reused_scene = fs::exists(join_path(scene_dir, "synth.json")) && fs::exists(stamp_path);
+  if (!p.reused_scene) {
+    write_synthetic_scene(p.synth, scene_dir, progress, o.threads);
+    write_file_atomically(stamp_path, stamp.dump(1) + "\n");
+    p.seconds_synth = seconds_since(t0);
+    log << "scene " << o.scene_name() << " (seed " << o.seed << "): " << p.synth.scene.size() << " Gaussians, " << p.synth.scene.dynamic_count()
+        << " moving, " << o.width << "x" << o.height << ", " << o.frames << " frames, rendered in " << fmt(p.seconds_synth, 1) << " s" << std::endl;
+  }
+  DatasetOptions dopt;
+  dopt.cameras = o.train_cameras;
+  p.train = std::make_unique<Dataset>(Dataset::load(scene_dir, join_path(scene_dir, "transforms_train.json"), dopt));
+  p.interpolation = load_split(p.dir, scene_dir, p.synth, "interpolation", o.interpolation_cameras);
+  p.extrapolation = load_split(p.dir, scene_dir, p.synth, "extrapolation", o.extrapolation_cameras);
+
+  const std::string bb = join_path(p.dir, "backbone");
+  const std::string model_path = join_path(bb, "model.ply");
+  if (fs::exists(model_path)) {
+    p.backbone = read_scene(model_path);
+    p.reused_backbone = true;
+    log << "backbone reused: " << model_path << "\n";
+    return p;
+  }
+  t0 = Clock::now();
+  p.backbone = train_backbone(*p.train, join_path(scene_dir, "points.ply"), o, progress);
+  p.seconds_backbone = seconds_since(t0);
+  make_directories(bb);
+  write_fillgs_ply(model_path, p.backbone, o.frames);
+  const json summary = {{"iterations", o.backbone_iterations},
+                        {"seconds", p.seconds_backbone},
+                        {"gaussians", p.backbone.size()},
+                        {"moving_gaussians", p.backbone.dynamic_count()},
+                        {"train_cameras", o.train_cameras}};
+  write_file_atomically(join_path(bb, "summary.json"), summary.dump(1) + "\n");
+  log << "backbone: " << o.backbone_iterations << " iterations on " << p.train->views().size() << " views ("
+      << p.train->rigs().size() << " cameras) in " << fmt(p.seconds_backbone, 1) << " s, " << p.backbone.size() << " Gaussians ("
+      << p.backbone.dynamic_count() << " moving)" << std::endl;
+  return p;
+}
+
+std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double strength, const std::vector<OracleSupport>& supports) {
+  std::vector<RunConfig> out;
+  for (size_t si = 0; si < supports.size(); ++si) {
+    const OracleSupport support = supports[si];
+    const std::string suffix = si == 0 ? "" : std::string("@") + to_string(support);
+    auto add = [&](const std::string& id, const std::string& group, Strategy s, Weighting w, double a, int k) {
+      RunConfig c;
+      c.id = id + suffix;
+      c.group = group;
+      c.select.strategy = s;
+      c.weighting = w;
+      c.artifact_strength = a;
+      c.trajectories = k;
+      c.support = support;
+      out.push_back(c);
+      return &out.back();
+    };
+    add("no-refinement", "control", Strategy::FillGS, Weighting::None, strength, 0);
+    for (Strategy s : values_of<Strategy>()) add(to_string(s), "strategy", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, strength, 5);
+    const char* ablations[] = {"no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring",
+                               "no-global",          "count-only",    "speed-only"};
+    for (const char* a : ablations) {
+      RunConfig* c = add(std::string("fillgs.") + a, "ablation", Strategy::FillGS, Weighting::FillGS, strength, 5);
+      const std::string n = a;
+      c->select.no_start_selection = n == "no-start-selection";
+      c->select.no_error_term = n == "no-error-term";
+      c->select.no_sensitivity_term = n == "no-sensitivity-term";
+      c->select.no_candidate_scoring = n == "no-candidate-scoring";
+      c->select.no_global = n == "no-global";
+      if (n == "count-only") c->select.score = CandidateScore::CountOnly;
+      if (n == "speed-only") c->select.score = CandidateScore::SpeedOnly;
+    }
+    for (Weighting w : {Weighting::None, Weighting::NoConsistency, Weighting::NoCovisibility, Weighting::Enhancer3DGS, Weighting::ExploreGS,
+                        Weighting::UA4DGS})
+      add(std::string("fillgs.w-") + to_string(w), "weighting", Strategy::FillGS, w, strength, 5);
+    // fillgs's own options beyond the paper: model-independent sweep matching, co-visibility rules
+    // that weigh static content by its observation density (static-count, density).
+    add("fillgs.m-sweep", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.method = MaskMethod::Sweep;
+    add("fillgs.covis-static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.covisibility =
+        Covisibility::StaticCount;
+    add("fillgs.covis-density", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.covisibility = Covisibility::Density;
+    {
+      RunConfig* c = add("fillgs.sweep+static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5);
+      c->mask.method = MaskMethod::Sweep;
+      c->mask.covisibility = Covisibility::StaticCount;
+    }
+    // fillgs's option beyond the paper: starts of one round whose patches do not overlap on
+    // a camera; with FillGS's weights and with none (to see the views without the weights).
+    add("fillgs.spread-starts", "ablation", Strategy::FillGS, Weighting::FillGS, strength, 5)->select.spread_starts = true;
+    add("fillgs.w-none.spread-starts", "weighting", Strategy::FillGS, Weighting::None, strength, 5)->select.spread_starts = true;
+    // ... and candidates scored by the D̂ they see (sum over their visible set), unweighted.
+    add("fillgs.w-none.gain-score", "weighting", Strategy::FillGS, Weighting::None, strength, 5)->select.score_gain = true;
+    {
+      RunConfig* c = add("fillgs.w-none.spread+gain", "weighting", Strategy::FillGS, Weighting::None, strength, 5);
+      c->select.spread_starts = true;
+      c->select.score_gain = true;
+    }
+    for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), "budget", Strategy::FillGS, Weighting::FillGS, strength, k);
+    for (Strategy s : values_of<Strategy>())
+      add(std::string(to_string(s)) + ".clean", "refiner", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);
+  }
+  RunConfig tv;
+  tv.id = "upper.test-views";
+  tv.group = "upper";
+  tv.kind = RunKind::TestViews;
+  tv.weighting = Weighting::None;
+  tv.artifact_strength = 0;
+  tv.trajectories = 0;
+  tv.support = OracleSupport::Full;
+  out.push_back(tv);
+  RunConfig dense = tv;
+  dense.id = "upper.dense";
+  dense.kind = RunKind::Dense;
+  out.push_back(dense);
+  return out;
+}
+
+RunResult evaluate_model(const PreparedScene& p, const GaussianCloud& model, const std::string& id, int threads, const std::string& save_dir,
+                         Progress& progress) {
+  const auto t0 = Clock::now();
+  RunResult r;
+  r.id = id;
+  r.variant = p.options.scene_name();
+  r.seed = p.options.seed;
+  EvalOptions eo;
+  eo.threads = threads;
+  eo.truth = &p.synth.scene;
+  eo.save_dir = save_dir.empty() ? "" : join_path(save_dir, "interpolation");
+  r.interpolation = evaluate_split(model, *p.interpolation, "interpolation", eo, progress);
+  eo.save_dir = save_dir.empty() ? "" : join_path(save_dir, "extrapolation");
+  r.extrapolation = evaluate_split(model, *p.extrapolation, "extrapolation", eo, progress);
+  eo.save_dir.clear();
+  r.train = evaluate_split(model, *p.train, "train", eo, progress);
+  r.seconds_eval = seconds_since(t0);
+  return r;
+}
+
+RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneOptions& base, Progress& progress, std::ostream& log) {
+  const std::string dir = join_path(join_path(p.dir, "runs"), c.id);
+  const std::string result_path = join_path(dir, "result.json"), schedule_path = join_path(dir, "schedule.json");
+  // The fine-tuning schedule a run was made with: a folder is resumed only with the same one.
+  const json schedule = c.kind == RunKind::Dense ? json{{"backbone_iterations", p.options.backbone_iterations}}
+                                                 : json{{"iterations", base.iterations},
+                                                        {"select_every", base.select_every},
+                                                        {"position_lr", base.train.position_lr_init},
+                                                        {"key_lr_scale", base.train.key_lr_scale}};
+  if (fs::exists(result_path) && fs::exists(schedule_path)) {
+    const json old = read_json_file(schedule_path);
+    if (old != schedule)
+      throw_error(schedule_path, ": run ", c.id, " was made with another fine-tuning schedule (", old.dump(), ", now ", schedule.dump(),
+                  "); use another --out");
+  }
+  if (fs::exists(result_path)) {
+    RunResult r = load_result(result_path);
+    log << c.id << ": reused " << result_path << "\n";
+    return r;
+  }
+  const auto t0 = Clock::now();
+  make_directories(dir);
+  write_file_atomically(schedule_path, schedule.dump() + "\n");
+  const int F = p.options.frames;
+  if (c.kind == RunKind::Dense) {
+    // Every camera of the rig, trained like the backbone.
+    const Dataset all = Dataset::load(p.scene_dir(), join_path(p.scene_dir(), "transforms_train.json"));
+    const GaussianCloud model = train_backbone(all, join_path(p.scene_dir(), "points.ply"), p.options, progress);
+    const double train_s = seconds_since(t0);
+    RunResult r = evaluate_model(p, model, c.id, base.threads, "", progress);
+    r.group = c.group;
+    r.seconds_train = train_s;
+    r.seconds_total = seconds_since(t0);
+    write_fillgs_ply(join_path(dir, "model.ply"), model, F);
+    save_result(result_path, r);
+    log << c.id << ": " << all.rigs().size() << " cameras; interpolation " << fmt(r.interpolation.psnr) << " dB (moving "
+        << fmt(r.interpolation.psnr_moving) << "), extrapolation " << fmt(r.extrapolation.psnr) << " dB (moving "
+        << fmt(r.extrapolation.psnr_moving) << "), " << fmt(r.seconds_total, 0) << " s" << std::endl;
+    return r;
+  }
+  FinetuneOptions fo = base;
+  fo.select = c.select;
+  fo.select.seed = base.select.seed;
+  fo.trajectories = c.trajectories;
+  fo.weighting = c.weighting;
+  fo.mask = c.mask;
+  fo.work_dir = join_path(dir, "work");
+  if (c.kind == RunKind::TestViews) {
+    // Clean ground truth at every test camera and frame, weight 1: what no selection can beat.
+    RenderOptions ro;
+    ro.threads = base.threads;
+    FrameEvaluator truth(p.synth.scene);
+    for (const Dataset* split : {p.interpolation.get(), p.extrapolation.get()})
+      for (const TrainView& v : split->views()) {
+        const size_t P = size_t(v.camera.width) * size_t(v.camera.height);
+        fo.extra_views.push_back({v.camera, render(truth.evaluate(v.camera.time), v.camera, ro).rgb, std::vector<float>(P, 1.0f)});
+      }
+    // Clean images are as good as real ones: every view, real or test, is drawn equally
+    // often (with the generated views' 30% share each of the 260 n3v test views was drawn
+    // 1.4 times in 1,200 iterations, and the bound measured the budget, not the views).
+    const double extra = double(fo.extra_views.size());
+    fo.train.refined_share = extra / (extra + double(p.train->views().size()));
+  }
+  OracleOptions oo;
+  oo.artifacts.strength = c.artifact_strength;
+  oo.artifacts.seed = p.options.seed;
+  oo.support = c.support;
+  for (const TrainView& v : p.train->views()) oo.observers.push_back(v.camera);
+  oo.frames = F;
+  oo.threads = base.threads;
+  SupportStats stats;
+  const std::unique_ptr<Refiner> refiner = make_oracle_refiner(p.synth.scene, oo, &stats);
+  const FinetuneResult fr = finetune(*p.train, p.backbone, *refiner, fo, progress);
+  RunResult r = evaluate_model(p, fr.model, c.id, base.threads, "", progress);
+  r.group = c.group;
+  r.trajectories = 0;
+  if (c.kind == RunKind::Finetune && c.trajectories > 0) {
+    r.support = to_string(c.support);
+    r.support_share = stats.share();
+  }
+  for (const FinetuneRound& round : fr.rounds) {
+    r.trajectories += round.trajectories;
+    r.views_added += round.views_added;
+    r.mean_weight += round.mean_weight * double(round.views_added);
+    r.seconds_select += round.seconds_select;
+    r.seconds_refine += round.seconds_refine + round.seconds_render;
+    r.seconds_weights += round.seconds_weights;
+    r.refine_failures += int(round.refine_failures.size());
+    for (const std::string& n : round.notes) log << c.id << ": round at iteration " << round.iteration << ": " << n << "\n";
+  }
+  if (r.views_added) r.mean_weight /= double(r.views_added);
+  if (c.kind == RunKind::TestViews) r.views_added = fo.extra_views.size(), r.mean_weight = 1.0;
+  r.seconds_train = fr.seconds_train;
+  r.seconds_total = seconds_since(t0);
+  write_fillgs_ply(join_path(dir, "model.ply"), fr.model, F);
+  if (!fr.virtual_views.empty()) {
+    // Where the strategy looked: the refined views, and their top view over the split.
+    write_transforms_json(join_path(dir, "virtual_views.json"), fr.virtual_views);
+    write_split_picture(p.synth, join_path(dir, "views.png"), fr.virtual_views,
+                        c.id + ": " + std::to_string(fr.virtual_views.size()) + " virtual views (" + p.options.scene_name() + ", seed " +
+                            std::to_string(p.options.seed) + ")");
+  }
+  save_result(result_path, r);
+  log << c.id << ": interpolation " << fmt(r.interpolation.psnr) << " dB (moving " << fmt(r.interpolation.psnr_moving) << "), extrapolation "
+      << fmt(r.extrapolation.psnr) << " dB (moving " << fmt(r.extrapolation.psnr_moving) << "), train " << fmt(r.train.psnr) << " dB; "
+      << r.trajectories << " trajectories, " << r.views_added << " views, mean weight " << fmt(r.mean_weight, 3);
+  if (!r.support.empty()) log << ", supported " << fmt(100 * r.support_share, 1) << "%";
+  log << ", " << fmt(r.seconds_total, 0) << " s" << std::endl;
+  return r;
+}
+
+std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& results, const std::string& reference) {
+  auto values = [](const RunResult& r) {
+    return std::array<double, 4>{r.interpolation.psnr, r.interpolation.psnr_moving, r.extrapolation.psnr, r.extrapolation.psnr_moving};
+  };
+  std::vector<PairedDifference> out;
+  std::vector<std::array<Moments, 4>> moments;  // per entry of out
+  for (const RunResult& r : results) {
+    if (r.id == "backbone") continue;
+    // Each run against the reference of its own oracle: "x@full" against "fillgs@full", the
+    // clean-oracle "x.clean" against "fillgs.clean".
+    const size_t at = r.id.find('@');
+    const std::string support = at == std::string::npos ? "" : r.id.substr(at);
+    const std::string base = r.id.substr(0, at);
+    const bool clean = base.size() > 6 && base.compare(base.size() - 6, 6, ".clean") == 0;
+    const std::string ref_id = reference + (clean ? ".clean" : "") + support;
+    if (r.id == ref_id) continue;
+    const auto ref = std::find_if(results.begin(), results.end(),
+                                  [&](const RunResult& x) { return x.id == ref_id && x.variant == r.variant && x.seed == r.seed; });
+    if (ref == results.end()) continue;
+    auto it = std::find_if(out.begin(), out.end(), [&](const PairedDifference& d) { return d.id == r.id && d.variant == r.variant; });
+    if (it == out.end()) {
+      out.push_back({r.variant, r.id, r.group});
+      moments.emplace_back();
+      it = out.end() - 1;
+    }
+    const std::array<double, 4> a = values(*ref), b = values(r);
+    std::array<Moments, 4>& m = moments[size_t(it - out.begin())];
+    for (size_t j = 0; j < 4; ++j) m[j].add(a[j] - b[j]);
+  }
+  for (size_t k = 0; k < out.size(); ++k) {
+    out[k].seeds = moments[k][0].n;
+    for (size_t j = 0; j < 4; ++j) out[k].mean[j] = moments[k][j].mean(), out[k].sd[j] = moments[k][j].sd();
+  }
+  return out;
+}
+
+void write_bench_report(const std::string& root, const std::vector<RunResult>& results) {
+  // CSV: every run.
+  std::ostringstream csv;
+  csv << kResultsCsvHeader << "\n";
+  for (const RunResult& r : results)
+    csv << r.variant << "," << r.seed << "," << r.id << "," << r.group << "," << r.support << "," << r.interpolation.psnr << "," << r.interpolation.ssim
+        << "," << r.interpolation.psnr_moving << "," << r.extrapolation.psnr << "," << r.extrapolation.ssim << "," << r.extrapolation.psnr_moving
+        << "," << r.train.psnr << "," << r.trajectories << "," << r.views_added << "," << r.mean_weight << "," << r.support_share << ","
+        << r.refine_failures << "," << r.seconds_select << "," << r.seconds_refine << "," << r.seconds_weights << "," << r.seconds_train << ","
+        << r.seconds_eval << "," << r.seconds_total << "\n";
+  write_file_atomically(join_path(root, "results.csv"), csv.str());
+
+  // Mean and standard deviation over seeds, per scene and configuration, in first-seen order.
+  constexpr int kValues = 10;  // ip is im ep es em tp weight trajectories support
+  struct Mean {
+    std::string id, group, variant, support;
+    int n = 0;
+    Moments v[kValues];
+    double t[5] = {};
+    double mean(int k) const { return v[k].mean(); }
+    double sd(int k) const { return v[k].sd(); }
+  };
+  std::vector<Mean> means;
+  for (const RunResult& r : results) {
+    auto it = std::find_if(means.begin(), means.end(), [&](const Mean& m) { return m.id == r.id && m.variant == r.variant; });
+    if (it == means.end()) {
+      means.emplace_back();
+      means.back().id = r.id, means.back().group = r.group, means.back().variant = r.variant, means.back().support = r.support;
+      it = means.end() - 1;
+    }
+    const double x[kValues] = {r.interpolation.psnr, r.interpolation.ssim, r.interpolation.psnr_moving, r.extrapolation.psnr,
+                               r.extrapolation.ssim,  r.extrapolation.psnr_moving, r.train.psnr, r.mean_weight, double(r.trajectories),
+                               r.support_share};
+    for (int k = 0; k < kValues; ++k) it->v[k].add(x[k]);
+    const double sec[5] = {r.seconds_select, r.seconds_refine, r.seconds_weights, r.seconds_train, r.seconds_eval};
+    for (int k = 0; k < 5; ++k) it->t[k] += sec[k];
+    it->n += 1;
+  }
+  for (Mean& m : means)
+    for (double& x : m.t) x /= m.n;
+  auto cell = [](const Mean& m, int k, int digits) {
+    std::string c = fmt(m.mean(k), digits);
+    if (m.n > 1 && std::isfinite(m.mean(k))) c += " ± " + fmt(m.sd(k), digits);
+    return c;
+  };
+  std::set<std::string> scenes;
+  for (const RunResult& r : results) scenes.insert(r.variant + " seed " + std::to_string(r.seed));
+  std::ostringstream md;
+  md << "# fillgs bench\n\nMean ± standard deviation over seeds, per scene; " << scenes.size() << " scene run(s):";
+  for (const std::string& s : scenes) md << " " << s << ";";
+  md << "\nPSNR in dB. \"moving\": PSNR over the pixels of the moving objects (ground truth). Train: PSNR on the training cameras. "
+        "Oracle support: \"observed\" restores only what the training cameras saw, \"full\" the ground truth everywhere. "
+        "\"supported\": share of the refined pixels the observations support.\n\n";
+  const char* groups[][2] = {{"control", "Without generated views"},
+                             {"upper", "Upper bounds"},
+                             {"strategy", "Viewpoint selection strategies (Table 1 of the paper)"},
+                             {"ablation", "FillGS selection ablations (Table 3 of the paper)"},
+                             {"weighting", "Fine-tuning weights (Table 4 of the paper)"},
+                             {"budget", "Trajectory budget per round"},
+                             {"refiner", "Clean oracle (no generation artifacts)"}};
+  auto in_group = [](const Mean& m, const std::string& g) { return m.group == g || (g == "control" && m.id == "backbone"); };
+  for (const auto& g : groups) {
+    if (std::none_of(means.begin(), means.end(), [&](const Mean& m) { return in_group(m, g[0]); })) continue;
+    md << "## " << g[1] << "\n\n| Scene | Method | oracle | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | weight | supported | runs |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+    for (const Mean& m : means) {
+      if (!in_group(m, g[0])) continue;
+      md << "| " << m.variant << " | " << m.id << " | " << (m.support.empty() ? "–" : m.support) << " | " << cell(m, 0, 2) << " | " << cell(m, 1, 3)
+         << " | " << cell(m, 2, 2) << " | " << cell(m, 3, 2) << " | " << cell(m, 4, 3) << " | " << cell(m, 5, 2) << " | " << cell(m, 6, 2) << " | "
+         << fmt(m.mean(7), 3) << " | " << (m.support.empty() ? "–" : fmt(100 * m.mean(9), 1) + "%") << " | " << m.n << " |\n";
+    }
+    md << "\n";
+  }
+  const std::vector<PairedDifference> paired = paired_differences(results);
+  if (!paired.empty()) {
+    md << "## FillGS − each method, paired by seed\n\nPer seed, FillGS's PSNR minus the method's (dB; positive: FillGS ahead), mean ± "
+          "standard deviation over the seeds both ran. Ablation and weighting rows read as the paper's Tables 3 and 4: what the component "
+          "is worth.\n\n| Scene | Method | group | Interp ΔPSNR | moving Δ | Extrap ΔPSNR | moving Δ | seeds |\n|---|---|---|---|---|---|---|---|\n";
+    for (const PairedDifference& d : paired) {
+      md << "| " << d.variant << " | " << d.id << " | " << d.group;
+      for (int j = 0; j < 4; ++j) md << " | " << fmt(d.mean[j], 2) << (d.seeds > 1 ? " ± " + fmt(d.sd[j], 2) : "");
+      md << " | " << d.seeds << " |\n";
+    }
+    md << "\n";
+  }
+  md << "## Seconds per phase (mean per run)\n\n| Scene | Method | select | refine | weights | train | eval |\n|---|---|---|---|---|---|---|\n";
+  for (const Mean& m : means)
+    if (m.id != "backbone")
+      md << "| " << m.variant << " | " << m.id << " | " << fmt(m.t[0], 1) << " | " << fmt(m.t[1], 1) << " | " << fmt(m.t[2], 1) << " | " << fmt(m.t[3], 1) << " | "
+         << fmt(m.t[4], 1) << " |\n";
+
+  // Plots of the first scene: strategies with the first support mode, the control, the upper bounds.
+  const std::string plotted = means.empty() ? "" : means.front().variant;
+  std::vector<std::string> names;
+  std::vector<double> interp, extrap;
+  for (const Mean& m : means)
+    if (m.variant == plotted && m.id.find('@') == std::string::npos &&
+        (m.group == "strategy" || m.group == "control" || m.group == "upper" || m.id == "backbone"))
+      names.push_back(m.id), interp.push_back(m.mean(0)), extrap.push_back(m.mean(3));
+  if (!names.empty()) {
+    write_bar_chart_png(join_path(root, "psnr_interpolation.png"), names, interp, {"interpolation PSNR per strategy (" + plotted + ")", "", "PSNR (dB)"});
+    write_bar_chart_png(join_path(root, "psnr_extrapolation.png"), names, extrap, {"extrapolation PSNR per strategy (" + plotted + ")", "", "PSNR (dB)"});
+  }
+  ScatterSeries bi{"interpolation", {}, {}, {}}, be{"extrapolation", {}, {}, {}};
+  for (const Mean& m : means)
+    if (m.variant == plotted && m.id.find('@') == std::string::npos && (m.group == "budget" || m.id == "fillgs")) {
+      bi.x.push_back(m.mean(8)), bi.y.push_back(m.mean(0));
+      be.x.push_back(m.mean(8)), be.y.push_back(m.mean(3));
+    }
+  if (bi.x.size() >= 2)
+    write_scatter_png(join_path(root, "budget.png"), {bi, be}, {"FillGS: PSNR against trajectories (3 rounds)", "trajectories in all", "PSNR (dB)"},
+                      false);
+  const char* phases[] = {"select", "refine", "weights", "train", "eval"};
+  std::vector<double> t(5, 0.0);
+  int runs = 0;
+  for (const Mean& m : means)
+    if (m.id != "backbone") {
+      for (int k = 0; k < 5; ++k) t[size_t(k)] += m.t[k];
+      ++runs;
+    }
+  if (runs) {
+    for (double& x : t) x /= runs;
+    write_bar_chart_png(join_path(root, "time_per_phase.png"), std::vector<std::string>(phases, phases + 5), t,
+                        {"mean seconds per phase and run", "", "seconds"});
+  }
+  // The figures drawn above, named in the Markdown (and so embedded in the HTML page).
+  md << "\n## Figures\n\nEach figure's numbers are in the CSV of its name, and `gnuplot NAME.gp` re-draws it.\n\n";
+  for (const char* f : {"psnr_interpolation", "psnr_extrapolation", "budget", "time_per_phase"})
+    if (fs::exists(join_path(root, std::string(f) + ".png"))) md << "![" << f << "](" << f << ".png)\n\n";
+  write_file_atomically(join_path(root, "results.md"), md.str());
+  write_html_report(join_path(root, "results.md"), join_path(root, "results.html"));
+}
+
+void write_run_report(const std::string& dir, const RunReportInput& in) {
+  const ExperimentOptions& o = in.scene->options;
+  // Side-by-side pictures: ground truth | backbone | each fine-tuned model, at the moment of
+  // each split where the moving content covers most of a view (a moving moment).
+  std::vector<GaussianCloud> models = {in.scene->backbone};
+  for (const std::string& id : in.run_ids) models.push_back(read_scene(join_path(join_path(join_path(in.scene->dir, "runs"), id), "model.ply")));
+  std::vector<std::string> pictures;
+  for (const auto* split : {in.scene->extrapolation.get(), in.scene->interpolation.get()}) {
+    size_t best = 0, most = 0;
+    for (size_t v = 0; v < split->views().size(); ++v) {
+      const std::vector<unsigned char> m = moving_region(in.scene->synth.scene, split->views()[v].camera, in.threads);
+      const size_t n = size_t(std::count(m.begin(), m.end(), 1));
+      if (n > most) most = n, best = v;
+    }
+    const TrainView& view = split->views()[best];
+    std::vector<std::vector<float>> imgs = {split->image(best)};
+    std::vector<std::string> caps = {"ground truth"};
+    for (size_t m = 0; m < models.size(); ++m) {
+      RenderOptions ro;
+      ro.threads = in.threads;
+      imgs.push_back(render(evaluate(models[m], view.camera.time), view.camera, ro).rgb);
+      caps.push_back(m == 0 ? "backbone" : in.run_ids[m - 1]);
+    }
+    const std::string file = "compare_" + view.rig + "_f" + std::to_string(view.frame) + ".png";
+    write_side_by_side_png(join_path(dir, file), imgs, view.camera.width, view.camera.height, caps, 2);
+    pictures.push_back(file);
+  }
+  // Report.
+  std::ostringstream md;
+  md << "# fillgs run\n\nScene: built-in synthetic (" << o.scene_name() << "), " << o.width << "x" << o.height << ", " << o.frames
+     << " frames; backbone trained on " << in.scene->train->rigs().size() << " cameras (";
+  for (size_t k = 0; k < in.scene->options.train_cameras.size(); ++k) md << (k ? ", " : "") << in.scene->options.train_cameras[k];
+  md << ") for " << o.backbone_iterations << " iterations; each fine-tuning: " << in.finetune.iterations << " iterations, "
+     << in.finetune.trajectories << " trajectories every " << in.finetune.select_every << " iterations, oracle refiner ("
+     << to_string(in.support) << " support) with artifacts (strength " << in.artifact_strength << "). Baselines use ExploreGS weights (the paper's protocol); FillGS its own.\n\n"
+     << "| Method | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | seconds |\n|---|---|---|---|---|---|---|---|---|\n";
+  for (const RunResult& r : in.results) {
+    md << "| " << r.id << " | " << fmt(r.interpolation.psnr) << " | " << fmt(r.interpolation.ssim, 3) << " | " << fmt(r.interpolation.psnr_moving)
+       << " | " << fmt(r.extrapolation.psnr) << " | " << fmt(r.extrapolation.ssim, 3) << " | " << fmt(r.extrapolation.psnr_moving) << " | "
+       << fmt(r.train.psnr) << " | " << fmt(r.seconds_total, 0) << " |\n";
+  }
+  md << "\n## Renders\n\nGround truth, the backbone and each fine-tuned model at the view and moment of each split where the moving content "
+        "covers most of the image.\n\n";
+  for (const std::string& f : pictures) md << "![" << f << "](" << f << ")\n\n";
+  for (const char* chart : {"psnr_interpolation", "psnr_extrapolation"})
+    if (fs::exists(join_path(dir, std::string(chart) + ".png"))) md << "![" << chart << "](" << chart << ".png)\n\n";
+  // The virtual views each strategy chose (top view), copied beside the report.
+  md << "## Virtual views\n\n";
+  for (const std::string& id : in.run_ids) {
+    const std::string from = join_path(join_path(join_path(in.scene->dir, "runs"), id), "views.png"), file = "views_" + id + ".png";
+    std::error_code ec;
+    if (id != "no-refinement" && fs::exists(from, ec) && fs::copy_file(from, join_path(dir, file), fs::copy_options::overwrite_existing, ec))
+      md << "![" << file << "](" << file << ")\n\n";
+  }
+  md << "## Command\n\n```\n" << in.command << "\n```\n\n";
+  md << "Per-run folders (patches, refined views with their support, consistency mask, co-visibility and weight images): `"
+     << join_path(in.scene->dir, "runs") << "`.\n";
+  write_file_atomically(join_path(dir, "report.md"), md.str());
+  write_html_report(join_path(dir, "report.md"), join_path(dir, "report.html"));
+}
+
+}  // namespace fillgs

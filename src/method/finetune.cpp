@@ -1,0 +1,172 @@
+#include "fillgs/method/finetune.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/timing.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/io/image_io.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/train/train_model.hpp"
+#include "fillgs/visibility/visibility.hpp"
+
+namespace fillgs {
+
+namespace {
+
+
+Image grey(const std::vector<float>& v, int w, int h) {
+  Image im(w, h, 1);
+  for (size_t p = 0; p < v.size(); ++p) im.pixels[p] = std::clamp(v[p], 0.0f, 1.0f);
+  return im;
+}
+
+std::string stem(const std::string& file) { return file.substr(0, file.rfind('.')); }
+
+}  // namespace
+
+FinetuneOptions FinetuneOptions::paper() {
+  FinetuneOptions o;
+  o.iterations = 30000;
+  o.select_every = 6000;
+  o.trajectories = 20;
+  o.train = fine_tune_schedule(o.iterations);
+  return o;
+}
+
+TrainOptions fine_tune_schedule(int iterations, const MotionRates& rates) {
+  if (!(rates.position_lr > 0 && std::isfinite(rates.position_lr)) || !(rates.key_lr_scale > 0 && std::isfinite(rates.key_lr_scale)))
+    throw_error("finetune: the position learning rate and the key learning-rate scale must be positive numbers (got ", rates.position_lr, ", ",
+                rates.key_lr_scale, ")");
+  TrainOptions t = TrainOptions::scaled(iterations);
+  t.position_lr_init = rates.position_lr;
+  t.position_lr_final = rates.position_lr / 10;
+  t.key_lr_scale = rates.key_lr_scale;
+  t.opacity_reset_interval = 0;
+  t.time_ramp = 0.0;  // the model already covers the whole video
+  t.densify_from = std::max(1, iterations / 20);
+  t.densify_until = iterations * 6 / 10;
+  return t;
+}
+
+FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner& refiner, const FinetuneOptions& o, Progress& progress) {
+  const auto t_start = Clock::now();
+  if (o.iterations < 1) throw_error("finetune: --iterations must be at least 1");
+  if (o.select_every < 1) throw_error("finetune: --select-every must be at least 1");
+  if (o.trajectories < 0) throw_error("finetune: --trajectories must be at least 0");
+  if (o.work_dir.empty()) throw_error("finetune: no work folder");
+  const int F = data.frames();
+  std::vector<Camera> cameras;
+  for (const TrainView& v : data.views()) cameras.push_back(v.camera);
+  const std::vector<ObservedView> views = observed_views(cameras, F);
+  auto image_of = [&](size_t i) { return data.image(i); };
+  auto image_as = [&](size_t i) {
+    Image im(data.views()[i].camera.width, data.views()[i].camera.height, 3);
+    im.pixels = data.image(i);
+    return im;
+  };
+
+  TrainOptions to = o.train;
+  to.iterations = o.iterations;
+  to.threads = o.threads;
+  Trainer trainer(data, params_from_cloud<float>(model, F), to);
+  FinetuneResult result;
+  if (!o.extra_views.empty()) trainer.add_refined(o.extra_views);
+  double train_seconds = 0;
+  for (int round = 0, it0 = 0; it0 < o.iterations; ++round, it0 += o.select_every) {
+    FinetuneRound r;
+    r.iteration = it0;
+    if (o.trajectories > 0) {
+      const GaussianCloud current = round == 0 ? model : trainer.model();
+      auto t0 = Clock::now();
+      const ExplorationGrid grid = build_exploration_grid(current, cameras, FrameGrid(F).times(), o.grid, nullptr, progress);
+      SelectInput in;
+      in.scene = &current;
+      in.views = views;
+      in.frames = F;
+      in.image = image_of;
+      in.background = to.background;
+      in.grid = &grid;
+      in.earlier_views = result.virtual_views;
+      SelectOptions so = o.select;
+      so.trajectories = o.trajectories;
+      so.seed = o.select.seed + uint64_t(round) * 7919;
+      so.threads = o.threads;
+      const SelectResult sel = select_viewpoints(in, so, progress);
+      r.seconds_select = seconds_since(t0);
+      r.trajectories = int(sel.trajectories.size());
+      r.notes = sel.notes;
+
+      // Patches: observed start images and the current model's renders.
+      t0 = Clock::now();
+      std::vector<Patch> patches;
+      const std::string patch_root = join_path(o.work_dir, "patches"), refined_root = join_path(o.work_dir, "refined");
+      for (const Trajectory& tr : sel.trajectories) {
+        char name[32];
+        std::snprintf(name, sizeof name, "r%d_t%02d", round, tr.index);
+        patches.push_back(make_patch(tr, views, name));
+        RenderOptions ro;
+        ro.background = to.background;
+        ro.threads = o.threads;
+        write_patch(join_path(patch_root, name), patches.back(), views, image_of,
+                    [&](const Camera& c) { return render(evaluate(current, c.time), c, ro).rgb; });
+      }
+      r.seconds_render = seconds_since(t0);
+      t0 = Clock::now();
+      const RefineReport rep = refine_patches(refiner, patches, patch_root, refined_root, progress);
+      r.seconds_refine = seconds_since(t0);
+      r.refine_failures = rep.failures;
+      r.views_dropped = rep.dropped;
+
+      // Weights, written next to every refined image.
+      t0 = Clock::now();
+      const DeficiencyField field(sel.initial_tables, so.deficiency_quantile);
+      WeightContext ctx;
+      ctx.model = &current;
+      ctx.views = views;
+      ctx.image = image_as;
+      ctx.deficiency = &field;
+      ctx.frames = F;
+      ctx.background = to.background;
+      ctx.threads = o.threads;
+      std::vector<RefinedView> added;
+      double weight_sum = 0;
+      size_t weight_count = 0;
+      progress.start("weights (" + std::string(to_string(o.weighting)) + ")", rep.images.size());
+      for (const RefinedImage& ri : rep.images) {
+        const Camera& cam = ri.image.camera;
+        const std::string rel = patches[size_t(ri.patch)].name + "/" + ri.image.file;
+        const ViewWeights w = compute_weights(ctx, ri.rgb, cam, o.weighting, o.mask, rel);
+        const std::string base = join_path(join_path(refined_root, patches[size_t(ri.patch)].name), stem(ri.image.file));
+        if (!w.consistency.empty()) write_image(base + "_mask.png", grey(w.consistency, cam.width, cam.height));
+        if (!w.covisibility.empty()) write_image(base + "_covis.png", grey(w.covisibility, cam.width, cam.height));
+        write_image(base + "_weight.png", grey(w.weight, cam.width, cam.height));
+        for (float x : w.weight) weight_sum += x;
+        weight_count += w.weight.size();
+        added.push_back({cam, ri.rgb.pixels, w.weight});
+        result.virtual_views.push_back(cam);
+        progress.advance();
+      }
+      progress.finish();
+      r.seconds_weights = seconds_since(t0);
+      r.views_added = added.size();
+      r.mean_weight = weight_count ? weight_sum / double(weight_count) : 0.0;
+      trainer.add_refined(std::move(added));
+    }
+    const auto t0 = Clock::now();
+    trainer.run(std::min(o.iterations, it0 + o.select_every), progress);
+    train_seconds += seconds_since(t0);
+    result.rounds.push_back(std::move(r));
+  }
+  result.model = trainer.model();
+  result.loss_history = trainer.loss_history();
+  result.seconds_train = train_seconds;
+  result.seconds_total = seconds_since(t_start);
+  return result;
+}
+
+}  // namespace fillgs

@@ -1,0 +1,57 @@
+#pragma once
+// The selection strategies behind one interface (select.hpp, SelectOptions::strategy). Each
+// is a small class in src/method/strategies.cpp that owns its own state; the registry there makes
+// them by name (Strategy's name table). Adding a strategy: its class and one registry
+// entry in strategies.cpp, its value and name beside the Strategy enum.
+#include <memory>
+#include <vector>
+
+#include "fillgs/model/frame_grid.hpp"
+#include "fillgs/method/select.hpp"
+#include "fillgs/visibility/visibility.hpp"
+
+namespace fillgs {
+
+/// What every strategy may read and share: the selection's inputs and options, the
+/// deficiency field (C and D, updated with every accepted view), the scene's visibility
+/// engine and frame evaluator, and the world axis closest to the cameras' up.
+struct SelectionContext {
+  const SelectInput& in;
+  const SelectOptions& options;
+  DeficiencyField& field;
+  VisibilityEngine& engine;
+  FrameEvaluator& eval;
+  int vertical;
+  double time_of(int f) const { return FrameGrid(in.frames).time(f); }
+};
+
+class SelectionStrategy {
+ public:
+  /// Where trajectories start: the observed views by the exploration priority E (highest
+  /// first, or lowest first), or in a random order.
+  enum class Starts { HighestPriority, LowestPriority, Shuffled };
+  /// How a trajectory is made: grown from its start by scored candidates (§3), a random
+  /// walk from a random free position, or poses between neighbouring training cameras.
+  enum class Paths { Grown, RandomWalk, BetweenCameras };
+
+  virtual ~SelectionStrategy() = default;
+  virtual Starts starts() const { return Starts::Shuffled; }
+  virtual Paths paths() const { return Paths::Grown; }
+  /// Whether the lowest score wins (negative); otherwise the highest.
+  virtual bool lowest_wins() const { return false; }
+  /// One score per candidate, all at `frame`.
+  virtual std::vector<double> score(const std::vector<Camera>& candidates, int frame) {
+    (void)frame;
+    return std::vector<double>(candidates.size(), 0.0);
+  }
+  /// A virtual view accepted at `frame` (the field has already counted it).
+  virtual void observe(const Camera& view, int frame) { (void)view, (void)frame; }
+};
+
+/// The strategy named by `s`, sharing `context` (which must outlive it).
+std::unique_ptr<SelectionStrategy> make_strategy(Strategy s, SelectionContext& context);
+
+/// Intrinsics scaled by s (image size rounded, at least one pixel).
+Camera scaled_camera(const Camera& c, double s);
+
+}  // namespace fillgs
