@@ -5,7 +5,6 @@
 #include <embree3/rtcore.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <chrono>
@@ -14,7 +13,6 @@
 #include "embree_device.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/math.hpp"
-#include "fillgs/base/threads.hpp"
 
 namespace fillgs {
 
@@ -347,15 +345,12 @@ struct GaussianTracer::Impl {
   double build_seconds = 0, refit_seconds = 0;
 
   void fill(ProxySet& set, const FrameGaussians& frame) {
-    tbb::task_arena arena(arena_concurrency(options.threads));
-    arena.execute([&] {
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, set.ids.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t i = r.begin(); i < r.end(); ++i) {
-          const uint32_t g = set.ids[i];
-          set.proxies[i] = make_proxy(frame.means[g], frame.scales[g], frame.rotations[g], frame.opacities[g], set.min_alpha,
-                                      padding_at(frame.means[g], set.padding));
-        }
-      });
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, set.ids.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        const uint32_t g = set.ids[i];
+        set.proxies[i] = make_proxy(frame.means[g], frame.scales[g], frame.rotations[g], frame.opacities[g], set.min_alpha,
+                                    padding_at(frame.means[g], set.padding));
+      }
     });
     set.slack = largest_half_diagonal(set);
   }

@@ -23,6 +23,7 @@
 
 #include "bench_common.hpp"
 #include "cli/options.hpp"
+#include "fillgs/base/threads.hpp"
 #include "fillgs/model/frame_grid.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/experiment/evaluate.hpp"
@@ -132,25 +133,23 @@ MotionResult measure(const SynthScene& s, const GaussianCloud& m, const Dataset&
   const int F = s.options.frames;
   EvalOptions eo;
   eo.truth = &s.scene;
-  eo.threads = 2;
   const SplitMetrics e = evaluate_split(m, extrap, "extrapolation", eo);
   r.extrap_psnr = e.psnr;
   r.extrap_moving = e.psnr_moving;
   // Interpolation: per frame moving-region error, pooled.
   std::vector<double> se(size_t(F), 0.0);
   std::vector<size_t> px(size_t(F), 0);
-  FrameEvaluator ev(m);
+  FrameSampler ev(m);
   RenderOptions ro;
-  ro.threads = 2;
   std::vector<std::vector<float>> truth_shots, model_shots;
   std::vector<std::string> truth_captions, model_captions;
   double psnr_sum = 0;
   for (size_t v = 0; v < interp.views().size(); ++v) {
     const TrainView& view = interp.views()[v];
-    const RenderOutput out = render(ev.evaluate(view.camera.time), view.camera, ro);
+    const RenderOutput out = render(ev.at(view.camera.time), view.camera, ro);
     const std::vector<float> target = interp.image(v);
     psnr_sum += psnr(out.rgb.data(), target.data(), view.camera.width, view.camera.height, 3);
-    const std::vector<unsigned char> mask = moving_region(s.scene, view.camera, 2);
+    const std::vector<unsigned char> mask = moving_region(s.scene, view.camera);
     for (size_t p = 0; p < mask.size(); ++p) {
       if (!mask[p]) continue;
       px[size_t(view.frame)] += 3;
@@ -178,10 +177,10 @@ MotionResult measure(const SynthScene& s, const GaussianCloud& m, const Dataset&
   r.psnr_moving = px_all ? 10.0 * std::log10(double(px_all) / std::max(se_all, 1e-12)) : std::nan("");
   // Tracking over every frame.
   std::vector<uint8_t> near(m.size(), 0);
-  FrameEvaluator truth(s.scene);
+  FrameSampler truth(s.scene);
   for (int f = 0; f < F; ++f) {
     const double t = FrameGrid(F).time(f);
-    const double d = tracking_error(truth.evaluate(t), s.moving_ids, ev.evaluate(t), &near);
+    const double d = tracking_error(truth.at(t), s.moving_ids, ev.at(t), &near);
     r.track_mean += d / F;
     r.track_worst = std::max(r.track_worst, d);
   }
@@ -242,6 +241,7 @@ MotionResult measure(const SynthScene& s, const GaussianCloud& m, const Dataset&
 }  // namespace
 
 int bench_motion(const std::vector<std::string>& args) {
+  const ThreadLimit two_threads(2);  // the tables say "2 threads"
   bool smoke = false;
   std::string out = "bench/results/motion", rig = "ring", variant, cameras = "all", camera;
   int iterations = 2000, width = 160, height = 120, frames = 20;
@@ -271,7 +271,7 @@ int bench_motion(const std::vector<std::string>& args) {
   const std::string dir = join_path(out, name + "_" + std::to_string(width) + "x" + std::to_string(height) + "_f" + std::to_string(frames));
   const SynthScene s = make_synthetic_scene(so);
   if (camera.empty()) camera = s.interpolation.empty() ? s.split.interpolation.front() : "interp05";
-  if (!std::filesystem::exists(join_path(dir, "synth.json"))) write_synthetic_scene(s, dir, null_progress(), 2);
+  if (!std::filesystem::exists(join_path(dir, "synth.json"))) write_synthetic_scene(s, dir, null_progress());
   DatasetOptions d;
   if (cameras != "all") {
     std::stringstream ss(cameras);
@@ -289,7 +289,6 @@ int bench_motion(const std::vector<std::string>& args) {
   std::vector<std::pair<std::string, std::vector<double>>> per_frame;
   for (const std::string& spec : specs) {
     MotionConfig c = parse_config(spec, iterations);
-    c.options.threads = 2;
     const auto t0 = Clock::now();
     Trainer t(data, init_from_points(points), c.options);
     t.run(iterations, null_progress());

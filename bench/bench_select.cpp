@@ -56,9 +56,9 @@ void build(Setup& s, const GaussianCloud& scene, const std::vector<Camera>& rig,
   s.views = observed_views(rig, frames);
   s.images.clear();
   if (images) {
-    FrameEvaluator ev(scene);
+    FrameSampler ev(scene);
     for (const ObservedView& v : s.views) {
-      std::vector<float> rgb = render(ev.evaluate(v.camera.time), v.camera).rgb;
+      std::vector<float> rgb = render(ev.at(v.camera.time), v.camera).rgb;
       for (float& x : rgb) x = std::round(std::clamp(x, 0.0f, 1.0f) * 255.0f) / 255.0f;
       s.images.push_back(std::move(rgb));
     }
@@ -73,13 +73,13 @@ void build(Setup& s, const GaussianCloud& scene, const std::vector<Camera>& rig,
 /// Mean D̂ (initial tables) over the chosen poses, rendered by the rasterizer at full resolution.
 double mean_deficiency(const Setup& s, const SelectResult& r) {
   DeficiencyField field(r.initial_tables, 0.99f);
-  FrameEvaluator ev(*s.scene);
+  FrameSampler ev(*s.scene);
   double sum = 0;
   size_t n = 0;
   for (const Trajectory& t : r.trajectories)
     for (const Camera& c : t.poses) {
       const std::vector<float> d = field.values(t.frame, CandidateScore::Deficiency);
-      sum += mean_value(render_value_map(ev.evaluate(c.time), c, d.data()));
+      sum += mean_value(render_value_map(ev.at(c.time), c, d.data()));
       ++n;
     }
   return n ? sum / double(n) : 0.0;
@@ -217,7 +217,7 @@ int bench_select(const std::vector<std::string>& args) {
       for (const Camera& c : global_candidates(v.camera, train, s.grid, 12, 3 * s.grid.step(), rng)) pool.emplace_back(c, v.frame);
     }
     DeficiencyField field(ref_run.initial_tables, 0.99f);
-    FrameEvaluator ev(synth.scene);
+    FrameSampler ev(synth.scene);
     VisibilityEngine engine(synth.scene, VisibilityOptions{});
     auto scores_with = [&](MapRenderer r, int stride, double* ms) {
       std::vector<double> out;
@@ -228,7 +228,7 @@ int bench_select(const std::vector<std::string>& args) {
           engine.set_time(cam.time);
           out.push_back(engine.render_maps(cam, d.data(), nullptr, stride).score());
         } else {
-          out.push_back(mean_value(render_value_map(ev.evaluate(cam.time), cam, d.data())));
+          out.push_back(mean_value(render_value_map(ev.at(cam.time), cam, d.data())));
         }
       }
       *ms = 1000.0 * seconds_since(t) / double(pool.size());

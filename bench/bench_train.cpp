@@ -15,6 +15,7 @@
 
 #include "bench_common.hpp"
 #include "cli/options.hpp"
+#include "fillgs/base/threads.hpp"
 #include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/model/frame_grid.hpp"
 #include "fillgs/base/error.hpp"
@@ -58,7 +59,6 @@ IterationTimes time_iterations(const DiffFrame<float>& df, const std::vector<Cam
   std::vector<float> target(size_t(w) * h * 3, 0.5f), dimg(target.size());
   set_default_kernel(kernel);  // the loss's blur follows the process default
   DiffRenderOptions dro;
-  dro.threads = 2;
   dro.kernel = kernel;
   IterationTimes t;
   for (size_t v = 0; v <= cams.size(); ++v) {  // view 0 twice: the first is a warm-up
@@ -96,7 +96,7 @@ void speed(bool smoke, size_t only_count, int only_width, int only_height) {
     const GaussianCloud c = subsample(full, n);
     const ModelParams<float> p = params_from_cloud<float>(c);
     DiffFrame<float> df;
-    evaluate_params(p, 0.0, &df);
+    params_at(p, 0.0, &df);
     for (auto [w, h] : sizes) {
       const std::vector<Camera> cams = bench::orbit(c, reps, w, h);
       const IterationTimes ref = time_iterations(df, cams, Kernel::Scalar);
@@ -120,7 +120,6 @@ Quality train_and_eval(const std::string& dir, const SynthScene& s, const std::v
   d.cameras = cams;
   const Dataset data = Dataset::load(dir + "/images", dir + "/transforms_train.json", d);
   TrainOptions o = TrainOptions::scaled(iterations);
-  o.threads = 2;
   Trainer t(data, init_from_points(read_points(dir + "/points.ply")), o);
   const auto t0 = Clock::now();
   t.run(iterations, null_progress());
@@ -138,13 +137,13 @@ Quality train_and_eval(const std::string& dir, const SynthScene& s, const std::v
   const int F = s.options.frames;
   std::vector<std::vector<Vec3f>> chair(static_cast<size_t>(F));
   for (int f = 0; f < F; ++f) {
-    const FrameGaussians g = evaluate(s.scene, FrameGrid(F).time(f));
+    const FrameGaussians g = frame_at(s.scene, FrameGrid(F).time(f));
     for (uint32_t id : s.moving_ids) chair[size_t(f)].push_back(g.means[id]);
   }
   for (size_t j = 0; j < m.dynamic_count(); ++j) {
     bool on = false;
     for (int f = 0; f < F && !on; f += 3) {
-      const Vec3f x = evaluate(m, FrameGrid(F).time(f)).means[m.dynamic_ids[j]];
+      const Vec3f x = frame_at(m, FrameGrid(F).time(f)).means[m.dynamic_ids[j]];
       for (const Vec3f& c : chair[size_t(f)])
         if ((c - x).squaredNorm() < 0.05f * 0.05f) {
           on = true;
@@ -165,7 +164,7 @@ void quality(bool smoke, const std::string& out) {
   }
   const std::string dir = out + "/synth";
   const SynthScene s = make_synthetic_scene(so);
-  write_synthetic_scene(s, dir, null_progress(), 2);
+  write_synthetic_scene(s, dir, null_progress());
   std::printf("\n## Training quality on the synthetic scene (%dx%d, %d frames, %d iterations, 2 threads)\n\n", so.width, so.height,
               so.frames, iterations);
   std::printf("| training cameras | PSNR interp (all 16) | PSNR interp04-05 (inside the pair's arc) | PSNR extrap | Gaussians | moving | moving on the chair | train s |\n"
@@ -184,6 +183,7 @@ void quality(bool smoke, const std::string& out) {
 }  // namespace
 
 int bench_train(const std::vector<std::string>& args) {
+  const ThreadLimit two_threads(2);  // the tables say "2 threads"
   bool smoke = false;
   std::string out = "bench/results/train", only;
   size_t count = 0;  // --gaussians N: one subset only

@@ -260,12 +260,12 @@ void million_scene(bool smoke) {
               cloud.size(), cloud.dynamic_count(), extent, cameras, w, h);
 
   {  // BVH build and refit
-    FrameEvaluator ev(cloud);
-    const FrameGaussians& f0 = ev.evaluate(0.0);
+    FrameSampler ev(cloud);
+    const FrameGaussians& f0 = ev.at(0.0);
     GaussianTracer tracer(f0, cloud.dynamic_ids);
     double refit = 0;
     for (int k = 1; k <= 5; ++k) {
-      tracer.refit_dynamic(ev.evaluate(k / 5.0));
+      tracer.refit_dynamic(ev.at(k / 5.0));
       refit += tracer.last_refit_seconds();
     }
     std::printf("BVH: build %.3f s (all %zu proxies, static + dynamic), refit %.1f ms per frame (%zu dynamic, mean of 5); proxy memory %.0f MB; "

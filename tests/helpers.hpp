@@ -7,6 +7,9 @@
 #include <unistd.h>
 #include <filesystem>
 #include <string>
+#include <utility>
+
+#include <tbb/task_arena.h>
 
 #include "fillgs/model/camera.hpp"
 #include "fillgs/base/fs_util.hpp"
@@ -64,6 +67,12 @@ inline SynthScene small_synth(int frames, int width, int height, double spacing 
   o.height = height;
   o.spacing = spacing;
   return make_synthetic_scene(o);
+}
+
+/// f() with `threads` threads: the library's loops run in the caller's task arena.
+template <class F>
+auto with_threads(int threads, F&& f) {
+  return tbb::task_arena(threads).execute(std::forward<F>(f));
 }
 
 inline bool all_finite(const std::vector<float>& v) {

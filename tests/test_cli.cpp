@@ -68,7 +68,7 @@ TEST_CASE("fillgs render writes one image per camera, named after it, plus summa
   CHECK(img.height == 32);
   const GaussianCloud c = read_scene(dir + "/s.ply");
   const auto cam = read_cameras(cams);
-  const RenderOutput ref = render(evaluate(c, 0), cam[0]);
+  const RenderOutput ref = render(frame_at(c, 0), cam[0]);
   double max_err = 0;
   for (size_t i = 0; i < ref.rgb.size(); ++i)
     max_err = std::max(max_err, double(std::fabs(std::clamp(ref.rgb[i], 0.0f, 1.0f) - img.pixels[i])));

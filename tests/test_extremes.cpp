@@ -18,7 +18,7 @@ TEST_CASE("scales from 1e-7 to 1e4 and opacity logits of +-40 render finite imag
   RenderOptions ro;
   ro.depth = true;
   ro.max_weights = true;
-  const RenderOutput r = render(evaluate(c, 0), axis_camera(64, 48, 50), ro);
+  const RenderOutput r = render(frame_at(c, 0), axis_camera(64, 48, 50), ro);
   CHECK(all_finite(r.rgb));
   CHECK(all_finite(r.depth));
   CHECK(all_finite(r.alpha));
@@ -34,7 +34,7 @@ TEST_CASE("a camera inside a Gaussian, at its mean, on the near plane, or in fro
   SECTION("inside a huge Gaussian whose mean is ahead") {
     GaussianCloud c;
     add_gaussian(c, Vec3f(0, 0, 1), 100.0f, 40.0f, Vec3f(1, 1, 1));
-    const RenderOutput r = render(evaluate(c, 0), cam);
+    const RenderOutput r = render(frame_at(c, 0), cam);
     CHECK(all_finite(r.rgb));
     CHECK(r.rgb[(16 * 32 + 16) * 3] == Approx(0.99f));
   }
@@ -42,7 +42,7 @@ TEST_CASE("a camera inside a Gaussian, at its mean, on the near plane, or in fro
     GaussianCloud c;
     add_gaussian(c, Vec3f(0, 0, 0), 1.0f, 40.0f, Vec3f(1, 1, 1));
     add_gaussian(c, Vec3f(0, 0, -3), 1.0f, 40.0f, Vec3f(1, 1, 1));
-    const RenderOutput r = render(evaluate(c, 0), cam);
+    const RenderOutput r = render(frame_at(c, 0), cam);
     CHECK(r.radii[0] == 0);
     CHECK(r.radii[1] == 0);
     for (float v : r.rgb) CHECK(v == 0.0f);
@@ -51,7 +51,7 @@ TEST_CASE("a camera inside a Gaussian, at its mean, on the near plane, or in fro
     GaussianCloud c;
     add_gaussian(c, Vec3f(0, 0, 0.2f), 0.01f, 40.0f, Vec3f(1, 1, 1));
     add_gaussian(c, Vec3f(0, 0, 0.2001f), 0.01f, 40.0f, Vec3f(1, 1, 1));
-    const RenderOutput r = render(evaluate(c, 0), cam);
+    const RenderOutput r = render(frame_at(c, 0), cam);
     CHECK(r.radii[0] == 0);
     CHECK(r.radii[1] > 0);
     CHECK(all_finite(r.rgb));
@@ -60,7 +60,7 @@ TEST_CASE("a camera inside a Gaussian, at its mean, on the near plane, or in fro
     GaussianCloud c;
     add_gaussian(c, Vec3f(0, 0, 3), 0.5f, 2.0f, Vec3f(1, 1, 1));
     c.rotations[0] = Vec4f::Zero();
-    const RenderOutput r = render(evaluate(c, 0), cam);
+    const RenderOutput r = render(frame_at(c, 0), cam);
     CHECK(all_finite(r.rgb));
     CHECK(r.radii[0] > 0);
   }
@@ -71,7 +71,7 @@ TEST_CASE("an empty scene renders the background", "[extremes]") {
   RenderOptions o;
   o.background = Vec3f(0.25f, 0.5f, 1.0f);
   o.contributors = true;
-  const RenderOutput r = render(evaluate(c, 0.5), axis_camera(20, 10, 10), o);
+  const RenderOutput r = render(frame_at(c, 0.5), axis_camera(20, 10, 10), o);
   for (size_t p = 0; p < 200; ++p) {
     CHECK(r.rgb[p * 3 + 0] == 0.25f);
     CHECK(r.rgb[p * 3 + 2] == 1.0f);
@@ -85,13 +85,13 @@ TEST_CASE("t = 0 and t = 1 evaluate the end keys and times outside [0, 1] clamp"
   const SynthScene s = small_synth(5, 64, 48, 0.05);
   const GaussianCloud& c = s.scene;
   const size_t K = 5;
-  const FrameGaussians a = evaluate(c, 0.0), b = evaluate(c, 1.0);
+  const FrameGaussians a = frame_at(c, 0.0), b = frame_at(c, 1.0);
   for (size_t j = 0; j < c.dynamic_count(); j += 97) {
     const uint32_t g = c.dynamic_ids[j];
     CHECK(a.means[g] == Eigen::Map<const Vec3f>(&c.keyframed.positions[j * K * 3]));
     CHECK(b.means[g] == Eigen::Map<const Vec3f>(&c.keyframed.positions[(j * K + K - 1) * 3]));
   }
-  CHECK(evaluate(c, -0.5).means == a.means);
-  CHECK(evaluate(c, 1.5).means == b.means);
+  CHECK(frame_at(c, -0.5).means == a.means);
+  CHECK(frame_at(c, 1.5).means == b.means);
   CHECK(all_finite(std::vector<float>(a.opacities)));
 }

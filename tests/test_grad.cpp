@@ -103,7 +103,7 @@ TEST_CASE("frame gradients match finite differences for every value (double)", "
   const GaussianCloud cloud = random_scene(7, 0, 11);
   const ModelParams<double> params = params_from_cloud<double>(cloud);
   DiffFrame<double> frame;
-  evaluate_params(params, 0.0, &frame);
+  params_at(params, 0.0, &frame);
   const Camera cam = test_camera();
   const int F = 2;
   std::vector<float> feats(cloud.size() * F);
@@ -175,7 +175,7 @@ TEST_CASE("frame gradients match finite differences for every value (double)", "
   }
 }
 
-TEST_CASE("parameter gradients through evaluate(t), motion included, match finite differences", "[grad]") {
+TEST_CASE("parameter gradients through frame_at(t), motion included, match finite differences", "[grad]") {
   const GaussianCloud cloud = random_scene(6, 3, 21);
   ModelParams<double> params = params_from_cloud<double>(cloud);
   const Camera cam = test_camera();
@@ -189,19 +189,19 @@ TEST_CASE("parameter gradients through evaluate(t), motion included, match finit
       DiffFrame<double> frame;
       auto eval_loss = [&] {
         DiffFrame<double> f;
-        evaluate_params(params, t, &f);
+        params_at(params, t, &f);
         DiffRasterizer<double> r;
         r.forward(f, cam, opt);
         return loss(r, nullptr);
       };
-      evaluate_params(params, t, &frame);
+      params_at(params, t, &frame);
       DiffRasterizer<double> ras;
       ras.forward(frame, cam, opt);
       DiffFrameGrad<double> fg;
       std::vector<double> dimg(loss.r_img);
       ras.backward(dimg.data(), nullptr, nullptr, &fg);
       ModelParams<double> grad = params.zeros_like();
-      evaluate_params_backward(params, t, fg, &grad);
+      params_at_backward(params, t, fg, &grad);
 
       const char* names[] = {"mean", "log-scale", "rotation", "opacity logit", "SH",
                              "key position", "key rotation", "key log-scale", "key opacity logit"};
@@ -322,8 +322,8 @@ TEST_CASE("the differentiable forward renders what the forward rasterizer render
   const ModelParams<float> params = params_from_cloud<float>(cloud);
   for (const double t : {0.0, 0.5, 1.0}) {
     DiffFrame<float> frame;
-    evaluate_params(params, t, &frame);
-    const FrameGaussians ref = evaluate(cloud, t);
+    params_at(params, t, &frame);
+    const FrameGaussians ref = frame_at(cloud, t);
     for (size_t g = 0; g < cloud.size(); ++g) {
       for (int k = 0; k < 3; ++k) REQUIRE(frame.means[3 * g + k] == Approx(ref.means[g][k]).margin(1e-5));
       for (int k = 0; k < 4; ++k) REQUIRE(std::abs(frame.rotations[4 * g + k]) == Approx(std::abs(ref.rotations[g][k])).margin(1e-5));
@@ -351,7 +351,7 @@ TEST_CASE("the Fisher diagonal equals per-pixel squared gradients summed", "[gra
     for (int c = 0; c < 3; ++c) cloud.sh[3 * g + c] = 0.3f * float(c + 1) - 0.4f * float(g % 2);
   const ModelParams<double> params = params_from_cloud<double>(cloud);
   DiffFrame<double> frame;
-  evaluate_params(params, 0.0, &frame);
+  params_at(params, 0.0, &frame);
   Camera cam = axis_camera(20, 16, 22.0);
   DiffRenderOptions opt;
   opt.background = Vec3f(0.3f, 0.6f, 0.1f);
@@ -392,16 +392,16 @@ TEST_CASE("backward is bit-identical for any thread count", "[grad]") {
   const SynthScene s = small_synth(4, 80, 64, 0.05);
   const ModelParams<float> params = params_from_cloud<float>(s.scene);
   DiffFrame<float> frame;
-  evaluate_params(params, 0.5, &frame);
+  params_at(params, 0.5, &frame);
   std::vector<float> up(80 * 64 * 3);
   for (size_t i = 0; i < up.size(); ++i) up[i] = float((i * 7919) % 13) / 13.0f - 0.5f;
   std::vector<DiffFrameGrad<float>> grads(2);
   for (int threads : {1, 2}) {
-    DiffRenderOptions o;
-    o.threads = threads;
-    DiffRasterizer<float> r;
-    r.forward(frame, s.train[3], o);
-    r.backward(up.data(), nullptr, nullptr, &grads[threads - 1]);
+    with_threads(threads, [&] {
+      DiffRasterizer<float> r;
+      r.forward(frame, s.train[3], DiffRenderOptions());
+      r.backward(up.data(), nullptr, nullptr, &grads[threads - 1]);
+    });
   }
   REQUIRE(grads[0].means == grads[1].means);
   REQUIRE(grads[0].scales == grads[1].scales);

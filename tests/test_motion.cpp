@@ -54,8 +54,8 @@ TEST_CASE("keys for every Gaussian change nothing that renders", "[motion]") {
   CHECK(after.keyed_opacity);
   for (double t : {0.0, 0.2, 0.5, 0.77, 1.0}) {
     DiffFrame<float> a, b;
-    evaluate_params(before, t, &a);
-    evaluate_params(after, t, &b);
+    params_at(before, t, &a);
+    params_at(after, t, &b);
     // Equal keys pass through Catmull-Rom weights (summing to 1) and a slerp (normalising
     // twice): the same values to float rounding.
     for (size_t i = 0; i < a.means.size(); ++i) CHECK(a.means[i] == Approx(b.means[i]).margin(1e-6));
@@ -75,11 +75,11 @@ TEST_CASE("opacity keys are added at each Gaussian's own opacity", "[motion]") {
   ModelParams<float> p = params_from_cloud<float>(c);
   REQUIRE_FALSE(p.keyed_opacity);
   DiffFrame<float> a, b;
-  evaluate_params(p, 0.4, &a);
+  params_at(p, 0.4, &a);
   add_key_opacities(p);
   REQUIRE(p.keyed_opacity);
   REQUIRE(p.key_opacity_logits.size() == 4);
-  evaluate_params(p, 0.4, &b);
+  params_at(p, 0.4, &b);
   CHECK(a.opacities == b.opacities);
 }
 
@@ -203,7 +203,7 @@ TEST_CASE("static_first puts static Gaussians first and keeps every Gaussian as 
   static_first(back);
   CHECK(back.dynamic_ids == std::vector<uint32_t>{2});
   for (double t : {0.0, 0.3, 1.0}) {
-    const FrameGaussians a = evaluate(m, t), b = evaluate(back, t);
+    const FrameGaussians a = frame_at(m, t), b = frame_at(back, t);
     CHECK(b.means[2] == a.means[0]);
     CHECK(b.means[0] == a.means[1]);
     CHECK(b.means[1] == a.means[2]);
@@ -290,9 +290,8 @@ TEST_CASE("keys placed by optical flow follow a moving plane and leave the wall 
   for (int f = 0; f < F; ++f) {
     const GaussianCloud s = scene(0.1 * f);
     for (const Camera& c : rig) {
-      const RenderOutput r = render(evaluate(s, 0.0), c, RenderOptions{});
-      Image im(W, H, 3);
-      im.pixels = r.rgb;
+      const RenderOutput r = render(frame_at(s, 0.0), c, RenderOptions{});
+      const Image im(W, H, 3, r.rgb);
       write_image(join_path(d, "images/" + c.name + "/" + std::to_string(100 + f) + ".png"), im);
     }
   }
@@ -303,7 +302,6 @@ TEST_CASE("keys placed by optical flow follow a moving plane and leave the wall 
   o.scaling_lr = o.rotation_lr = o.opacity_lr = o.feature_lr = 0;
   o.densify_from = 1000000;
   o.opacity_reset_interval = 0;
-  o.threads = 2;
   const GaussianCloud first = scene(0.0);
   Trainer t(data, params_from_cloud<float>(first), o);
   REQUIRE(t.params().key_count == 3);  // keys at frames 0, 3, 6

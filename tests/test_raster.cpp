@@ -37,7 +37,7 @@ TEST_CASE("single Gaussian: centre, 1 sigma and 2 sigma match the analytic footp
   const double s = std::sqrt((16.0 - 0.3) / ((f / z) * (f / z) + (f * x / (z * z)) * (f * x / (z * z))));
   GaussianCloud cloud;
   add_gaussian(cloud, Vec3f(float(x), float(-0.5 * z / f), float(z)), float(s), logit(0.8f), Vec3f(1, 1, 1));
-  const RenderOutput r = render(evaluate(cloud, 0), cam);
+  const RenderOutput r = render(frame_at(cloud, 0), cam);
   const Footprint fp = footprint(s, x, z, f);
   REQUIRE(fp.a == Approx(16.0));
   // Σ2 also has an off-diagonal term from y = -0.5 z/f; include it exactly.
@@ -73,7 +73,7 @@ TEST_CASE("single Gaussian: nothing is drawn outside the tiles of its 3-sigma re
   const double s = std::sqrt((100.0 - 0.3) / ((f / z) * (f / z) + jx * jx));
   GaussianCloud cloud;
   add_gaussian(cloud, Vec3f(float(x), float(-0.5 * z / f), float(z)), float(s), 40.0f, Vec3f(1, 1, 1));
-  const RenderOutput r = render(evaluate(cloud, 0), cam);
+  const RenderOutput r = render(frame_at(cloud, 0), cam);
   REQUIRE(r.radii[0] == 31);
   const double a15 = std::exp(-0.5 * (32.2 * 32.2) / 100.0);
   REQUIRE(a15 > 1.0 / 255.0);
@@ -85,7 +85,7 @@ TEST_CASE("the 0.3 dilation sets the footprint of a vanishing Gaussian", "[raste
   const Camera cam = axis_camera(32, 32, 32);
   GaussianCloud cloud;
   add_gaussian(cloud, Vec3f(-0.5f * 4 / 32, -0.5f * 4 / 32, 4), 1e-6f, logit(0.9f), Vec3f(1, 1, 1));
-  const RenderOutput r = render(evaluate(cloud, 0), cam);
+  const RenderOutput r = render(frame_at(cloud, 0), cam);
   CHECK(pixel(r, 15, 15) == Approx(0.9).epsilon(1e-5));
   CHECK(pixel(r, 16, 15) == Approx(0.9 * std::exp(-0.5 / 0.3)).epsilon(1e-4));
   REQUIRE(0.9 * std::exp(-0.5 * 4 / 0.3) < 1.0 / 255);  // premise of the next check
@@ -98,12 +98,12 @@ TEST_CASE("alpha clamps at 0.99, drops below 1/255, and blending stops before T 
   SECTION("opacity 1 is clamped to 0.99") {
     GaussianCloud c;
     add_gaussian(c, at * 5, 1e-6f, 40.0f, Vec3f(1, 1, 1));
-    CHECK(pixel(render(evaluate(c, 0), cam), 7, 7) == Approx(0.99f).epsilon(1e-6));
+    CHECK(pixel(render(frame_at(c, 0), cam), 7, 7) == Approx(0.99f).epsilon(1e-6));
   }
   SECTION("opacity under 1/255 draws nothing") {
     GaussianCloud c;
     add_gaussian(c, at * 5, 0.1f, logit(0.0035f), Vec3f(1, 1, 1));
-    const RenderOutput r = render(evaluate(c, 0), cam);
+    const RenderOutput r = render(frame_at(c, 0), cam);
     for (float v : r.rgb) CHECK(v == 0.0f);
   }
   SECTION("the Gaussian that would take T under 1e-4 is not blended") {
@@ -114,7 +114,7 @@ TEST_CASE("alpha clamps at 0.99, drops below 1/255, and blending stops before T 
     add_gaussian(c, at * 7, 1e-6f, 40.0f, Vec3f(0, 0, 1));
     RenderOptions o;
     o.contributors = true;
-    const RenderOutput r = render(evaluate(c, 0), cam, o);
+    const RenderOutput r = render(frame_at(c, 0), cam, o);
     CHECK(pixel(r, 7, 7, 0) == Approx(0.99).epsilon(1e-6));
     CHECK(pixel(r, 7, 7, 1) == Approx(0.01 * 0.9).epsilon(1e-4));
     CHECK(pixel(r, 7, 7, 2) == 0.0f);
@@ -136,7 +136,7 @@ TEST_CASE("depth, alpha and feature channels blend like colour", "[raster]") {
   o.depth = true;
   o.features = features;
   o.feature_channels = 2;
-  const RenderOutput r = render(evaluate(c, 0), cam, o);
+  const RenderOutput r = render(frame_at(c, 0), cam, o);
   const size_t p = 7 * 16 + 7;
   // Weights 0.5 and 0.5 * 0.5.
   CHECK(r.depth[p] == Approx(0.5 * 3 + 0.25 * 6).epsilon(1e-5));
@@ -147,16 +147,14 @@ TEST_CASE("depth, alpha and feature channels blend like colour", "[raster]") {
 
 TEST_CASE("multi-threaded render equals single-threaded render bit for bit", "[raster]") {
   const SynthScene s = small_synth(5, 200, 150);
-  FrameEvaluator ev(s.scene);
+  FrameSampler ev(s.scene);
   for (int cam : {0, 5, 8}) {
-    RenderOptions one, many;
-    one.threads = 1;
-    many.threads = 4;
-    one.depth = many.depth = true;
-    one.max_weights = many.max_weights = true;
-    const FrameGaussians& g = ev.evaluate(0.5);
-    const RenderOutput a = render(g, s.train[size_t(cam)], one);
-    const RenderOutput b = render(g, s.train[size_t(cam)], many);
+    RenderOptions o;
+    o.depth = true;
+    o.max_weights = true;
+    const FrameGaussians& g = ev.at(0.5);
+    const RenderOutput a = with_threads(1, [&] { return render(g, s.train[size_t(cam)], o); });
+    const RenderOutput b = with_threads(4, [&] { return render(g, s.train[size_t(cam)], o); });
     REQUIRE(a.rgb.size() == b.rgb.size());
     CHECK(std::memcmp(a.rgb.data(), b.rgb.data(), a.rgb.size() * sizeof(float)) == 0);
     CHECK(std::memcmp(a.depth.data(), b.depth.data(), a.depth.size() * sizeof(float)) == 0);
@@ -172,11 +170,9 @@ TEST_CASE("SH degree 2 on the real playbot scene renders view-dependent colour, 
   Camera cam;
   cam.set_fov_x(1.0, 160, 120);
   cam.look_at(Vec3d(0, -0.5, -4), Vec3d(0, 0, 0), Vec3d(0, -1, 0));
-  RenderOptions one, many;
-  one.threads = 1;
-  many.threads = 3;
-  const FrameGaussians g = evaluate(c, 0);
-  const RenderOutput a = render(g, cam, one), b = render(g, cam, many);
+  const FrameGaussians g = frame_at(c, 0);
+  const RenderOutput a = with_threads(1, [&] { return render(g, cam); });
+  const RenderOutput b = with_threads(3, [&] { return render(g, cam); });
   CHECK(a.rendered > 2000);
   CHECK(std::memcmp(a.rgb.data(), b.rgb.data(), a.rgb.size() * sizeof(float)) == 0);
   // Dropping the higher-order terms changes the image: the SH rest is used.
@@ -184,7 +180,7 @@ TEST_CASE("SH degree 2 on the real playbot scene renders view-dependent colour, 
   for (size_t g2 = 0; g2 < dc.size(); ++g2)
     for (int k = 1; k < dc.sh_count(); ++k)
       for (int ch = 0; ch < 3; ++ch) dc.sh[(g2 * dc.sh_count() + k) * 3 + ch] = 0.0f;
-  const RenderOutput d = render(evaluate(dc, 0), cam, one);
+  const RenderOutput d = render(frame_at(dc, 0), cam);
   double diff = 0;
   for (size_t i = 0; i < a.rgb.size(); ++i) diff += std::fabs(a.rgb[i] - d.rgb[i]);
   CHECK(diff > 1.0);
@@ -192,7 +188,7 @@ TEST_CASE("SH degree 2 on the real playbot scene renders view-dependent colour, 
 
 TEST_CASE("per-pixel contributor lists reproduce the rendered colour", "[raster]") {
   const SynthScene s = small_synth(3, 96, 72);
-  const FrameGaussians g = evaluate(s.scene, 0.5);
+  const FrameGaussians g = frame_at(s.scene, 0.5);
   RenderOptions o;
   o.contributors = true;
   const Camera& cam = s.train[8];

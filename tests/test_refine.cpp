@@ -35,7 +35,7 @@ namespace fs = std::filesystem;
 namespace {
 
 std::vector<float> render_rgb(const GaussianCloud& c, const Camera& cam) {
-  return render(evaluate(c, cam.time), cam).rgb;
+  return render(frame_at(c, cam.time), cam).rgb;
 }
 
 /// A trajectory of 3 poses between ring cameras a and b at `frame`, patch frames around it.
@@ -210,7 +210,7 @@ TEST_CASE("rig refiner: the nearest pool camera in tolerance at the view's frame
   CHECK_THROWS_WITH(make_rig_refiner(RigPool{}, o), Catch::Contains("no pool camera"));
   RigOptions bad = o;
   bad.max_angle_degrees = 200;
-  CHECK_THROWS_WITH(make_rig_refiner(pool, bad), Catch::Contains("--rig-max-angle"));
+  CHECK_THROWS_WITH(make_rig_refiner(pool, bad), Catch::Contains("max_angle_degrees"));
 }
 
 TEST_CASE("artifacts: strength 0 is the clean image, otherwise changes are confined to the mask and seeded", "[refine]") {
@@ -332,9 +332,7 @@ TEST_CASE("consistency mask separates oracle artifacts from clean pixels (ROC AU
   ctx.model = &s.scene;  // the model's depth = the truth's: the mask's own quality is measured
   ctx.views = views;
   ctx.image = [&](size_t i) {
-    Image im(views[i].camera.width, views[i].camera.height, 3);
-    im.pixels = render_rgb(s.scene, views[i].camera);
-    return im;
+    return Image(views[i].camera.width, views[i].camera.height, 3, render_rgb(s.scene, views[i].camera));
   };
   ctx.frames = F;
   std::vector<float> score;
@@ -389,22 +387,19 @@ TEST_CASE("weights: co-visibility is D-hat (1 on an unseen moving Gaussian, 0 on
   ctx.model = &c;
   ctx.views = views;
   ctx.image = [&](size_t i) {
-    Image im(64, 48, 3);
-    im.pixels = render_rgb(c, views[i].camera);
-    return im;
+    return Image(64, 48, 3, render_rgb(c, views[i].camera));
   };
   ctx.deficiency = &field;
   ctx.frames = F;
-  Image refined(64, 48, 3);
-  refined.pixels = render_rgb(c, view);
+  const Image refined(64, 48, 3, render_rgb(c, view));
   const ViewWeights w = compute_weights(ctx, refined, view, Weighting::NoConsistency, MaskOptions());
-  const RenderOutput r = render(evaluate(c, view.time), view);
+  const RenderOutput r = render(frame_at(c, view.time), view);
   std::vector<float> mover(c.size(), 0.0f);
   mover.back() = 1.0f;
   RenderOptions only;
   only.features = mover.data();
   only.feature_channels = 1;
-  const std::vector<float> mover_weight = render(evaluate(c, view.time), view, only).features;  // its own α·T per pixel
+  const std::vector<float> mover_weight = render(frame_at(c, view.time), view, only).features;  // its own α·T per pixel
   // Centre pixel: the moving Gaussian at x = 0.2 projects to u = 32 + 60 * 0.2 / 3 = 36.
   const size_t moving_px = size_t(24) * 64 + 36, static_px = size_t(20) * 64 + 22;  // static: the backdrop, 4.5 sigma from the mover
   CHECK(w.covisibility[moving_px] == Approx(mover_weight[moving_px]).margin(1e-4));
@@ -449,15 +444,13 @@ TEST_CASE("sweep mask: a model without the chair hides it from the depth warp, n
   ctx.model = &no_chair;
   ctx.views = views;
   ctx.image = [&](size_t i) {
-    Image im(views[i].camera.width, views[i].camera.height, 3);
-    im.pixels = render_rgb(s.scene, views[i].camera);  // the real photographs show the chair
-    return im;
+    // the real photographs show the chair
+    return Image(views[i].camera.width, views[i].camera.height, 3, render_rgb(s.scene, views[i].camera));
   };
   ctx.frames = F;
   Camera v = interpolate_camera(s.train[4], s.train[5], 0.5);
   v.time = 0.5;
-  Image refined(v.width, v.height, 3);
-  refined.pixels = render_rgb(s.scene, v);  // a perfect refiner
+  const Image refined(v.width, v.height, 3, render_rgb(s.scene, v));  // a perfect refiner
   const std::vector<unsigned char> chair = moving_region(s.scene, v);
   REQUIRE(std::count(chair.begin(), chair.end(), 1) > 50);
   MaskOptions warp, sweep;
@@ -652,7 +645,7 @@ TEST_CASE("cli: finetune with the example refiner, eval, and bad input", "[refin
     return a;
   };
   fails(with({"--weighting", "roma"}), "unknown weighting 'roma'");
-  fails(with({"--refiner", "diffusion"}), "unknown --refiner \"diffusion\"");
+  fails(with({"--refiner", "diffusion"}), "--refiner: unknown refiner 'diffusion'");
   fails(with({"--refiner", "external", "--refiner-command", "denoise"}), "must contain {in} and {out}");
   fails(with({"--refiner", "oracle"}), "missing --truth");
   fails(with({"--train-cameras", "cam04,cam06", "--refiner", "rig"}), "--refiner rig needs --pool-cameras");
@@ -804,7 +797,7 @@ TEST_CASE("oracle support: a training view is all supported, an object no camera
   const std::vector<float> all = support_of(truth, axis_camera(32, 24, 40), 0, 0, join_path(d, "same"), &same);
   CHECK(*std::min_element(all.begin(), all.end()) == 1.0f);
   // With full support the refined image is the ground truth itself (no artifacts here).
-  const std::vector<float> gt = render(evaluate(truth, 0.0), axis_camera(32, 24, 40)).rgb;
+  const std::vector<float> gt = render(frame_at(truth, 0.0), axis_camera(32, 24, 40)).rgb;
   double worst = 0;
   for (size_t i = 0; i < gt.size(); ++i) worst = std::max(worst, double(std::fabs(same.pixels[i] - gt[i])));
   CHECK(worst <= 1.0 / 255 + 1e-6);
@@ -913,7 +906,7 @@ TEST_CASE("bench merge: runs from bench folders and results.csv files make one t
   auto result = [](const std::string& id, uint64_t seed, double interp, double extrap) {
     RunResult r;
     r.id = id;
-    r.group = id == "backbone" ? "control" : "strategy";
+    r.group = id == "backbone" ? ConfigGroup::Control : ConfigGroup::Strategy;
     r.variant = "n3v";
     r.seed = seed;
     r.support = id == "backbone" ? "" : "observed";
@@ -943,7 +936,7 @@ TEST_CASE("bench merge: runs from bench folders and results.csv files make one t
   REQUIRE(back.size() == 3);
   CHECK(back[0].id == "fillgs");
   CHECK(back[0].seed == 1);
-  CHECK(back[0].group == "strategy");
+  CHECK(back[0].group == ConfigGroup::Strategy);
   CHECK(back[0].support == "observed");
   CHECK(back[0].interpolation.psnr == Approx(19.9877).epsilon(1e-6));  // 6 significant digits
   CHECK(back[0].interpolation.ssim == Approx(0.612346).epsilon(1e-6));

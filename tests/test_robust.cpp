@@ -357,3 +357,15 @@ TEST_CASE("images are read by the reader their extension names, and its complain
     CHECK(what.find('\n') == std::string::npos);
   }
 }
+
+TEST_CASE("an image made from given pixels keeps them in place, and a wrong count is one line", "[robust]") {
+  std::vector<float> rgb(2 * 3 * 3);
+  for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = float(i);
+  const Image im(3, 2, 3, rgb);
+  // [y][x][c]: pixel (x = 2, y = 1), channel 1 is value (1·3 + 2)·3 + 1 = 16.
+  CHECK(im.at(2, 1, 1) == 16.0f);
+  CHECK(im.at(0, 0, 0) == 0.0f);
+  CHECK(im.pixels == rgb);
+  CHECK_THROWS_WITH(Image(3, 2, 3, std::vector<float>(17)), Catch::Contains("image: 17 values for 3x2x3"));
+  CHECK_THROWS_WITH(Image(3, -2, 3, std::vector<float>(18)), Catch::Contains("image: 18 values for 3x-2x3"));
+}

@@ -163,7 +163,7 @@ TEST_CASE("Spacetime Gaussians: cubic position, linear rotation, temporal RBF, S
   CHECK(c.static_ids() == std::vector<uint32_t>{1});
   REQUIRE_FALSE(c.notes.empty());
   for (double t : {0.0, 0.3, 1.0}) {
-    const FrameGaussians f = evaluate(c, t);
+    const FrameGaussians f = frame_at(c, t);
     const double d = t * 49.0 / 50.0 - 0.5;  // STG time is frame / D
     CHECK(f.means[0].x() == Approx(d).margin(1e-6));
     CHECK(f.means[0].y() == Approx(2 * d * d).margin(1e-6));
@@ -219,7 +219,7 @@ TEST_CASE("Ex4DGS pair: Catmull-Rom keyframes, slerp, temporal opacity, moving s
   for (double frame : {0.0, 3.0, 8.0, 10.5, 20.0}) {
     INFO("frame " << frame);
     const double t = frame / 20.0;
-    const FrameGaussians f = evaluate(c, t);
+    const FrameGaussians f = frame_at(c, t);
     const double u = (frame + 7) / 5.0;
     const int i = std::clamp(int(std::floor(u)), 1, K - 3);
     const double s = u - i;
@@ -257,7 +257,7 @@ TEST_CASE("fillgs 4D PLY round-trips the synthetic scene exactly", "[io][motion]
   CHECK(c.dynamic_ids == s.scene.dynamic_ids);  // synth puts the chair last, as the format does
   CHECK(c.keyframed.key_count == 7);
   for (double t : {0.0, 0.1, 0.45, 0.8, 1.0}) {
-    const FrameGaussians a = evaluate(s.scene, t), b = evaluate(c, t);
+    const FrameGaussians a = frame_at(s.scene, t), b = frame_at(c, t);
     CHECK(std::memcmp(a.means.data(), b.means.data(), a.means.size() * sizeof(Vec3f)) == 0);
     CHECK(std::memcmp(a.rotations.data(), b.rotations.data(), a.rotations.size() * sizeof(Vec4f)) == 0);
     CHECK(a.opacities == b.opacities);
@@ -280,7 +280,7 @@ TEST_CASE("bake_tracks reproduces any motion at the key times", "[io][motion]") 
   const GaussianCloud r = read_scene(path);
   for (int f = 0; f <= 10; ++f) {
     const double t = f / 10.0;
-    const FrameGaussians a = evaluate(c, t), x = evaluate(r, t);
+    const FrameGaussians a = frame_at(c, t), x = frame_at(r, t);
     CHECK((a.means[1] - x.means[1]).norm() < 1e-6);
     CHECK((a.rotations[1] - x.rotations[1]).norm() < 1e-6);
     CHECK(a.opacities[1] == Approx(x.opacities[1]).epsilon(1e-5));
@@ -317,5 +317,5 @@ TEST_CASE("a scene with no motion has an empty dynamic set", "[io][motion]") {
   CHECK(partition_static_dynamic(c) == 1);
   CHECK(c.motion == MotionModel::Static);
   CHECK(c.dynamic_count() == 0);
-  CHECK(evaluate(c, 1.0).means[0] == Vec3f(0, 0, 1));
+  CHECK(frame_at(c, 1.0).means[0] == Vec3f(0, 0, 1));
 }

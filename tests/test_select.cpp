@@ -34,9 +34,9 @@ struct Fixture {
   ExplorationGrid grid;
   Fixture() {
     views = observed_views(cameras_over_time(synth.train, kFrames), kFrames);
-    FrameEvaluator ev(synth.scene);
+    FrameSampler ev(synth.scene);
     for (const ObservedView& v : views) {
-      std::vector<float> rgb = render(ev.evaluate(v.camera.time), v.camera).rgb;
+      std::vector<float> rgb = render(ev.at(v.camera.time), v.camera).rgb;
       for (float& x : rgb) x = std::round(std::clamp(x, 0.0f, 1.0f) * 255.0f) / 255.0f;
       images.push_back(std::move(rgb));
     }
@@ -249,20 +249,20 @@ TEST_CASE("selection: D falls where a trajectory looked and the next trajectory 
   // Independent replay: D̂ of its views before and after counting them as observations.
   DeficiencyField field(r.initial_tables, o.deficiency_quantile);
   VisibilityEngine e(fx.synth.scene, o.visibility);
-  FrameEvaluator ev(fx.synth.scene);
+  FrameSampler ev(fx.synth.scene);
   auto mean_d = [&](const std::vector<Camera>& views) {
     double s = 0;
     for (const Camera& v : views) {
       const int f = int(std::lround(v.time * (kFrames - 1)));
       const std::vector<float> d = field.values(f, CandidateScore::Deficiency);
-      s += mean_value(render_value_map(ev.evaluate(v.time), v, d.data()));
+      s += mean_value(render_value_map(ev.at(v.time), v, d.data()));
     }
     return s / double(views.size());
   };
   const double before = mean_d(t0.views());
   for (const Camera& v : t0.views()) {
     e.set_time(v.time);
-    field.observe(int(std::lround(v.time * (kFrames - 1))), e.visible_set(v));
+    field.add_view(int(std::lround(v.time * (kFrames - 1))), e.visible_set(v));
   }
   const double after = mean_d(t0.views());
   INFO("mean D̂ of trajectory 0's views: before " << before << ", after " << after);
@@ -363,12 +363,8 @@ TEST_CASE("selection: every strategy returns free, deterministic trajectories wh
     INFO("strategy " << to_string(s));
     SelectOptions o = small_options(s, 2);
     o.time_stride = 3;  // priority on 4 of the 10 frames: the same code, a quarter of the renders
-    o.threads = 1;
-    o.visibility.threads = 1;
-    const SelectResult a = select_viewpoints(fx.input(), o);
-    o.threads = 2;
-    o.visibility.threads = 2;
-    const SelectResult b = select_viewpoints(fx.input(), o);
+    const SelectResult a = with_threads(1, [&] { return select_viewpoints(fx.input(), o); });
+    const SelectResult b = with_threads(2, [&] { return select_viewpoints(fx.input(), o); });
     CHECK(a.trajectories.size() == 2);
     CHECK(same_cameras(a.trajectories, b.trajectories));
     o.seed = 99;
@@ -471,7 +467,7 @@ TEST_CASE("selection: a scene with no motion selects without NaN and says D is z
 TEST_CASE("fillgs explore and fillgs select write their outputs and bad input writes nothing", "[select][cli]") {
   const std::string dir = scratch("select_cli");
   const SynthScene s = small_synth(6, 48, 36, 0.05);
-  write_synthetic_scene(s, join_path(dir, "scene"), null_progress(), 2);
+  write_synthetic_scene(s, join_path(dir, "scene"), null_progress());
   const std::string scene = join_path(dir, "scene/scene.ply"), cams = join_path(dir, "scene/transforms_train.json");
   std::ostringstream out, err;
   REQUIRE(cli::run({"explore", "--scene", scene, "--cameras", cams, "--out", join_path(dir, "ex"), "--divisions", "32"}, out, err) == 0);
@@ -534,7 +530,7 @@ TEST_CASE("co-visibility rules: paper D-hat, static count, motion-discounted den
   // (1 + s / s_q) / (1 + C), at most 1: g1 (1 + 1) / 2, g2 (1 + 0.5) / 4, g3 1.5 -> 1.
   CHECK(near(field.covisibility(0, Covisibility::Density), V{1.0f / 3, 1.0f, 0.375f, 1.0f}));
   // A virtual view that sees g0 and g2 counts as one more observation of both.
-  field.observe(0, {0, 2});
+  field.add_view(0, {0, 2});
   CHECK(near(field.covisibility(0, Covisibility::Density), V{0.25f, 1.0f, 0.3f, 1.0f}));
   CHECK(near(field.covisibility(0, Covisibility::Paper), V{0.0f, 1.0f, 0.2f, 1.0f}));
   for (const char* name : {"paper", "static-count", "density"}) CHECK(to_string(parse_name<Covisibility>(name)) == std::string(name));

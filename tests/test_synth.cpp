@@ -38,8 +38,8 @@ TEST_CASE("synthetic scene: only the chair moves, only between t = 0.2 and 0.8",
   // Training cameras 22.5° apart on a circle.
   const Vec3d c0 = s.train[0].centre(), c1 = s.train[1].centre();
   CHECK(std::acos(c0.head<2>().normalized().dot(c1.head<2>().normalized())) * 180 / kPi == Approx(22.5));
-  const FrameGaussians a = evaluate(s.scene, 0.0), b = evaluate(s.scene, 0.2), m = evaluate(s.scene, 0.5),
-                       e = evaluate(s.scene, 0.8), z = evaluate(s.scene, 1.0);
+  const FrameGaussians a = frame_at(s.scene, 0.0), b = frame_at(s.scene, 0.2), m = frame_at(s.scene, 0.5),
+                       e = frame_at(s.scene, 0.8), z = frame_at(s.scene, 1.0);
   CHECK(a.means == b.means);
   CHECK(e.means == z.means);
   CHECK(a.means != m.means);
@@ -52,13 +52,13 @@ TEST_CASE("synthetic scene: the shelf hides the moving chair from some cameras",
   const SynthScene s = small_synth(11, 160, 120);
   RenderOptions o;
   o.max_weights = true;
-  FrameEvaluator ev(s.scene);
+  FrameSampler ev(s.scene);
   std::vector<std::string> hidden;
   int seen = 0;
   for (const Camera& cam : s.train) {
     bool ever = false;
     for (double t : {0.3, 0.5, 0.7}) {
-      const RenderOutput r = render(ev.evaluate(t), cam, o);
+      const RenderOutput r = render(ev.at(t), cam, o);
       if (chair_max_weight(r, s) >= kMinAlpha) ever = true;
     }
     if (ever) ++seen;
@@ -66,9 +66,9 @@ TEST_CASE("synthetic scene: the shelf hides the moving chair from some cameras",
     UNSCOPED_INFO(cam.name << (ever ? " sees" : " never sees") << " the moving chair");
   }
   // cam00 faces the shelf's front: the chair, behind the back panel, never shows.
-  const RenderOutput front = render(ev.evaluate(0.5), s.train[0], o);
+  const RenderOutput front = render(ev.at(0.5), s.train[0], o);
   CHECK(chair_max_weight(front, s) < kMinAlpha);
-  const RenderOutput back = render(ev.evaluate(0.5), s.train[8], o);
+  const RenderOutput back = render(ev.at(0.5), s.train[8], o);
   CHECK(chair_max_weight(back, s) > 0.5f);
   // The cameras that face the shelf's front (the README names them).
   CHECK(hidden == std::vector<std::string>{"cam00", "cam01", "cam14", "cam15"});
@@ -182,7 +182,7 @@ TEST_CASE("kitchen: the walker and the box move, the pillar hides the walker fro
   const SynthOptions o = kitchen("n3v", 11, 80, 60, 0.04);
   const SynthScene s = make_synthetic_scene(o);
   CHECK(s.scene.dynamic_ids == s.moving_ids);
-  const FrameGaussians a = evaluate(s.scene, 0.0), z = evaluate(s.scene, 1.0);
+  const FrameGaussians a = frame_at(s.scene, 0.0), z = frame_at(s.scene, 1.0);
   double moved = 0;
   for (uint32_t g : s.moving_ids) moved = std::max(moved, double((z.means[g] - a.means[g]).norm()));
   CHECK(moved > 1.5);
@@ -190,12 +190,12 @@ TEST_CASE("kitchen: the walker and the box move, the pillar hides the walker fro
   // frame and seen by every camera at some frame.
   RenderOptions ro;
   ro.max_weights = true;
-  FrameEvaluator ev(s.scene);
+  FrameSampler ev(s.scene);
   int hidden_somewhere = 0;
   for (const Camera& cam : s.train) {
     int seen = 0;
     for (int f = 0; f < o.frames; ++f) {
-      const RenderOutput r = render(ev.evaluate(double(f) / (o.frames - 1)), cam, ro);
+      const RenderOutput r = render(ev.at(double(f) / (o.frames - 1)), cam, ro);
       seen += chair_max_weight(r, s) >= 0.5f;
     }
     INFO(cam.name << " sees the movers well at " << seen << " of " << o.frames << " frames");

@@ -59,7 +59,7 @@ TEST_CASE("the vector kernel's exp stays within its stated relative error on [-8
 TEST_CASE("vector and scalar kernels render the same images of real scenes", "[kernel][data]") {
   for (const char* name : {"playbot_3k.ply", "guitar.ply"}) {
     const GaussianCloud c = read_scene(shared_data() + "/scenes/" + name);
-    const FrameGaussians g = evaluate(c, 0);
+    const FrameGaussians g = frame_at(c, 0);
     for (double angle : {0.0, 2.0}) {
       const Camera cam = orbit_camera(c, angle, 200, 150);
       RenderOptions o;
@@ -88,7 +88,7 @@ TEST_CASE("vector and scalar kernels render the same images of real scenes", "[k
 
 TEST_CASE("vector and scalar kernels list the same contributors", "[kernel]") {
   const GaussianCloud c = read_scene(shared_data() + "/scenes/playbot_3k.ply");
-  const FrameGaussians g = evaluate(c, 0);
+  const FrameGaussians g = frame_at(c, 0);
   const Camera cam = orbit_camera(c, 1.0, 160, 120);
   RenderOptions o;
   o.contributors = true;
@@ -120,7 +120,7 @@ TEST_CASE("vector and scalar backward give the same gradients", "[kernel][grad][
   const GaussianCloud c = read_scene(shared_data() + "/scenes/playbot_3k.ply");
   const ModelParams<float> params = params_from_cloud<float>(c);
   DiffFrame<float> frame;
-  evaluate_params(params, 0.0, &frame);
+  params_at(params, 0.0, &frame);
   const Camera cam = orbit_camera(c, 0.5, 160, 120);
   const size_t P = size_t(cam.width) * cam.height;
   std::vector<float> target(P * 3), weights(P);
@@ -160,15 +160,14 @@ TEST_CASE("vector and scalar backward give the same gradients", "[kernel][grad][
 
 TEST_CASE("the vector kernel's output does not depend on the thread count", "[kernel][data]") {
   const GaussianCloud c = read_scene(shared_data() + "/scenes/guitar.ply");
-  const FrameGaussians g = evaluate(c, 0);
+  const FrameGaussians g = frame_at(c, 0);
   const Camera cam = orbit_camera(c, 1.0, 320, 240);
   std::vector<RenderOutput> out;
   for (int threads : {1, 2, 5}) {
     RenderOptions o;
-    o.threads = threads;
     o.kernel = Kernel::Simd;
     o.max_weights = true;
-    out.push_back(render(g, cam, o));
+    out.push_back(with_threads(threads, [&] { return render(g, cam, o); }));
   }
   for (int k : {1, 2}) {
     CHECK(std::memcmp(out[0].rgb.data(), out[k].rgb.data(), out[0].rgb.size() * sizeof(float)) == 0);

@@ -27,7 +27,7 @@ const std::string& tiny_synth_dir() {
     o.width = 64;
     o.height = 48;
     o.spacing = 0.05;
-    write_synthetic_scene(make_synthetic_scene(o), d, null_progress(), 2);
+    write_synthetic_scene(make_synthetic_scene(o), d, null_progress());
     return d;
   }();
   return dir;
@@ -116,7 +116,6 @@ TEST_CASE("training the tiny synthetic scene with all cameras reaches 24 dB on h
   const Dataset held_out = Dataset::load(dir + "/images", dir + "/transforms_interpolation.json");
   REQUIRE(data.views().size() == 64);
   TrainOptions o = TrainOptions::scaled(600);
-  o.threads = 2;
   Trainer t(data, init_from_points(read_points(dir + "/points.ply")), o);
   const double before = evaluate_split(t.model(), held_out, "views").psnr;
   t.run(600, null_progress());
@@ -145,7 +144,6 @@ TEST_CASE("a resumed checkpoint gives the same parameters as uninterrupted train
   const std::string dir = tiny_synth_dir();
   const Dataset data = Dataset::load(dir + "/images", dir + "/transforms_train.json");
   TrainOptions o = TrainOptions::scaled(60);
-  o.threads = 2;
   o.densify_from = 5;
   o.densify_interval = 10;  // densify and promote in both halves
   o.densify_until = 55;
@@ -228,7 +226,6 @@ TEST_CASE("colour correction: a camera whose images were scaled and shifted gets
   const Dataset data = Dataset::load(dir + "/images", dir + "/transforms_train.json", two);
   REQUIRE(data.rigs() == two.cameras);
   TrainOptions o = TrainOptions::scaled(600);
-  o.threads = 2;
   o.colour_correction = true;
   // View-dependent colour (SH degree > 0) could explain part of a camera's tint as well;
   // with view-independent colour the correction must explain it all.

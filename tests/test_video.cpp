@@ -515,7 +515,7 @@ TEST_CASE("monocular video (--monocular-cycle): one view per frame, cycling thro
   CHECK(frames == std::vector<int>{0, 1, 2, 3, 4, 5, 6});
   o.monocular_cycle = {"3", "10"};  // camera 10 is not in the capture
   CHECK(error_of([&] { Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o); })
-            .find("--monocular-cycle names camera '10', which the dataset does not have") != std::string::npos);
+            .find("the monocular cycle names camera '10', which the dataset does not have") != std::string::npos);
 }
 
 TEST_CASE("N3V frame 0: COLMAP points3D.bin and one image per camera", "[video]") {

@@ -647,14 +647,14 @@ TEST_CASE("incremental rays: only dynamic footprints are probed, and exactly the
       // The rays re-traced, counted independently: every ray of every view and frame whose
       // static answer (traced through the static layer alone) ends after a point where a
       // moving proxy reaches α_min, asked of a tracer with generous bound padding.
-      FrameEvaluator ev(cloud);
+      FrameSampler ev(cloud);
       TracerOptions to;
       to.dilation_padding = dilate ? float(std::sqrt(double(kDilation)) / 60.0 * 20.0) : 0.0f;
-      GaussianTracer tracer(ev.evaluate(0.0), cloud.dynamic_ids, to);
+      GaussianTracer tracer(ev.at(0.0), cloud.dynamic_ids, to);
       uint64_t expected = 0, rays = 0;
       std::vector<TracedHit> hits;
       for (int f = 0; f < F; ++f) {
-        tracer.refit_dynamic(ev.evaluate(times[size_t(f)]));
+        tracer.refit_dynamic(ev.at(times[size_t(f)]));
         for (const Camera& cam : cams) {
           RasterMatch match;
           for (int k = 0; k < 3; ++k) match.axis[k] = float(cam.R(2, k));

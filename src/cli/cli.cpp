@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "fillgs/base/error.hpp"
+#include "fillgs/base/threads.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/image_io.hpp"
 #include "fillgs/train/init.hpp"
@@ -126,7 +127,6 @@ int render_views(const RenderFlags& f, const Invocation& in) {
   const auto t0 = Clock::now();
   const bool fixed_time = in.given("--time");
   RenderOptions ro;
-  ro.threads = in.common.threads;
   ro.rgb = f.channel == Channel::Rgb;
   ro.depth = f.channel == Channel::Depth;
   ro.background = f.background;
@@ -136,7 +136,7 @@ int render_views(const RenderFlags& f, const Invocation& in) {
   const double load_s = seconds_since(t0);
 
   OutputFolder folder(f.out);  // nothing replaces the folder's files unless every view renders
-  FrameEvaluator ev(cloud);
+  FrameSampler ev(cloud);
   TerminalProgress progress(in.err, in.progress());
   progress.start("rendering", cams.size());
   double render_s = 0;
@@ -145,7 +145,7 @@ int render_views(const RenderFlags& f, const Invocation& in) {
   for (const Camera& cam : cams) {
     const double t = fixed_time ? f.time : (cam.has_time() ? cam.time : 0.0);
     const auto tr = Clock::now();
-    const RenderOutput r = render(ev.evaluate(t), cam, ro);
+    const RenderOutput r = render(ev.at(t), cam, ro);
     render_s += seconds_since(tr);
     rendered += r.rendered;
     Image img(cam.width, cam.height, f.channel == Channel::Rgb ? 3 : 1);
@@ -212,7 +212,7 @@ int synth(const SynthFlags& f, const Invocation& in) {
   const SynthScene s = make_synthetic_scene(f.synth);
   TerminalProgress progress(in.err, in.progress());
   OutputFolder folder(f.out);  // a failed or killed run leaves the folder as it was
-  write_synthetic_scene(s, folder.path(), progress, in.common.threads);
+  write_synthetic_scene(s, folder.path(), progress);
   folder.commit();
   in.out << "synthetic scene: " << s.scene.size() << " Gaussians (" << s.scene.dynamic_count() << " moving), " << s.train.size()
          << " rig cameras (" << s.options.rig << ", split: train " << s.split.train.size() << ", interpolation " << s.split.interpolation.size()
@@ -331,7 +331,6 @@ struct ObserveJob {
 ObserveJob observe_job(const ObserveFlags& f, const Invocation& in) {
   ObserveJob job;
   job.options = f.options;
-  job.options.visibility.threads = in.common.threads;
   if (in.given("--hit-cache")) job.options.static_hit_cache_bytes = size_t(f.hit_cache_mb * 1048576.0);
   job.output = f.output;
   job.output.dense_motion_tables = f.tables == MotionTables::Dense;
@@ -480,7 +479,6 @@ int train(const TrainFlags& f, const Invocation& in) {
   // The schedule scales with the iteration count; the flags given override it.
   TrainOptions o = TrainOptions::scaled(iterations);
   o.seed = f.seed;
-  o.threads = in.common.threads;
   for (const auto& [flag, apply] : std::vector<std::pair<const char*, std::function<void()>>>{
            {"--key-interval", [&] { o.key_interval_frames = f.train.key_interval_frames; }},
            {"--max-gaussians", [&] { o.max_gaussians = f.train.max_gaussians; }},
@@ -699,6 +697,7 @@ int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     const std::unique_ptr<CLI::App> app = make_app(*command, common, &action);
     if (!parse_flags(*app, std::vector<std::string>(args.begin() + 1, args.end()), out)) return 0;  // --help
     const KernelChoice kernel(common.kernel);
+    const ThreadLimit threads(common.threads);
     const Invocation in{command->name, *app, common, args, out, err};
     return action(in);
   } catch (const Error& e) {

@@ -20,6 +20,16 @@
 namespace fs = std::filesystem;
 
 namespace fillgs::cli {
+/// What turns a rendered patch into a refined one (--refiner).
+enum class RefinerChoice { Identity, Oracle, External, Rig };
+}  // namespace fillgs::cli
+
+namespace fillgs {
+FILLGS_ENUM_NAMES(cli::RefinerChoice, "refiner", {cli::RefinerChoice::Identity, "identity"}, {cli::RefinerChoice::Oracle, "oracle"},
+                  {cli::RefinerChoice::External, "external"}, {cli::RefinerChoice::Rig, "rig"});
+}  // namespace fillgs
+
+namespace fillgs::cli {
 
 namespace {
 
@@ -38,7 +48,8 @@ void require_fresh(const std::string& dir, const std::string& command) {
 // ------------------------------------------------------------------ finetune
 
 struct FinetuneFlags {
-  std::string model, images, cameras, out, refiner = "identity", refiner_command, truth, confidence;
+  std::string model, images, cameras, out, refiner_command, truth, confidence;
+  RefinerChoice refiner = RefinerChoice::Identity;
   bool paper_schedule = false;
   uint64_t seed = 1;
   double refiner_timeout = 600.0, refined_share = TrainOptions().refined_share;
@@ -73,33 +84,31 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     o.mask.external_dir = f.confidence;
     if (!fs::is_directory(o.mask.external_dir)) in.fail("--confidence ", o.mask.external_dir, " is not a folder");
   }
-  o.threads = in.common.threads;
   o.work_dir = join_path(f.out, "work");
 
-  const std::string& kind = f.refiner;
+  const RefinerChoice kind = f.refiner;
   std::unique_ptr<Refiner> refiner;
   std::unique_ptr<GaussianCloud> truth;
   std::unique_ptr<Dataset> pool_data;
-  if (kind == "identity") {
+  if (kind == RefinerChoice::Identity) {
     refiner = make_identity_refiner();
-  } else if (kind == "oracle") {
+  } else if (kind == RefinerChoice::Oracle) {
     if (!in.given("--truth")) in.fail("missing --truth");
     truth = std::make_unique<GaussianCloud>(read_scene(f.truth, f.read));
     OracleOptions oo = f.oracle;
     oo.artifacts.seed = o.train.seed;
     for (const TrainView& v : data.views()) oo.observers.push_back(v.camera);
     oo.frames = data.frames();
-    oo.threads = o.threads;
     refiner = make_oracle_refiner(*truth, oo);
-  } else if (kind == "external") {
+  } else if (kind == RefinerChoice::External) {
     if (!in.given("--refiner-command")) in.fail("missing --refiner-command");
     refiner = make_external_refiner(f.refiner_command, f.refiner_timeout);
-  } else if (kind == "rig") {
+  } else {  // RefinerChoice::Rig
     // The pool: rig cameras neither trained on nor held out, every frame the training views have.
     DatasetOptions po = f.data;
     po.cameras = f.pool_cameras;
     po.monocular_cycle.clear();
-    if (po.cameras.empty()) in.fail("--refiner rig needs --pool-cameras a,b,.. (rig cameras neither trained on nor held in.out)");
+    if (po.cameras.empty()) in.fail("--refiner rig needs --pool-cameras a,b,.. (rig cameras neither trained on nor held out)");
     for (const std::string& c : po.cameras)
       for (const std::string& t : data.rigs())
         if (c == t) in.fail("--pool-cameras names ", c, ", a training camera");
@@ -111,8 +120,6 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     pool.frame_count = pool_data->frames();
     pool.image = [d = pool_data.get()](size_t i) { return d->image(i); };
     refiner = make_rig_refiner(std::move(pool), f.rig);
-  } else {
-    in.fail("unknown --refiner \"", kind, "\" (identity, oracle, external, rig)");
   }
   require_fresh(f.out, "finetune");
   make_directories(f.out);
@@ -153,7 +160,7 @@ Action declare_finetune(CLI::App& app) {
   add_choice(app, "--mask", o.mask.method, "how consistency with the real views is measured");
   add_choice(app, "--covis", o.mask.covisibility, "how the co-visibility weight reads the observation tables");
   add_text(app, "--confidence", f->confidence, "consistency maps computed elsewhere (a folder)", "DIR");
-  add_text(app, "--refiner", f->refiner, "identity, oracle (the ground truth), external (a command) or rig (real pool cameras)", "NAME");
+  add_choice(app, "--refiner", f->refiner, "oracle: the ground truth; external: a command; rig: real pool cameras");
   add_text(app, "--refiner-command", f->refiner_command, "external: the command, with {in} and {out}", "CMD");
   add_number(app, "--refiner-timeout", f->refiner_timeout, "external: seconds per patch", positive());
   add_text(app, "--truth", f->truth, "oracle: the ground-truth scene", "PATH");
@@ -177,7 +184,7 @@ namespace {
 struct EvalFlags {
   std::string model, images, out, truth, lpips, colour_correction;
   std::vector<std::string> cameras, splits;
-  int stride = 1;
+  int view_stride = 1;
   bool no_renders = false, ls_gain = false;
   DatasetOptions data;
   SceneReadOptions read;
@@ -195,8 +202,7 @@ int eval(const EvalFlags& f, const Invocation& in) {
   std::unique_ptr<GaussianCloud> truth;
   if (in.given("--truth")) truth = std::make_unique<GaussianCloud>(read_scene(f.truth, f.read));
   EvalOptions eo;
-  eo.stride = f.stride;
-  eo.threads = in.common.threads;
+  eo.view_stride = f.view_stride;
   eo.truth = truth.get();
   eo.lpips_onnx = f.lpips;
   if (in.given("--colour-correction")) eo.colour = read_colour_correction(f.colour_correction);
@@ -250,12 +256,10 @@ BenchSetup bench_setup(const SetupFlags& s, const Invocation& in) {
   if (in.given("--height")) e.height = s.height;
   if (in.given("--frames")) e.frames = s.frames;
   if (in.given("--backbone-iterations")) e.backbone_iterations = s.backbone_iterations;
-  e.threads = in.common.threads;
   FinetuneOptions& f = b.finetune;
   f.iterations = in.given("--iterations") ? s.iterations : s.smoke ? 60 : f.iterations;
   f.select_every = in.given("--select-every") ? s.select_every : s.smoke ? 30 : f.select_every;
   f.train = fine_tune_schedule(f.iterations, motion_rates(in, s.rates));
-  f.threads = e.threads;
   f.select.time_stride = s.time_stride;
   f.select.seed = 1;
   return b;
@@ -312,12 +316,21 @@ int bench(const BenchFlags& f, const Invocation& in) {
   for (const std::string& s : in.given("--seeds") ? f.seeds : std::vector<std::string>(smoke ? std::vector<std::string>{"1"} : std::vector<std::string>{"1", "2", "3"}))
     seeds.push_back(uint64_t(parse_count(s, size_t(1) << 62, "fillgs bench", "--seeds value")));
   std::vector<RunConfig> configs = standard_configs(f.baseline_weighting, f.artifact_strength, supports_of(f.support));
-  const std::vector<std::string>&only = f.only, &ids = f.configs;
+  std::vector<ConfigGroup> only;
+  for (const std::string& g : f.only) {
+    try {
+      only.push_back(parse_name<ConfigGroup>(g));
+    } catch (const Error& e) {
+      in.fail("--only: ", e.what());
+    }
+  }
+  const std::vector<std::string>& ids = f.configs;
   std::vector<RunConfig> chosen;
   for (const RunConfig& c : configs) {
     const bool by_group = only.empty() || std::count(only.begin(), only.end(), c.group);
     const bool by_id = ids.empty() || std::count(ids.begin(), ids.end(), c.id);
-    if (by_group && by_id && (!smoke || c.group == "control" || c.group == "strategy" || c.group == "upper")) chosen.push_back(c);
+    const bool in_smoke = c.group == ConfigGroup::Control || c.group == ConfigGroup::Strategy || c.group == ConfigGroup::Upper;
+    if (by_group && by_id && (!smoke || in_smoke)) chosen.push_back(c);
   }
   if (chosen.empty()) in.fail("--only/--configs select no configuration");
   make_directories(root);
@@ -338,8 +351,8 @@ int bench(const BenchFlags& f, const Invocation& in) {
       if (fs::exists(bb_path)) {
         bb = load_result(bb_path);
       } else {
-        bb = evaluate_model(p, p.backbone, "backbone", eo.threads, "", progress);
-        bb.group = "control";
+        bb = evaluate_model(p, p.backbone, "backbone", "", progress);
+        bb.group = ConfigGroup::Control;
         save_result(bb_path, bb);
       }
       in.out << sc << " seed " << seed << " backbone: interpolation " << fixed(bb.interpolation.psnr) << " dB, extrapolation "
@@ -386,8 +399,8 @@ int run_pipeline(const RunFlags& f, const Invocation& in) {
       << eo.frames << " frames): train a backbone on 2 cameras, then fine-tune it without generated views, with FillGS's and with "
       << baseline << "'s viewpoints (oracle refiner, " << to_string(support) << " support, artifacts) -> " << dir << "\n";
   const PreparedScene p = prepare_scene(dir, setup.scene, progress, in.out);
-  RunResult bb = evaluate_model(p, p.backbone, "backbone", eo.threads, "", progress);
-  bb.group = "control";
+  RunResult bb = evaluate_model(p, p.backbone, "backbone", "", progress);
+  bb.group = ConfigGroup::Control;
   std::vector<RunResult> results;
   std::vector<std::string> run_ids;
   for (const RunConfig& c : standard_configs(Weighting::ExploreGS, kRunArtifactStrength, {support}))
@@ -408,7 +421,6 @@ int run_pipeline(const RunFlags& f, const Invocation& in) {
   report.artifact_strength = kRunArtifactStrength;
   report.command = "fillgs";
   for (const std::string& s : in.args) report.command += " " + s;  // args[0] is "run"
-  report.threads = eo.threads;
   write_run_report(dir, report);
   in.out << "\nmethod           interp PSNR (moving)   extrap PSNR (moving)   train PSNR\n";
   for (const RunResult& r : all) {
@@ -451,7 +463,7 @@ Action declare_eval(CLI::App& app) {
   add_flag(app, "--ls-gain", f->ls_gain, "also PSNR after a least-squares gain per image");
   add_text(app, "--out", f->out, "the folder for metrics.json and renders", "DIR");
   add_flag(app, "--no-renders", f->no_renders, "no renders in --out");
-  add_number(app, "--stride", f->stride, "every k-th view of each split", at_least(1));
+  add_number(app, "--view-stride", f->view_stride, "every k-th view of each split", at_least(1));
   add_dataset_flags(app, f->data, "--select-cameras");
   add_scene_flags(app, f->read);
   return bind(f, eval);
@@ -462,7 +474,7 @@ Action declare_bench(CLI::App& app) {
   add_text(app, "--out", f->out, "the benchmark's folder (resumable)", "DIR");
   add_list(app, "--scenes,--variants", f->scenes, "built-in scenes: n3v, technicolor, chair, orbit, lift");
   add_list(app, "--seeds", f->seeds, "seeds (default 1,2,3; smoke 1)");
-  add_list(app, "--only", f->only, "only these groups of configurations");
+  add_list(app, "--only", f->only, "only these groups of configurations (" + name_list<ConfigGroup>() + ")");
   add_list(app, "--configs", f->configs, "only these configurations");
   add_number(app, "--artifact-strength", f->artifact_strength, "strength of the oracle's simulated refiner artifacts", at_least(0));
   add_choice(app, "--baseline-weighting", f->baseline_weighting, "the weights the baseline strategies fine-tune with");

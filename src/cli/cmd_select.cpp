@@ -43,7 +43,6 @@ int explore(const ExploreFlags& f, const Invocation& in) {
   TerminalProgress progress(in.err, in.progress());
   ExplorationStats stats;
   ExplorationOptions go = f.grid;
-  go.threads = in.common.threads;
   const ExplorationGrid grid = build_exploration_grid(cloud, cams, sweep, go, &stats, progress);
   OutputFolder folder(f.out);  // a failed or killed run leaves the folder as it was
   write_exploration(folder.path(), grid, cams, stats, seconds_since(t0));
@@ -70,8 +69,6 @@ struct SelectFlags {
 int select_views(const SelectFlags& f, const Invocation& invocation) {
   const auto t0 = Clock::now();
   SelectOptions o = f.select;
-  o.threads = invocation.common.threads;
-  o.visibility.threads = o.threads;
   check_selection(invocation, o);
 
   // Inputs, all read before anything is written.
@@ -102,7 +99,6 @@ int select_views(const SelectFlags& f, const Invocation& invocation) {
   ExplorationStats gstats;
   std::unique_ptr<ExplorationGrid> grid;
   ExplorationOptions go = f.grid_options;
-  go.threads = o.threads;
   if (invocation.given("--grid")) grid = std::make_unique<ExplorationGrid>(ExplorationGrid::read(f.grid));
   else grid = std::make_unique<ExplorationGrid>(build_exploration_grid(cloud, cams, {}, go, &gstats, progress));
   in.grid = grid.get();

@@ -14,15 +14,14 @@
 
 namespace fillgs {
 
-std::vector<unsigned char> moving_region(const GaussianCloud& truth, const Camera& camera, int threads) {
+std::vector<unsigned char> moving_region(const GaussianCloud& truth, const Camera& camera) {
   std::vector<float> moving(truth.size(), 0.0f);
   for (uint32_t g : truth.dynamic_ids) moving[g] = 1.0f;
   RenderOptions ro;
   ro.rgb = false;
   ro.features = moving.data();
   ro.feature_channels = 1;
-  ro.threads = threads;
-  const RenderOutput r = render(evaluate(truth, camera.time), camera, ro);
+  const RenderOutput r = render(frame_at(truth, camera.time), camera, ro);
   std::vector<unsigned char> mask(r.alpha.size(), 0);
   for (size_t p = 0; p < mask.size(); ++p) mask[p] = r.alpha[p] > 0 && r.features[p] >= 0.5f * r.alpha[p];
   return mask;
@@ -70,17 +69,16 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
   std::unique_ptr<LpipsNetwork> lpips;
   if (!o.lpips_onnx.empty()) lpips = std::make_unique<LpipsNetwork>(o.lpips_onnx), m.lpips = 0;
   if (!o.save_dir.empty()) make_directories(o.save_dir);
-  FrameEvaluator ev(model);
+  FrameSampler ev(model);
   RenderOptions ro;
   ro.background = o.background;
-  ro.threads = o.threads;
   double moving_se = 0;
-  const size_t step = size_t(std::max(1, o.stride));
+  const size_t step = size_t(std::max(1, o.view_stride));
   progress.start("evaluate " + name, (split.views().size() + step - 1) / step);
   for (size_t v = 0; v < split.views().size(); v += step) {
     const TrainView& view = split.views()[v];
     const int W = view.camera.width, H = view.camera.height;
-    RenderOutput out = render(ev.evaluate(view.camera.time), view.camera, ro);
+    RenderOutput out = render(ev.at(view.camera.time), view.camera, ro);
     const std::vector<float> target = split.image(v);
     for (const ColourCorrection& c : o.colour)
       if (c.rig == view.rig)
@@ -102,7 +100,7 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
     if (lpips) m.lpips += lpips->distance(out.rgb.data(), target.data(), W, H);
     if (o.moving && (o.truth || split.has_masks())) {
       // The moving region: the truth's moving Gaussians, else the dataset's foreground masks.
-      const std::vector<unsigned char> mask = o.truth ? moving_region(*o.truth, view.camera, o.threads) : split.mask(v);
+      const std::vector<unsigned char> mask = o.truth ? moving_region(*o.truth, view.camera) : split.mask(v);
       for (size_t p = 0; p < mask.size(); ++p) {
         if (!mask[p]) continue;
         ++m.moving_pixels;
@@ -113,8 +111,7 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
       }
     }
     if (!o.save_dir.empty()) {
-      Image im(W, H, 3);
-      im.pixels = out.rgb;
+      const Image im(W, H, 3, out.rgb);
       std::string file = view.camera.name;
       for (char& c : file)
         if (c == '/') c = '_';
@@ -137,11 +134,10 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
   return m;
 }
 
-SplitMetrics evaluate_training_sample(const GaussianCloud& model, const Dataset& data, const Vec3f& background, int threads) {
+SplitMetrics evaluate_training_sample(const GaussianCloud& model, const Dataset& data, const Vec3f& background) {
   EvalOptions o;
-  o.stride = std::max<int>(1, int(data.views().size() / 32));
+  o.view_stride = std::max<int>(1, int(data.views().size() / 32));
   o.background = background;
-  o.threads = threads;
   o.moving = false;
   return evaluate_split(model, data, "train", o);
 }

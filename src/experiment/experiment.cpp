@@ -81,7 +81,7 @@ SplitMetrics metrics_from(const json& j, const std::string& split) {
 
 json result_json(const RunResult& r) {
   return {{"id", r.id},
-          {"group", r.group},
+          {"group", to_string(r.group)},
           {"variant", r.variant},
           {"seed", r.seed},
           {"interpolation", metrics_json(r.interpolation)},
@@ -105,7 +105,7 @@ json result_json(const RunResult& r) {
 RunResult result_from(const json& j) {
   RunResult r;
   r.id = j.at("id");
-  r.group = j.at("group");
+  r.group = parse_name<ConfigGroup>(j.at("group").get<std::string>());
   r.variant = j.at("variant");
   r.seed = j.at("seed");
   r.interpolation = metrics_from(j.at("interpolation"), "interpolation");
@@ -140,7 +140,6 @@ std::string fmt(double x, int digits = 2) {
 GaussianCloud train_backbone(const Dataset& data, const std::string& points, const ExperimentOptions& o, Progress& progress) {
   TrainOptions to = TrainOptions::scaled(o.backbone_iterations);
   to.seed = o.seed;
-  to.threads = o.threads;
   Trainer trainer(data, init_from_points(read_points(points)), to);
   trainer.run(o.backbone_iterations, progress);
   return trainer.model();
@@ -231,7 +230,11 @@ std::vector<RunResult> read_results_csv(const std::string& path) {
     r.variant = f[0];
     r.seed = uint64_t(count(1));
     r.id = f[2];
-    r.group = f[3];
+    try {
+      r.group = parse_name<ConfigGroup>(f[3]);
+    } catch (const Error& e) {
+      throw_error(path, ": ", where, " column 4: ", e.what());
+    }
     r.support = f[4];
     r.interpolation.split = "interpolation", r.extrapolation.split = "extrapolation", r.train.split = "train";
     r.interpolation.psnr = num(5), r.interpolation.ssim = num(6), r.interpolation.psnr_moving = num(7);
@@ -345,12 +348,12 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& op
   if (fs::exists(stamp_path)) {
     const json old = read_json_file(stamp_path);
     if (old != stamp)
-      throw_error(stamp_path, ": this folder holds a run made with other options (", old.dump(), "); use another --out");
+      throw_error(stamp_path, ": this folder holds a run made with other options (", old.dump(), "); use another folder");
   }
   make_directories(p.dir);
   p.reused_scene = fs::exists(join_path(scene_dir, "synth.json")) && fs::exists(stamp_path);
   if (!p.reused_scene) {
-    write_synthetic_scene(p.synth, scene_dir, progress, o.threads);
+    write_synthetic_scene(p.synth, scene_dir, progress);
     write_file_atomically(stamp_path, stamp.dump(1) + "\n");
     p.seconds_synth = seconds_since(t0);
     log << "scene " << o.scene_name() << " (seed " << o.seed << "): " << p.synth.scene.size() << " Gaussians, " << p.synth.scene.dynamic_count()
@@ -392,7 +395,7 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
   for (size_t si = 0; si < supports.size(); ++si) {
     const OracleSupport support = supports[si];
     const std::string suffix = si == 0 ? "" : std::string("@") + to_string(support);
-    auto add = [&](const std::string& id, const std::string& group, Strategy s, Weighting w, double a, int k) {
+    auto add = [&](const std::string& id, ConfigGroup group, Strategy s, Weighting w, double a, int k) {
       RunConfig c;
       c.id = id + suffix;
       c.group = group;
@@ -404,12 +407,12 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
       out.push_back(c);
       return &out.back();
     };
-    add("no-refinement", "control", Strategy::FillGS, Weighting::None, strength, 0);
-    for (Strategy s : values_of<Strategy>()) add(to_string(s), "strategy", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, strength, 5);
+    add("no-refinement", ConfigGroup::Control, Strategy::FillGS, Weighting::None, strength, 0);
+    for (Strategy s : values_of<Strategy>()) add(to_string(s), ConfigGroup::Strategy, s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, strength, 5);
     const char* ablations[] = {"no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring",
                                "no-global",          "count-only",    "speed-only"};
     for (const char* a : ablations) {
-      RunConfig* c = add(std::string("fillgs.") + a, "ablation", Strategy::FillGS, Weighting::FillGS, strength, 5);
+      RunConfig* c = add(std::string("fillgs.") + a, ConfigGroup::Ablation, Strategy::FillGS, Weighting::FillGS, strength, 5);
       const std::string n = a;
       c->select.no_start_selection = n == "no-start-selection";
       c->select.no_error_term = n == "no-error-term";
@@ -421,36 +424,36 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
     }
     for (Weighting w : {Weighting::None, Weighting::NoConsistency, Weighting::NoCovisibility, Weighting::Enhancer3DGS, Weighting::ExploreGS,
                         Weighting::UA4DGS})
-      add(std::string("fillgs.w-") + to_string(w), "weighting", Strategy::FillGS, w, strength, 5);
+      add(std::string("fillgs.w-") + to_string(w), ConfigGroup::Weighting, Strategy::FillGS, w, strength, 5);
     // fillgs's own options beyond the paper: model-independent sweep matching, co-visibility rules
     // that weigh static content by its observation density (static-count, density).
-    add("fillgs.m-sweep", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.method = MaskMethod::Sweep;
-    add("fillgs.covis-static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.covisibility =
+    add("fillgs.m-sweep", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.method = MaskMethod::Sweep;
+    add("fillgs.covis-static-count", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.covisibility =
         Covisibility::StaticCount;
-    add("fillgs.covis-density", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.covisibility = Covisibility::Density;
+    add("fillgs.covis-density", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.covisibility = Covisibility::Density;
     {
-      RunConfig* c = add("fillgs.sweep+static-count", "weighting", Strategy::FillGS, Weighting::FillGS, strength, 5);
+      RunConfig* c = add("fillgs.sweep+static-count", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5);
       c->mask.method = MaskMethod::Sweep;
       c->mask.covisibility = Covisibility::StaticCount;
     }
     // fillgs's option beyond the paper: starts of one round whose patches do not overlap on
     // a camera; with FillGS's weights and with none (to see the views without the weights).
-    add("fillgs.spread-starts", "ablation", Strategy::FillGS, Weighting::FillGS, strength, 5)->select.spread_starts = true;
-    add("fillgs.w-none.spread-starts", "weighting", Strategy::FillGS, Weighting::None, strength, 5)->select.spread_starts = true;
+    add("fillgs.spread-starts", ConfigGroup::Ablation, Strategy::FillGS, Weighting::FillGS, strength, 5)->select.spread_starts = true;
+    add("fillgs.w-none.spread-starts", ConfigGroup::Weighting, Strategy::FillGS, Weighting::None, strength, 5)->select.spread_starts = true;
     // ... and candidates scored by the D̂ they see (sum over their visible set), unweighted.
-    add("fillgs.w-none.gain-score", "weighting", Strategy::FillGS, Weighting::None, strength, 5)->select.score_gain = true;
+    add("fillgs.w-none.gain-score", ConfigGroup::Weighting, Strategy::FillGS, Weighting::None, strength, 5)->select.score_gain = true;
     {
-      RunConfig* c = add("fillgs.w-none.spread+gain", "weighting", Strategy::FillGS, Weighting::None, strength, 5);
+      RunConfig* c = add("fillgs.w-none.spread+gain", ConfigGroup::Weighting, Strategy::FillGS, Weighting::None, strength, 5);
       c->select.spread_starts = true;
       c->select.score_gain = true;
     }
-    for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), "budget", Strategy::FillGS, Weighting::FillGS, strength, k);
+    for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), ConfigGroup::Budget, Strategy::FillGS, Weighting::FillGS, strength, k);
     for (Strategy s : values_of<Strategy>())
-      add(std::string(to_string(s)) + ".clean", "refiner", s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);
+      add(std::string(to_string(s)) + ".clean", ConfigGroup::Refiner, s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);
   }
   RunConfig tv;
   tv.id = "upper.test-views";
-  tv.group = "upper";
+  tv.group = ConfigGroup::Upper;
   tv.kind = RunKind::TestViews;
   tv.weighting = Weighting::None;
   tv.artifact_strength = 0;
@@ -464,7 +467,7 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
   return out;
 }
 
-RunResult evaluate_model(const PreparedScene& p, const GaussianCloud& model, const std::string& id, int threads, const std::string& save_dir,
+RunResult evaluate_model(const PreparedScene& p, const GaussianCloud& model, const std::string& id, const std::string& save_dir,
                          Progress& progress) {
   const auto t0 = Clock::now();
   RunResult r;
@@ -472,7 +475,6 @@ RunResult evaluate_model(const PreparedScene& p, const GaussianCloud& model, con
   r.variant = p.options.scene_name();
   r.seed = p.options.seed;
   EvalOptions eo;
-  eo.threads = threads;
   eo.truth = &p.synth.scene;
   eo.save_dir = save_dir.empty() ? "" : join_path(save_dir, "interpolation");
   r.interpolation = evaluate_split(model, *p.interpolation, "interpolation", eo, progress);
@@ -497,7 +499,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
     const json old = read_json_file(schedule_path);
     if (old != schedule)
       throw_error(schedule_path, ": run ", c.id, " was made with another fine-tuning schedule (", old.dump(), ", now ", schedule.dump(),
-                  "); use another --out");
+                  "); use another folder");
   }
   if (fs::exists(result_path)) {
     RunResult r = load_result(result_path);
@@ -513,7 +515,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
     const Dataset all = Dataset::load(p.scene_dir(), join_path(p.scene_dir(), "transforms_train.json"));
     const GaussianCloud model = train_backbone(all, join_path(p.scene_dir(), "points.ply"), p.options, progress);
     const double train_s = seconds_since(t0);
-    RunResult r = evaluate_model(p, model, c.id, base.threads, "", progress);
+    RunResult r = evaluate_model(p, model, c.id, "", progress);
     r.group = c.group;
     r.seconds_train = train_s;
     r.seconds_total = seconds_since(t0);
@@ -534,12 +536,11 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   if (c.kind == RunKind::TestViews) {
     // Clean ground truth at every test camera and frame, weight 1: what no selection can beat.
     RenderOptions ro;
-    ro.threads = base.threads;
-    FrameEvaluator truth(p.synth.scene);
+    FrameSampler truth(p.synth.scene);
     for (const Dataset* split : {p.interpolation.get(), p.extrapolation.get()})
       for (const TrainView& v : split->views()) {
         const size_t P = size_t(v.camera.width) * size_t(v.camera.height);
-        fo.extra_views.push_back({v.camera, render(truth.evaluate(v.camera.time), v.camera, ro).rgb, std::vector<float>(P, 1.0f)});
+        fo.extra_views.push_back({v.camera, render(truth.at(v.camera.time), v.camera, ro).rgb, std::vector<float>(P, 1.0f)});
       }
     // Clean images are as good as real ones: every view, real or test, is drawn equally
     // often (with the generated views' 30% share each of the 260 n3v test views was drawn
@@ -553,11 +554,10 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   oo.support = c.support;
   for (const TrainView& v : p.train->views()) oo.observers.push_back(v.camera);
   oo.frames = F;
-  oo.threads = base.threads;
   SupportStats stats;
   const std::unique_ptr<Refiner> refiner = make_oracle_refiner(p.synth.scene, oo, &stats);
   const FinetuneResult fr = finetune(*p.train, p.backbone, *refiner, fo, progress);
-  RunResult r = evaluate_model(p, fr.model, c.id, base.threads, "", progress);
+  RunResult r = evaluate_model(p, fr.model, c.id, "", progress);
   r.group = c.group;
   r.trajectories = 0;
   if (c.kind == RunKind::Finetune && c.trajectories > 0) {
@@ -636,7 +636,7 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   std::ostringstream csv;
   csv << kResultsCsvHeader << "\n";
   for (const RunResult& r : results)
-    csv << r.variant << "," << r.seed << "," << r.id << "," << r.group << "," << r.support << "," << r.interpolation.psnr << "," << r.interpolation.ssim
+    csv << r.variant << "," << r.seed << "," << r.id << "," << to_string(r.group) << "," << r.support << "," << r.interpolation.psnr << "," << r.interpolation.ssim
         << "," << r.interpolation.psnr_moving << "," << r.extrapolation.psnr << "," << r.extrapolation.ssim << "," << r.extrapolation.psnr_moving
         << "," << r.train.psnr << "," << r.trajectories << "," << r.views_added << "," << r.mean_weight << "," << r.support_share << ","
         << r.refine_failures << "," << r.seconds_select << "," << r.seconds_refine << "," << r.seconds_weights << "," << r.seconds_train << ","
@@ -646,7 +646,8 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   // Mean and standard deviation over seeds, per scene and configuration, in first-seen order.
   constexpr int kValues = 10;  // ip is im ep es em tp weight trajectories support
   struct Mean {
-    std::string id, group, variant, support;
+    std::string id, variant, support;
+    ConfigGroup group = ConfigGroup::Control;
     int n = 0;
     Moments v[kValues];
     double t[5] = {};
@@ -684,20 +685,20 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   md << "\nPSNR in dB. \"moving\": PSNR over the pixels of the moving objects (ground truth). Train: PSNR on the training cameras. "
         "Oracle support: \"observed\" restores only what the training cameras saw, \"full\" the ground truth everywhere. "
         "\"supported\": share of the refined pixels the observations support.\n\n";
-  const char* groups[][2] = {{"control", "Without generated views"},
-                             {"upper", "Upper bounds"},
-                             {"strategy", "Viewpoint selection strategies (Table 1 of the paper)"},
-                             {"ablation", "FillGS selection ablations (Table 3 of the paper)"},
-                             {"weighting", "Fine-tuning weights (Table 4 of the paper)"},
-                             {"budget", "Trajectory budget per round"},
-                             {"refiner", "Clean oracle (no generation artifacts)"}};
-  auto in_group = [](const Mean& m, const std::string& g) { return m.group == g || (g == "control" && m.id == "backbone"); };
+  const std::pair<ConfigGroup, const char*> groups[] = {{ConfigGroup::Control, "Without generated views"},
+                                                      {ConfigGroup::Upper, "Upper bounds"},
+                                                      {ConfigGroup::Strategy, "Viewpoint selection strategies (Table 1 of the paper)"},
+                                                      {ConfigGroup::Ablation, "FillGS selection ablations (Table 3 of the paper)"},
+                                                      {ConfigGroup::Weighting, "Fine-tuning weights (Table 4 of the paper)"},
+                                                      {ConfigGroup::Budget, "Trajectory budget per round"},
+                                                      {ConfigGroup::Refiner, "Clean oracle (no generation artifacts)"}};
+  auto in_group = [](const Mean& m, ConfigGroup g) { return m.group == g || (g == ConfigGroup::Control && m.id == "backbone"); };
   for (const auto& g : groups) {
-    if (std::none_of(means.begin(), means.end(), [&](const Mean& m) { return in_group(m, g[0]); })) continue;
-    md << "## " << g[1] << "\n\n| Scene | Method | oracle | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | weight | supported | runs |\n"
+    if (std::none_of(means.begin(), means.end(), [&](const Mean& m) { return in_group(m, g.first); })) continue;
+    md << "## " << g.second << "\n\n| Scene | Method | oracle | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | weight | supported | runs |\n"
        << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const Mean& m : means) {
-      if (!in_group(m, g[0])) continue;
+      if (!in_group(m, g.first)) continue;
       md << "| " << m.variant << " | " << m.id << " | " << (m.support.empty() ? "–" : m.support) << " | " << cell(m, 0, 2) << " | " << cell(m, 1, 3)
          << " | " << cell(m, 2, 2) << " | " << cell(m, 3, 2) << " | " << cell(m, 4, 3) << " | " << cell(m, 5, 2) << " | " << cell(m, 6, 2) << " | "
          << fmt(m.mean(7), 3) << " | " << (m.support.empty() ? "–" : fmt(100 * m.mean(9), 1) + "%") << " | " << m.n << " |\n";
@@ -710,7 +711,7 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
           "standard deviation over the seeds both ran. Ablation and weighting rows read as the paper's Tables 3 and 4: what the component "
           "is worth.\n\n| Scene | Method | group | Interp ΔPSNR | moving Δ | Extrap ΔPSNR | moving Δ | seeds |\n|---|---|---|---|---|---|---|---|\n";
     for (const PairedDifference& d : paired) {
-      md << "| " << d.variant << " | " << d.id << " | " << d.group;
+      md << "| " << d.variant << " | " << d.id << " | " << to_string(d.group);
       for (int j = 0; j < 4; ++j) md << " | " << fmt(d.mean[j], 2) << (d.seeds > 1 ? " ± " + fmt(d.sd[j], 2) : "");
       md << " | " << d.seeds << " |\n";
     }
@@ -728,7 +729,7 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   std::vector<double> interp, extrap;
   for (const Mean& m : means)
     if (m.variant == plotted && m.id.find('@') == std::string::npos &&
-        (m.group == "strategy" || m.group == "control" || m.group == "upper" || m.id == "backbone"))
+        (m.group == ConfigGroup::Strategy || m.group == ConfigGroup::Control || m.group == ConfigGroup::Upper || m.id == "backbone"))
       names.push_back(m.id), interp.push_back(m.mean(0)), extrap.push_back(m.mean(3));
   if (!names.empty()) {
     write_bar_chart_png(join_path(root, "psnr_interpolation.png"), names, interp, {"interpolation PSNR per strategy (" + plotted + ")", "", "PSNR (dB)"});
@@ -736,7 +737,7 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   }
   ScatterSeries bi{"interpolation", {}, {}, {}}, be{"extrapolation", {}, {}, {}};
   for (const Mean& m : means)
-    if (m.variant == plotted && m.id.find('@') == std::string::npos && (m.group == "budget" || m.id == "fillgs")) {
+    if (m.variant == plotted && m.id.find('@') == std::string::npos && (m.group == ConfigGroup::Budget || m.id == "fillgs")) {
       bi.x.push_back(m.mean(8)), bi.y.push_back(m.mean(0));
       be.x.push_back(m.mean(8)), be.y.push_back(m.mean(3));
     }
@@ -774,7 +775,7 @@ void write_run_report(const std::string& dir, const RunReportInput& in) {
   for (const auto* split : {in.scene->extrapolation.get(), in.scene->interpolation.get()}) {
     size_t best = 0, most = 0;
     for (size_t v = 0; v < split->views().size(); ++v) {
-      const std::vector<unsigned char> m = moving_region(in.scene->synth.scene, split->views()[v].camera, in.threads);
+      const std::vector<unsigned char> m = moving_region(in.scene->synth.scene, split->views()[v].camera);
       const size_t n = size_t(std::count(m.begin(), m.end(), 1));
       if (n > most) most = n, best = v;
     }
@@ -783,8 +784,7 @@ void write_run_report(const std::string& dir, const RunReportInput& in) {
     std::vector<std::string> caps = {"ground truth"};
     for (size_t m = 0; m < models.size(); ++m) {
       RenderOptions ro;
-      ro.threads = in.threads;
-      imgs.push_back(render(evaluate(models[m], view.camera.time), view.camera, ro).rgb);
+      imgs.push_back(render(frame_at(models[m], view.camera.time), view.camera, ro).rgb);
       caps.push_back(m == 0 ? "backbone" : in.run_ids[m - 1]);
     }
     const std::string file = "compare_" + view.rig + "_f" + std::to_string(view.frame) + ".png";

@@ -101,7 +101,7 @@ SelectionReport write_selection(const std::string& dir, const SelectInput& in, c
   double mean_selected_deficiency = 0;
   if (report.renders && !virtual_cams.empty()) {
     DeficiencyField field(r.initial_tables, o.deficiency_quantile);
-    FrameEvaluator ev(*in.scene);
+    FrameSampler ev(*in.scene);
     progress.start("renders", virtual_cams.size());
     for (const Camera& c : virtual_cams) {
       const int f = FrameGrid(in.frames).nearest(c.time);
@@ -110,11 +110,8 @@ SelectionReport write_selection(const std::string& dir, const SelectInput& in, c
       ro.features = d.data();
       ro.feature_channels = 1;
       ro.background = in.background;
-      ro.threads = o.threads;
-      const RenderOutput img = render(ev.evaluate(c.time), c, ro);
-      Image rgb(c.width, c.height, 3), dmap(c.width, c.height, 1);
-      rgb.pixels = img.rgb;
-      dmap.pixels = img.features;
+      const RenderOutput img = render(ev.at(c.time), c, ro);
+      const Image rgb(c.width, c.height, 3, img.rgb), dmap(c.width, c.height, 1, img.features);
       for (float v : img.features) mean_selected_deficiency += v / double(img.features.size() * virtual_cams.size());
       write_image(join_path(dir, "renders/" + c.name + ".png"), rgb);
       write_image(join_path(dir, "renders/" + c.name + "_D.png"), dmap);
@@ -212,13 +209,12 @@ TrainingReport write_training_report(const std::string& dir, const Trainer& trai
     dens.push_back({{"iteration", r.iteration}, {"gaussians", r.gaussians}, {"keyed", r.dynamic}, {"promoted", r.promoted},
                     {"cloned", r.cloned}, {"split", r.split}, {"pruned", r.pruned}});
   j["densification"] = dens;
-  report.train = evaluate_training_sample(model, data, o.background, o.threads);
+  report.train = evaluate_training_sample(model, data, o.background);
   j["train_psnr"] = report.train.psnr;
   j["train_ssim"] = report.train.ssim;
   if (test) {
     EvalOptions eo;
     eo.background = o.background;
-    eo.threads = o.threads;
     eo.moving = false;
     report.test = evaluate_split(model, *test, "test", eo);
     j["test_psnr"] = report.test.psnr;
@@ -254,7 +250,7 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
                                    {"weights", rd.seconds_weights}}}});
     report.dropped += rd.views_dropped;
   }
-  report.train = evaluate_training_sample(r.model, data, Vec3f::Zero(), o.threads);
+  report.train = evaluate_training_sample(r.model, data, Vec3f::Zero());
   const nlohmann::json j = {{"iterations", o.iterations}, {"select_every", o.select_every}, {"trajectories_per_round", o.trajectories},
                             {"strategy", to_string(o.select.strategy)}, {"weighting", to_string(o.weighting)}, {"refiner", refiner},
                             {"rounds", rounds}, {"virtual_views", r.virtual_views.size()}, {"virtual_views_dropped", report.dropped},

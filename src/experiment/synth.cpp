@@ -445,7 +445,7 @@ const Camera* SynthScene::camera(const std::string& name) const {
 }
 
 SynthScene make_synthetic_scene(const SynthOptions& o) {
-  if (o.frames < 2) throw_error("synth: --frames must be at least 2 (got ", o.frames, ")");
+  if (o.frames < 2) throw_error("synth: frames must be at least 2 (got ", o.frames, ")");
   if (o.width < 8 || o.height < 8) throw_error("synth: image size must be at least 8x8");
   if (!(o.spacing > 0.002)) throw_error("synth: spacing must exceed 0.002 m");
   if (!(o.move_start >= 0 && o.move_start < o.move_end && o.move_end <= 1)) throw_error("synth: need 0 <= move start < move end <= 1");
@@ -503,9 +503,9 @@ void write_split_picture(const SynthScene& s, const std::string& path, const std
   for (size_t g = 0; g < s.scene.size(); g += 7)
     if (!is_moving[g] && s.scene.means[g].z() > 0.05f && s.scene.means[g].z() < 2.0f) still.push_back(s.scene.means[g]);
   const int F = s.options.frames;
-  FrameEvaluator ev(s.scene);
+  FrameSampler ev(s.scene);
   for (int f = 0; f < F; f += std::max(1, F / 10)) {
-    const FrameGaussians& g = ev.evaluate(FrameGrid(F).time(f));
+    const FrameGaussians& g = ev.at(FrameGrid(F).time(f));
     for (size_t k = 0; k < s.moving_ids.size(); k += 5) moving.push_back(g.means[s.moving_ids[k]]);
   }
   for (const Camera& v : virtual_views) cams.push_back(v), roles.push_back(4);
@@ -516,7 +516,7 @@ void write_split_picture(const SynthScene& s, const std::string& path, const std
                                        std::to_string(s.split.extrapolation.size()));
 }
 
-void write_synthetic_scene(const SynthScene& s, const std::string& dir, Progress& progress, int threads) {
+void write_synthetic_scene(const SynthScene& s, const std::string& dir, Progress& progress) {
   make_directories(dir);
   const int F = s.options.frames;
   write_fillgs_ply(join_path(dir, "scene.ply"), s.scene);
@@ -538,16 +538,14 @@ void write_synthetic_scene(const SynthScene& s, const std::string& dir, Progress
     for (const Camera& c : *l.second)
       if (std::none_of(unique.begin(), unique.end(), [&](const Camera& u) { return u.name == c.name; })) unique.push_back(c);
   progress.start("rendering ground truth", unique.size() * size_t(F));
-  FrameEvaluator ev(s.scene);
+  FrameSampler ev(s.scene);
   RenderOptions ro;
-  ro.threads = threads;
   const std::vector<Camera> shots = cameras_over_time(unique, F);
   for (int f = 0; f < F; ++f) {
-    const FrameGaussians& g = ev.evaluate(FrameGrid(F).time(f));
+    const FrameGaussians& g = ev.at(FrameGrid(F).time(f));
     for (size_t c = 0; c < unique.size(); ++c) {
       const Camera& cam = shots[c * size_t(F) + size_t(f)];
-      Image img(cam.width, cam.height, 3);
-      img.pixels = render(g, cam, ro).rgb;
+      const Image img(cam.width, cam.height, 3, render(g, cam, ro).rgb);
       write_image(join_path(dir, cam.image_path), img);
       progress.advance();
     }

@@ -340,7 +340,7 @@ std::vector<Camera> read_transforms(const std::string& path, const CameraReadOpt
       h = opt.height;
     }
     if (w <= 0 || h <= 0)
-      throw_error(path, ": ", el, " has no image size (no w/h, image '", c.image_path, "' not found); pass --width and --height");
+      throw_error(path, ": ", el, " has no image size (no w/h, image '", c.image_path, "' not found); give the width and height");
     c.width = w;
     c.height = h;
     if (pick("fl_x")) {
@@ -570,7 +570,7 @@ CameraFormat detect_camera_format(const std::string& path) {
     return ch == '[' ? CameraFormat::GaussianJson : CameraFormat::Transforms;
   }
   if (ext == ".txt") return CameraFormat::Technicolor;
-  throw_error(path, ": cannot tell the camera format from the name; pass --camera-format");
+  throw_error(path, ": cannot tell the camera format from the name; name the format");
 }
 
 std::vector<Camera> read_cameras(const std::string& path, const CameraReadOptions& opt) {

@@ -92,21 +92,21 @@ FrameRange FrameRange::parse(const std::string& text) {
   auto whole = [&](const std::string& p, int fallback) {
     if (p.empty()) return fallback;
     if (p.size() > 9 || p.find_first_not_of("0123456789") != std::string::npos)
-      throw_error("--frames \"", text, "\": '", p, "' is not a frame number (first:last:step, e.g. 0:150:5)");
+      throw_error("frame range \"", text, "\": '", p, "' is not a frame number (first:last:step, e.g. 0:150:5)");
     return int(std::strtol(p.c_str(), nullptr, 10));
   };
-  if (parts.size() > 3) throw_error("--frames \"", text, "\": expected first:last:step");
+  if (parts.size() > 3) throw_error("frame range \"", text, "\": expected first:last:step");
   r.first = whole(parts[0], 0);
   r.last = parts.size() > 1 ? whole(parts[1], -1) : -1;
   r.step = parts.size() > 2 ? whole(parts[2], 1) : 1;
-  if (r.step < 1) throw_error("--frames \"", text, "\": the step must be at least 1");
-  if (r.last >= 0 && r.last <= r.first) throw_error("--frames \"", text, "\": last must come after first");
+  if (r.step < 1) throw_error("frame range \"", text, "\": the step must be at least 1");
+  if (r.last >= 0 && r.last <= r.first) throw_error("frame range \"", text, "\": last must come after first");
   return r;
 }
 
 Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_path, const DatasetOptions& opt) {
   if (!fs::is_directory(images_dir)) throw_error(images_dir, ": images folder not found");
-  if (opt.downscale < 1 || opt.downscale > 64) throw_error("--downscale ", opt.downscale, ": must be 1 to 64");
+  if (opt.downscale < 1 || opt.downscale > 64) throw_error("downscale ", opt.downscale, ": must be 1 to 64");
   std::vector<Camera> cams = read_cameras(cameras_path);
   if (cams.empty()) throw_error(cameras_path, ": no cameras");
   // Neural 3D Video as distributed: poses_bounds.npy's rows are the folder's videos, sorted.
@@ -230,7 +230,7 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
   std::vector<size_t> sizes;
   for (const TrainView& v : d.views_) {
     if (v.camera.width / k < 1 || v.camera.height / k < 1)
-      throw_error("--downscale ", k, " leaves no pixel of camera '", v.camera.name, "' (", v.camera.width, "x", v.camera.height, ")");
+      throw_error("downscale ", k, " leaves no pixel of camera '", v.camera.name, "' (", v.camera.width, "x", v.camera.height, ")");
     sizes.push_back(size_t(v.camera.width / k) * size_t(v.camera.height / k) * 3);
   }
   d.pixels_.reset(sizes, opt.image_memory < 0 ? default_image_budget() : size_t(opt.image_memory), opt.spill_dir);
@@ -280,7 +280,7 @@ void Dataset::keep_frames(const FrameRange& range, std::vector<std::string>* per
   std::vector<int> renumber(size_t(F), -1);
   int n = 0;
   for (int f = range.first; f < last; f += range.step) renumber[size_t(f)] = n++;
-  if (n == 0) throw_error(source, ": --frames ", range.first, ":", range.last, ":", range.step, " selects none of its ", F, " frames");
+  if (n == 0) throw_error(source, ": frames ", range.first, ":", range.last, ":", range.step, " selects none of its ", F, " frames");
   std::vector<TrainView> kept;
   std::vector<std::string> kept_side;
   for (size_t i = 0; i < views_.size(); ++i) {
@@ -300,7 +300,7 @@ void Dataset::keep_frames(const FrameRange& range, std::vector<std::string>* per
 void Dataset::keep_cycle(const std::vector<std::string>& cycle, std::vector<std::string>* per_view, const std::string& source) {
   for (const std::string& c : cycle)
     if (std::none_of(views_.begin(), views_.end(), [&](const TrainView& v) { return v.rig == c; }))
-      throw_error(source, ": --monocular-cycle names camera '", c, "', which the dataset does not have");
+      throw_error(source, ": the monocular cycle names camera '", c, "', which the dataset does not have");
   std::vector<TrainView> kept;
   std::vector<std::string> kept_side;
   for (size_t i = 0; i < views_.size(); ++i) {

@@ -16,6 +16,11 @@
 
 namespace fillgs {
 
+Image::Image(int w, int h, int c, std::vector<float> data) : width(w), height(h), channels(c), pixels(std::move(data)) {
+  if (w < 0 || h < 0 || c < 0 || pixels.size() != size_t(w) * size_t(h) * size_t(c))
+    throw_error("image: ", pixels.size(), " values for ", w, "x", h, "x", c);
+}
+
 void write_image(const std::string& path, const Image& img) {
   FILLGS_CHECK_EQ(img.pixels.size(), size_t(img.width) * img.height * img.channels);
   const std::string ext = std::filesystem::path(path).extension().string();

@@ -243,7 +243,7 @@ GaussianCloud read_ex4dgs(const std::string& static_path, const std::string& dyn
   if (opt.ex4dgs_interval > 0) cfg.interval = opt.ex4dgs_interval;
   if (opt.ex4dgs_pad >= 0) cfg.pad = opt.ex4dgs_pad;
   if (cfg.duration < 2)
-    throw_error(static_path, ": Ex4DGS duration unknown (", cfg.source, " has none): pass --duration FRAMES");
+    throw_error(static_path, ": Ex4DGS duration unknown (", cfg.source, " has none): give the duration in frames");
   if (cfg.interval < 1) throw_error(cfg.source, ": time_interval must be positive");
   const int D = cfg.duration, I = cfg.interval, P = cfg.pad;
   const int S = (cfg.interp == "linear") ? P : P + I;
@@ -519,7 +519,7 @@ std::vector<uint32_t> static_first_order(const GaussianCloud& c) {
 }  // namespace
 
 void write_3dgs_ply(const std::string& path, const GaussianCloud& cloud, double t) {
-  const FrameGaussians f = evaluate(cloud, t);
+  const FrameGaussians f = frame_at(cloud, t);
   std::vector<Vec3f> log_scales(cloud.size());
   std::vector<float> logits(cloud.size());
   for (size_t g = 0; g < cloud.size(); ++g) {
@@ -552,10 +552,10 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
   km.opacity_logits.resize(M * K);
   const bool keyed_scales = cloud.motion == MotionModel::Keyframed && !cloud.keyframed.log_scales.empty();
   if (keyed_scales) km.log_scales.resize(M * K * 3);
-  FrameEvaluator ev(cloud);
+  FrameSampler ev(cloud);
   bool opacity_varies = false;
   for (size_t k = 0; k < K; ++k) {
-    const FrameGaussians& f = ev.evaluate(FrameGrid(frames).time(int(k)));
+    const FrameGaussians& f = ev.at(FrameGrid(frames).time(int(k)));
     for (size_t j = 0; j < M; ++j) {
       const uint32_t g = cloud.dynamic_ids[j];
       for (int a = 0; a < 3; ++a) km.positions[(j * K + k) * 3 + a] = f.means[g][a];

@@ -55,9 +55,9 @@ TrainOptions fine_tune_schedule(int iterations, const MotionRates& rates) {
 
 FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner& refiner, const FinetuneOptions& o, Progress& progress) {
   const auto t_start = Clock::now();
-  if (o.iterations < 1) throw_error("finetune: --iterations must be at least 1");
-  if (o.select_every < 1) throw_error("finetune: --select-every must be at least 1");
-  if (o.trajectories < 0) throw_error("finetune: --trajectories must be at least 0");
+  if (o.iterations < 1) throw_error("finetune: iterations must be at least 1");
+  if (o.select_every < 1) throw_error("finetune: select_every must be at least 1");
+  if (o.trajectories < 0) throw_error("finetune: trajectories must be at least 0");
   if (o.work_dir.empty()) throw_error("finetune: no work folder");
   const int F = data.frames();
   std::vector<Camera> cameras;
@@ -65,14 +65,11 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
   const std::vector<ObservedView> views = observed_views(cameras, F);
   auto image_of = [&](size_t i) { return data.image(i); };
   auto image_as = [&](size_t i) {
-    Image im(data.views()[i].camera.width, data.views()[i].camera.height, 3);
-    im.pixels = data.image(i);
-    return im;
+    return Image(data.views()[i].camera.width, data.views()[i].camera.height, 3, data.image(i));
   };
 
   TrainOptions to = o.train;
   to.iterations = o.iterations;
-  to.threads = o.threads;
   Trainer trainer(data, params_from_cloud<float>(model, F), to);
   FinetuneResult result;
   if (!o.extra_views.empty()) trainer.add_refined(o.extra_views);
@@ -95,7 +92,6 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
       SelectOptions so = o.select;
       so.trajectories = o.trajectories;
       so.seed = o.select.seed + uint64_t(round) * 7919;
-      so.threads = o.threads;
       const SelectResult sel = select_viewpoints(in, so, progress);
       r.seconds_select = seconds_since(t0);
       r.trajectories = int(sel.trajectories.size());
@@ -111,9 +107,8 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
         patches.push_back(make_patch(tr, views, name));
         RenderOptions ro;
         ro.background = to.background;
-        ro.threads = o.threads;
         write_patch(join_path(patch_root, name), patches.back(), views, image_of,
-                    [&](const Camera& c) { return render(evaluate(current, c.time), c, ro).rgb; });
+                    [&](const Camera& c) { return render(frame_at(current, c.time), c, ro).rgb; });
       }
       r.seconds_render = seconds_since(t0);
       t0 = Clock::now();
@@ -132,7 +127,6 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
       ctx.deficiency = &field;
       ctx.frames = F;
       ctx.background = to.background;
-      ctx.threads = o.threads;
       std::vector<RefinedView> added;
       double weight_sum = 0;
       size_t weight_count = 0;

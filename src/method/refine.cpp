@@ -30,11 +30,10 @@ namespace fillgs {
 namespace {
 
 
-Image to_image(const std::vector<float>& rgb, int width, int height) {
-  Image im(width, height, 3);
-  if (rgb.size() != im.pixels.size()) throw_error("patch: image of ", rgb.size() / 3, " pixels for a ", width, "x", height, " camera");
-  im.pixels = rgb;
-  return im;
+Image to_image(std::vector<float> rgb, int width, int height) {
+  if (rgb.size() != size_t(width) * size_t(height) * 3)
+    throw_error("patch: image of ", rgb.size() / 3, " pixels for a ", width, "x", height, " camera");
+  return Image(width, height, 3, std::move(rgb));
 }
 
 /// Index of the observed view of `pose` at `frame`, or −1.
@@ -124,7 +123,7 @@ class OracleRefiner : public Refiner {
   OracleRefiner(const GaussianCloud& truth, const OracleOptions& o, SupportStats* stats) : truth_(truth), o_(o), stats_(stats) {
     if (o.support == OracleSupport::Observed) {
       if (o.observers.empty() || o.frames < 1) throw_error("oracle: support 'observed' needs the training cameras and the frame count");
-      support_ = oracle_support_table(truth, o.observers, o.frames, o.window, o.threads);
+      support_ = oracle_support_table(truth, o.observers, o.frames, o.window);
     }
   }
   std::string name() const override {
@@ -141,14 +140,13 @@ class OracleRefiner : public Refiner {
       if (im.observed) continue;
       RenderOptions ro;
       ro.background = o_.background;
-      ro.threads = o_.threads;
       if (limited) {
         const int f = FrameGrid(o_.frames).clamp(im.frame);
         flags.assign(support_.begin() + ptrdiff_t(size_t(f) * N), support_.begin() + ptrdiff_t(size_t(f + 1) * N));
         ro.features = flags.data();
         ro.feature_channels = 1;
       }
-      const RenderOutput r = render(evaluate(truth_, im.camera.time), im.camera, ro);
+      const RenderOutput r = render(frame_at(truth_, im.camera.time), im.camera, ro);
       Image img = to_image(r.rgb, r.width, r.height);
       const uint64_t key = string_key((patch.name + "/" + im.file).c_str());
       double sum = double(img.width) * img.height;
@@ -379,9 +377,9 @@ class RigRefiner : public Refiner {
     if (pool_.cameras.empty()) throw_error("rig refiner: no pool camera (every camera of the rig is trained on or held out)");
     if (!pool_.image) throw_error("rig refiner: the pool's images are missing");
     if (!(o_.max_distance >= 0 && std::isfinite(o_.max_distance)))
-      throw_error("rig refiner: --rig-max-distance must be a finite number at least 0 (got ", o_.max_distance, ")");
+      throw_error("rig refiner: max_distance must be a finite number at least 0 (got ", o_.max_distance, ")");
     if (!(o_.max_angle_degrees >= 0 && o_.max_angle_degrees <= 180))
-      throw_error("rig refiner: --rig-max-angle must be in [0, 180] degrees (got ", o_.max_angle_degrees, ")");
+      throw_error("rig refiner: max_angle_degrees must be in [0, 180] degrees (got ", o_.max_angle_degrees, ")");
   }
   std::string name() const override { return "rig"; }
   void refine(const std::string&, const std::string& out, const Patch& patch) override {
@@ -391,8 +389,7 @@ class RigRefiner : public Refiner {
       const int k = nearest_pool_view(pool_, im.camera, o_);
       if (k < 0) continue;
       const Camera& c = pool_.cameras[size_t(k)];
-      Image photo(c.width, c.height, 3);
-      photo.pixels = pool_.image(size_t(k));
+      const Image photo(c.width, c.height, 3, pool_.image(size_t(k)));
       write_image(join_path(out, im.file), photo);
     }
   }
@@ -415,12 +412,10 @@ std::unique_ptr<Refiner> make_rig_refiner(RigPool pool, const RigOptions& option
   return std::make_unique<RigRefiner>(std::move(pool), options);
 }
 
-std::vector<uint8_t> oracle_support_table(const GaussianCloud& truth, const std::vector<Camera>& observers, int frames, int window,
-                                          int threads) {
+std::vector<uint8_t> oracle_support_table(const GaussianCloud& truth, const std::vector<Camera>& observers, int frames, int window) {
   const size_t N = truth.size(), F = size_t(std::max(1, frames));
   ObservationOptions oo;
   oo.visibility.mode = VisibilityMode::Exact;
-  oo.visibility.threads = threads;
   const FrameGrid grid(static_cast<int>(F));
   const ObservationTables t = observation_tables(truth, observers, grid.times(), grid.step(), oo);
   std::vector<uint8_t> moving(N, 0);
@@ -444,11 +439,10 @@ std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const O
   return std::make_unique<OracleRefiner>(truth, o, stats);
 }
 
-std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const ArtifactOptions& a, const Vec3f& bg, int threads) {
+std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const ArtifactOptions& a, const Vec3f& bg) {
   OracleOptions o;
   o.artifacts = a;
   o.background = bg;
-  o.threads = threads;
   return std::make_unique<OracleRefiner>(truth, o, nullptr);
 }
 

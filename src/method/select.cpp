@@ -59,12 +59,11 @@ Camera scaled_camera(const Camera& c, double s) {
 
 // ------------------------------------------------------------------ cameras
 
-std::vector<float> render_value_map(const FrameGaussians& frame, const Camera& camera, const float* values, int threads) {
+std::vector<float> render_value_map(const FrameGaussians& frame, const Camera& camera, const float* values) {
   RenderOptions ro;
   ro.rgb = false;
   ro.features = values;
   ro.feature_channels = 1;
-  ro.threads = threads;
   return render(frame, camera, ro).features;
 }
 
@@ -222,7 +221,7 @@ std::vector<float> DeficiencyField::covisibility(int f, Covisibility rule) const
   return v;
 }
 
-void DeficiencyField::observe(int f, const std::vector<uint32_t>& visible) {
+void DeficiencyField::add_view(int f, const std::vector<uint32_t>& visible) {
   const size_t N = tables_.gaussians, M = tables_.dynamic_ids.size();
   for (uint32_t g : visible) {
     uint16_t& c = tables_.counts[size_t(f) * N + g];
@@ -238,8 +237,8 @@ PriorityScores exploration_priority(const SelectInput& in, const SelectOptions& 
   FILLGS_CHECK(in.scene && in.grid);
   const auto t0 = Clock::now();
   PriorityScores p;
-  if (o.time_stride < 1) throw_error("--time-stride must be at least 1");
-  if (!(o.render_scale > 0 && o.render_scale <= 1)) throw_error("--render-scale must lie in (0, 1]");
+  if (o.time_stride < 1) throw_error("select: time_stride must be at least 1");
+  if (!(o.render_scale > 0 && o.render_scale <= 1)) throw_error("select: render_scale must lie in (0, 1]");
   for (size_t i = 0; i < in.views.size(); ++i)
     if (in.views[i].frame % o.time_stride == 0) p.views.push_back(uint32_t(i));
   const size_t n = p.views.size();
@@ -249,10 +248,9 @@ PriorityScores exploration_priority(const SelectInput& in, const SelectOptions& 
   const Vec3d vs = in.grid->voxel_size();
   const double shift = std::cbrt(vs.x() * vs.y() * vs.z()) / 5.0, angle = 0.2 * kPi / 180.0;
   const int F = in.frames;
-  FrameEvaluator at_t(*in.scene), at_minus(*in.scene), at_plus(*in.scene);
+  FrameSampler at_t(*in.scene), at_minus(*in.scene), at_plus(*in.scene);
   RenderOptions ro;
   ro.background = in.background;
-  ro.threads = o.threads;
   auto rgb = [&](const FrameGaussians& fg, const Camera& c) { return render(fg, c, ro).rgb; };
   progress.start("priority (L, V)", n);
   int current = -1;
@@ -264,9 +262,9 @@ PriorityScores exploration_priority(const SelectInput& in, const SelectOptions& 
       // Time perturbation ±1 frame; at the ends the window moves inward (same span, 2 frames).
       const std::vector<int> window = FrameGrid(F).consecutive(v.frame, 3);
       const int lo = window.front(), hi = window.back();
-      ft = &at_t.evaluate(FrameGrid(F).time(v.frame));
-      fm = &at_minus.evaluate(FrameGrid(F).time(lo));
-      fp = &at_plus.evaluate(FrameGrid(F).time(hi));
+      ft = &at_t.at(FrameGrid(F).time(v.frame));
+      fm = &at_minus.at(FrameGrid(F).time(lo));
+      fp = &at_plus.at(FrameGrid(F).time(hi));
     }
     // L at full resolution: a reduced render differs from a reduced image on fine texture
     // (aliasing), which would rank texture, not error.
@@ -341,7 +339,7 @@ class Selector {
 
     // The strategy, with what it shares.
     VisibilityEngine engine(*in_.scene, o_.visibility);
-    FrameEvaluator eval(*in_.scene);
+    FrameSampler eval(*in_.scene);
     SelectionContext context{in_, o_, field, engine, eval, vertical_};
     const std::unique_ptr<SelectionStrategy> strategy = make_strategy(o_.strategy, context);
     strategy_ = strategy.get();
@@ -371,7 +369,7 @@ class Selector {
 
     for (const Camera& v : in_.earlier_views) {
       if (!v.has_time()) throw_error("select: earlier virtual view ", v.name, " has no time");
-      observe(v, field);
+      accept(v, field);
     }
     progress_.start(std::string("select (") + to_string(o_.strategy) + ")", size_t(o_.trajectories));
     size_t next_start = 0;
@@ -397,7 +395,7 @@ class Selector {
       tr.patch_frames = FrameGrid(F).consecutive(tr.frame, o_.patch_frames);
       for (int f : tr.patch_frames) tr.patch_times.push_back(time_of(f));
       t0 = Clock::now();
-      for (const Camera& v : tr.views()) observe(v, field);
+      for (const Camera& v : tr.views()) accept(v, field);
       result_.timings.update += seconds_since(t0);
       result_.trajectories.push_back(std::move(tr));
       progress_.advance();
@@ -411,11 +409,11 @@ class Selector {
 
   /// One virtual view (with its time) becomes an observation: the counts C, then the
   /// strategy's own state.
-  void observe(const Camera& v, DeficiencyField& field) {
+  void accept(const Camera& v, DeficiencyField& field) {
     const int f = FrameGrid(in_.frames).nearest(v.time);
     engine_->set_time(time_of(f));
-    field.observe(f, engine_->visible_set(v));
-    strategy_->observe(v, f);
+    field.add_view(f, engine_->visible_set(v));
+    strategy_->accept(v, f);
   }
 
   /// Whether a trajectory of this call grew from a starting view of the same pose fewer
@@ -636,10 +634,10 @@ class Selector {
 SelectResult select_viewpoints(const SelectInput& in, const SelectOptions& o, Progress& progress) {
   if (!in.scene || !in.grid) throw_error("select: a scene and an exploration grid are required");
   if (in.views.empty()) throw_error("select: no observed viewpoints");
-  if (o.trajectories < 0) throw_error("select: --trajectories must be at least 0");
-  if (o.views < 1) throw_error("select: --views must be at least 1");
-  if (o.patch_frames < 1) throw_error("select: --patch-frames must be at least 1");
-  if (o.stride < 1) throw_error("select: --stride must be at least 1");
+  if (o.trajectories < 0) throw_error("select: trajectories must be at least 0");
+  if (o.views < 1) throw_error("select: views must be at least 1");
+  if (o.patch_frames < 1) throw_error("select: patch_frames must be at least 1");
+  if (o.stride < 1) throw_error("select: stride must be at least 1");
   SelectResult result;
   Selector(in, o, result, progress).run();
   return result;

@@ -14,13 +14,13 @@ namespace fillgs {
 
 /// What every strategy may read and share: the selection's inputs and options, the
 /// deficiency field (C and D, updated with every accepted view), the scene's visibility
-/// engine and frame evaluator, and the world axis closest to the cameras' up.
+/// engine and frame sampler, and the world axis closest to the cameras' up.
 struct SelectionContext {
   const SelectInput& in;
   const SelectOptions& options;
   DeficiencyField& field;
   VisibilityEngine& engine;
-  FrameEvaluator& eval;
+  FrameSampler& eval;
   int vertical;
   double time_of(int f) const { return FrameGrid(in.frames).time(f); }
 };
@@ -45,7 +45,7 @@ class SelectionStrategy {
     return std::vector<double>(candidates.size(), 0.0);
   }
   /// A virtual view accepted at `frame` (the field has already counted it).
-  virtual void observe(const Camera& view, int frame) { (void)view, (void)frame; }
+  virtual void accept(const Camera& view, int frame) { (void)view, (void)frame; }
 };
 
 /// The strategy named by `s`, sharing `context` (which must outlive it).

@@ -40,7 +40,7 @@ class DeficiencyStrategy : public SelectionStrategy {
       c_.engine.set_time(t);
       return c_.engine.render_maps(cam, values, nullptr, c_.options.stride).score();
     }
-    return mean_value(render_value_map(c_.eval.evaluate(t), cam, values, c_.options.threads));
+    return mean_value(render_value_map(c_.eval.at(t), cam, values));
   }
   SelectionContext& c_;
 };
@@ -82,7 +82,7 @@ class FisherStrategy : public SelectionStrategy {
     }
     return s;
   }
-  void observe(const Camera& view, int frame) override {
+  void accept(const Camera& view, int frame) override {
     std::vector<double>& train = train_information(frame);
     const FisherDiagonal h = information(view, frame);
     for (size_t k = 0; k < h.values.size(); ++k) train[k] += h.values[k];
@@ -91,12 +91,11 @@ class FisherStrategy : public SelectionStrategy {
  private:
   FisherDiagonal information(const Camera& cam, int frame) {
     if (frame != frame_index_) {
-      evaluate_params(params_, c_.time_of(frame), &frame_);
+      params_at(params_, c_.time_of(frame), &frame_);
       frame_index_ = frame;
     }
     DiffRenderOptions ro;
     ro.background = c_.in.background;
-    ro.threads = c_.options.threads;
     raster_.forward(frame_, scaled_camera(cam, c_.options.render_scale), ro);
     FisherDiagonal h;
     raster_.accumulate_fisher(&h);
@@ -138,7 +137,7 @@ class CoverageStrategy : public SelectionStrategy {
     for (size_t i = 0; i < cands.size(); ++i) s[i] = double(new_cells(cands[i], frame));
     return s;
   }
-  void observe(const Camera& view, int frame) override { cover(view, frame); }
+  void accept(const Camera& view, int frame) override { cover(view, frame); }
 
  private:
   uint32_t direction_bit(const Vec3d& from_gaussian) const {

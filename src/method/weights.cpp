@@ -16,11 +16,10 @@ namespace {
 
 /// Gaussians whose maximum blending weight in a view reaches 1/255 (the rasterizer's own
 /// notion of "contributes"), as a 0/1 vector, and the per-Gaussian maximum weights.
-std::vector<float> max_weights(const FrameGaussians& frame, const Camera& camera, int threads) {
+std::vector<float> max_weights(const FrameGaussians& frame, const Camera& camera) {
   RenderOptions ro;
   ro.rgb = false;
   ro.max_weights = true;
-  ro.threads = threads;
   return render(frame, camera, ro).max_weight;
 }
 
@@ -45,7 +44,7 @@ double squared_difference(const Image& refined, int x, int y, const Image& obser
 const std::vector<float>& observed_depth(const WeightContext& ctx, const FrameGaussians& frame, size_t v, double min_alpha) {
   auto it = ctx.observed_depths.find(v);
   if (it == ctx.observed_depths.end())
-    it = ctx.observed_depths.emplace(v, expected_depth(frame, ctx.views[v].camera, min_alpha, ctx.threads)).first;
+    it = ctx.observed_depths.emplace(v, expected_depth(frame, ctx.views[v].camera, min_alpha)).first;
   return it->second;
 }
 
@@ -53,11 +52,10 @@ std::vector<float> ones(const Camera& c) { return std::vector<float>(size_t(c.wi
 
 }  // namespace
 
-std::vector<float> expected_depth(const FrameGaussians& frame, const Camera& camera, double min_alpha, int threads) {
+std::vector<float> expected_depth(const FrameGaussians& frame, const Camera& camera, double min_alpha) {
   RenderOptions ro;
   ro.rgb = false;
   ro.depth = true;
-  ro.threads = threads;
   const RenderOutput r = render(frame, camera, ro);
   std::vector<float> d(r.depth.size(), 0.0f);
   for (size_t p = 0; p < d.size(); ++p)
@@ -265,7 +263,7 @@ class EnhancerWeights : public WeightingRule {
     std::nth_element(sorted.begin(), sorted.begin() + long(q), sorted.end());
     const float scale = std::max(sorted[q], 1e-12f);
     for (float& s : size) s = std::min(1.0f, s / scale);
-    w.weight = render_value_map(in.frame, in.camera, size.data(), in.ctx.threads);
+    w.weight = render_value_map(in.frame, in.camera, size.data());
     for (float& x : w.weight) x = float(x * w.image_weight);
   }
 };
@@ -277,8 +275,8 @@ class ExploreGSWeights : public WeightingRule {
   void weigh(const WeighInputs& in, ViewWeights& w) const override {
     double iou = 0;
     if (!in.adjacent.empty()) {
-      const std::vector<float> a = max_weights(in.frame, in.camera, in.ctx.threads);
-      const std::vector<float> b = max_weights(in.frame, in.ctx.views[size_t(in.adjacent[0])].camera, in.ctx.threads);
+      const std::vector<float> a = max_weights(in.frame, in.camera);
+      const std::vector<float> b = max_weights(in.frame, in.ctx.views[size_t(in.adjacent[0])].camera);
       size_t inter = 0, uni = 0;
       for (size_t g = 0; g < a.size(); ++g) {
         const bool va = a[g] >= kMinAlpha, vb = b[g] >= kMinAlpha;
@@ -290,10 +288,8 @@ class ExploreGSWeights : public WeightingRule {
     w.image_weight = 1.0 - iou;
     RenderOptions ro;
     ro.background = in.ctx.background;
-    ro.threads = in.ctx.threads;
     const RenderOutput r = render(in.frame, in.camera, ro);
-    Image rendered(in.camera.width, in.camera.height, 3);
-    rendered.pixels = r.rgb;
+    const Image rendered(in.camera.width, in.camera.height, 3, r.rgb);
     const std::vector<float> s = ssim_map(in.refined, rendered);
     for (size_t p = 0; p < w.weight.size(); ++p) w.weight[p] = float(w.image_weight * std::clamp(s[p], 0.0f, 1.0f));
   }
@@ -306,11 +302,11 @@ class UncertaintyWeights : public WeightingRule {
     std::vector<float> seen(in.frame.size(), 0.0f);
     for (const ObservedView& v : in.ctx.views) {
       if (v.frame != in.f) continue;
-      const std::vector<float> m = max_weights(in.frame, v.camera, in.ctx.threads);
+      const std::vector<float> m = max_weights(in.frame, v.camera);
       for (size_t g = 0; g < seen.size(); ++g) seen[g] += m[g];
     }
     for (float& s : seen) s = 1.0f / (1.0f + s);
-    w.weight = render_value_map(in.frame, in.camera, seen.data(), in.ctx.threads);
+    w.weight = render_value_map(in.frame, in.camera, seen.data());
   }
 };
 
@@ -339,7 +335,7 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
   ViewWeights w;
   const size_t P = size_t(camera.width) * size_t(camera.height);
   const int f = FrameGrid(std::max(1, ctx.frames)).nearest(camera.time);
-  const FrameGaussians frame = evaluate(*ctx.model, camera.time);
+  const FrameGaussians frame = frame_at(*ctx.model, camera.time);
   const std::vector<int> adj = adjacent_observed(ctx.views, camera, f);
   for (size_t k = 0; k < adj.size() && k < 2; ++k) w.adjacent[k] = adj[k];
 
@@ -353,7 +349,7 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
       for (size_t p = 0; p < P; ++p) w.consistency[p] = std::clamp(m.pixels[p * size_t(m.channels)], 0.0f, 1.0f);
     } else {
       if (!ctx.image) throw_error("weights: the consistency mask needs the observed images");
-      const std::vector<float> depth = expected_depth(frame, camera, o.min_alpha, ctx.threads);
+      const std::vector<float> depth = expected_depth(frame, camera, o.min_alpha);
       const float far = 2.0f * std::max(1.0f, *std::max_element(depth.begin(), depth.end()));
       w.consistency.assign(P, 0.0f);
       for (int a : adj) {
@@ -369,7 +365,7 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
   if (rule.uses_covisibility()) {
     if (!ctx.deficiency) throw_error("weights: the co-visibility weight needs the deficiency tables");
     const std::vector<float> v = ctx.deficiency->covisibility(f, o.covisibility);
-    w.covisibility = render_value_map(frame, camera, v.data(), ctx.threads);
+    w.covisibility = render_value_map(frame, camera, v.data());
   }
   w.weight = ones(camera);
   rule.weigh({ctx, refined, camera, frame, f, adj}, w);

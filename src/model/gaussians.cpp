@@ -173,7 +173,7 @@ Vec4f slerp_ex4dgs(Vec4f q0, Vec4f q1, float s) {
   return normalize_quat(r);
 }
 
-DynamicState evaluate_keyframed(const GaussianCloud& c, size_t j, double t) {
+DynamicState keyframed_at(const GaussianCloud& c, size_t j, double t) {
   const KeyframedMotion& k = c.keyframed;
   const uint32_t g = c.dynamic_ids[j];
   const size_t K = size_t(k.key_count);
@@ -221,7 +221,7 @@ DynamicState evaluate_keyframed(const GaussianCloud& c, size_t j, double t) {
   return st;
 }
 
-DynamicState evaluate_polynomial(const GaussianCloud& c, size_t j, double t) {
+DynamicState polynomial_at(const GaussianCloud& c, size_t j, double t) {
   const PolynomialMotion& p = c.polynomial;
   const uint32_t g = c.dynamic_ids[j];
   const float d = float(t * p.time_scale - double(p.trbf_center[j]));
@@ -238,8 +238,8 @@ DynamicState evaluate_polynomial(const GaussianCloud& c, size_t j, double t) {
   return st;
 }
 
-DynamicState evaluate_dynamic(const GaussianCloud& c, size_t j, double t) {
-  return c.motion == MotionModel::Polynomial ? evaluate_polynomial(c, j, t) : evaluate_keyframed(c, j, t);
+DynamicState dynamic_at(const GaussianCloud& c, size_t j, double t) {
+  return c.motion == MotionModel::Polynomial ? polynomial_at(c, j, t) : keyframed_at(c, j, t);
 }
 
 void write_static(const GaussianCloud& c, FrameGaussians& f, size_t g) {
@@ -251,7 +251,7 @@ void write_static(const GaussianCloud& c, FrameGaussians& f, size_t g) {
 
 }  // namespace
 
-FrameEvaluator::FrameEvaluator(const GaussianCloud& cloud) : cloud_(cloud) {
+FrameSampler::FrameSampler(const GaussianCloud& cloud) : cloud_(cloud) {
   const size_t n = cloud.size();
   frame_.sh_degree = cloud.sh_degree;
   frame_.sh = cloud.sh.data();
@@ -265,7 +265,7 @@ FrameEvaluator::FrameEvaluator(const GaussianCloud& cloud) : cloud_(cloud) {
   });
 }
 
-const FrameGaussians& FrameEvaluator::evaluate(double t) {
+const FrameGaussians& FrameSampler::at(double t) {
   t = std::clamp(t, 0.0, 1.0);
   if (t == frame_.time) return frame_;
   frame_.time = t;
@@ -273,7 +273,7 @@ const FrameGaussians& FrameEvaluator::evaluate(double t) {
   tbb::parallel_for(tbb::blocked_range<size_t>(0, c.dynamic_ids.size(), 2048),
                     [&](const tbb::blocked_range<size_t>& r) {
                       for (size_t j = r.begin(); j < r.end(); ++j) {
-                        const DynamicState st = evaluate_dynamic(c, j, t);
+                        const DynamicState st = dynamic_at(c, j, t);
                         const uint32_t g = c.dynamic_ids[j];
                         frame_.means[g] = st.mean;
                         frame_.scales[g] = st.log_scale.array().exp();
@@ -284,16 +284,16 @@ const FrameGaussians& FrameEvaluator::evaluate(double t) {
   return frame_;
 }
 
-FrameGaussians evaluate(const GaussianCloud& cloud, double t) {
-  FrameEvaluator ev(cloud);
-  return ev.evaluate(t);
+FrameGaussians frame_at(const GaussianCloud& cloud, double t) {
+  FrameSampler ev(cloud);
+  return ev.at(t);
 }
 
 void dynamic_means_at(const GaussianCloud& cloud, double t, std::vector<Vec3f>& out) {
   t = std::clamp(t, 0.0, 1.0);
   out.resize(cloud.dynamic_ids.size());
   tbb::parallel_for(tbb::blocked_range<size_t>(0, out.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t j = r.begin(); j < r.end(); ++j) out[j] = evaluate_dynamic(cloud, j, t).mean;
+    for (size_t j = r.begin(); j < r.end(); ++j) out[j] = dynamic_at(cloud, j, t).mean;
   });
 }
 
@@ -369,7 +369,7 @@ size_t partition_static_dynamic(GaussianCloud& c, const PartitionOptions& opt) {
       Vec3f prev = Vec3f::Zero();
       for (int i = 0; i <= opt.samples; ++i) {
         const double t = double(i) / opt.samples;
-        const Vec3f x = evaluate_polynomial(c, j, t).mean;
+        const Vec3f x = polynomial_at(c, j, t).mean;
         sum += x;
         if (i > 0) max_speed = std::max(max_speed, float((x - prev).norm() * opt.samples));
         prev = x;

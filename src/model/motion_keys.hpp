@@ -1,6 +1,6 @@
 #pragma once
-// Keyframe motion shared by the frame evaluator (evaluate(t), gaussians.cpp) and the
-// trainable parameters (evaluate_params, train_model.cpp), templated on the scalar:
+// Keyframe motion shared by the frame sampler (frame_at(t), gaussians.cpp) and the
+// trainable parameters (params_at, train_model.cpp), templated on the scalar:
 // where t falls among the keys, the Catmull-Rom weights of the four keys around it (end
 // keys repeated), and the shortest-arc slerp of normalised key quaternions with its
 // backward. One definition, so that what trains is what renders.

@@ -2,7 +2,6 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <atomic>
@@ -10,7 +9,6 @@
 #include <numeric>
 
 #include "fillgs/base/error.hpp"
-#include "fillgs/base/threads.hpp"
 #include "render/raster_internal.hpp"
 #include "render/preprocess.hpp"
 #include "render/tile_kernel.hpp"
@@ -94,103 +92,97 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
   out.height = H;
   out.radii.assign(N, 0);
 
-  tbb::task_arena arena(arena_concurrency(opt.threads));
-  arena.execute([&] {
-    // ---- preprocess: project every Gaussian, set up the visible ones ----
-    static_assert(sizeof(Vec3f) == 3 * sizeof(float) && sizeof(Vec4f) == 4 * sizeof(float), "packed Eigen vectors");
-    tiles::SplatSource<float> source;
-    source.count = N;
-    source.sh_degree = G.sh_degree;
-    source.means = G.means.empty() ? nullptr : G.means[0].data();
-    source.scales = G.scales.empty() ? nullptr : G.scales[0].data();
-    source.rotations = G.rotations.empty() ? nullptr : G.rotations[0].data();
-    source.opacities = G.opacities.data();
-    source.sh = opt.rgb ? G.sh : nullptr;
-    std::vector<ProjectedGaussian> proj;
-    std::vector<uint32_t> visible;
-    std::vector<float> splat, extent, chan;
-    tiles::prepare_splats(source, cam, C, tiles::SplatSetup<float>{&out.radii, &proj, &visible, &splat, &extent, &chan},
-                          [&](size_t, uint32_t g, const ProjectedGaussian& p, float* ch) {
-                            if (opt.depth) ch[depth_channel] = p.depth;
-                            for (int f = 0; f < F; ++f) ch[feature_channel + f] = opt.features[size_t(g) * F + f];
-                          });
-    out.rendered = size_t(std::count_if(out.radii.begin(), out.radii.end(), [](int r) { return r > 0; }));
-    const tiles::TileSplats<float> splats{splat.data(), extent.data(), chan.data(), C};
+  // ---- preprocess: project every Gaussian, set up the visible ones ----
+  static_assert(sizeof(Vec3f) == 3 * sizeof(float) && sizeof(Vec4f) == 4 * sizeof(float), "packed Eigen vectors");
+  tiles::SplatSource<float> source;
+  source.count = N;
+  source.sh_degree = G.sh_degree;
+  source.means = G.means.empty() ? nullptr : G.means[0].data();
+  source.scales = G.scales.empty() ? nullptr : G.scales[0].data();
+  source.rotations = G.rotations.empty() ? nullptr : G.rotations[0].data();
+  source.opacities = G.opacities.data();
+  source.sh = opt.rgb ? G.sh : nullptr;
+  std::vector<ProjectedGaussian> proj;
+  std::vector<uint32_t> visible;
+  std::vector<float> splat, extent, chan;
+  tiles::prepare_splats(source, cam, C, tiles::SplatSetup<float>{&out.radii, &proj, &visible, &splat, &extent, &chan},
+                        [&](size_t, uint32_t g, const ProjectedGaussian& p, float* ch) {
+                          if (opt.depth) ch[depth_channel] = p.depth;
+                          for (int f = 0; f < F; ++f) ch[feature_channel + f] = opt.features[size_t(g) * F + f];
+                        });
+  out.rendered = size_t(std::count_if(out.radii.begin(), out.radii.end(), [](int r) { return r > 0; }));
+  const tiles::TileSplats<float> splats{splat.data(), extent.data(), chan.data(), C};
 
-    // ---- bin into tiles, front to back per tile ----
-    const internal::TileBins bins = internal::bin_tiles(proj, visible, W, H);
-    const int gx = bins.grid_x;
-    const size_t tiles = size_t(bins.grid_x) * bins.grid_y;
-    out.tile_entries = bins.entries.size();
+  // ---- bin into tiles, front to back per tile ----
+  const internal::TileBins bins = internal::bin_tiles(proj, visible, W, H);
+  const int gx = bins.grid_x;
+  const size_t tiles = size_t(bins.grid_x) * bins.grid_y;
+  out.tile_entries = bins.entries.size();
 
-    // ---- blend ----
-    if (opt.rgb) out.rgb.assign(size_t(W) * H * 3, 0.0f);
-    if (opt.depth) out.depth.assign(size_t(W) * H, 0.0f);
-    if (F) out.features.assign(size_t(W) * H * F, 0.0f);
-    out.alpha.assign(size_t(W) * H, 0.0f);
-    std::vector<float> entry_max;  // per tile entry: max α·T, reduced per Gaussian below
-    if (opt.max_weights) entry_max.assign(bins.entries.size(), 0.0f);
-    std::vector<tiles::TileContributors> tile_contrib(opt.contributors ? tiles : 0);
-    std::vector<uint64_t> tile_box_pixels(tiles, 0);
+  // ---- blend ----
+  if (opt.rgb) out.rgb.assign(size_t(W) * H * 3, 0.0f);
+  if (opt.depth) out.depth.assign(size_t(W) * H, 0.0f);
+  if (F) out.features.assign(size_t(W) * H * F, 0.0f);
+  out.alpha.assign(size_t(W) * H, 0.0f);
+  std::vector<float> entry_max;  // per tile entry: max α·T, reduced per Gaussian below
+  if (opt.max_weights) entry_max.assign(bins.entries.size(), 0.0f);
+  std::vector<tiles::TileContributors> tile_contrib(opt.contributors ? tiles : 0);
+  std::vector<uint64_t> tile_box_pixels(tiles, 0);
 
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
-      alignas(64) float T[tiles::kTilePixels];
-      std::vector<float> acc(size_t(tiles::kTilePixels) * std::max(C, 1));
-      for (size_t t = r.begin(); t < r.end(); ++t) {
-        const tiles::TileWork work = tiles::tile_work(gx, bins.start.data(), bins.entries.data(), t, W, H);
-        tiles::TileForward<float> fwd;
-        fwd.T = T;
-        fwd.acc = acc.data();
-        if (opt.max_weights) fwd.entry_max = entry_max.data() + bins.start[t];
-        if (opt.contributors) fwd.contributors = &tile_contrib[t];
-        fwd.box_pixels = &tile_box_pixels[t];
-        tiles::forward_tile(simd, splats, work, fwd);
-        for (int py = work.y0; py < work.y1; ++py)
-          for (int px = work.x0; px < work.x1; ++px) {
-            const int l = (py - work.y0) * kTileSize + (px - work.x0);
-            const size_t o = size_t(py) * W + px;
-            auto a = [&](int c) { return acc[size_t(c) * tiles::kTilePixels + l]; };
-            if (opt.rgb)
-              for (int k = 0; k < 3; ++k) out.rgb[o * 3 + k] = a(k) + T[l] * opt.background[k];
-            if (opt.depth) out.depth[o] = a(depth_channel);
-            for (int f = 0; f < F; ++f) out.features[o * F + f] = a(feature_channel + f);
-            out.alpha[o] = 1.0f - T[l];
-          }
-      }
-    });
-
-    out.box_pixels = std::accumulate(tile_box_pixels.begin(), tile_box_pixels.end(), uint64_t(0));
-    if (opt.max_weights) {
-      out.max_weight.assign(N, 0.0f);
-      for (size_t e = 0; e < bins.entries.size(); ++e) {
-        const uint32_t g = visible[bins.entries[e]];
-        out.max_weight[g] = std::max(out.max_weight[g], entry_max[e]);
-      }
-    }
-    if (opt.contributors) {
-      ContributorLists& cl = out.contributors;
-      cl.offsets.assign(size_t(W) * H + 1, 0);
-      auto pixel_of = [&](size_t t, uint16_t l) {
-        const int x0 = int(t % gx) * kTileSize, y0 = int(t / gx) * kTileSize;
-        return size_t(y0 + l / kTileSize) * W + x0 + l % kTileSize;
-      };
-      for (size_t t = 0; t < tiles; ++t)
-        for (uint16_t l : tile_contrib[t].pixel) ++cl.offsets[pixel_of(t, l) + 1];
-      std::partial_sum(cl.offsets.begin(), cl.offsets.end(), cl.offsets.begin());
-      cl.ids.resize(cl.offsets.back());
-      cl.weights.resize(cl.offsets.back());
-      std::vector<uint64_t> fill(cl.offsets.begin(), cl.offsets.end() - 1);
-      // Within a tile, pairs were appended front to back per pixel, so pixel order is kept.
-      for (size_t t = 0; t < tiles; ++t) {
-        const tiles::TileContributors& tc = tile_contrib[t];
-        for (size_t k = 0; k < tc.pixel.size(); ++k) {
-          const uint64_t at = fill[pixel_of(t, tc.pixel[k])]++;
-          cl.ids[at] = visible[tc.entry[k]];
-          cl.weights[at] = tc.weight[k];
-        }
-      }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
+    alignas(64) float T[tiles::kTilePixels];
+    std::vector<float> acc(size_t(tiles::kTilePixels) * std::max(C, 1));
+    for (size_t t = r.begin(); t < r.end(); ++t) {
+      const tiles::TileWork work = tiles::tile_work(gx, bins.start.data(), bins.entries.data(), t, W, H);
+      tiles::TileForward<float> fwd;
+      fwd.T = T;
+      fwd.acc = acc.data();
+      if (opt.max_weights) fwd.entry_max = entry_max.data() + bins.start[t];
+      if (opt.contributors) fwd.contributors = &tile_contrib[t];
+      fwd.box_pixels = &tile_box_pixels[t];
+      tiles::forward_tile(simd, splats, work, fwd);
+      tiles::for_each_tile_pixel(work, W, [&](int l, size_t o) {
+        auto a = [&](int c) { return acc[size_t(c) * tiles::kTilePixels + l]; };
+        if (opt.rgb)
+          for (int k = 0; k < 3; ++k) out.rgb[o * 3 + k] = a(k) + T[l] * opt.background[k];
+        if (opt.depth) out.depth[o] = a(depth_channel);
+        for (int f = 0; f < F; ++f) out.features[o * F + f] = a(feature_channel + f);
+        out.alpha[o] = 1.0f - T[l];
+      });
     }
   });
+
+  out.box_pixels = std::accumulate(tile_box_pixels.begin(), tile_box_pixels.end(), uint64_t(0));
+  if (opt.max_weights) {
+    out.max_weight.assign(N, 0.0f);
+    for (size_t e = 0; e < bins.entries.size(); ++e) {
+      const uint32_t g = visible[bins.entries[e]];
+      out.max_weight[g] = std::max(out.max_weight[g], entry_max[e]);
+    }
+  }
+  if (opt.contributors) {
+    ContributorLists& cl = out.contributors;
+    cl.offsets.assign(size_t(W) * H + 1, 0);
+    auto pixel_of = [&](size_t t, uint16_t l) {
+      const int x0 = int(t % gx) * kTileSize, y0 = int(t / gx) * kTileSize;
+      return size_t(y0 + l / kTileSize) * W + x0 + l % kTileSize;
+    };
+    for (size_t t = 0; t < tiles; ++t)
+      for (uint16_t l : tile_contrib[t].pixel) ++cl.offsets[pixel_of(t, l) + 1];
+    std::partial_sum(cl.offsets.begin(), cl.offsets.end(), cl.offsets.begin());
+    cl.ids.resize(cl.offsets.back());
+    cl.weights.resize(cl.offsets.back());
+    std::vector<uint64_t> fill(cl.offsets.begin(), cl.offsets.end() - 1);
+    // Within a tile, pairs were appended front to back per pixel, so pixel order is kept.
+    for (size_t t = 0; t < tiles; ++t) {
+      const tiles::TileContributors& tc = tile_contrib[t];
+      for (size_t k = 0; k < tc.pixel.size(); ++k) {
+        const uint64_t at = fill[pixel_of(t, tc.pixel[k])]++;
+        cl.ids[at] = visible[tc.entry[k]];
+        cl.weights[at] = tc.weight[k];
+      }
+    }
+  }
   return out;
 }
 

@@ -2,7 +2,6 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
@@ -10,7 +9,6 @@
 
 #include "fillgs/base/error.hpp"
 #include "fillgs/model/sh.hpp"
-#include "fillgs/base/threads.hpp"
 #include "render/raster_internal.hpp"
 #include "render/preprocess.hpp"
 #include "render/tile_kernel.hpp"
@@ -191,61 +189,55 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
   const int C = 3 + F;
   channels_ = C;
 
-  tbb::task_arena arena(arena_concurrency(opt.threads));
-  arena.execute([&] {
-    tiles::SplatSource<Real> source;
-    source.count = N;
-    source.sh_degree = G.sh_degree;
-    source.means = G.means.data();
-    source.scales = G.scales.data();
-    source.rotations = G.rotations.data();
-    source.opacities = G.opacities.data();
-    source.sh = G.sh;
-    std::vector<ProjectedGaussian> proj;
-    tiles::prepare_splats(source, cam, C,
-                          tiles::SplatSetup<Real>{&radii_, &proj, &visible_, &splat_data_, &half_extent_, &colour_, &colour_clamped_},
-                          [&](size_t, uint32_t g, const ProjectedGaussian&, Real* ch) {
-                            for (int f = 0; f < F; ++f) ch[3 + f] = Real(opt.features[size_t(g) * F + f]);
-                          });
+  tiles::SplatSource<Real> source;
+  source.count = N;
+  source.sh_degree = G.sh_degree;
+  source.means = G.means.data();
+  source.scales = G.scales.data();
+  source.rotations = G.rotations.data();
+  source.opacities = G.opacities.data();
+  source.sh = G.sh;
+  std::vector<ProjectedGaussian> proj;
+  tiles::prepare_splats(source, cam, C,
+                        tiles::SplatSetup<Real>{&radii_, &proj, &visible_, &splat_data_, &half_extent_, &colour_, &colour_clamped_},
+                        [&](size_t, uint32_t g, const ProjectedGaussian&, Real* ch) {
+                          for (int f = 0; f < F; ++f) ch[3 + f] = Real(opt.features[size_t(g) * F + f]);
+                        });
 
-    internal::TileBins bins = internal::bin_tiles(proj, visible_, W, H);
-    grid_x_ = bins.grid_x;
-    tile_start_ = std::move(bins.start);
-    keys_ = std::move(bins.entries);
-    const size_t tiles = size_t(bins.grid_x) * bins.grid_y;
+  internal::TileBins bins = internal::bin_tiles(proj, visible_, W, H);
+  grid_x_ = bins.grid_x;
+  tile_start_ = std::move(bins.start);
+  keys_ = std::move(bins.entries);
+  const size_t tiles = size_t(bins.grid_x) * bins.grid_y;
 
-    image_.assign(size_t(W) * H * 3, Real(0));
-    features_.assign(size_t(W) * H * F, Real(0));
-    alpha_.assign(size_t(W) * H, Real(0));
-    final_T_.assign(size_t(W) * H, Real(1));
-    last_entry_.assign(size_t(W) * H, 0);
+  image_.assign(size_t(W) * H * 3, Real(0));
+  features_.assign(size_t(W) * H * F, Real(0));
+  alpha_.assign(size_t(W) * H, Real(0));
+  final_T_.assign(size_t(W) * H, Real(1));
+  last_entry_.assign(size_t(W) * H, 0);
 
-    const tiles::TileSplats<Real> splats{splat_data_.data(), half_extent_.data(), colour_.data(), C};
-    const bool simd = uses_simd();
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
-      alignas(64) Real T[tiles::kTilePixels];
-      uint32_t last[tiles::kTilePixels];
-      std::vector<Real> acc(size_t(tiles::kTilePixels) * C);
-      for (size_t t = r.begin(); t < r.end(); ++t) {
-        const tiles::TileWork work = tile_work(t);
-        tiles::TileForward<Real> fwd;
-        fwd.T = T;
-        fwd.acc = acc.data();
-        fwd.last = last;
-        tiles::forward_tile(simd, splats, work, fwd);
-        for (int py = work.y0; py < work.y1; ++py)
-          for (int px = work.x0; px < work.x1; ++px) {
-            const int l = (py - work.y0) * kTileSize + (px - work.x0);
-            const size_t o = size_t(py) * W + px;
-            auto a = [&](int c) { return acc[size_t(c) * tiles::kTilePixels + l]; };
-            for (int k = 0; k < 3; ++k) image_[o * 3 + k] = a(k) + T[l] * Real(opt.background[k]);
-            for (int f = 0; f < F; ++f) features_[o * F + f] = a(3 + f);
-            alpha_[o] = Real(1) - T[l];
-            final_T_[o] = T[l];
-            last_entry_[o] = last[l];
-          }
-      }
-    });
+  const tiles::TileSplats<Real> splats{splat_data_.data(), half_extent_.data(), colour_.data(), C};
+  const bool simd = uses_simd();
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
+    alignas(64) Real T[tiles::kTilePixels];
+    uint32_t last[tiles::kTilePixels];
+    std::vector<Real> acc(size_t(tiles::kTilePixels) * C);
+    for (size_t t = r.begin(); t < r.end(); ++t) {
+      const tiles::TileWork work = tile_work(t);
+      tiles::TileForward<Real> fwd;
+      fwd.T = T;
+      fwd.acc = acc.data();
+      fwd.last = last;
+      tiles::forward_tile(simd, splats, work, fwd);
+      tiles::for_each_tile_pixel(work, W, [&](int l, size_t o) {
+        auto a = [&](int c) { return acc[size_t(c) * tiles::kTilePixels + l]; };
+        for (int k = 0; k < 3; ++k) image_[o * 3 + k] = a(k) + T[l] * Real(opt.background[k]);
+        for (int f = 0; f < F; ++f) features_[o * F + f] = a(3 + f);
+        alpha_[o] = Real(1) - T[l];
+        final_T_[o] = T[l];
+        last_entry_[o] = last[l];
+      });
+    }
   });
 }
 
@@ -267,15 +259,12 @@ template <typename MakeVisitor>
 void DiffRasterizer<Real>::backward_tiles(MakeVisitor&& make_visitor) const {
   const size_t tiles = tile_start_.empty() ? 0 : tile_start_.size() - 1;
   const tiles::TileSplats<Real> splats{splat_data_.data(), half_extent_.data(), colour_.data(), channels_};
-  tbb::task_arena arena(arena_concurrency(options_.threads));
-  arena.execute([&] {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
-      auto visitor = make_visitor();
-      tiles::BackwardScratch<Real> scratch;
-      for (size_t t = r.begin(); t < r.end(); ++t)
-        tiles::backward_tile_scalar(splats, tile_work(t), final_T_.data(), last_entry_.data(), width_, &scratch, visitor,
-                                     tile_start_[t]);
-    });
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
+    auto visitor = make_visitor();
+    tiles::BackwardScratch<Real> scratch;
+    for (size_t t = r.begin(); t < r.end(); ++t)
+      tiles::backward_tile_scalar(splats, tile_work(t), final_T_.data(), last_entry_.data(), width_, &scratch, visitor,
+                                   tile_start_[t]);
   });
 }
 
@@ -286,38 +275,32 @@ void DiffRasterizer<Real>::backward_tiles_simd(const Real* dL_dimage, const Real
     const int W = width_, C = channels_, F = C - 3, R = 6 + C;
     const size_t tiles = tile_start_.empty() ? 0 : tile_start_.size() - 1;
     const tiles::TileSplats<float> splats{splat_data_.data(), half_extent_.data(), colour_.data(), C};
-    tbb::task_arena arena(arena_concurrency(options_.threads));
-    arena.execute([&] {
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
-        alignas(64) float final_T[tiles::kTilePixels];
-        alignas(64) uint32_t last[tiles::kTilePixels];
-        std::vector<float> dpix(size_t(C) * tiles::kTilePixels);
-        for (size_t t = r.begin(); t < r.end(); ++t) {
-          const tiles::TileWork work = tile_work(t);
-          // Tile-local, planar copies; pixels outside the image were never reached.
-          std::fill(final_T, final_T + tiles::kTilePixels, 1.0f);
-          std::fill(last, last + tiles::kTilePixels, 0u);
-          std::fill(dpix.begin(), dpix.end(), 0.0f);
-          for (int py = work.y0; py < work.y1; ++py)
-            for (int px = work.x0; px < work.x1; ++px) {
-              const int l = (py - work.y0) * kTileSize + (px - work.x0);
-              const size_t o = size_t(py) * W + px;
-              final_T[l] = final_T_[o];
-              last[l] = last_entry_[o];
-              const float wpx = pixel_weights ? pixel_weights[o] : 1.0f;
-              for (int c = 0; c < 3; ++c) dpix[size_t(c) * tiles::kTilePixels + l] = dL_dimage[o * 3 + c] * wpx;
-              if (dL_dfeatures)
-                for (int f = 0; f < F; ++f) dpix[size_t(3 + f) * tiles::kTilePixels + l] = dL_dfeatures[o * F + f] * wpx;
-            }
-          tiles::TileBackward io;
-          io.final_T = final_T;
-          io.last = last;
-          io.dpix = dpix.data();
-          for (int c = 0; c < 3; ++c) io.background[c] = options_.background[c];
-          io.records = records + tile_start_[t] * R;
-          tiles::backward_tile_simd(splats, work, io);
-        }
-      });
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, tiles, 1), [&](const tbb::blocked_range<size_t>& r) {
+      alignas(64) float final_T[tiles::kTilePixels];
+      alignas(64) uint32_t last[tiles::kTilePixels];
+      std::vector<float> dpix(size_t(C) * tiles::kTilePixels);
+      for (size_t t = r.begin(); t < r.end(); ++t) {
+        const tiles::TileWork work = tile_work(t);
+        // Tile-local, planar copies; pixels outside the image were never reached.
+        std::fill(final_T, final_T + tiles::kTilePixels, 1.0f);
+        std::fill(last, last + tiles::kTilePixels, 0u);
+        std::fill(dpix.begin(), dpix.end(), 0.0f);
+        tiles::for_each_tile_pixel(work, W, [&](int l, size_t o) {
+          final_T[l] = final_T_[o];
+          last[l] = last_entry_[o];
+          const float wpx = pixel_weights ? pixel_weights[o] : 1.0f;
+          for (int c = 0; c < 3; ++c) dpix[size_t(c) * tiles::kTilePixels + l] = dL_dimage[o * 3 + c] * wpx;
+          if (dL_dfeatures)
+            for (int f = 0; f < F; ++f) dpix[size_t(3 + f) * tiles::kTilePixels + l] = dL_dfeatures[o * F + f] * wpx;
+        });
+        tiles::TileBackward io;
+        io.final_T = final_T;
+        io.last = last;
+        io.dpix = dpix.data();
+        for (int c = 0; c < 3; ++c) io.background[c] = options_.background[c];
+        io.records = records + tile_start_[t] * R;
+        tiles::backward_tile_simd(splats, work, io);
+      }
     });
   }
 }
@@ -396,46 +379,43 @@ void DiffRasterizer<Real>::backward(const Real* dL_dimage, const Real* dL_dfeatu
   grad->reset(G.size(), K, F);
   const Vec3d centre = camera_.centre();
   const Real campos[3] = {Real(centre.x()), Real(centre.y()), Real(centre.z())};
-  tbb::task_arena arena(arena_concurrency(options_.threads));
-  arena.execute([&] {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 512), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i < r.end(); ++i) {
-        const uint32_t g = visible_[i];
-        const Real* s = &sums[i * R];
-        grad->screen[2 * g] = s[0];
-        grad->screen[2 * g + 1] = s[1];
-        double m[3], sc[3], q[4], gm[3] = {0, 0, 0}, gs[3] = {0, 0, 0}, gq[4] = {0, 0, 0, 0};
-        for (int k = 0; k < 3; ++k) m[k] = double(G.means[3 * g + k]), sc[k] = double(G.scales[3 * g + k]);
-        for (int k = 0; k < 4; ++k) q[k] = double(G.rotations[4 * g + k]);
-        const double gconic[3] = {double(s[2]), double(s[3]), double(s[4])};
-        project_splat_backward<double>(m, sc, q, camera_, double(s[0]), double(s[1]), gconic, gm, gs, gq);
-        for (int k = 0; k < 3; ++k) grad->means[3 * g + k] += Real(gm[k]), grad->scales[3 * g + k] += Real(gs[k]);
-        for (int k = 0; k < 4; ++k) grad->rotations[4 * g + k] += Real(gq[k]);
-        grad->opacities[g] += s[5];
-        for (int f = 0; f < F; ++f) grad->features[size_t(g) * F + f] = s[9 + f];
-        // Colour from SH: coefficients, and the mean through the view direction.
-        const Real gcol[3] = {colour_clamped_[i] & 1 ? Real(0) : s[6], colour_clamped_[i] & 2 ? Real(0) : s[7],
-                              colour_clamped_[i] & 4 ? Real(0) : s[8]};
-        Real dir[3], len;
-        tiles::view_direction(&G.means[3 * g], campos, dir, &len);
-        Dual3<Real> dx(0), dy(0), dz(0), Y[16];
-        dx.v = dir[0], dy.v = dir[1], dz.v = dir[2];
-        dx.d[0] = dy.d[1] = dz.d[2] = Real(1);
-        sh_basis_generic<Dual3<Real>>(G.sh_degree, dx, dy, dz, Y);
-        const Real* coeffs = G.sh + size_t(g) * K * 3;
-        Real* gsh = &grad->sh[size_t(g) * K * 3];
-        Real gdir[3] = {0, 0, 0};
-        for (int k = 0; k < K; ++k)
-          for (int c = 0; c < 3; ++c) {
-            gsh[3 * k + c] = Y[k].v * gcol[c];
-            for (int a = 0; a < 3; ++a) gdir[a] += Y[k].d[a] * coeffs[3 * k + c] * gcol[c];
-          }
-        if (K > 1 && len > Real(0)) {
-          const Real dot = gdir[0] * dir[0] + gdir[1] * dir[1] + gdir[2] * dir[2];
-          for (int a = 0; a < 3; ++a) grad->means[3 * g + a] += (gdir[a] - dot * dir[a]) / len;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 512), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const uint32_t g = visible_[i];
+      const Real* s = &sums[i * R];
+      grad->screen[2 * g] = s[0];
+      grad->screen[2 * g + 1] = s[1];
+      double m[3], sc[3], q[4], gm[3] = {0, 0, 0}, gs[3] = {0, 0, 0}, gq[4] = {0, 0, 0, 0};
+      for (int k = 0; k < 3; ++k) m[k] = double(G.means[3 * g + k]), sc[k] = double(G.scales[3 * g + k]);
+      for (int k = 0; k < 4; ++k) q[k] = double(G.rotations[4 * g + k]);
+      const double gconic[3] = {double(s[2]), double(s[3]), double(s[4])};
+      project_splat_backward<double>(m, sc, q, camera_, double(s[0]), double(s[1]), gconic, gm, gs, gq);
+      for (int k = 0; k < 3; ++k) grad->means[3 * g + k] += Real(gm[k]), grad->scales[3 * g + k] += Real(gs[k]);
+      for (int k = 0; k < 4; ++k) grad->rotations[4 * g + k] += Real(gq[k]);
+      grad->opacities[g] += s[5];
+      for (int f = 0; f < F; ++f) grad->features[size_t(g) * F + f] = s[9 + f];
+      // Colour from SH: coefficients, and the mean through the view direction.
+      const Real gcol[3] = {colour_clamped_[i] & 1 ? Real(0) : s[6], colour_clamped_[i] & 2 ? Real(0) : s[7],
+                            colour_clamped_[i] & 4 ? Real(0) : s[8]};
+      Real dir[3], len;
+      tiles::view_direction(&G.means[3 * g], campos, dir, &len);
+      Dual3<Real> dx(0), dy(0), dz(0), Y[16];
+      dx.v = dir[0], dy.v = dir[1], dz.v = dir[2];
+      dx.d[0] = dy.d[1] = dz.d[2] = Real(1);
+      sh_basis_generic<Dual3<Real>>(G.sh_degree, dx, dy, dz, Y);
+      const Real* coeffs = G.sh + size_t(g) * K * 3;
+      Real* gsh = &grad->sh[size_t(g) * K * 3];
+      Real gdir[3] = {0, 0, 0};
+      for (int k = 0; k < K; ++k)
+        for (int c = 0; c < 3; ++c) {
+          gsh[3 * k + c] = Y[k].v * gcol[c];
+          for (int a = 0; a < 3; ++a) gdir[a] += Y[k].d[a] * coeffs[3 * k + c] * gcol[c];
         }
+      if (K > 1 && len > Real(0)) {
+        const Real dot = gdir[0] * dir[0] + gdir[1] * dir[1] + gdir[2] * dir[2];
+        for (int a = 0; a < 3; ++a) grad->means[3 * g + a] += (gdir[a] - dot * dir[a]) / len;
       }
-    });
+    }
   });
 }
 
@@ -448,23 +428,20 @@ void DiffRasterizer<Real>::accumulate_fisher(FisherDiagonal* fisher) const {
   if (fisher->values.size() != G.size() * P) fisher->values.assign(G.size() * P, 0.0);
   // Per visible Gaussian: Jacobian of (u, v, A, B, C) w.r.t. (mean, log-scale, rotation).
   std::vector<double> jac(V * 50, 0.0);
-  tbb::task_arena arena(arena_concurrency(options_.threads));
-  arena.execute([&] {
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 512), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i < r.end(); ++i) {
-        const uint32_t g = visible_[i];
-        double m[3], sc[3], q[4];
-        for (int k = 0; k < 3; ++k) m[k] = double(G.means[3 * g + k]), sc[k] = double(G.scales[3 * g + k]);
-        for (int k = 0; k < 4; ++k) q[k] = double(G.rotations[4 * g + k]);
-        for (int row = 0; row < 5; ++row) {
-          double up[5] = {0, 0, 0, 0, 0};
-          up[row] = 1.0;
-          double* J = &jac[i * 50 + row * 10];
-          project_splat_backward<double>(m, sc, q, camera_, up[0], up[1], up + 2, J, J + 3, J + 6);
-          for (int k = 0; k < 3; ++k) J[3 + k] *= sc[k];  // d/dlog-scale
-        }
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 512), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const uint32_t g = visible_[i];
+      double m[3], sc[3], q[4];
+      for (int k = 0; k < 3; ++k) m[k] = double(G.means[3 * g + k]), sc[k] = double(G.scales[3 * g + k]);
+      for (int k = 0; k < 4; ++k) q[k] = double(G.rotations[4 * g + k]);
+      for (int row = 0; row < 5; ++row) {
+        double up[5] = {0, 0, 0, 0, 0};
+        up[row] = 1.0;
+        double* J = &jac[i * 50 + row * 10];
+        project_splat_backward<double>(m, sc, q, camera_, up[0], up[1], up + 2, J, J + 3, J + 6);
+        for (int k = 0; k < 3; ++k) J[3 + k] *= sc[k];  // d/dlog-scale
       }
-    });
+    }
   });
   std::vector<double> records(keys_.size() * size_t(P), 0.0);
   const Vec3f bg = options_.background;

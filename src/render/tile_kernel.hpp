@@ -59,6 +59,14 @@ inline TileWork tile_work(int grid_x, const uint64_t* start, const uint32_t* ent
   return w;
 }
 
+/// Calls f(l, o) for every pixel of a tile: l its tile-local index, o its index in an image
+/// `width` pixels wide (row-major).
+template <typename F>
+inline void for_each_tile_pixel(const TileWork& tile, int width, F&& f) {
+  for (int py = tile.y0; py < tile.y1; ++py)
+    for (int px = tile.x0; px < tile.x1; ++px) f((py - tile.y0) * kTileSize + (px - tile.x0), size_t(py) * width + px);
+}
+
 /// What a forward pass over one tile writes (every array tile-local, planar).
 template <typename Real>
 struct TileForward {
@@ -171,8 +179,7 @@ void backward_tile_scalar(const TileSplats<Real>& S, const TileWork& tile, const
   std::vector<Real>& behind = scratch->behind;
   T.assign(kTilePixels, Real(1));
   behind.assign(size_t(kTilePixels) * C, Real(0));
-  for (int py = tile.y0; py < tile.y1; ++py)
-    for (int px = tile.x0; px < tile.x1; ++px) T[(py - tile.y0) * kTileSize + (px - tile.x0)] = final_T[size_t(py) * width + px];
+  for_each_tile_pixel(tile, width, [&](int l, size_t o) { T[l] = final_T[o]; });
   for (uint32_t k = tile.count; k-- > 0;) {
     const uint32_t i = tile.entries[k];
     const ScalarEntry<Real> en(S, tile, i);

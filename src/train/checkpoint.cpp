@@ -159,7 +159,7 @@ Trainer Trainer::resume(const Dataset& data, const std::string& path, const Trai
   const uint64_t views = r.pod<uint64_t>();
   if (views != data.views().size())
     throw_error(path, ": checkpoint was trained on ", views, " views, this dataset has ", data.views().size());
-  if (r.pod<uint64_t>() != options.seed) throw_error(path, ": checkpoint was trained with another --seed");
+  if (r.pod<uint64_t>() != options.seed) throw_error(path, ": checkpoint was trained with another seed");
   ModelParams<float> p = read_params(r);
   Trainer t(data, p, options);
   t.params_ = std::move(p);  // as saved: the constructor's conversions (keys for every Gaussian) do not apply

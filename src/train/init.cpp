@@ -23,7 +23,7 @@ std::pair<Vec3d, double> centre_of_interest(const std::vector<Camera>& cameras) 
     A += P, b += P * o;
   }
   if (cameras.size() < 2 || std::abs(A.determinant()) < 1e-12)
-    throw_error("initialisation: the cameras' optical axes are parallel or too few; give --points");
+    throw_error("initialisation: the cameras' optical axes are parallel or too few; give initial points");
   const Vec3d centre = A.ldlt().solve(b);
   double r = 0;
   for (const Camera& c : cameras) r += (c.centre() - centre).norm() / double(cameras.size());
@@ -115,7 +115,7 @@ ViewInitResult points_from_views(const Dataset& data, const ViewInitOptions& o) 
       }
   }
   if (out.points.positions.empty())
-    throw_error("initialisation: no point is seen by ", need, " of the cameras' first views; give --points");
+    throw_error("initialisation: no point is seen by ", need, " of the cameras' first views; give initial points");
   return out;
 }
 

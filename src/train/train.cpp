@@ -6,7 +6,6 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <utility>
@@ -31,7 +30,6 @@
 #include "fillgs/render/raster.hpp"
 #include "fillgs/model/sh.hpp"
 #include "fillgs/io/video.hpp"
-#include "fillgs/base/threads.hpp"
 
 namespace fs = std::filesystem;
 
@@ -225,7 +223,7 @@ ModelParams<float> init_from_points(const PointSet& pts) {
 
 PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction, double noise, uint64_t seed,
                            const std::vector<Camera>& observers, int min_views) {
-  const FrameGaussians f = evaluate(scene, t);
+  const FrameGaussians f = frame_at(scene, t);
   std::vector<int> seen(f.size(), 0);
   for (const Camera& cam : observers) {
     RenderOptions ro;
@@ -459,10 +457,9 @@ void Trainer::step() {
   const std::vector<float> target = refined ? refined->rgb : data_->image(v);
   const float* loss_weights = refined ? refined->weight.data() : nullptr;
   DiffFrame<float> frame;
-  evaluate_params(params_, view.camera.time, &frame);
+  params_at(params_, view.camera.time, &frame);
   DiffRenderOptions ro;
   ro.background = options_.background;
-  ro.threads = options_.threads;
   DiffRasterizer<float> ras;
   ras.forward(frame, view.camera, ro);
   const int W = view.camera.width, H = view.camera.height;
@@ -480,7 +477,7 @@ void Trainer::step() {
   DiffFrameGrad<float> fg;
   ras.backward(dimg.data(), nullptr, nullptr, &fg);
   grad_.set_zeros_like(params_);
-  evaluate_params_backward(params_, view.camera.time, fg, &grad_);
+  params_at_backward(params_, view.camera.time, fg, &grad_);
 
   // Densification statistics (3DGS: norm of the NDC-space mean gradient, per view seen).
   const int B = std::max(1, options_.time_bins);
@@ -576,7 +573,7 @@ void Trainer::place_keys_by_flow(int f0) {
   const int last = frame_end[targets - 1];
   if (last <= f0) return;
   DiffFrame<float> frame;
-  evaluate_params(params_, FrameGrid(F).time(f0), &frame);
+  params_at(params_, FrameGrid(F).time(f0), &frame);
   const size_t N = frame.size();
   std::vector<Mat3d> A(D * 2, Mat3d::Zero());
   std::vector<Vec3d> b(D * 2, Vec3d::Zero());
@@ -596,7 +593,6 @@ void Trainer::place_keys_by_flow(int f0) {
     DiffRenderOptions ro;
     ro.features = depth.data();
     ro.feature_channels = 1;
-    ro.threads = options_.threads;
     DiffRasterizer<float> ras;
     ras.forward(frame, cam, ro);
     std::vector<FlowField> forward, backward;
@@ -749,32 +745,29 @@ void Trainer::adam_step() {
       }
     });
   };
-  tbb::task_arena arena(arena_concurrency(options_.threads));
-  arena.execute([&] {
-    update(params_.means, grad_.means, adam_m_.means, adam_v_.means, pos_lr);
-    update(params_.key_positions, grad_.key_positions, adam_m_.key_positions, adam_v_.key_positions, key_lr);
-    update(params_.log_scales, grad_.log_scales, adam_m_.log_scales, adam_v_.log_scales, options_.scaling_lr);
-    update(params_.key_log_scales, grad_.key_log_scales, adam_m_.key_log_scales, adam_v_.key_log_scales, options_.scaling_lr);
-    update(params_.rotations, grad_.rotations, adam_m_.rotations, adam_v_.rotations, options_.rotation_lr);
-    update(params_.key_rotations, grad_.key_rotations, adam_m_.key_rotations, adam_v_.key_rotations, options_.rotation_lr);
-    update(params_.opacity_logits, grad_.opacity_logits, adam_m_.opacity_logits, adam_v_.opacity_logits, options_.opacity_lr);
-    update(params_.key_opacity_logits, grad_.key_opacity_logits, adam_m_.key_opacity_logits, adam_v_.key_opacity_logits, options_.opacity_lr);
-    // SH: the DC coefficients (the first 3 values of each Gaussian's block) at feature_lr, the rest at 1/20 of it.
-    const size_t block = size_t(K) * 3;
-    const float a_dc = float(options_.feature_lr / c1), a_rest = float(options_.feature_lr / 20.0 / c1);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, params_.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t gi = r.begin(); gi < r.end(); ++gi) {
-        float *X = &params_.sh[gi * block], *M = &adam_m_.sh[gi * block], *Vv = &adam_v_.sh[gi * block];
-        const float* G = &grad_.sh[gi * block];
-        for (size_t i = 0; i < block; ++i) {
-          M[i] = fb1 * M[i] + (1 - fb1) * G[i];
-          Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
-          X[i] -= (i < 3 ? a_dc : a_rest) * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
-        }
+  update(params_.means, grad_.means, adam_m_.means, adam_v_.means, pos_lr);
+  update(params_.key_positions, grad_.key_positions, adam_m_.key_positions, adam_v_.key_positions, key_lr);
+  update(params_.log_scales, grad_.log_scales, adam_m_.log_scales, adam_v_.log_scales, options_.scaling_lr);
+  update(params_.key_log_scales, grad_.key_log_scales, adam_m_.key_log_scales, adam_v_.key_log_scales, options_.scaling_lr);
+  update(params_.rotations, grad_.rotations, adam_m_.rotations, adam_v_.rotations, options_.rotation_lr);
+  update(params_.key_rotations, grad_.key_rotations, adam_m_.key_rotations, adam_v_.key_rotations, options_.rotation_lr);
+  update(params_.opacity_logits, grad_.opacity_logits, adam_m_.opacity_logits, adam_v_.opacity_logits, options_.opacity_lr);
+  update(params_.key_opacity_logits, grad_.key_opacity_logits, adam_m_.key_opacity_logits, adam_v_.key_opacity_logits, options_.opacity_lr);
+  // SH: the DC coefficients (the first 3 values of each Gaussian's block) at feature_lr, the rest at 1/20 of it.
+  const size_t block = size_t(K) * 3;
+  const float a_dc = float(options_.feature_lr / c1), a_rest = float(options_.feature_lr / 20.0 / c1);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, params_.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t gi = r.begin(); gi < r.end(); ++gi) {
+      float *X = &params_.sh[gi * block], *M = &adam_m_.sh[gi * block], *Vv = &adam_v_.sh[gi * block];
+      const float* G = &grad_.sh[gi * block];
+      for (size_t i = 0; i < block; ++i) {
+        M[i] = fb1 * M[i] + (1 - fb1) * G[i];
+        Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
+        X[i] -= (i < 3 ? a_dc : a_rest) * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
       }
-    });
-    motion_sparsity_step(key_lr);
+    }
   });
+  motion_sparsity_step(key_lr);
 }
 
 namespace {

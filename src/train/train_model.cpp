@@ -263,10 +263,21 @@ GaussianCloud cloud_from_params(const ModelParams<float>& p) {
   return c;
 }
 
+/// Calls f(j, g, kw) in parallel for every keyed Gaussian: j its index among the moving
+/// ones, g its index, kw the cubic position weights and the key interval at time t.
+template <typename Real, typename F>
+void for_each_keyed(const ModelParams<Real>& p, double t, F&& f) {
+  if (p.dynamic_count() == 0) return;
+  const KeyWeights<Real> kw(p.first_key_time, p.key_spacing, p.key_count, t);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, p.dynamic_count(), 2048), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t j = r.begin(); j < r.end(); ++j) f(j, p.dynamic_ids[j], kw);
+  });
+}
+
 template <typename Real>
-void evaluate_params(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
+void params_at(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
   t = std::clamp(t, 0.0, 1.0);
-  const size_t N = p.size(), M = p.dynamic_count();
+  const size_t N = p.size();
   const int K = p.key_count;
   if (f->size() != N) f->resize(N);
   f->sh_degree = p.sh_degree;
@@ -279,44 +290,39 @@ void evaluate_params(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
       f->opacities[g] = sigmoid(p.opacity_logits[g]);
     }
   });
-  if (M == 0) return;
-  const KeyWeights<Real> kw(p.first_key_time, p.key_spacing, p.key_count, t);
-  const KeySpot& ks = kw.spot;
-  const Real* w = kw.w;
-  const int i1 = kw.next;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, M, 2048), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t j = r.begin(); j < r.end(); ++j) {
-      const uint32_t g = p.dynamic_ids[j];
-      const Real* P = &p.key_positions[j * K * 3];
-      for (int a = 0; a < 3; ++a) {
-        Real x = 0;
-        if (K == 1) {
-          x = P[a];
-        } else {
-          for (int n = 0; n < 4; ++n) x += w[n] * P[3 * std::clamp(ks.i - 1 + n, 0, K - 1) + a];
-        }
-        f->means[3 * g + a] = x;
+  for_each_keyed(p, t, [&](size_t j, uint32_t g, const KeyWeights<Real>& kw) {
+    const KeySpot& ks = kw.spot;
+    const Real* w = kw.w;
+    const int i1 = kw.next;
+    const Real* P = &p.key_positions[j * K * 3];
+    for (int a = 0; a < 3; ++a) {
+      Real x = 0;
+      if (K == 1) {
+        x = P[a];
+      } else {
+        for (int n = 0; n < 4; ++n) x += w[n] * P[3 * std::clamp(ks.i - 1 + n, 0, K - 1) + a];
       }
-      const Real* Q = &p.key_rotations[j * K * 4];
-      Slerp<Real> sl;
-      sl.forward(Q + 4 * ks.i, Q + 4 * i1, Real(ks.s), &f->rotations[4 * g]);
-      if (!p.key_log_scales.empty()) {
-        const Real* S = &p.key_log_scales[j * K * 3];
-        for (int a = 0; a < 3; ++a)
-          f->scales[3 * g + a] = std::exp(S[3 * ks.i + a] + Real(ks.s) * (S[3 * i1 + a] - S[3 * ks.i + a]));
-      }
-      if (p.keyed_opacity) {
-        const Real* O = &p.key_opacity_logits[j * K];
-        f->opacities[g] = sigmoid(O[ks.i] + Real(ks.s) * (O[i1] - O[ks.i]));
-      }
+      f->means[3 * g + a] = x;
+    }
+    const Real* Q = &p.key_rotations[j * K * 4];
+    Slerp<Real> sl;
+    sl.forward(Q + 4 * ks.i, Q + 4 * i1, Real(ks.s), &f->rotations[4 * g]);
+    if (!p.key_log_scales.empty()) {
+      const Real* S = &p.key_log_scales[j * K * 3];
+      for (int a = 0; a < 3; ++a)
+        f->scales[3 * g + a] = std::exp(S[3 * ks.i + a] + Real(ks.s) * (S[3 * i1 + a] - S[3 * ks.i + a]));
+    }
+    if (p.keyed_opacity) {
+      const Real* O = &p.key_opacity_logits[j * K];
+      f->opacities[g] = sigmoid(O[ks.i] + Real(ks.s) * (O[i1] - O[ks.i]));
     }
   });
 }
 
 template <typename Real>
-void evaluate_params_backward(const ModelParams<Real>& p, double t, const DiffFrameGrad<Real>& gf, ModelParams<Real>* d) {
+void params_at_backward(const ModelParams<Real>& p, double t, const DiffFrameGrad<Real>& gf, ModelParams<Real>* d) {
   t = std::clamp(t, 0.0, 1.0);
-  const size_t N = p.size(), M = p.dynamic_count();
+  const size_t N = p.size();
   const int K = p.key_count;
   for (size_t i = 0; i < gf.sh.size(); ++i) d->sh[i] += gf.sh[i];
   // Own values (static Gaussians; for moving ones only what keys do not replace).
@@ -337,49 +343,44 @@ void evaluate_params_backward(const ModelParams<Real>& p, double t, const DiffFr
       }
     }
   });
-  if (M == 0) return;
-  const KeyWeights<Real> kw(p.first_key_time, p.key_spacing, p.key_count, t);
-  const KeySpot& ks = kw.spot;
-  const Real* w = kw.w;
-  const int i1 = kw.next;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, M, 2048), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t j = r.begin(); j < r.end(); ++j) {
-      const uint32_t g = p.dynamic_ids[j];
-      Real* dP = &d->key_positions[j * K * 3];
+  for_each_keyed(p, t, [&](size_t j, uint32_t g, const KeyWeights<Real>& kw) {
+    const KeySpot& ks = kw.spot;
+    const Real* w = kw.w;
+    const int i1 = kw.next;
+    Real* dP = &d->key_positions[j * K * 3];
+    for (int a = 0; a < 3; ++a) {
+      if (K == 1) {
+        dP[a] += gf.means[3 * g + a];
+      } else {
+        for (int n = 0; n < 4; ++n) dP[3 * std::clamp(ks.i - 1 + n, 0, K - 1) + a] += w[n] * gf.means[3 * g + a];
+      }
+    }
+    const Real* Q = &p.key_rotations[j * K * 4];
+    Real* dQ = &d->key_rotations[j * K * 4];
+    Slerp<Real> sl;
+    Real out[4];
+    sl.forward(Q + 4 * ks.i, Q + 4 * i1, Real(ks.s), out);
+    Real g0[4] = {0, 0, 0, 0}, g1[4] = {0, 0, 0, 0};
+    sl.backward(Q + 4 * ks.i, Q + 4 * i1, &gf.rotations[4 * g], g0, g1);
+    for (int k = 0; k < 4; ++k) dQ[4 * ks.i + k] += g0[k], dQ[4 * i1 + k] += g1[k];
+    const Real s = Real(ks.s);
+    if (keyed_scale) {
+      const Real* S = &p.key_log_scales[j * K * 3];
+      Real* dS = &d->key_log_scales[j * K * 3];
       for (int a = 0; a < 3; ++a) {
-        if (K == 1) {
-          dP[a] += gf.means[3 * g + a];
-        } else {
-          for (int n = 0; n < 4; ++n) dP[3 * std::clamp(ks.i - 1 + n, 0, K - 1) + a] += w[n] * gf.means[3 * g + a];
-        }
+        const Real x = S[3 * ks.i + a] + s * (S[3 * i1 + a] - S[3 * ks.i + a]);
+        const Real gx = gf.scales[3 * g + a] * std::exp(x);
+        dS[3 * ks.i + a] += (Real(1) - s) * gx;
+        dS[3 * i1 + a] += s * gx;
       }
-      const Real* Q = &p.key_rotations[j * K * 4];
-      Real* dQ = &d->key_rotations[j * K * 4];
-      Slerp<Real> sl;
-      Real out[4];
-      sl.forward(Q + 4 * ks.i, Q + 4 * i1, Real(ks.s), out);
-      Real g0[4] = {0, 0, 0, 0}, g1[4] = {0, 0, 0, 0};
-      sl.backward(Q + 4 * ks.i, Q + 4 * i1, &gf.rotations[4 * g], g0, g1);
-      for (int k = 0; k < 4; ++k) dQ[4 * ks.i + k] += g0[k], dQ[4 * i1 + k] += g1[k];
-      const Real s = Real(ks.s);
-      if (keyed_scale) {
-        const Real* S = &p.key_log_scales[j * K * 3];
-        Real* dS = &d->key_log_scales[j * K * 3];
-        for (int a = 0; a < 3; ++a) {
-          const Real x = S[3 * ks.i + a] + s * (S[3 * i1 + a] - S[3 * ks.i + a]);
-          const Real gx = gf.scales[3 * g + a] * std::exp(x);
-          dS[3 * ks.i + a] += (Real(1) - s) * gx;
-          dS[3 * i1 + a] += s * gx;
-        }
-      }
-      if (keyed_opacity) {
-        const Real* O = &p.key_opacity_logits[j * K];
-        Real* dO = &d->key_opacity_logits[j * K];
-        const Real o = sigmoid(O[ks.i] + s * (O[i1] - O[ks.i]));
-        const Real gx = gf.opacities[g] * o * (Real(1) - o);
-        dO[ks.i] += (Real(1) - s) * gx;
-        dO[i1] += s * gx;
-      }
+    }
+    if (keyed_opacity) {
+      const Real* O = &p.key_opacity_logits[j * K];
+      Real* dO = &d->key_opacity_logits[j * K];
+      const Real o = sigmoid(O[ks.i] + s * (O[i1] - O[ks.i]));
+      const Real gx = gf.opacities[g] * o * (Real(1) - o);
+      dO[ks.i] += (Real(1) - s) * gx;
+      dO[i1] += s * gx;
     }
   });
 }
@@ -394,11 +395,11 @@ template size_t key_every_gaussian<double>(ModelParams<double>&);
 template void add_key_opacities<float>(ModelParams<float>&);
 template void add_key_opacities<double>(ModelParams<double>&);
 template ModelParams<double> params_from_cloud<double>(const GaussianCloud&, int);
-template void evaluate_params<float>(const ModelParams<float>&, double, DiffFrame<float>*);
-template void evaluate_params<double>(const ModelParams<double>&, double, DiffFrame<double>*);
-template void evaluate_params_backward<float>(const ModelParams<float>&, double, const DiffFrameGrad<float>&,
+template void params_at<float>(const ModelParams<float>&, double, DiffFrame<float>*);
+template void params_at<double>(const ModelParams<double>&, double, DiffFrame<double>*);
+template void params_at_backward<float>(const ModelParams<float>&, double, const DiffFrameGrad<float>&,
                                               ModelParams<float>*);
-template void evaluate_params_backward<double>(const ModelParams<double>&, double, const DiffFrameGrad<double>&,
+template void params_at_backward<double>(const ModelParams<double>&, double, const DiffFrameGrad<double>&,
                                                ModelParams<double>*);
 
 }  // namespace fillgs

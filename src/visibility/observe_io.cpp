@@ -268,16 +268,16 @@ std::string table_payload(const std::string& path, const std::string& descr, con
 }  // namespace
 
 ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, const std::string& dir, bool plots) {
-  if (shard_dirs.empty()) throw_error("observe --merge: no shard folders");
+  if (shard_dirs.empty()) throw_error("merge: no shard folders");
   std::vector<ShardInput> shards;
   for (const std::string& d : shard_dirs) {
     ShardInput in;
     in.dir = d;
     const std::string path = join_path(d, "summary.json");
-    if (!std::filesystem::exists(path)) throw_error(d, ": no summary.json (not a folder written by fillgs observe --shard)");
+    if (!std::filesystem::exists(path)) throw_error(d, ": no summary.json (not a shard folder)");
     in.summary = read_json_file(path);
     try {
-      if (!in.summary.contains("shard")) throw_error(path, ": not a shard (written without --shard)");
+      if (!in.summary.contains("shard")) throw_error(path, ": not a shard (written as a whole job)");
       in.frames = in.summary.at("shard").at("frames").get<std::vector<size_t>>();
     } catch (const nlohmann::json::exception& e) {
       throw_error(path, ": malformed shard summary (", e.what(), ")");
@@ -306,7 +306,7 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
     }
   }
   const size_t T = first["shard"].value("frames_total", size_t(0));
-  if (next != T) throw_error("observe --merge: the shards hold frames 0 to ", next - 1, " of ", T, " (a shard is missing)");
+  if (next != T) throw_error("merge: the shards hold frames 0 to ", next - 1, " of ", T, " (a shard is missing)");
 
   const size_t N = first.at("gaussians").get<size_t>(), M = first.at("dynamic").get<size_t>();
   const bool narrow = first.at("count_dtype") == "uint8", dense = first.value("motion_tables", "dense") == "dense";

@@ -60,13 +60,13 @@ void Session::abort(int code) const {
 
 FrameSource observe_source(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const std::vector<double>& times, double frame_step,
                            const ObservationOptions& options) {
-  if (!options.frames.empty() || !options.cameras.empty()) throw_error("observe --mpi: the ranks share the whole job (no --shard with it)");
+  if (!options.frames.empty() || !options.cameras.empty()) throw_error("MPI observation: the ranks share the whole job (no shard of it)");
   return [&cloud, &cameras, &times, frame_step, options](const FrameSink& sink, Progress& progress) {
     int rank = 0, size = 1;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);
     const size_t N = cloud.size(), M = cloud.dynamic_count(), C = cameras.size();
-    if (N > size_t(INT_MAX)) throw_error("observe --mpi: ", N, " Gaussians do not fit one MPI message's count");
+    if (N > size_t(INT_MAX)) throw_error("MPI observation: ", N, " Gaussians do not fit one MPI message's count");
     // Camera poses round the ranks: each pose's static answer is traced once in the job.
     size_t poses = 0;
     const std::vector<uint32_t> pose = camera_pose_groups(cameras, &poses);

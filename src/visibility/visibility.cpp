@@ -3,7 +3,6 @@
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
-#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <atomic>
@@ -16,7 +15,6 @@
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/timing.hpp"
 #include "fillgs/visibility/gaussian_tracer.hpp"
-#include "fillgs/base/threads.hpp"
 
 namespace fillgs {
 
@@ -300,11 +298,10 @@ std::vector<uint32_t> frustum_visible(const FrameGaussians& frame, const Camera&
   return all;
 }
 
-std::vector<uint32_t> exact_visible(const FrameGaussians& frame, const Camera& cam, float tau, int threads) {
+std::vector<uint32_t> exact_visible(const FrameGaussians& frame, const Camera& cam, float tau) {
   RenderOptions ro;
   ro.rgb = false;
   ro.max_weights = true;
-  ro.threads = threads;
   const RenderOutput out = render(frame, cam, ro);
   std::vector<uint32_t> ids;
   for (size_t g = 0; g < out.max_weight.size(); ++g)
@@ -346,16 +343,15 @@ std::vector<uint32_t> raytraced_visible(const GaussianTracer& tracer, const RayG
 struct VisibilityEngine::Impl {
   const GaussianCloud& cloud;
   VisibilityOptions options;
-  FrameEvaluator evaluator;
+  FrameSampler sampler;
   const FrameGaussians* frame = nullptr;
   std::unique_ptr<GaussianTracer> tracer;
   TraceCounters counters;
-  tbb::task_arena arena;
   std::pair<Vec3f, Vec3f> extent;
   bool have_extent = false;
 
   Impl(const GaussianCloud& c, const VisibilityOptions& o)
-      : cloud(c), options(o), evaluator(c), arena(arena_concurrency(o.threads)) {}
+      : cloud(c), options(o), sampler(c) {}
 
   /// The proxies, (re)built when a camera's dilated matchs need more bound padding
   /// than they have (with 25% headroom, so a rig of similar cameras builds once).
@@ -369,7 +365,6 @@ struct VisibilityEngine::Impl {
       TracerOptions to;
       to.min_transmittance = options.min_transmittance;
       to.dilation_padding = std::max(tracer ? tracer->dilation_padding() : 0.0f, 1.25f * need);
-      to.threads = options.threads;
       tracer.reset();
       tracer = std::make_unique<GaussianTracer>(*frame, cloud.dynamic_ids, to);
     }
@@ -381,7 +376,7 @@ VisibilityEngine::VisibilityEngine(const GaussianCloud& cloud, const VisibilityO
     : impl_(std::make_unique<Impl>(cloud, options)) {
   FILLGS_CHECK(options.stride >= 1);
   FILLGS_CHECK(options.min_weight > 0.0f);
-  impl_->frame = &impl_->evaluator.evaluate(0.0);
+  impl_->frame = &impl_->sampler.at(0.0);
 }
 
 VisibilityEngine::~VisibilityEngine() = default;
@@ -390,10 +385,8 @@ void VisibilityEngine::set_time(double t) {
   Impl& m = *impl_;
   // The same time again (callers move between candidates of one frame): nothing to refit.
   if (std::clamp(t, 0.0, 1.0) == m.frame->time) return;
-  m.arena.execute([&] {
-    m.frame = &m.evaluator.evaluate(t);
-    if (m.tracer) m.tracer->refit_dynamic(*m.frame);
-  });
+  m.frame = &m.sampler.at(t);
+  if (m.tracer) m.tracer->refit_dynamic(*m.frame);
 }
 
 double VisibilityEngine::time() const { return impl_->frame->time; }
@@ -406,47 +399,43 @@ double VisibilityEngine::last_refit_seconds() const { return impl_->tracer ? imp
 std::vector<uint32_t> VisibilityEngine::visible_set(const Camera& camera) {
   Impl& m = *impl_;
   std::vector<uint32_t> ids;
-  m.arena.execute([&] {
-    switch (m.options.mode) {
-      case VisibilityMode::Frustum: ids = frustum_visible(*m.frame, camera, nullptr); break;
-      case VisibilityMode::Exact: ids = exact_visible(*m.frame, camera, m.options.min_weight, m.options.threads); break;
-      case VisibilityMode::Raytraced:
-        ids = raytraced_visible(m.proxies(&camera), RayGrid(camera, m.options.stride, m.options.dilate), m.options.min_weight, &m.counters);
-        break;
-    }
-  });
+  switch (m.options.mode) {
+    case VisibilityMode::Frustum: ids = frustum_visible(*m.frame, camera, nullptr); break;
+    case VisibilityMode::Exact: ids = exact_visible(*m.frame, camera, m.options.min_weight); break;
+    case VisibilityMode::Raytraced:
+      ids = raytraced_visible(m.proxies(&camera), RayGrid(camera, m.options.stride, m.options.dilate), m.options.min_weight, &m.counters);
+      break;
+  }
   return ids;
 }
 
 ViewMaps VisibilityEngine::render_maps(const Camera& camera, const float* deficiency, const float* count, int stride) {
   Impl& m = *impl_;
   ViewMaps maps;
-  m.arena.execute([&] {
-    const GaussianTracer& tracer = m.proxies(&camera);
-    const RayGrid grid(camera, stride, m.options.dilate);
-    maps.width = grid.width;
-    maps.height = grid.height;
-    maps.stride = stride;
-    const size_t n = grid.count();
-    if (deficiency) maps.deficiency.assign(n, 0.0f);
-    if (count) maps.count.assign(n, 0.0f);
-    maps.depth.assign(n, 0.0f);
-    maps.alpha.assign(n, 0.0f);
-    tbb::enumerable_thread_specific<RayScratch> scratch;
-    trace_grid(tracer, grid, TraceLayers::All, scratch, [&](RayScratch& s, size_t p, const RayOutcome& o) {
-      double d = 0, c = 0, z = 0;
-      for (const TracedHit& h : s.hits) {
-        if (deficiency) d += double(h.weight) * deficiency[h.id];
-        if (count) c += double(h.weight) * count[h.id];
-        z += double(h.weight) * h.distance;
-      }
-      if (deficiency) maps.deficiency[p] = float(d);
-      if (count) maps.count[p] = float(c);
-      maps.depth[p] = float(z);
-      maps.alpha[p] = 1.0f - o.transmittance;
-    });
-    merge_ids(scratch, &m.counters);
+  const GaussianTracer& tracer = m.proxies(&camera);
+  const RayGrid grid(camera, stride, m.options.dilate);
+  maps.width = grid.width;
+  maps.height = grid.height;
+  maps.stride = stride;
+  const size_t n = grid.count();
+  if (deficiency) maps.deficiency.assign(n, 0.0f);
+  if (count) maps.count.assign(n, 0.0f);
+  maps.depth.assign(n, 0.0f);
+  maps.alpha.assign(n, 0.0f);
+  tbb::enumerable_thread_specific<RayScratch> scratch;
+  trace_grid(tracer, grid, TraceLayers::All, scratch, [&](RayScratch& s, size_t p, const RayOutcome& o) {
+    double d = 0, c = 0, z = 0;
+    for (const TracedHit& h : s.hits) {
+      if (deficiency) d += double(h.weight) * deficiency[h.id];
+      if (count) c += double(h.weight) * count[h.id];
+      z += double(h.weight) * h.distance;
+    }
+    if (deficiency) maps.deficiency[p] = float(d);
+    if (count) maps.count[p] = float(c);
+    maps.depth[p] = float(z);
+    maps.alpha[p] = 1.0f - o.transmittance;
   });
+  merge_ids(scratch, &m.counters);
   return maps;
 }
 
@@ -870,117 +859,113 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
   summary.camera_poses = run.pose_count();
   summary.max_views_per_frame = uint16_t(max_views);
 
-  tbb::task_arena arena(arena_concurrency(vis.threads));
-  arena.execute([&] {
-    FrameEvaluator evaluator(cloud);
-    const FrameGaussians* frame = &evaluator.evaluate(times[frames[0]]);
-    std::unique_ptr<GaussianTracer> tracer;
-    if (vis.mode == VisibilityMode::Raytraced) {
-      TracerOptions to;
-      to.min_transmittance = vis.min_transmittance;
-      to.threads = vis.threads;
-      if (vis.dilate)  // every ray leaves one of these cameras: each proxy padded for its own depth
-        for (const Camera& c : cameras) {
-          const RasterMatch m = camera_raster_match(c);
-          const Vec3d centre = c.centre();
-          TracerOptions::DilationView v;
-          for (int a = 0; a < 3; ++a) {
-            v.centre[a] = float(centre[a]);
-            v.axis[a] = m.axis[a];
-          }
-          v.sigma_per_depth = std::sqrt(m.variance_per_depth2);
-          to.dilation_views.push_back(v);
+  FrameSampler sampler(cloud);
+  const FrameGaussians* frame = &sampler.at(times[frames[0]]);
+  std::unique_ptr<GaussianTracer> tracer;
+  if (vis.mode == VisibilityMode::Raytraced) {
+    TracerOptions to;
+    to.min_transmittance = vis.min_transmittance;
+    if (vis.dilate)  // every ray leaves one of these cameras: each proxy padded for its own depth
+      for (const Camera& c : cameras) {
+        const RasterMatch m = camera_raster_match(c);
+        const Vec3d centre = c.centre();
+        TracerOptions::DilationView v;
+        for (int a = 0; a < 3; ++a) {
+          v.centre[a] = float(centre[a]);
+          v.axis[a] = m.axis[a];
         }
-      tracer = std::make_unique<GaussianTracer>(*frame, cloud.dynamic_ids, to);
-      summary.seconds_build = tracer->build_seconds();
-    }
-    const bool incremental = options.incremental && vis.mode != VisibilityMode::Exact;
-
-    std::vector<uint16_t> counts(N, 0), base(N, 0);
-    std::vector<uint32_t> base_poses;  // sorted pose indices the base was summed for
-    bool have_base = false;
-    std::vector<float> speed, deficiency;
-    std::vector<ProxyBox> boxes;
-    // The static answers keep the hits of the rays in the dynamic proxies' footprints: swept
-    // over every frame of this run, or (off) those of the frame that answers.
-    std::vector<ProxyBox> swept;
-    const bool sweep = incremental && tracer && options.keep_at_static_answers && options.sweep_static_answers && options.footprints &&
-                       options.static_hit_cache_bytes > 0;
-    progress.start("observe", frames.size());
-    for (size_t f : frames) {
-      if (f != frames[0]) {
-        frame = &evaluator.evaluate(times[f]);
-        if (tracer) {
-          tracer->refit_dynamic(*frame);
-          summary.seconds_refit += tracer->last_refit_seconds();
-        }
+        v.sigma_per_depth = std::sqrt(m.variance_per_depth2);
+        to.dilation_views.push_back(v);
       }
-      const auto start_frame = Clock::now();
-      FrameObservation fo;
-      fo.frame = int(f);
-      fo.time = times[f];
-      fo.views = views[f];
-      if (incremental) {
-        if (tracer) tracer->dynamic_boxes(boxes);
-        if (sweep && f == frames[0]) {  // part of the static answers (timed with them)
-          const auto start_sweep = Clock::now();
-          std::vector<double> run_times;
-          for (size_t k : frames) run_times.push_back(times[k]);
-          swept = swept_dynamic_boxes(cloud, *tracer, run_times);
-          summary.seconds_static += seconds_since(start_sweep);
-        }
-        for (uint32_t c : views[f]) run.static_answer(*frame, tracer.get(), swept.empty() ? boxes : swept, c, !swept.empty());
-        std::vector<uint32_t> poses;
-        for (uint32_t c : views[f]) poses.push_back(run.pose_index(c));
-        std::sort(poses.begin(), poses.end());
-        if (!have_base || poses != base_poses) {
-          std::fill(base.begin(), base.end(), uint16_t(0));
-          for (uint32_t c : views[f])
-            for (uint32_t g : run.pose(c).visible) ++base[g];
-          base_poses = poses;
-          have_base = true;
-        }
-        counts = base;
-        for (uint32_t c : views[f]) {
-          const ViewDelta d = tracer ? run.raytraced_delta(*tracer, boxes, c) : run.frustum_delta(*frame, c);
-          for (uint32_t g : d.removed) --counts[g];
-          for (uint32_t g : d.added) ++counts[g];
-          fo.visible_per_view.push_back(uint32_t(run.pose(c).visible.size() - d.removed.size() + d.added.size()));
-        }
-      } else {
-        std::fill(counts.begin(), counts.end(), uint16_t(0));
-        for (uint32_t c : views[f]) {
-          std::vector<uint32_t> ids;
-          switch (vis.mode) {
-            case VisibilityMode::Frustum: ids = frustum_visible(*frame, cameras[c], nullptr); break;
-            case VisibilityMode::Exact: ids = exact_visible(*frame, cameras[c], vis.min_weight, vis.threads); break;
-            case VisibilityMode::Raytraced:
-              ids = raytraced_visible(*tracer, RayGrid(cameras[c], vis.stride, vis.dilate), vis.min_weight, &summary.counters);
-              break;
-          }
-          for (uint32_t g : ids) ++counts[g];
-          fo.visible_per_view.push_back(uint32_t(ids.size()));
-        }
+    tracer = std::make_unique<GaussianTracer>(*frame, cloud.dynamic_ids, to);
+    summary.seconds_build = tracer->build_seconds();
+  }
+  const bool incremental = options.incremental && vis.mode != VisibilityMode::Exact;
+
+  std::vector<uint16_t> counts(N, 0), base(N, 0);
+  std::vector<uint32_t> base_poses;  // sorted pose indices the base was summed for
+  bool have_base = false;
+  std::vector<float> speed, deficiency;
+  std::vector<ProxyBox> boxes;
+  // The static answers keep the hits of the rays in the dynamic proxies' footprints: swept
+  // over every frame of this run, or (off) those of the frame that answers.
+  std::vector<ProxyBox> swept;
+  const bool sweep = incremental && tracer && options.keep_at_static_answers && options.sweep_static_answers && options.footprints &&
+                     options.static_hit_cache_bytes > 0;
+  progress.start("observe", frames.size());
+  for (size_t f : frames) {
+    if (f != frames[0]) {
+      frame = &sampler.at(times[f]);
+      if (tracer) {
+        tracer->refit_dynamic(*frame);
+        summary.seconds_refit += tracer->last_refit_seconds();
       }
-      summary.views += views[f].size();
-      summary.seconds_frames += seconds_since(start_frame);
-
-      const auto start_speed = Clock::now();
-      dynamic_speeds(cloud, times[f], frame_step, speed);
-      deficiency.resize(speed.size());
-      for (size_t j = 0; j < speed.size(); ++j) deficiency[j] = speed[j] / (1.0f + float(counts[cloud.dynamic_ids[j]]));
-      summary.seconds_speed += seconds_since(start_speed);
-
-      const auto start_sink = Clock::now();
-      fo.counts = counts.data();
-      fo.dynamic_speed = speed.data();
-      fo.dynamic_deficiency = deficiency.data();
-      sink(fo);
-      summary.seconds_sink += seconds_since(start_sink);
-      progress.advance();
     }
-    progress.finish();
-  });
+    const auto start_frame = Clock::now();
+    FrameObservation fo;
+    fo.frame = int(f);
+    fo.time = times[f];
+    fo.views = views[f];
+    if (incremental) {
+      if (tracer) tracer->dynamic_boxes(boxes);
+      if (sweep && f == frames[0]) {  // part of the static answers (timed with them)
+        const auto start_sweep = Clock::now();
+        std::vector<double> run_times;
+        for (size_t k : frames) run_times.push_back(times[k]);
+        swept = swept_dynamic_boxes(cloud, *tracer, run_times);
+        summary.seconds_static += seconds_since(start_sweep);
+      }
+      for (uint32_t c : views[f]) run.static_answer(*frame, tracer.get(), swept.empty() ? boxes : swept, c, !swept.empty());
+      std::vector<uint32_t> poses;
+      for (uint32_t c : views[f]) poses.push_back(run.pose_index(c));
+      std::sort(poses.begin(), poses.end());
+      if (!have_base || poses != base_poses) {
+        std::fill(base.begin(), base.end(), uint16_t(0));
+        for (uint32_t c : views[f])
+          for (uint32_t g : run.pose(c).visible) ++base[g];
+        base_poses = poses;
+        have_base = true;
+      }
+      counts = base;
+      for (uint32_t c : views[f]) {
+        const ViewDelta d = tracer ? run.raytraced_delta(*tracer, boxes, c) : run.frustum_delta(*frame, c);
+        for (uint32_t g : d.removed) --counts[g];
+        for (uint32_t g : d.added) ++counts[g];
+        fo.visible_per_view.push_back(uint32_t(run.pose(c).visible.size() - d.removed.size() + d.added.size()));
+      }
+    } else {
+      std::fill(counts.begin(), counts.end(), uint16_t(0));
+      for (uint32_t c : views[f]) {
+        std::vector<uint32_t> ids;
+        switch (vis.mode) {
+          case VisibilityMode::Frustum: ids = frustum_visible(*frame, cameras[c], nullptr); break;
+          case VisibilityMode::Exact: ids = exact_visible(*frame, cameras[c], vis.min_weight); break;
+          case VisibilityMode::Raytraced:
+            ids = raytraced_visible(*tracer, RayGrid(cameras[c], vis.stride, vis.dilate), vis.min_weight, &summary.counters);
+            break;
+        }
+        for (uint32_t g : ids) ++counts[g];
+        fo.visible_per_view.push_back(uint32_t(ids.size()));
+      }
+    }
+    summary.views += views[f].size();
+    summary.seconds_frames += seconds_since(start_frame);
+
+    const auto start_speed = Clock::now();
+    dynamic_speeds(cloud, times[f], frame_step, speed);
+    deficiency.resize(speed.size());
+    for (size_t j = 0; j < speed.size(); ++j) deficiency[j] = speed[j] / (1.0f + float(counts[cloud.dynamic_ids[j]]));
+    summary.seconds_speed += seconds_since(start_speed);
+
+    const auto start_sink = Clock::now();
+    fo.counts = counts.data();
+    fo.dynamic_speed = speed.data();
+    fo.dynamic_deficiency = deficiency.data();
+    sink(fo);
+    summary.seconds_sink += seconds_since(start_sink);
+    progress.advance();
+  }
+  progress.finish();
   summary.seconds_total = seconds_since(start_total);
   return summary;
 }

@@ -24,9 +24,8 @@
 namespace fillgs {
 
 struct EvalOptions {
-  int stride = 1;                         ///< every k-th view
+  int view_stride = 1;                    ///< every k-th view of the split
   Vec3f background = Vec3f::Zero();
-  int threads = 0;
   const GaussianCloud* truth = nullptr;   ///< for the moving region (synthetic scenes)
   std::string lpips_onnx;                 ///< empty: no LPIPS
   std::string save_dir;                   ///< non-empty: renders written here as <view name>.png
@@ -56,11 +55,11 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
                             Progress& progress = null_progress());
 
 /// PSNR and SSIM on every max(1, V/32)-th training view: what the training summaries report.
-SplitMetrics evaluate_training_sample(const GaussianCloud& model, const Dataset& data, const Vec3f& background, int threads);
+SplitMetrics evaluate_training_sample(const GaussianCloud& model, const Dataset& data, const Vec3f& background);
 
 /// The moving region of a camera at its time: 1 where the moving Gaussians of `truth`
 /// make up at least half of the rendered opacity ([H][W]).
-std::vector<unsigned char> moving_region(const GaussianCloud& truth, const Camera& camera, int threads = 0);
+std::vector<unsigned char> moving_region(const GaussianCloud& truth, const Camera& camera);
 
 /// LPIPS of two RGB images ([H][W][3] in [0, 1]) with an ONNX network (see above).
 class LpipsNetwork {

@@ -16,12 +16,19 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/base/names.hpp"
 #include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/method/finetune.hpp"
 #include "fillgs/experiment/synth.hpp"
 #include "fillgs/train/train.hpp"
 
 namespace fillgs {
+
+/// The part of the comparison a configuration belongs to (a section of the report).
+enum class ConfigGroup { Control, Upper, Strategy, Ablation, Weighting, Budget, Refiner };
+FILLGS_ENUM_NAMES(ConfigGroup, "configuration group", {ConfigGroup::Control, "control"}, {ConfigGroup::Upper, "upper"},
+                  {ConfigGroup::Strategy, "strategy"}, {ConfigGroup::Ablation, "ablation"}, {ConfigGroup::Weighting, "weighting"},
+                  {ConfigGroup::Budget, "budget"}, {ConfigGroup::Refiner, "refiner"});
 
 /// A scene of the comparison by name: "n3v", "technicolor" (the kitchen on those rigs) or a
 /// ring variant ("chair", "orbit", "lift"). Throws for other names.
@@ -40,7 +47,6 @@ struct ExperimentOptions {
   /// Cameras of the split; empty: the scene's own (SynthScene::split).
   std::vector<std::string> train_cameras, interpolation_cameras, extrapolation_cameras;
   int backbone_iterations = 2000;
-  int threads = 0;
   /// The scene's folder name: the rig, or the ring's variant.
   std::string scene_name() const;
   /// The options with the rig's defaults filled in.
@@ -73,7 +79,7 @@ enum class RunKind {
 /// One configuration of the comparison.
 struct RunConfig {
   std::string id;           ///< folder name and table row, e.g. "fillgs", "random", "fillgs.no-global", "fillgs@full"
-  std::string group;        ///< "control", "strategy", "ablation", "weighting", "budget", "refiner", "upper"
+  ConfigGroup group = ConfigGroup::Strategy;
   RunKind kind = RunKind::Finetune;
   SelectOptions select;     ///< strategy and ablation flags
   Weighting weighting = Weighting::FillGS;
@@ -92,7 +98,8 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting = Weighting
                                         const std::vector<OracleSupport>& supports = {OracleSupport::Observed});
 
 struct RunResult {
-  std::string id, group, variant;  ///< variant: the scene name
+  std::string id, variant;         ///< variant: the scene name
+  ConfigGroup group = ConfigGroup::Control;
   uint64_t seed = 0;
   SplitMetrics interpolation, extrapolation, train;
   int trajectories = 0;
@@ -105,7 +112,7 @@ struct RunResult {
 };
 
 /// Evaluates a model on the prepared scene's splits (moving region from the ground truth).
-RunResult evaluate_model(const PreparedScene& scene, const GaussianCloud& model, const std::string& id, int threads,
+RunResult evaluate_model(const PreparedScene& scene, const GaussianCloud& model, const std::string& id,
                          const std::string& save_dir = "", Progress& progress = null_progress());
 
 /// Runs `config` on the backbone (fine-tuning with the oracle refiner, or an upper bound),
@@ -142,7 +149,8 @@ std::vector<RunResult> merge_results(const std::vector<std::string>& inputs);
 /// `reference` minus another configuration, paired by scene and seed: the way to read a
 /// comparison whose spread between seeds is larger than the differences between methods.
 struct PairedDifference {
-  std::string variant, id, group;
+  std::string variant, id;
+  ConfigGroup group = ConfigGroup::Control;
   int seeds = 0;  ///< seeds where both ran
   /// interpolation PSNR, its moving region, extrapolation PSNR, its moving region (dB)
   double mean[4] = {}, sd[4] = {};
@@ -167,7 +175,6 @@ struct RunReportInput {
   OracleSupport support = OracleSupport::Observed;
   double artifact_strength = 0;
   std::string command;               ///< the command line, as typed
-  int threads = 0;
 };
 /// report.md and report.html into `dir`: the scene and schedule, a table of every result,
 /// side-by-side renders (ground truth, backbone, each model) at the view and moment of each

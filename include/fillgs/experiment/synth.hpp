@@ -92,6 +92,6 @@ std::vector<Camera> cameras_over_time(const std::vector<Camera>& rig, int frames
 void write_split_picture(const SynthScene& scene, const std::string& path, const std::vector<Camera>& virtual_views = {},
                          const std::string& title = "");
 
-void write_synthetic_scene(const SynthScene& scene, const std::string& out_dir, Progress& progress, int threads = 0);
+void write_synthetic_scene(const SynthScene& scene, const std::string& out_dir, Progress& progress);
 
 }  // namespace fillgs

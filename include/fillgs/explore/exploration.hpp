@@ -43,7 +43,6 @@ struct ExplorationOptions {
   float occupancy_alpha = 0.1f;   ///< a Gaussian occupies where its α reaches this
   double bounds_quantile = 0.01;  ///< robust Gaussian bounds: this and 1 − this quantile per axis
   double margin = 0.05;           ///< box grown by this fraction of its size on every side
-  int threads = 0;
 };
 
 struct ExplorationStats {

@@ -10,6 +10,9 @@ struct Image {
   std::vector<float> pixels;  ///< [height][width][channels]
   Image() = default;
   Image(int w, int h, int c, float fill = 0.0f) : width(w), height(h), channels(c), pixels(size_t(w) * h * c, fill) {}
+  /// Takes pixels already laid out [h][w][c] (a render's `rgb`, a dataset's image); a size
+  /// that is not w·h·c is a one-line error.
+  Image(int w, int h, int c, std::vector<float> data);
   float& at(int x, int y, int c) { return pixels[(size_t(y) * width + x) * channels + c]; }
   float at(int x, int y, int c) const { return pixels[(size_t(y) * width + x) * channels + c]; }
 };

@@ -37,7 +37,7 @@ template <typename T>
 std::vector<uint8_t> block_average_u8(const T* src, int width, int height, int source_channels, int channels, const int* order, int k,
                                       float to_255) {
   const int W = width / k, H = height / k;
-  if (W < 1 || H < 1) throw_error("--downscale ", k, " leaves no pixel of a ", width, "x", height, " image");
+  if (W < 1 || H < 1) throw_error("downscale ", k, " leaves no pixel of a ", width, "x", height, " image");
   std::vector<uint8_t> out(size_t(W) * size_t(H) * size_t(channels));
   const float norm = 1.0f / float(k * k);
   for (int y = 0; y < H; ++y)

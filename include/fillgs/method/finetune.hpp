@@ -29,7 +29,6 @@ struct FinetuneOptions {
   ExplorationOptions grid;
   TrainOptions train;         ///< see fine_tune_schedule
   std::string work_dir;       ///< patches/, refined/ (with masks and weights) per round
-  int threads = 0;
   /// Views with their weights added before the first iteration, beside any selected ones
   /// (the upper bound upper.test-views: ground truth at the test cameras).
   std::vector<RefinedView> extra_views;

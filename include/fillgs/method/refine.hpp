@@ -121,7 +121,6 @@ struct OracleOptions {
   int frames = 0;                 ///< Observed: the video's frame count
   int window = 2;                 ///< Observed: ± frames within which a moving surface counts as seen
   Vec3f background = Vec3f::Zero();
-  int threads = 0;
 };
 
 /// Mean support of the virtual views an oracle refined (1 for Full).
@@ -134,8 +133,7 @@ struct SupportStats {
 /// The support of every Gaussian of `truth` at every frame ([F][N], 1 = seen), as the
 /// Observed oracle uses it: exact visibility from `observers`, static Gaussians at any frame,
 /// moving ones within ±window frames.
-std::vector<uint8_t> oracle_support_table(const GaussianCloud& truth, const std::vector<Camera>& observers, int frames, int window,
-                                          int threads = 0);
+std::vector<uint8_t> oracle_support_table(const GaussianCloud& truth, const std::vector<Camera>& observers, int frames, int window);
 
 /// Renders `truth` at each virtual view (its time), limits it to the supported pixels (see
 /// OracleSupport; the support mask goes to `out_dir`/support/<file>), applies artifacts
@@ -143,8 +141,7 @@ std::vector<uint8_t> oracle_support_table(const GaussianCloud& truth, const std:
 /// given, accumulates the support of every refined pixel.
 std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const OracleOptions& options, SupportStats* stats = nullptr);
 /// The full-support oracle (ground truth everywhere).
-std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const ArtifactOptions& artifacts, const Vec3f& background,
-                                             int threads = 0);
+std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const ArtifactOptions& artifacts, const Vec3f& background);
 /// The real-capture refiner (`--refiner rig`): the refined image of a virtual view is the
 /// real photograph of the nearest *pool* camera — a camera of the rig neither trained on nor
 /// held out — at the view's frame, and that camera's real pose replaces the virtual one.

@@ -72,7 +72,6 @@ struct SelectOptions {
   int views = 3;                 ///< virtual poses per trajectory (the refiner patch takes 3)
   int patch_frames = 3;          ///< consecutive frames each pose is rendered at (centred on the start's)
   uint64_t seed = 1;
-  int threads = 0;
 
   // starting viewpoints (§2)
   int time_stride = 1;           ///< priority on every k-th frame only (long videos)
@@ -197,7 +196,7 @@ std::vector<Camera> global_candidates(const Camera& start, const std::vector<Cam
                                       double grow, std::mt19937_64& rng);
 
 /// Per-Gaussian `values` (one channel) rendered by the rasterizer into `camera`: [H][W].
-std::vector<float> render_value_map(const FrameGaussians& frame, const Camera& camera, const float* values, int threads = 0);
+std::vector<float> render_value_map(const FrameGaussians& frame, const Camera& camera, const float* values);
 /// Mean of a map (0 for an empty one): the candidate score of a D̂ map.
 double mean_value(const std::vector<float>& map);
 
@@ -215,7 +214,7 @@ class DeficiencyField {
   /// The co-visibility weight's per-Gaussian value at frame f (weights.hpp, Covisibility).
   std::vector<float> covisibility(int frame, Covisibility rule) const;
   /// Counts one more observation of `visible` at frame f and updates D there.
-  void observe(int frame, const std::vector<uint32_t>& visible);
+  void add_view(int frame, const std::vector<uint32_t>& visible);
 
  private:
   ObservationTables tables_;

@@ -62,7 +62,7 @@ struct MaskOptions {
 };
 
 /// Expected depth Σ α·T·z / α of a render, 0 where α < min_alpha.
-std::vector<float> expected_depth(const FrameGaussians& frame, const Camera& camera, double min_alpha, int threads = 0);
+std::vector<float> expected_depth(const FrameGaussians& frame, const Camera& camera, double min_alpha);
 
 /// Confidence ([H][W] in [0, 1]) that `refined` (seen from `camera` with depth `depth`)
 /// agrees with `observed` (seen from `observed_camera`, depth `observed_depth`).
@@ -86,7 +86,6 @@ struct WeightContext {
   const DeficiencyField* deficiency = nullptr;
   int frames = 1;
   Vec3f background = Vec3f::Zero();
-  int threads = 0;
   /// Rendered depths of observed views, computed once per context (a context belongs to
   /// one model; every refined view of a round compares against the same few views).
   mutable std::map<size_t, std::vector<float>> observed_depths;

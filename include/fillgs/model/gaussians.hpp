@@ -82,7 +82,7 @@ struct GaussianCloud {
 };
 
 /// Gaussians evaluated at one time: activated, world space. Static entries are written
-/// once; FrameEvaluator rewrites only the dynamic ones per time.
+/// once; FrameSampler rewrites only the dynamic ones per time.
 struct FrameGaussians {
   double time = 0.0;
   int sh_degree = 0;
@@ -94,12 +94,12 @@ struct FrameGaussians {
   size_t size() const { return means.size(); }
 };
 
-/// Evaluates a cloud at any time, touching only the dynamic set after the first call.
-class FrameEvaluator {
+/// The Gaussians of a cloud at any time, touching only the dynamic set after the first call.
+class FrameSampler {
  public:
-  explicit FrameEvaluator(const GaussianCloud& cloud);
+  explicit FrameSampler(const GaussianCloud& cloud);
   /// Gaussians at normalised time t (values outside [0, 1] are clamped to it).
-  const FrameGaussians& evaluate(double t);
+  const FrameGaussians& at(double t);
   const GaussianCloud& cloud() const { return cloud_; }
 
  private:
@@ -107,8 +107,8 @@ class FrameEvaluator {
   FrameGaussians frame_;
 };
 
-/// One-shot evaluation (copies the static set).
-FrameGaussians evaluate(const GaussianCloud& cloud, double t);
+/// The Gaussians at time t, one shot (copies the static set).
+FrameGaussians frame_at(const GaussianCloud& cloud, double t);
 
 /// World-space means of the dynamic set at time t, in `dynamic_ids` order.
 void dynamic_means_at(const GaussianCloud& cloud, double t, std::vector<Vec3f>& out);

@@ -70,7 +70,6 @@ struct RenderOptions {
   bool contributors = false;  ///< per-pixel contributor lists (memory grows with depth complexity)
   bool max_weights = false;   ///< per-Gaussian maximum α·T over all pixels
   Vec3f background = Vec3f::Zero();
-  int threads = 0;            ///< 0: all available
   Kernel kernel = Kernel::Default;
 };
 

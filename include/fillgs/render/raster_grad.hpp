@@ -76,7 +76,6 @@ struct DiffRenderOptions {
   Vec3f background = Vec3f::Zero();
   const float* features = nullptr;  ///< optional [N][feature_channels] blended like colour (background 0)
   int feature_channels = 0;
-  int threads = 0;                  ///< 0: all available
   Kernel kernel = Kernel::Default;  ///< the vector kernel applies to float only
 };
 

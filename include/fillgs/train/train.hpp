@@ -67,7 +67,6 @@ FILLGS_ENUM_NAMES(MotionLearning, "motion learning", {MotionLearning::All, "all"
 struct TrainOptions {
   int iterations = 3000;
   uint64_t seed = 1;
-  int threads = 0;
   Vec3f background = Vec3f::Zero();
   double lambda_dssim = 0.2;
   int max_sh_degree = 3;

@@ -6,7 +6,7 @@
 // Motion: static Gaussians have no motion parameters. Moving ones carry keyframed
 // positions and rotations (keys k at t = first_key_time + k·key_spacing, Catmull-Rom
 // positions with repeated end keys, shortest-arc slerp of normalised key quaternions —
-// fillgs' KeyframedMotion convention, evaluated by the same code as evaluate(t):
+// fillgs' KeyframedMotion convention, evaluated by the same code as frame_at(t):
 // src/model/motion_keys.hpp — so a model converts to and from GaussianCloud without change),
 // and optionally keyed log-scales and opacity logits (linear).
 // The same struct holds gradients and Adam moments (same layout).
@@ -93,11 +93,11 @@ GaussianCloud cloud_from_params(const ModelParams<float>& params);
 
 /// Gaussians at time t (clamped to [0, 1]). `frame.sh` points into params.sh.
 template <typename Real>
-void evaluate_params(const ModelParams<Real>& params, double t, DiffFrame<Real>* frame);
+void params_at(const ModelParams<Real>& params, double t, DiffFrame<Real>* frame);
 
-/// Adds dL/dparams for a loss whose gradient with respect to evaluate_params(t) is `grad`.
+/// Adds dL/dparams for a loss whose gradient with respect to params_at(t) is `grad`.
 template <typename Real>
-void evaluate_params_backward(const ModelParams<Real>& params, double t, const DiffFrameGrad<Real>& grad,
+void params_at_backward(const ModelParams<Real>& params, double t, const DiffFrameGrad<Real>& grad,
                               ModelParams<Real>* dparams);
 
 }  // namespace fillgs

@@ -45,7 +45,6 @@ struct TracerOptions {
     float sigma_per_depth;   ///< sqrt(RasterMatch::variance_per_depth2)
   };
   std::vector<DilationView> dilation_views;
-  int threads = 0;                              ///< for building proxies (0: all)
 };
 
 /// Makes a camera's rays draw what the rasterizer draws (for rays leaving the camera centre):

@@ -38,7 +38,6 @@ struct VisibilityOptions {
   /// Rays see Gaussians dilated as the rasterizer draws them (+0.3 px², see RayFootprint);
   /// off: the plain 3D Gaussians (3DGRT semantics).
   bool dilate = true;
-  int threads = 0;                              ///< 0: all available
 };
 
 /// Counters of the ray work (raytraced mode; maps in any mode).
