@@ -249,7 +249,7 @@ int bench_motion(const std::vector<std::string>& args) {
   auto app = cli::make_parser("fillgs_bench motion", "motion learning: a 4D model trained on a rig, its moving region and tracking");
   cli::add_flag(*app, "--smoke", smoke, "64x48, 6 frames, 60 iterations (overrides the sizes)");
   cli::add_text(*app, "--out", out, "the folder for pictures and tables", "DIR");
-  cli::add_text(*app, "--rig", rig, "the synthetic rig: ring, n3v or technicolor", "NAME");
+  cli::add_text(*app, "--rig", rig, "the synthetic rig: " + join_names(synthetic_rigs()), "NAME");
   cli::add_text(*app, "--variant", variant, "the moving content (default: the rig's first)", "NAME");
   cli::add_text(*app, "--cameras", cameras, "training cameras: all, or names a,b", "A,B,..");
   cli::add_number(*app, "--iterations", iterations, "training iterations", cli::at_least(1));

@@ -20,6 +20,7 @@
 
 #include "bench_common.hpp"
 #include "cli/options.hpp"
+#include "fillgs/base/threads.hpp"
 #include "fillgs/explore/exploration.hpp"
 #include "fillgs/render/raster.hpp"
 #include "fillgs/io/scene_io.hpp"
@@ -137,6 +138,7 @@ const char* kPhaseHeader =
 }  // namespace
 
 int bench_select(const std::vector<std::string>& args) {
+  const ThreadLimit two_threads(2);  // the tables say "2 threads"
   bool smoke = false;
   std::string only;
   auto app = cli::make_parser("fillgs_bench select", "selection: the strategies, the map renderer, the priority, the grid, a large scene");

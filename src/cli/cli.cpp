@@ -230,8 +230,11 @@ Action declare_synth(CLI::App& app) {
   add_number(app, "--height", o.height, "image height", at_least(1));
   add_number(app, "--seed", o.seed, "random seed");
   add_number(app, "--spacing", o.spacing, "surface sample spacing (metres)", positive());
-  add_text(app, "--rig", o.rig, "the camera rig: ring, n3v or technicolor", "NAME");
-  add_text(app, "--variant", o.variant, "the moving content: chair, orbit or lift (ring); kitchen (n3v, technicolor)", "NAME");
+  add_text(app, "--rig", o.rig, "the camera rig: " + join_names(synthetic_rigs()), "NAME");
+  std::string variants;
+  for (const std::string& rig : synthetic_rigs())
+    variants += (variants.empty() ? "" : "; ") + join_names(synthetic_variants(rig)) + " (" + rig + ")";
+  add_text(app, "--variant", o.variant, "the moving content: " + variants + "; default: the rig's first", "NAME");
   return bind(f, synth);
 }
 

@@ -472,7 +472,7 @@ Action declare_eval(CLI::App& app) {
 Action declare_bench(CLI::App& app) {
   auto f = std::make_shared<BenchFlags>();
   add_text(app, "--out", f->out, "the benchmark's folder (resumable)", "DIR");
-  add_list(app, "--scenes,--variants", f->scenes, "built-in scenes: n3v, technicolor, chair, orbit, lift");
+  add_list(app, "--scenes,--variants", f->scenes, "built-in scenes: " + join_names(bench_scenes()));
   add_list(app, "--seeds", f->seeds, "seeds (default 1,2,3; smoke 1)");
   add_list(app, "--only", f->only, "only these groups of configurations (" + name_list<ConfigGroup>() + ")");
   add_list(app, "--configs", f->configs, "only these configurations");
@@ -487,7 +487,7 @@ Action declare_bench(CLI::App& app) {
 Action declare_run(CLI::App& app) {
   auto f = std::make_shared<RunFlags>();
   add_text(app, "--out", f->out, "the folder for the report, pictures and runs", "DIR");
-  add_text(app, "--scene", f->scene, "built-in scene: n3v, technicolor, chair, orbit or lift", "NAME");
+  add_text(app, "--scene", f->scene, "built-in scene: " + join_names(bench_scenes()), "NAME");
   add_choice(app, "--baseline", f->baseline, "the strategy FillGS is compared with");
   add_choice(app, "--support", f->support, "the oracle's support");
   add_setup_flags(app, f->setup, false);

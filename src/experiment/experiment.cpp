@@ -296,13 +296,21 @@ std::vector<RunResult> merge_results(const std::vector<std::string>& inputs) {
 }
 
 SceneChoice parse_scene(const std::string& name) {
-  if (name == "n3v" || name == "technicolor") return {name, ""};
   const std::vector<std::string> ring = synthetic_variants("ring");
   if (std::count(ring.begin(), ring.end(), name)) return {"ring", name};
-  throw_error("unknown scene \"", name, "\" (n3v, technicolor, chair, orbit, lift)");
+  const std::vector<std::string> rigs = synthetic_rigs();
+  if (name != "ring" && std::count(rigs.begin(), rigs.end(), name)) return {name, ""};
+  throw_error("unknown scene \"", name, "\" (", join_names(bench_scenes()), ")");
 }
 
-std::vector<std::string> bench_scenes() { return {"n3v", "technicolor", "chair", "orbit", "lift"}; }
+std::vector<std::string> bench_scenes() {
+  // The rigs of the kitchen by name, then the ring's variants (synthetic_rigs / synthetic_variants).
+  std::vector<std::string> names;
+  for (const std::string& rig : synthetic_rigs())
+    if (rig != "ring") names.push_back(rig);
+  for (const std::string& v : synthetic_variants("ring")) names.push_back(v);
+  return names;
+}
 
 std::string ExperimentOptions::scene_name() const {
   SynthOptions so;

@@ -423,6 +423,12 @@ void kitchen_scene(SynthScene& out, const SynthOptions& o) {
 
 std::vector<std::string> synthetic_rigs() { return {"ring", "n3v", "technicolor"}; }
 
+std::string join_names(const std::vector<std::string>& names) {
+  std::string out;
+  for (const std::string& n : names) out += (out.empty() ? "" : ", ") + n;
+  return out;
+}
+
 std::vector<std::string> synthetic_variants(const std::string& rig) {
   if (rig == "ring") return {"chair", "orbit", "lift"};
   if (rig == "n3v" || rig == "technicolor") return {"kitchen"};
@@ -450,14 +456,11 @@ SynthScene make_synthetic_scene(const SynthOptions& o) {
   if (!(o.spacing > 0.002)) throw_error("synth: spacing must exceed 0.002 m");
   if (!(o.move_start >= 0 && o.move_start < o.move_end && o.move_end <= 1)) throw_error("synth: need 0 <= move start < move end <= 1");
   const std::vector<std::string> rigs = synthetic_rigs();
-  if (std::find(rigs.begin(), rigs.end(), o.rig) == rigs.end()) throw_error("synth: unknown rig \"", o.rig, "\" (ring, n3v, technicolor)");
+  if (std::find(rigs.begin(), rigs.end(), o.rig) == rigs.end()) throw_error("synth: unknown rig \"", o.rig, "\" (", join_names(rigs), ")");
   const std::string variant = o.resolved_variant();
   const std::vector<std::string> variants = synthetic_variants(o.rig);
-  if (std::find(variants.begin(), variants.end(), variant) == variants.end()) {
-    std::string known;
-    for (const std::string& v : variants) known += (known.empty() ? "" : ", ") + v;
-    throw_error("synth: unknown variant \"", variant, "\" for rig ", o.rig, " (", known, ")");
-  }
+  if (std::find(variants.begin(), variants.end(), variant) == variants.end())
+    throw_error("synth: unknown variant \"", variant, "\" for rig ", o.rig, " (", join_names(variants), ")");
   SynthScene out;
   out.options = o;
   out.options.variant = variant;

@@ -52,9 +52,12 @@ struct SynthOptions {
   /// A name for the scene: the variant for the ring, else the rig ("n3v", "technicolor").
   std::string scene_name() const;
 };
-/// The rigs make_synthetic_scene knows, and the variants of each.
+/// The rigs make_synthetic_scene knows, and the variants of each: the one table of these
+/// names (help, errors and the bench's scene list read it).
 std::vector<std::string> synthetic_rigs();
 std::vector<std::string> synthetic_variants(const std::string& rig = "ring");
+/// "a, b, c".
+std::string join_names(const std::vector<std::string>& names);
 
 /// The paper's sparse-view split of a rig (names of cameras): two training cameras,
 /// interpolation cameras between them, extrapolation cameras beyond them.
