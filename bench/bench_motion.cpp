@@ -140,13 +140,12 @@ MotionResult measure(const SynthScene& s, const GaussianCloud& m, const Dataset&
   std::vector<double> se(size_t(F), 0.0);
   std::vector<size_t> px(size_t(F), 0);
   FrameSampler ev(m);
-  RenderOptions ro;
   std::vector<std::vector<float>> truth_shots, model_shots;
   std::vector<std::string> truth_captions, model_captions;
   double psnr_sum = 0;
   for (size_t v = 0; v < interp.views().size(); ++v) {
     const TrainView& view = interp.views()[v];
-    const RenderOutput out = render(ev.at(view.camera.time), view.camera, ro);
+    const RenderOutput out = render(ev.at(view.camera.time), view.camera);
     const std::vector<float> target = interp.image(v);
     psnr_sum += psnr(out.rgb.data(), target.data(), view.camera.width, view.camera.height, 3);
     const std::vector<unsigned char> mask = moving_region(s.scene, view.camera);

@@ -3,14 +3,22 @@
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <chrono>
 #include <fstream>
+#include <mutex>
+#include <set>
 #include <sstream>
+#include <thread>
+
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 
 #include <nlohmann/json.hpp>
 
 #include "fillgs/model/camera.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/base/fs_util.hpp"
+#include "fillgs/base/threads.hpp"
 #include "fillgs/io/image_io.hpp"
 #include "fillgs/io/npy.hpp"
 #include "fillgs/visibility/visibility.hpp"
@@ -537,4 +545,30 @@ TEST_CASE("enum names: every name parses to its value and back, aliases parse, a
   CHECK(parse_name<SceneFormat>("spacetime") == SceneFormat::Spacetime);
   CHECK(std::string(to_string(SceneFormat::Spacetime)) == "stg");
   CHECK(names_of<CameraFormat>().size() == 7);
+}
+
+TEST_CASE("ThreadLimit, what --threads n sets: one thread runs the library's loops while it lives, none after, and 0 sets no limit", "[cli][threads]") {
+  using tbb::global_control;
+  const size_t before = global_control::active_value(global_control::max_allowed_parallelism);
+  // The threads a parallel loop of short sleeping tasks runs on.
+  auto threads_used = [] {
+    std::mutex m;
+    std::set<std::thread::id> ids;
+    tbb::parallel_for(0, 64, [&](int) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      const std::lock_guard<std::mutex> lock(m);
+      ids.insert(std::this_thread::get_id());
+    });
+    return ids.size();
+  };
+  {
+    const ThreadLimit one(1);
+    CHECK(global_control::active_value(global_control::max_allowed_parallelism) == 1);
+    CHECK(threads_used() == 1);
+  }
+  CHECK(global_control::active_value(global_control::max_allowed_parallelism) == before);
+  {
+    const ThreadLimit none(0);
+    CHECK(global_control::active_value(global_control::max_allowed_parallelism) == before);
+  }
 }

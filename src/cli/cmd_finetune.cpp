@@ -286,7 +286,8 @@ std::vector<OracleSupport> supports_of(SupportChoice s) {
 
 struct BenchFlags {
   std::string out = "fillgs_bench";
-  std::vector<std::string> scenes = {"n3v"}, seeds, only, configs, merge;
+  std::vector<std::string> scenes = {"n3v"}, seeds, configs, merge;
+  std::vector<ConfigGroup> only;
   double artifact_strength = 0.5;
   Weighting baseline_weighting = Weighting::ExploreGS;
   SupportChoice support = SupportChoice::Observed;
@@ -316,14 +317,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
   for (const std::string& s : in.given("--seeds") ? f.seeds : std::vector<std::string>(smoke ? std::vector<std::string>{"1"} : std::vector<std::string>{"1", "2", "3"}))
     seeds.push_back(uint64_t(parse_count(s, size_t(1) << 62, "fillgs bench", "--seeds value")));
   std::vector<RunConfig> configs = standard_configs(f.baseline_weighting, f.artifact_strength, supports_of(f.support));
-  std::vector<ConfigGroup> only;
-  for (const std::string& g : f.only) {
-    try {
-      only.push_back(parse_name<ConfigGroup>(g));
-    } catch (const Error& e) {
-      in.fail("--only: ", e.what());
-    }
-  }
+  const std::vector<ConfigGroup>& only = f.only;
   const std::vector<std::string>& ids = f.configs;
   std::vector<RunConfig> chosen;
   for (const RunConfig& c : configs) {
@@ -474,7 +468,7 @@ Action declare_bench(CLI::App& app) {
   add_text(app, "--out", f->out, "the benchmark's folder (resumable)", "DIR");
   add_list(app, "--scenes,--variants", f->scenes, "built-in scenes: " + join_names(bench_scenes()));
   add_list(app, "--seeds", f->seeds, "seeds (default 1,2,3; smoke 1)");
-  add_list(app, "--only", f->only, "only these groups of configurations (" + name_list<ConfigGroup>() + ")");
+  add_choice_list(app, "--only", f->only, "only these groups of configurations");
   add_list(app, "--configs", f->configs, "only these configurations");
   add_number(app, "--artifact-strength", f->artifact_strength, "strength of the oracle's simulated refiner artifacts", at_least(0));
   add_choice(app, "--baseline-weighting", f->baseline_weighting, "the weights the baseline strategies fine-tune with");

@@ -17,6 +17,8 @@ std::string number_text(double x) {
   return s.str();
 }
 
+}  // namespace
+
 std::vector<std::string> split_commas(const std::string& s) {
   std::vector<std::string> out;
   std::stringstream ss(s);
@@ -25,8 +27,6 @@ std::vector<std::string> split_commas(const std::string& s) {
     if (!item.empty()) out.push_back(item);
   return out;
 }
-
-}  // namespace
 
 std::unique_ptr<CLI::App> make_parser(const std::string& name, const std::string& summary) {
   auto app = std::make_unique<CLI::App>(summary, name);
@@ -165,13 +165,17 @@ void add_dataset_flags(CLI::App& app, DatasetOptions& o, const std::string& came
   app.add_option(
          "--frames",
          [&o, name](const CLI::results_t& r) {
-           o.frames = FrameRange::parse(r.back());
+           try {
+             o.frames = FrameRange::parse(r.back());
+           } catch (const Error& e) {
+             throw_error(name, ": --frames: ", e.what());
+           }
            return true;
          },
          "frames first:last:step (Python's slice; the frames kept become the video)")
       ->type_name("A:B:S")
       ->group("Image options");
-  add_number(app, "--downscale", o.downscale, "images averaged over k x k blocks, cameras scaled to match", at_least(1))->group("Image options");
+  add_number(app, "--downscale", o.downscale, "images averaged over k x k blocks, cameras scaled to match", within(1, 64))->group("Image options");
   add_list(app, "--monocular-cycle", o.monocular_cycle, "frame f keeps only camera [f mod n]")->group("Image options");
   add_bytes(app, "--image-memory", o.image_memory, double(int64_t(1) << 30), "GB",
             "images beyond this wait in a temporary file in $TMPDIR, read on demand (default: a quarter of the machine's memory)")

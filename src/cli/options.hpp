@@ -150,6 +150,28 @@ CLI::Option* add_number(CLI::App& app, const std::string& flag, T& dest, const s
   return o;
 }
 
+/// The items of a comma-separated list ("a,b,c"); empty items are dropped.
+std::vector<std::string> split_commas(const std::string& s);
+
+/// The value of `name`'s `flag` that an enum's table names; otherwise one line naming the
+/// command, the flag and the value.
+template <class E>
+E parse_choice(const std::string& name, const std::string& flag, const std::string& value) {
+  try {
+    return parse_name<E>(value);
+  } catch (const Error& e) {
+    throw_error(name, ": ", flag, ": ", e.what());
+  }
+}
+
+/// "a|b|c": an enum's names as the value type the help shows.
+template <class E>
+std::string choice_type() {
+  std::string names;
+  for (const std::string& n : names_of<E>()) names += (names.empty() ? "" : "|") + n;
+  return names;
+}
+
 /// One of an enum's names (names.hpp); the help lists them.
 template <class E>
 CLI::Option* add_choice(CLI::App& app, const std::string& flag, E& dest, const std::string& help) {
@@ -157,18 +179,28 @@ CLI::Option* add_choice(CLI::App& app, const std::string& flag, E& dest, const s
   CLI::Option* o = app.add_option(
       flag,
       [&dest, flag, name](const CLI::results_t& r) {
-        try {
-          dest = parse_name<E>(r.back());
-        } catch (const Error& e) {
-          throw_error(name, ": ", flag, ": ", e.what());
-        }
+        dest = parse_choice<E>(name, flag, r.back());
         return true;
       },
       help);
-  std::string names;
-  for (const std::string& n : names_of<E>()) names += (names.empty() ? "" : "|") + n;
-  o->type_name(names);
+  o->type_name(choice_type<E>());
   if (std::string(to_string(dest)) != "?") o->default_str(to_string(dest));
+  return o;
+}
+
+/// A comma-separated list of an enum's names ("a,b"); the help lists them.
+template <class E>
+CLI::Option* add_choice_list(CLI::App& app, const std::string& flag, std::vector<E>& dest, const std::string& help) {
+  const std::string name = app.get_name();
+  CLI::Option* o = app.add_option(
+      flag,
+      [&dest, flag, name](const CLI::results_t& r) {
+        dest.clear();
+        for (const std::string& item : split_commas(r.back())) dest.push_back(parse_choice<E>(name, flag, item));
+        return true;
+      },
+      help);
+  o->type_name(choice_type<E>() + ",..");
   return o;
 }
 

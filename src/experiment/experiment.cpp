@@ -296,11 +296,9 @@ std::vector<RunResult> merge_results(const std::vector<std::string>& inputs) {
 }
 
 SceneChoice parse_scene(const std::string& name) {
-  const std::vector<std::string> ring = synthetic_variants("ring");
-  if (std::count(ring.begin(), ring.end(), name)) return {"ring", name};
-  const std::vector<std::string> rigs = synthetic_rigs();
-  if (name != "ring" && std::count(rigs.begin(), rigs.end(), name)) return {name, ""};
-  throw_error("unknown scene \"", name, "\" (", join_names(bench_scenes()), ")");
+  const std::vector<std::string> scenes = bench_scenes(), ring = synthetic_variants("ring");
+  if (!std::count(scenes.begin(), scenes.end(), name)) throw_error("unknown scene \"", name, "\" (", join_names(scenes), ")");
+  return std::count(ring.begin(), ring.end(), name) ? SceneChoice{"ring", name} : SceneChoice{name, ""};
 }
 
 std::vector<std::string> bench_scenes() {
@@ -543,12 +541,11 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   fo.work_dir = join_path(dir, "work");
   if (c.kind == RunKind::TestViews) {
     // Clean ground truth at every test camera and frame, weight 1: what no selection can beat.
-    RenderOptions ro;
     FrameSampler truth(p.synth.scene);
     for (const Dataset* split : {p.interpolation.get(), p.extrapolation.get()})
       for (const TrainView& v : split->views()) {
         const size_t P = size_t(v.camera.width) * size_t(v.camera.height);
-        fo.extra_views.push_back({v.camera, render(truth.at(v.camera.time), v.camera, ro).rgb, std::vector<float>(P, 1.0f)});
+        fo.extra_views.push_back({v.camera, render(truth.at(v.camera.time), v.camera).rgb, std::vector<float>(P, 1.0f)});
       }
     // Clean images are as good as real ones: every view, real or test, is drawn equally
     // often (with the generated views' 30% share each of the 260 n3v test views was drawn
@@ -791,8 +788,7 @@ void write_run_report(const std::string& dir, const RunReportInput& in) {
     std::vector<std::vector<float>> imgs = {split->image(best)};
     std::vector<std::string> caps = {"ground truth"};
     for (size_t m = 0; m < models.size(); ++m) {
-      RenderOptions ro;
-      imgs.push_back(render(frame_at(models[m], view.camera.time), view.camera, ro).rgb);
+      imgs.push_back(render(frame_at(models[m], view.camera.time), view.camera).rgb);
       caps.push_back(m == 0 ? "backbone" : in.run_ids[m - 1]);
     }
     const std::string file = "compare_" + view.rig + "_f" + std::to_string(view.frame) + ".png";

@@ -11,6 +11,7 @@
 
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/fs_util.hpp"
+#include "fillgs/base/names.hpp"
 #include "fillgs/io/image_io.hpp"
 #include "fillgs/io/plot.hpp"
 #include "fillgs/render/raster.hpp"
@@ -423,12 +424,6 @@ void kitchen_scene(SynthScene& out, const SynthOptions& o) {
 
 std::vector<std::string> synthetic_rigs() { return {"ring", "n3v", "technicolor"}; }
 
-std::string join_names(const std::vector<std::string>& names) {
-  std::string out;
-  for (const std::string& n : names) out += (out.empty() ? "" : ", ") + n;
-  return out;
-}
-
 std::vector<std::string> synthetic_variants(const std::string& rig) {
   if (rig == "ring") return {"chair", "orbit", "lift"};
   if (rig == "n3v" || rig == "technicolor") return {"kitchen"};
@@ -542,13 +537,12 @@ void write_synthetic_scene(const SynthScene& s, const std::string& dir, Progress
       if (std::none_of(unique.begin(), unique.end(), [&](const Camera& u) { return u.name == c.name; })) unique.push_back(c);
   progress.start("rendering ground truth", unique.size() * size_t(F));
   FrameSampler ev(s.scene);
-  RenderOptions ro;
   const std::vector<Camera> shots = cameras_over_time(unique, F);
   for (int f = 0; f < F; ++f) {
     const FrameGaussians& g = ev.at(FrameGrid(F).time(f));
     for (size_t c = 0; c < unique.size(); ++c) {
       const Camera& cam = shots[c * size_t(F) + size_t(f)];
-      const Image img(cam.width, cam.height, 3, render(g, cam, ro).rgb);
+      const Image img(cam.width, cam.height, 3, render(g, cam).rgb);
       write_image(join_path(dir, cam.image_path), img);
       progress.advance();
     }

@@ -48,8 +48,8 @@ ExplorationGrid build_exploration_grid(const GaussianCloud& scene, const std::ve
   const std::vector<double> times = times_in.empty() ? default_sweep_times(scene) : times_in;
   stats.time_samples = scene.dynamic_ids.empty() ? 0 : int(times.size());
 
-  FrameSampler eval(scene);
-  const FrameGaussians& f0 = eval.at(times.front());
+  FrameSampler sampler(scene);
+  const FrameGaussians& f0 = sampler.at(times.front());
   std::vector<uint32_t> occupying;  // Gaussians that reach α >= occupancy_alpha anywhere
   for (uint32_t g = 0; g < f0.size(); ++g)
     if (f0.opacities[g] >= o.occupancy_alpha) occupying.push_back(g);
@@ -67,7 +67,7 @@ ExplorationGrid build_exploration_grid(const GaussianCloud& scene, const std::ve
       if (!is_dynamic[g])
         for (int k = 0; k < 3; ++k) coords[size_t(k)].push_back(f0.means[g][k]);
     for (double t : times) {
-      const FrameGaussians& f = eval.at(t);
+      const FrameGaussians& f = sampler.at(t);
       for (uint32_t g : scene.dynamic_ids)
         if (f.opacities[g] >= o.occupancy_alpha)
           for (int k = 0; k < 3; ++k) coords[size_t(k)].push_back(f.means[g][k]);
@@ -136,7 +136,7 @@ ExplorationGrid build_exploration_grid(const GaussianCloud& scene, const std::ve
   };
   progress.start("exploration grid", times.size() + 2);
   {
-    const FrameGaussians& f = eval.at(times.front());
+    const FrameGaussians& f = sampler.at(times.front());
     std::vector<uint32_t> statics;
     for (uint32_t g : occupying)
       if (!is_dynamic[g]) statics.push_back(g);
@@ -146,7 +146,7 @@ ExplorationGrid build_exploration_grid(const GaussianCloud& scene, const std::ve
   }
   if (!dyn.empty())
     for (double t : times) {
-      occupy(eval.at(t), dyn);
+      occupy(sampler.at(t), dyn);
       progress.advance();
     }
   else

@@ -29,13 +29,6 @@ namespace fillgs {
 
 namespace {
 
-
-Image to_image(std::vector<float> rgb, int width, int height) {
-  if (rgb.size() != size_t(width) * size_t(height) * 3)
-    throw_error("patch: image of ", rgb.size() / 3, " pixels for a ", width, "x", height, " camera");
-  return Image(width, height, 3, std::move(rgb));
-}
-
 /// Index of the observed view of `pose` at `frame`, or −1.
 int find_observed(const std::vector<ObservedView>& views, uint32_t pose, int frame) {
   for (size_t i = 0; i < views.size(); ++i)
@@ -147,14 +140,14 @@ class OracleRefiner : public Refiner {
         ro.feature_channels = 1;
       }
       const RenderOutput r = render(frame_at(truth_, im.camera.time), im.camera, ro);
-      Image img = to_image(r.rgb, r.width, r.height);
+      Image img(r.width, r.height, 3, r.rgb);
       const uint64_t key = string_key((patch.name + "/" + im.file).c_str());
       double sum = double(img.width) * img.height;
       if (limited) {
         Image fill = read_image(join_path(in, im.file));
         if (fill.width != img.width || fill.height != img.height || fill.channels < 3)
           throw_error(join_path(in, im.file), ": the rendered view is not a ", img.width, "x", img.height, " RGB image");
-        if (fill.channels != 3) fill = to_image(rgb_of(fill), fill.width, fill.height);
+        if (fill.channels != 3) fill = Image(fill.width, fill.height, 3, rgb_of(fill));
         degrade_unsupported(fill, o_.artifacts.strength > 0 ? o_.artifacts.strength : 0.5, o_.artifacts.seed, key);
         Image mask(img.width, img.height, 1);
         sum = 0;
@@ -272,7 +265,7 @@ void write_patch(const std::string& dir, const Patch& patch, const std::vector<O
     } else {
       rgb = render_view(im.camera);
     }
-    write_image(join_path(dir, im.file), to_image(rgb, im.camera.width, im.camera.height));
+    write_image(join_path(dir, im.file), Image(im.camera.width, im.camera.height, 3, std::move(rgb)));
     if (im.frame != last) ++frames, last = im.frame;
     images.push_back({{"file", im.file},
                       {"order", im.order},

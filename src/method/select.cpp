@@ -339,8 +339,8 @@ class Selector {
 
     // The strategy, with what it shares.
     VisibilityEngine engine(*in_.scene, o_.visibility);
-    FrameSampler eval(*in_.scene);
-    SelectionContext context{in_, o_, field, engine, eval, vertical_};
+    FrameSampler sampler(*in_.scene);
+    SelectionContext context{in_, o_, field, engine, sampler, vertical_};
     const std::unique_ptr<SelectionStrategy> strategy = make_strategy(o_.strategy, context);
     strategy_ = strategy.get();
     engine_ = &engine;

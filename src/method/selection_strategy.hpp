@@ -20,7 +20,7 @@ struct SelectionContext {
   const SelectOptions& options;
   DeficiencyField& field;
   VisibilityEngine& engine;
-  FrameSampler& eval;
+  FrameSampler& sampler;
   int vertical;
   double time_of(int f) const { return FrameGrid(in.frames).time(f); }
 };

@@ -40,7 +40,7 @@ class DeficiencyStrategy : public SelectionStrategy {
       c_.engine.set_time(t);
       return c_.engine.render_maps(cam, values, nullptr, c_.options.stride).score();
     }
-    return mean_value(render_value_map(c_.eval.at(t), cam, values));
+    return mean_value(render_value_map(c_.sampler.at(t), cam, values));
   }
   SelectionContext& c_;
 };

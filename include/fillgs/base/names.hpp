@@ -65,13 +65,17 @@ std::vector<E> values_of() {
   return out;
 }
 
-/// "a, b or c": the names for a message.
-template <class E>
-std::string name_list() {
-  const std::vector<std::string> names = names_of<E>();
+/// "a, b or c": names for a message or a help line.
+inline std::string join_names(const std::vector<std::string>& names) {
   std::string out;
   for (size_t i = 0; i < names.size(); ++i) out += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i];
   return out;
+}
+
+/// "a, b or c": the enum's names for a message.
+template <class E>
+std::string name_list() {
+  return join_names(names_of<E>());
 }
 
 /// The value named `name` (aliases included); otherwise an Error

@@ -56,8 +56,6 @@ struct SynthOptions {
 /// names (help, errors and the bench's scene list read it).
 std::vector<std::string> synthetic_rigs();
 std::vector<std::string> synthetic_variants(const std::string& rig = "ring");
-/// "a, b, c".
-std::string join_names(const std::vector<std::string>& names);
 
 /// The paper's sparse-view split of a rig (names of cameras): two training cameras,
 /// interpolation cameras between them, extrapolation cameras beyond them.

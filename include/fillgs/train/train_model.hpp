@@ -98,6 +98,6 @@ void params_at(const ModelParams<Real>& params, double t, DiffFrame<Real>* frame
 /// Adds dL/dparams for a loss whose gradient with respect to params_at(t) is `grad`.
 template <typename Real>
 void params_at_backward(const ModelParams<Real>& params, double t, const DiffFrameGrad<Real>& grad,
-                              ModelParams<Real>* dparams);
+                        ModelParams<Real>* dparams);
 
 }  // namespace fillgs
