@@ -308,6 +308,56 @@ float largest_half_diagonal(const ProxySet& set) {
   return slack;
 }
 
+/// 10 bits of x spread to every third bit (the Morton code's interleave).
+uint32_t spread_bits(uint32_t x) {
+  x &= 0x3ffu;
+  x = (x | (x << 16)) & 0x030000ffu;
+  x = (x | (x << 8)) & 0x0300f00fu;
+  x = (x | (x << 4)) & 0x030c30c3u;
+  x = (x | (x << 2)) & 0x09249249u;
+  return x;
+}
+
+/// Reorders a set's primitives along the Z-order curve of their means (1024 cells an axis
+/// over the set's bounds), so that neighbours in the set — and in dynamic_boxes() — are
+/// neighbours in space, wherever training left them in id order: the footprint pass marks
+/// runs of neighbours together (mark_dynamic_footprints). The primitive order changes
+/// nothing a trace returns (hits are kept by key and Gaussian id); a dynamic set keeps the
+/// order of its first frame.
+void spatial_order(ProxySet& set) {
+  const size_t n = set.proxies.size();
+  if (n < 2) return;
+  float lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::numeric_limits<float>::infinity();
+    hi[a] = -std::numeric_limits<float>::infinity();
+  }
+  for (const Proxy& p : set.proxies)
+    for (int a = 0; a < 3; ++a)
+      if (std::isfinite(p.mean[a])) {
+        lo[a] = std::min(lo[a], p.mean[a]);
+        hi[a] = std::max(hi[a], p.mean[a]);
+      }
+  std::vector<std::pair<uint32_t, uint32_t>> keyed(n);  // (code, index)
+  for (size_t i = 0; i < n; ++i) {
+    uint32_t code = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double u = hi[a] > lo[a] ? (double(set.proxies[i].mean[a]) - lo[a]) / (double(hi[a]) - lo[a]) : 0.0;
+      code |= spread_bits(uint32_t(std::clamp(std::isfinite(u) ? u : 0.0, 0.0, 1.0) * 1023.0)) << a;
+    }
+    keyed[i] = {code, uint32_t(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<Proxy> proxies(n);
+  std::vector<uint32_t> ids(n);
+  for (size_t i = 0; i < n; ++i) {
+    proxies[i] = set.proxies[keyed[i].second];
+    ids[i] = set.ids[keyed[i].second];
+  }
+  set.proxies = std::move(proxies);
+  set.ids = std::move(ids);
+}
+
 }  // namespace
 
 
@@ -367,8 +417,8 @@ struct GaussianTracer::Impl {
     return pad * (1.0f + 1e-5f);  // the ray's depth is computed in its own rounding
   }
 
-  /// Moves the proxies of `all` into the tiers' sets of the same kind by size (ids stay
-  /// ascending within each set).
+  /// Moves the proxies of `all` into the tiers' sets of the same kind by size, each set in
+  /// Z order of its means (spatial_order).
   void split(ProxySet& all, ProxySet Tier::*kind) {
     for (Tier& t : tiers) {
       ProxySet& s = t.*kind;
@@ -381,7 +431,10 @@ struct GaussianTracer::Impl {
       s.proxies.push_back(p);
       s.ids.push_back(all.ids[i]);
     }
-    for (Tier& t : tiers) (t.*kind).slack = largest_half_diagonal(t.*kind);
+    for (Tier& t : tiers) {
+      spatial_order(t.*kind);
+      (t.*kind).slack = largest_half_diagonal(t.*kind);
+    }
     all = ProxySet();
   }
 
@@ -552,7 +605,7 @@ void GaussianTracer::refit_dynamic(const FrameGaussians& frame) {
   Impl& m = *impl_;
   for (Impl::Tier& t : m.tiers) {
     if (t.dynamic_set.proxies.empty()) continue;
-    FILLGS_CHECK_LT(size_t(t.dynamic_set.ids.back()), frame.size());  // ids ascending
+    FILLGS_CHECK_LT(size_t(*std::max_element(t.dynamic_set.ids.begin(), t.dynamic_set.ids.end())), frame.size());
     m.fill(t.dynamic_set, frame);
     rtcCommitGeometry(t.dynamic_geometry);
     rtcCommitScene(t.dynamic_scene.scene);

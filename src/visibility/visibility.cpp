@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <map>
 #include <memory>
 #include <numeric>
@@ -133,69 +134,114 @@ size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid
   // Boxes whose view-space bounds are at most this many ray spacings wider than their
   // corners' footprint use them; the others (large, or near the camera) project 8 corners.
   constexpr double kLooser = 0.5;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, boxes.size(), 1024), [&](const tbb::blocked_range<size_t>& range) {
-    for (size_t b = range.begin(); b < range.end(); ++b) {
+  const auto mark_box = [&](const ProxyBox& box, bool key_from_corner) {
+    const Vec3d centre = cam.R * (Vec3d(box.centre[0], box.centre[1], box.centre[2]) - eye);
+    double min_key = -std::numeric_limits<double>::infinity();
+    if (grid.match && !key_from_corner) {
+      if (!(centre.z() > double(grid.match->near_depth))) return;
+      min_key = centre.z();
+    }
+    const Vec3d half = abs_R * Vec3d(box.half_extent[0], box.half_extent[1], box.half_extent[2]);
+    const double zmin = centre.z() - half.z();
+    if (!grid.match || swept || key_from_corner) min_key = zmin;
+    min_key -= 1e-5 * std::fabs(min_key) + 1e-6;  // the probe computes the key in its own rounding
+    int i0 = 0, i1 = grid.width - 1, j0 = 0, j1 = grid.height - 1;
+    if (zmin > 1e-9 * std::max(1.0, std::fabs(centre.z()))) {  // bounded footprint
+      const double zmax = centre.z() + half.z();
+      // Bounds of a / z over a ∈ [a0, a1], z ∈ [zmin, zmax], mapped to pixels.
+      const auto screen_range = [&](double a0, double a1, double f, double c, double& lo, double& hi) {
+        const double r0 = a0 / (a0 >= 0.0 ? zmax : zmin), r1 = a1 / (a1 >= 0.0 ? zmin : zmax);
+        lo = std::min(f * r0, f * r1) + c;
+        hi = std::max(f * r0, f * r1) + c;
+      };
+      double umin, umax, vmin, vmax;
+      // How much wider (pixels) the view-space bounds can be than the corners' footprint:
+      // a coordinate a is divided by z0 or z1 where a corner may have the other.
+      const double ax = std::max(std::fabs(centre.x() - half.x()), std::fabs(centre.x() + half.x()));
+      const double ay = std::max(std::fabs(centre.y() - half.y()), std::fabs(centre.y() + half.y()));
+      const double looser = std::max(std::fabs(cam.fx) * ax, std::fabs(cam.fy) * ay) * (1.0 / zmin - 1.0 / zmax);
+      if (looser <= kLooser * grid.stride) {
+        screen_range(centre.x() - half.x(), centre.x() + half.x(), cam.fx, cam.cx, umin, umax);
+        screen_range(centre.y() - half.y(), centre.y() + half.y(), cam.fy, cam.cy, vmin, vmax);
+      } else {  // deep in view: the corners themselves (all in front of the camera here)
+        umin = vmin = std::numeric_limits<double>::infinity();
+        umax = vmax = -umin;
+        for (int k = 0; k < 8; ++k) {
+          const Vec3d corner(k & 1 ? box.half_extent[0] : -box.half_extent[0], k & 2 ? box.half_extent[1] : -box.half_extent[1],
+                             k & 4 ? box.half_extent[2] : -box.half_extent[2]);
+          const Vec3d x = centre + cam.R * corner;
+          const double u = cam.fx * x.x() / x.z() + cam.cx, v = cam.fy * x.y() / x.z() + cam.cy;
+          umin = std::min(umin, u);
+          umax = std::max(umax, u);
+          vmin = std::min(vmin, v);
+          vmax = std::max(vmax, v);
+        }
+      }
+      const double off = grid.offset + 0.5, s = grid.stride;
+      // The first and last ray whose pixel centre (off + i·s) lies in [lo, hi], clamped to the grid.
+      const auto first_ray = [&](double lo, int last) { return int(std::clamp(std::ceil((lo - kMargin - off) / s), 0.0, last + 1.0)); };
+      const auto last_ray = [&](double hi, int last) { return int(std::clamp(std::floor((hi + kMargin - off) / s), -1.0, double(last))); };
+      i0 = first_ray(umin, grid.width - 1);
+      i1 = last_ray(umax, grid.width - 1);
+      j0 = first_ray(vmin, grid.height - 1);
+      j1 = last_ray(vmax, grid.height - 1);
+    }
+    const float key = float(min_key);  // ray ends are floats: compare in float, rounded down
+    const float floor_key = double(key) > min_key ? std::nextafter(key, -std::numeric_limits<float>::infinity()) : key;
+    for (int j = j0; j <= j1; ++j) {
+      const size_t row = size_t(j) * width;
+      for (int i = i0; i <= i1; ++i)
+        if (ray_end[row + size_t(i)] >= floor_key) marks[row + size_t(i)].store(1, std::memory_order_relaxed);
+    }
+  };
+  // Neighbours in `boxes` are neighbours in space (the tracer keeps its proxies in Z order),
+  // so a run of boxes is marked once through its union when that union is compact (its
+  // half-diagonal at most kCompact times its largest member's): a superset of the members'
+  // footprints, keyed from its nearest corner, for one projection instead of one a box.
+  // Runs of kRun boxes; a run that is not compact is split in four, down to single boxes.
+  constexpr size_t kRun = 32;
+  constexpr float kCompact = 2.0f;
+  const std::function<void(size_t, size_t)> mark_run = [&](size_t first, size_t last) {
+    double lo[3], hi[3], largest = 0.0;  // corners exactly as mark_box sees them (double)
+    size_t members = 0;
+    for (size_t b = first; b < last; ++b) {
       const ProxyBox& box = boxes[b];
       if (box.half_extent[0] < 0.0f) continue;
-      const Vec3d centre = cam.R * (Vec3d(box.centre[0], box.centre[1], box.centre[2]) - eye);
-      double min_key = -std::numeric_limits<double>::infinity();
-      if (grid.match) {
-        if (!(centre.z() > double(grid.match->near_depth))) continue;
-        min_key = centre.z();
+      double d2 = 0.0;
+      for (int a = 0; a < 3; ++a) {
+        const double l = double(box.centre[a]) - box.half_extent[a], h = double(box.centre[a]) + box.half_extent[a];
+        lo[a] = members ? std::min(lo[a], l) : l;
+        hi[a] = members ? std::max(hi[a], h) : h;
+        d2 += double(box.half_extent[a]) * box.half_extent[a];
       }
-      const Vec3d half = abs_R * Vec3d(box.half_extent[0], box.half_extent[1], box.half_extent[2]);
-      const double zmin = centre.z() - half.z();
-      if (!grid.match || swept) min_key = zmin;
-      min_key -= 1e-5 * std::fabs(min_key) + 1e-6;  // the probe computes the key in its own rounding
-      int i0 = 0, i1 = grid.width - 1, j0 = 0, j1 = grid.height - 1;
-      if (zmin > 1e-9 * std::max(1.0, std::fabs(centre.z()))) {  // bounded footprint
-        const double zmax = centre.z() + half.z();
-        // Bounds of a / z over a ∈ [a0, a1], z ∈ [zmin, zmax], mapped to pixels.
-        const auto screen_range = [&](double a0, double a1, double f, double c, double& lo, double& hi) {
-          const double r0 = a0 / (a0 >= 0.0 ? zmax : zmin), r1 = a1 / (a1 >= 0.0 ? zmin : zmax);
-          lo = std::min(f * r0, f * r1) + c;
-          hi = std::max(f * r0, f * r1) + c;
-        };
-        double umin, umax, vmin, vmax;
-        // How much wider (pixels) the view-space bounds can be than the corners' footprint:
-        // a coordinate a is divided by z0 or z1 where a corner may have the other.
-        const double ax = std::max(std::fabs(centre.x() - half.x()), std::fabs(centre.x() + half.x()));
-        const double ay = std::max(std::fabs(centre.y() - half.y()), std::fabs(centre.y() + half.y()));
-        const double looser = std::max(std::fabs(cam.fx) * ax, std::fabs(cam.fy) * ay) * (1.0 / zmin - 1.0 / zmax);
-        if (looser <= kLooser * grid.stride) {
-          screen_range(centre.x() - half.x(), centre.x() + half.x(), cam.fx, cam.cx, umin, umax);
-          screen_range(centre.y() - half.y(), centre.y() + half.y(), cam.fy, cam.cy, vmin, vmax);
-        } else {  // deep in view: the corners themselves (all in front of the camera here)
-          umin = vmin = std::numeric_limits<double>::infinity();
-          umax = vmax = -umin;
-          for (int k = 0; k < 8; ++k) {
-            const Vec3d corner(k & 1 ? box.half_extent[0] : -box.half_extent[0], k & 2 ? box.half_extent[1] : -box.half_extent[1],
-                               k & 4 ? box.half_extent[2] : -box.half_extent[2]);
-            const Vec3d x = centre + cam.R * corner;
-            const double u = cam.fx * x.x() / x.z() + cam.cx, v = cam.fy * x.y() / x.z() + cam.cy;
-            umin = std::min(umin, u);
-            umax = std::max(umax, u);
-            vmin = std::min(vmin, v);
-            vmax = std::max(vmax, v);
-          }
-        }
-        const double off = grid.offset + 0.5, s = grid.stride;
-        // The first and last ray whose pixel centre (off + i·s) lies in [lo, hi], clamped to the grid.
-        const auto first_ray = [&](double lo, int last) { return int(std::clamp(std::ceil((lo - kMargin - off) / s), 0.0, last + 1.0)); };
-        const auto last_ray = [&](double hi, int last) { return int(std::clamp(std::floor((hi + kMargin - off) / s), -1.0, double(last))); };
-        i0 = first_ray(umin, grid.width - 1);
-        i1 = last_ray(umax, grid.width - 1);
-        j0 = first_ray(vmin, grid.height - 1);
-        j1 = last_ray(vmax, grid.height - 1);
-      }
-      const float key = float(min_key);  // ray ends are floats: compare in float, rounded down
-      const float floor_key = double(key) > min_key ? std::nextafter(key, -std::numeric_limits<float>::infinity()) : key;
-      for (int j = j0; j <= j1; ++j) {
-        const size_t row = size_t(j) * width;
-        for (int i = i0; i <= i1; ++i)
-          if (ray_end[row + size_t(i)] >= floor_key) marks[row + size_t(i)].store(1, std::memory_order_relaxed);
-      }
+      largest = std::max(largest, d2);
+      ++members;
     }
+    if (members == 0) return;
+    if (members == 1 || last - first == 1) {
+      for (size_t b = first; b < last; ++b)
+        if (boxes[b].half_extent[0] >= 0.0f) mark_box(boxes[b], false);
+      return;
+    }
+    ProxyBox hull;  // in float like every box: the half extent rounded up past the float centre
+    double hull_d2 = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      hull.centre[a] = float(0.5 * (lo[a] + hi[a]));
+      const double reach = std::max(hi[a] - hull.centre[a], hull.centre[a] - lo[a]);
+      hull.half_extent[a] = float(reach);
+      if (double(hull.half_extent[a]) < reach) hull.half_extent[a] = std::nextafter(hull.half_extent[a], std::numeric_limits<float>::infinity());
+      hull_d2 += double(hull.half_extent[a]) * hull.half_extent[a];
+    }
+    if (std::isfinite(hull_d2) && hull_d2 <= double(kCompact) * kCompact * largest) {
+      mark_box(hull, true);
+      return;
+    }
+    const size_t step = std::max<size_t>(1, (last - first + 3) / 4);
+    for (size_t b = first; b < last; b += step) mark_run(b, std::min(last, b + step));
+  };
+  const size_t runs = (boxes.size() + kRun - 1) / kRun;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, runs, 32), [&](const tbb::blocked_range<size_t>& range) {
+    for (size_t run = range.begin(); run < range.end(); ++run) mark_run(run * kRun, std::min(boxes.size(), (run + 1) * kRun));
   });
   size_t marked = 0;
   for (size_t r = 0; r < n; ++r) marked += marks[r].load(std::memory_order_relaxed);

@@ -141,9 +141,10 @@ class GaussianTracer {
   bool meets_dynamic(const Vec3f& origin, const Vec3f& direction, float max_key,
                      const RasterMatch* match = nullptr) const;
 
-  /// The dynamic proxies' boxes at the last refit (in no particular order): where moving
-  /// Gaussians can change a ray's answer (screen footprints, see visibility.cpp). `ids`
-  /// (optional): the Gaussian id of each box.
+  /// The dynamic proxies' boxes at the last refit: where moving Gaussians can change a
+  /// ray's answer (screen footprints, see visibility.cpp). Per size tier, in Z order of the
+  /// means at construction, so that neighbours in the list are neighbours in space (not
+  /// ascending ids). `ids` (optional): the Gaussian id of each box.
   void dynamic_boxes(std::vector<ProxyBox>& out, std::vector<uint32_t>* ids = nullptr) const;
 
   size_t static_count() const;
