@@ -13,11 +13,12 @@ int bench_visibility(const std::vector<std::string>& args);
 int bench_train(const std::vector<std::string>& args);
 int bench_select(const std::vector<std::string>& args);
 int bench_motion(const std::vector<std::string>& args);
+int bench_n3v_rig(const std::vector<std::string>& args);
 
 int main(int argc, char** argv) {
   fillgs::keep_freed_memory();
   if (argc < 2) {
-    std::cerr << "usage: fillgs_bench render|visibility|train|select|motion [options]; 'fillgs_bench <benchmark> --help' lists its options\n";
+    std::cerr << "usage: fillgs_bench render|visibility|train|select|motion|n3v-rig [options]; 'fillgs_bench <benchmark> --help' lists its options\n";
     return 2;
   }
   const std::string name = argv[1];
@@ -28,6 +29,7 @@ int main(int argc, char** argv) {
     if (name == "train") return bench_train(args);
     if (name == "select") return bench_select(args);
     if (name == "motion") return bench_motion(args);
+    if (name == "n3v-rig") return bench_n3v_rig(args);
     std::cerr << "error: unknown benchmark '" << name << "'\n";
     return 2;
   } catch (const fillgs::Error& e) {

@@ -21,6 +21,7 @@ packages=(
   python3-openvdb          # the OpenVDB Python binding: a test opens exploration.vdb with it
   colmap                   # COLMAP 3.8: a test round-trips the COLMAP export; triangulated initial points
   gnuplot-nox              # the plots (src/io/plot.cpp drives gnuplot through a pipe)
+  time                     # GNU time: bench/n3v_memory.sh reads a training's peak resident memory
   libopenmpi-dev openmpi-bin  # observation tables over MPI ranks (fillgs observe --mpi)
 )
 

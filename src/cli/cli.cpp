@@ -477,7 +477,8 @@ struct TrainFlags {
 
 int train(const TrainFlags& f, const Invocation& in) {
   const auto t0 = Clock::now();
-  const Dataset data = Dataset::load(f.images, f.cameras, f.data);
+  TerminalProgress loading(in.err, in.progress());
+  const Dataset data = Dataset::load(f.images, f.cameras, f.data, loading);
   const int iterations = f.iterations;
   // The schedule scales with the iteration count; the flags given override it.
   TrainOptions o = TrainOptions::scaled(iterations);

@@ -64,7 +64,8 @@ struct FinetuneFlags {
 
 int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   const auto t0 = Clock::now();
-  const Dataset data = Dataset::load(f.images, f.cameras, f.data);
+  TerminalProgress loading(in.err, in.progress());
+  const Dataset data = Dataset::load(f.images, f.cameras, f.data, loading);
   const GaussianCloud model = read_scene(f.model, f.read);
   // --paper-schedule picks the paper's counts; the flags given override them.
   FinetuneOptions o = f.paper_schedule ? FinetuneOptions::paper() : FinetuneOptions();
@@ -198,7 +199,8 @@ int eval(const EvalFlags& f, const Invocation& in) {
     for (const std::string& file : files) names.push_back(fs::path(file).stem().string());
   if (names.size() != files.size()) in.fail(names.size(), " --splits names for ", files.size(), " camera files");
   std::vector<Dataset> splits;
-  for (const std::string& file : files) splits.push_back(Dataset::load(f.images, file, f.data));
+  TerminalProgress loading(in.err, in.progress());
+  for (const std::string& file : files) splits.push_back(Dataset::load(f.images, file, f.data, loading));
   std::unique_ptr<GaussianCloud> truth;
   if (in.given("--truth")) truth = std::make_unique<GaussianCloud>(read_scene(f.truth, f.read));
   EvalOptions eo;

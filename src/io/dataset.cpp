@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <numeric>
 #include <sstream>
 #include <utility>
@@ -104,7 +105,7 @@ FrameRange FrameRange::parse(const std::string& text) {
   return r;
 }
 
-Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_path, const DatasetOptions& opt) {
+Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_path, const DatasetOptions& opt, Progress& progress) {
   if (!fs::is_directory(images_dir)) throw_error(images_dir, ": images folder not found");
   if (opt.downscale < 1 || opt.downscale > 64) throw_error("downscale ", opt.downscale, ": must be 1 to 64");
   std::vector<Camera> cams = read_cameras(cameras_path);
@@ -235,6 +236,12 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
   }
   d.pixels_.reset(sizes, opt.image_memory < 0 ? default_image_budget() : size_t(opt.image_memory), opt.spill_dir);
   if (masked) d.masks_.resize(d.views_.size());
+  std::mutex progress_mutex;  // the reporter is not thread-safe
+  const auto loaded = [&] {
+    std::lock_guard<std::mutex> lock(progress_mutex);
+    progress.advance();
+  };
+  progress.start("images", d.views_.size());
   // Videos: decoded once each, in order, keeping the frames of their views.
   std::map<std::string, std::vector<size_t>> by_video;
   for (size_t i = 0; i < d.views_.size(); ++i)
@@ -246,7 +253,10 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
     std::vector<int> frames;
     for (size_t i : vs) frames.push_back(d.views_[i].source_frame);
     const Camera& c = d.views_[vs[0]].camera;
-    decode_video_frames(path, frames, k, c.width, c.height, [&](size_t n, std::vector<uint8_t>&& px) { d.pixels_.put(vs[n], std::move(px)); });
+    decode_video_frames(path, frames, k, c.width, c.height, [&](size_t n, std::vector<uint8_t>&& px) {
+      d.pixels_.put(vs[n], std::move(px));
+      loaded();
+    });
   });
   tbb::parallel_for(size_t(0), d.views_.size(), [&](size_t i) {
     TrainView& v = d.views_[i];
@@ -258,6 +268,7 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
                     v.camera.width, "x", v.camera.height);
       if (im.channels < 3) throw_error(v.image_path, ": ", im.channels, " channels, RGB needed");
       d.pixels_.put(i, block_average(im, 3, k));
+      loaded();
     }
     if (masked) {
       const fs::path mp = (seg / mask_rel[i]).replace_extension(".png");
@@ -271,6 +282,7 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
     }
     scale_camera(v.camera, k);
   });
+  progress.finish();
   return d;
 }
 

@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "fillgs/base/progress.hpp"
 #include "fillgs/model/camera.hpp"
 #include "fillgs/io/pixel_store.hpp"
 
@@ -65,7 +66,9 @@ struct DatasetOptions {
 /// when no ground-truth scene is given.
 class Dataset {
  public:
-  static Dataset load(const std::string& images_dir, const std::string& cameras_path, const DatasetOptions& options = {});
+  /// `progress` counts the images (video frames included) as they are decoded.
+  static Dataset load(const std::string& images_dir, const std::string& cameras_path, const DatasetOptions& options = {},
+                      Progress& progress = null_progress());
 
   const std::vector<TrainView>& views() const { return views_; }
   const std::vector<std::string>& rigs() const { return rigs_; }
