@@ -392,6 +392,7 @@ struct GaussianTracer::Impl {
   accel::EmbreeDevice device;
   Tier tiers[kTiers];
   float large_threshold = std::numeric_limits<float>::infinity();
+  uint32_t max_dynamic_id = 0;  ///< what refit_dynamic checks each frame against, found once
   double build_seconds = 0, refit_seconds = 0;
 
   void fill(ProxySet& set, const FrameGaussians& frame) {
@@ -571,6 +572,7 @@ GaussianTracer::GaussianTracer(const FrameGaussians& frame, const std::vector<ui
   statics.min_alpha = dynamics.min_alpha = options.min_alpha;
   statics.padding = dynamics.padding = options.dilation_padding;
   dynamics.ids = dynamic_ids;
+  if (!dynamic_ids.empty()) m.max_dynamic_id = *std::max_element(dynamic_ids.begin(), dynamic_ids.end());
   std::vector<char> moving(frame.size(), 0);
   for (uint32_t g : dynamic_ids) {
     FILLGS_CHECK_LT(size_t(g), frame.size());
@@ -605,7 +607,7 @@ void GaussianTracer::refit_dynamic(const FrameGaussians& frame) {
   Impl& m = *impl_;
   for (Impl::Tier& t : m.tiers) {
     if (t.dynamic_set.proxies.empty()) continue;
-    FILLGS_CHECK_LT(size_t(*std::max_element(t.dynamic_set.ids.begin(), t.dynamic_set.ids.end())), frame.size());
+    FILLGS_CHECK_LT(size_t(m.max_dynamic_id), frame.size());
     m.fill(t.dynamic_set, frame);
     rtcCommitGeometry(t.dynamic_geometry);
     rtcCommitScene(t.dynamic_scene.scene);

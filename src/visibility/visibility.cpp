@@ -8,7 +8,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <functional>
 #include <map>
 #include <memory>
 #include <numeric>
@@ -201,7 +200,7 @@ size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid
   // Runs of kRun boxes; a run that is not compact is split in four, down to single boxes.
   constexpr size_t kRun = 32;
   constexpr float kCompact = 2.0f;
-  const std::function<void(size_t, size_t)> mark_run = [&](size_t first, size_t last) {
+  const auto mark_run = [&](const auto& self, size_t first, size_t last) -> void {
     double lo[3], hi[3], largest = 0.0;  // corners exactly as mark_box sees them (double)
     size_t members = 0;
     for (size_t b = first; b < last; ++b) {
@@ -237,11 +236,11 @@ size_t mark_dynamic_footprints(const std::vector<ProxyBox>& boxes, const RayGrid
       return;
     }
     const size_t step = std::max<size_t>(1, (last - first + 3) / 4);
-    for (size_t b = first; b < last; b += step) mark_run(b, std::min(last, b + step));
+    for (size_t b = first; b < last; b += step) self(self, b, std::min(last, b + step));
   };
   const size_t runs = (boxes.size() + kRun - 1) / kRun;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, runs, 32), [&](const tbb::blocked_range<size_t>& range) {
-    for (size_t run = range.begin(); run < range.end(); ++run) mark_run(run * kRun, std::min(boxes.size(), (run + 1) * kRun));
+    for (size_t run = range.begin(); run < range.end(); ++run) mark_run(mark_run, run * kRun, std::min(boxes.size(), (run + 1) * kRun));
   });
   size_t marked = 0;
   for (size_t r = 0; r < n; ++r) marked += marks[r].load(std::memory_order_relaxed);
