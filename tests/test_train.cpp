@@ -10,6 +10,8 @@
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/image_io.hpp"
 #include "fillgs/train/train.hpp"
+#include "fillgs/model/sh.hpp"
+#include "fillgs/render/raster.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;
@@ -241,6 +243,37 @@ TEST_CASE("colour correction: a camera whose images were scaled and shifted gets
     CHECK(std::abs(c[1].gain[ch] - gain[ch]) < 0.05f);
     CHECK(std::abs(c[1].offset[ch] - offset[ch]) < 0.03f);
   }
+  // The model re-expressed in the rig's mean camera's colours: each training camera, with
+  // its corrected correction, renders what it rendered before (the background, black,
+  // becomes the mean offset alike); the corrections average to gain 1, offset 0. The
+  // renderer clamps colours below at 0, which no affine map commutes with: colours are
+  // first kept in [0.05, 0.95], where neither model's are clamped.
+  GaussianCloud model = t.model();
+  for (float& dc : model.sh) dc = std::clamp(dc, rgb_to_sh_dc(0.05f), rgb_to_sh_dc(0.95f));
+  GaussianCloud folded = model;
+  std::vector<ColourCorrection> relative = c;
+  const ColourCorrection mean = fold_mean_colour(folded, relative);
+  for (int ch = 0; ch < 3; ++ch) {
+    CHECK(mean.gain[ch] == Approx((1.0 + c[1].gain[ch]) / 2));
+    CHECK(mean.offset[ch] == Approx(c[1].offset[ch] / 2));
+    CHECK(relative[0].gain[ch] + relative[1].gain[ch] == Approx(2.0));
+    CHECK(relative[0].offset[ch] + relative[1].offset[ch] == Approx(0.0).margin(1e-6));
+  }
+  auto corrected = [](const GaussianCloud& m, const TrainView& v, const ColourCorrection& cc, const Vec3f& background) {
+    RenderOptions ro;
+    ro.background = background;
+    std::vector<float> im = render(frame_at(m, v.camera.time), v.camera, ro).rgb;
+    for (size_t p = 0; p < im.size(); ++p) im[p] = cc.gain[int(p % 3)] * im[p] + cc.offset[int(p % 3)];
+    return im;
+  };
+  double worst = 0;
+  for (size_t v = 0; v < data.views().size(); v += 3) {
+    const int r = data.views()[v].rig == two.cameras[0] ? 0 : 1;
+    const std::vector<float> before = corrected(model, data.views()[v], c[size_t(r)], Vec3f::Zero());
+    const std::vector<float> after = corrected(folded, data.views()[v], relative[size_t(r)], mean.offset);
+    for (size_t p = 0; p < before.size(); ++p) worst = std::max(worst, double(std::abs(before[p] - after[p])));
+  }
+  CHECK(worst < 1e-4);
   // Written and read back; a bad file is named.
   write_colour_correction(dir + "/cc.json", c);
   const std::vector<ColourCorrection> back = read_colour_correction(dir + "/cc.json");

@@ -556,18 +556,25 @@ int train(const TrainFlags& f, const Invocation& in) {
     trainer->save_checkpoint(join_path(f.out, "checkpoints/latest.ckpt"));
   }
   const double train_seconds = seconds_since(t0);
-  const GaussianCloud model = trainer->model();
+  GaussianCloud model = trainer->model();
+  // Held-out cameras have no correction of their own: the model is written in the colours
+  // of the rig's mean camera, the corrections relative to it (train.hpp, fold_mean_colour).
+  std::vector<ColourCorrection> corrections = trainer->colour_correction();
+  const ColourCorrection mean = o.colour_correction ? fold_mean_colour(model, corrections) : ColourCorrection{};
   write_fillgs_ply(join_path(f.out, "model.ply"), model, data.frames());
   write_3dgs_ply(join_path(f.out, "frame0_3dgs.ply"), model, 0.0);
   if (o.colour_correction) {
-    write_colour_correction(join_path(f.out, "colour_correction.json"), trainer->colour_correction());
-    in.out << "colour correction per camera (gain r,g,b / offset r,g,b; " << data.rigs()[0] << " is the reference):";
-    for (const ColourCorrection& c : trainer->colour_correction()) {
+    write_colour_correction(join_path(f.out, "colour_correction.json"), corrections);
+    auto put = [&](const ColourCorrection& c) {
       char line[160];
       std::snprintf(line, sizeof line, " %s %.3f,%.3f,%.3f/%+.3f,%+.3f,%+.3f;", c.rig.c_str(), c.gain[0], c.gain[1], c.gain[2], c.offset[0],
                     c.offset[1], c.offset[2]);
       in.out << line;
-    }
+    };
+    in.out << "colours of the rig's mean camera, in those of " << data.rigs()[0] << " (gain r,g,b / offset r,g,b):";
+    put(mean);
+    in.out << "\ncolour correction per camera, relative to the mean camera:";
+    for (const ColourCorrection& c : corrections) put(c);
     in.out << "\n";
   }
   const TrainingReport report = write_training_report(f.out, *trainer, model, data, o, test.get(), train_seconds);

@@ -42,6 +42,29 @@ void write_colour_correction(const std::string& path, const std::vector<ColourCo
   write_file_atomically(path, j.dump(1) + "\n");
 }
 
+ColourCorrection fold_mean_colour(GaussianCloud& model, std::vector<ColourCorrection>& corrections) {
+  ColourCorrection mean{"mean", Vec3f::Zero(), Vec3f::Zero()};
+  if (corrections.empty()) return {"mean", Vec3f::Ones(), Vec3f::Zero()};
+  for (const ColourCorrection& c : corrections) mean.gain += c.gain, mean.offset += c.offset;
+  mean.gain /= float(corrections.size());
+  mean.offset /= float(corrections.size());
+  if (!(mean.gain.minCoeff() > 0)) throw_error("colour correction: the cameras' mean gain is not positive");
+  // colour = C0 · dc + 0.5 + Σ higher terms; ḡ ⊙ colour + ō needs dc' = ḡ dc + (ḡ/2 + ō − 1/2) / C0.
+  const size_t K = size_t(model.sh_count());
+  for (size_t g = 0; g < model.size(); ++g)
+    for (size_t k = 0; k < K; ++k)
+      for (int ch = 0; ch < 3; ++ch) {
+        float& x = model.sh[(g * K + k) * 3 + size_t(ch)];
+        x *= mean.gain[ch];
+        if (k == 0) x += (0.5f * mean.gain[ch] + mean.offset[ch] - 0.5f) / kSHC0;
+      }
+  for (ColourCorrection& c : corrections) {
+    c.gain = c.gain.cwiseQuotient(mean.gain);
+    c.offset -= c.gain.cwiseProduct(mean.offset);
+  }
+  return mean;
+}
+
 std::vector<ColourCorrection> read_colour_correction(const std::string& path) {
   const nlohmann::json j = read_json_file(path);
   if (!j.is_object()) throw_error(path, ": colour corrections must be an object of cameras");

@@ -158,6 +158,15 @@ struct ColourCorrection {
 /// one error naming the file and the camera on bad input).
 void write_colour_correction(const std::string& path, const std::vector<ColourCorrection>& corrections);
 std::vector<ColourCorrection> read_colour_correction(const std::string& path);
+/// Re-expresses a model trained with per-camera corrections in the colours of the rig's
+/// mean camera — the best guess for a camera with no correction of its own (a held-out
+/// one): with ḡ, ō the per-channel means of the gains and offsets, every Gaussian's colour
+/// c becomes ḡ ⊙ c + ō (SH DC and higher coefficients; exact wherever the colour is not
+/// clamped at 0) and each correction (g, o) becomes (g / ḡ, o − g / ḡ ⊙ ō), so every
+/// training camera renders as before and the corrections average to gain 1, offset 0.
+/// A background b would become ḡ ⊙ b + ō; the model carries none. Returns (ḡ, ō) as
+/// rig "mean".
+ColourCorrection fold_mean_colour(GaussianCloud& model, std::vector<ColourCorrection>& corrections);
 
 /// What a densification step did (for diagnostics and summaries).
 struct DensifyRecord {
