@@ -263,7 +263,7 @@ TEST_CASE("colour correction: a camera whose images were scaled and shifted gets
     RenderOptions ro;
     ro.background = background;
     std::vector<float> im = render(frame_at(m, v.camera.time), v.camera, ro).rgb;
-    for (size_t p = 0; p < im.size(); ++p) im[p] = cc.gain[int(p % 3)] * im[p] + cc.offset[int(p % 3)];
+    apply_colour_correction(cc, im);
     return im;
   };
   double worst = 0;

@@ -81,9 +81,7 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
     RenderOutput out = render(ev.at(view.camera.time), view.camera, ro);
     const std::vector<float> target = split.image(v);
     for (const ColourCorrection& c : o.colour)
-      if (c.rig == view.rig)
-        for (size_t p = 0; p < out.rgb.size(); p += 3)
-          for (int ch = 0; ch < 3; ++ch) out.rgb[p + size_t(ch)] = c.gain[ch] * out.rgb[p + size_t(ch)] + c.offset[ch];
+      if (c.rig == view.rig) apply_colour_correction(c, out.rgb);
     if (o.ls_gain) {
       // Per channel, the gain that best maps the render onto the image (least squares).
       std::vector<float> gained = out.rgb;

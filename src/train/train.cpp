@@ -42,6 +42,11 @@ void write_colour_correction(const std::string& path, const std::vector<ColourCo
   write_file_atomically(path, j.dump(1) + "\n");
 }
 
+void apply_colour_correction(const ColourCorrection& c, std::vector<float>& rgb) {
+  for (size_t p = 0; p + 2 < rgb.size(); p += 3)
+    for (int ch = 0; ch < 3; ++ch) rgb[p + size_t(ch)] = c.gain[ch] * rgb[p + size_t(ch)] + c.offset[ch];
+}
+
 ColourCorrection fold_mean_colour(GaussianCloud& model, std::vector<ColourCorrection>& corrections) {
   ColourCorrection mean{"mean", Vec3f::Zero(), Vec3f::Zero()};
   if (corrections.empty()) return {"mean", Vec3f::Ones(), Vec3f::Zero()};
@@ -706,9 +711,7 @@ void Trainer::add_refined(std::vector<RefinedView> views) {
 int Trainer::correct_colour(size_t view, std::vector<float>& image) const {
   const int r = view_rig_.at(view);
   if (r <= 0) return -1;  // the reference camera (and a view of no rig)
-  const ColourCorrection& c = colour_[size_t(r)];
-  for (size_t p = 0; p < image.size(); p += 3)
-    for (int ch = 0; ch < 3; ++ch) image[p + size_t(ch)] = c.gain[ch] * image[p + size_t(ch)] + c.offset[ch];
+  apply_colour_correction(colour_[size_t(r)], image);
   return r;
 }
 

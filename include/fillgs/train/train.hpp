@@ -158,6 +158,8 @@ struct ColourCorrection {
 /// one error naming the file and the camera on bad input).
 void write_colour_correction(const std::string& path, const std::vector<ColourCorrection>& corrections);
 std::vector<ColourCorrection> read_colour_correction(const std::string& path);
+/// `rgb` ([pixels][3]) becomes gain ⊙ rgb + offset, in place.
+void apply_colour_correction(const ColourCorrection& correction, std::vector<float>& rgb);
 /// Re-expresses a model trained with per-camera corrections in the colours of the rig's
 /// mean camera — the best guess for a camera with no correction of its own (a held-out
 /// one): with ḡ, ō the per-channel means of the gains and offsets, every Gaussian's colour
