@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The comparison on real video with the real-capture refiner (issue 14): CMU Panoptic
+# The comparison on real video with the real-capture refiner: CMU Panoptic
 # "basketball", a sparse split of two neighbouring dome cameras, every strategy fine-tuned
 # with `--refiner rig` (the photograph of the nearest pool camera at its real pose, no
 # generative model), evaluated on held-out cameras between the pair (interpolation) and
@@ -34,8 +34,9 @@
 # each strategy (FillGS with its weights, the baselines with ExploreGS's); FillGS's views
 # with ExploreGS's weights and with none.
 #
-# Resumable: a finished step (its summary.json or metrics.json) is reused. Writes
-# OUT/results.md. --smoke: 2 frames at 1/8 size and a few iterations (CI: it must not rot).
+# Resumable: a finished step (its summary.json or metrics.json) is reused only when it was
+# made by the same command line, kept beside it in command.txt; a step made with other options
+# stops the script with one line (another OUT, or delete the step). Writes OUT/results.md. --smoke: 2 frames at 1/8 size and a few iterations (CI: it must not rot).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SMOKE=0 MONO=0
@@ -73,43 +74,50 @@ STRATEGIES=(fillgs random negative interpolation fisherrf coverage3d coverage4d)
 mkdir -p "$OUT"
 DS=(--images "$P/ims" --cameras "$P/train_meta.json" --frames "$FRAMES" --downscale "$DOWN")
 
-if [ ! -f "$OUT/backbone/summary.json" ]; then
-  rm -rf "$OUT/backbone"
-  "$FILLGS" train "${DS[@]}" "${CYCLE[@]}" --train-cameras $TRAIN "${BB[@]}" --out "$OUT/backbone" --quiet
-fi
+# step DIR DONE COMMAND...: runs COMMAND (whose output folder is DIR) unless DIR/DONE exists
+# and DIR/command.txt holds the same command line; a finished step made by another command
+# line is refused. The model a step reads is part of its identity through the step that made it.
+step() {
+  local dir=$1 done=$2
+  shift 2
+  local want
+  want=$(printf '%s\n' "$@")
+  if [ -f "$dir/$done" ]; then
+    if [ "$(cat "$dir/command.txt" 2>/dev/null)" = "$want" ]; then return 0; fi
+    echo "panoptic_rig: $dir was made by another command line (see its command.txt); use another OUT, or delete $dir" >&2
+    exit 1
+  fi
+  rm -rf "$dir"
+  "$@"
+  printf '%s\n' "$want" >"$dir/command.txt.tmp"
+  mv "$dir/command.txt.tmp" "$dir/command.txt"
+}
+
+step "$OUT/backbone" summary.json "$FILLGS" train "${DS[@]}" "${CYCLE[@]}" --train-cameras $TRAIN "${BB[@]}" --out "$OUT/backbone" --quiet
 
 evaluate() {  # model folder
   for split in interpolation extrapolation; do
     local cams=$INTERP
     [ $split = extrapolation ] && cams=$EXTRAP
-    if [ ! -f "$1/eval_$split/metrics.json" ]; then
-      rm -rf "$1/eval_$split"
-      "$FILLGS" eval --model "$1/model.ply" "${DS[@]}" --select-cameras $cams --splits $split --no-renders --ls-gain \
-        --out "$1/eval_$split" --quiet >/dev/null
-    fi
+    step "$1/eval_$split" metrics.json "$FILLGS" eval --model "$1/model.ply" "${DS[@]}" --select-cameras $cams --splits $split --no-renders \
+      --ls-gain --out "$1/eval_$split" --quiet >/dev/null
   done
 }
 
 finetune() {  # id, extra finetune options
   local id=$1
   shift
-  if [ ! -f "$OUT/$id/summary.json" ]; then
-    rm -rf "$OUT/$id"
-    "$FILLGS" finetune --model "$OUT/backbone/model.ply" "${DS[@]}" "${CYCLE[@]}" --train-cameras $TRAIN --out "$OUT/$id" \
-      --refiner rig --pool-cameras $POOL --rig-max-distance 1.5 --rig-max-angle 30 "${FT[@]}" "$@" --quiet
-  fi
+  step "$OUT/$id" summary.json "$FILLGS" finetune --model "$OUT/backbone/model.ply" "${DS[@]}" "${CYCLE[@]}" --train-cameras $TRAIN \
+    --out "$OUT/$id" --refiner rig --pool-cameras $POOL --rig-max-distance 1.5 --rig-max-angle 30 "${FT[@]}" "$@" --quiet
   evaluate "$OUT/$id"
 }
 
 evaluate "$OUT/backbone"
 # The dense reference: every camera but the held-out ones (pair + pool), as the dense split
-# of the README trains (3,000 iterations).
-if [ ! -f "$OUT/dense/summary.json" ]; then
-  rm -rf "$OUT/dense"
-  DENSE_IT=(--iterations 3000)
-  [ $SMOKE = 1 ] && DENSE_IT=("${BB[@]}")
-  "$FILLGS" train "${DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE_IT[@]}" --out "$OUT/dense" --quiet
-fi
+# trains (3,000 iterations).
+DENSE_IT=(--iterations 3000)
+[ $SMOKE = 1 ] && DENSE_IT=("${BB[@]}")
+step "$OUT/dense" summary.json "$FILLGS" train "${DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE_IT[@]}" --out "$OUT/dense" --quiet
 evaluate "$OUT/dense"
 finetune no-refinement --trajectories 0
 for s in "${STRATEGIES[@]}"; do

@@ -11,6 +11,7 @@ packages=(
   libeigen3-dev
   libopenimageio-dev
   openimageio-tools        # needed by OpenImageIO's CMake config
+  python3-imath            # ships the PyImath library that Imath's CMake targets (pulled in by OpenImageIO) name; without it CMake warns
   libopencv-dev
   catch2                   # Catch2 2.13
   libtbb-dev

@@ -280,7 +280,7 @@ TEST_CASE("external refiner: the example script follows the protocol, and failur
   }
   {
     // Patch 1 fails, the others come back.
-    auto r = make_external_refiner("case {in} in *patch_001*) exit 3 ;; *) bash " + script + " {in} {out} ;; esac", 60);
+    auto r = make_external_refiner("sh -c 'case \"$1\" in *patch_001*) exit 3 ;; *) bash " + script + " \"$1\" \"$2\" ;; esac' sh {in} {out}", 60);
     const RefineReport rep = refine_patches(*r, patches, join_path(dir, "in"), join_path(dir, "out2"));
     REQUIRE(rep.failures.size() == 1);
     CHECK(rep.failures[0].first == 1);
@@ -289,7 +289,7 @@ TEST_CASE("external refiner: the example script follows the protocol, and failur
   }
   {
     const auto t0 = std::chrono::steady_clock::now();
-    auto r = make_external_refiner("sleep 20; echo {in} {out}", 0.5);
+    auto r = make_external_refiner("sh -c 'sleep 20; echo \"$1\" \"$2\"' sh {in} {out}", 0.5);
     const RefineReport rep = refine_patches(*r, {patches[0]}, join_path(dir, "in"), join_path(dir, "out3"));
     REQUIRE(rep.failures.size() == 1);
     CHECK(rep.failures[0].second.find("timed out") != std::string::npos);
@@ -297,16 +297,21 @@ TEST_CASE("external refiner: the example script follows the protocol, and failur
   }
   {
     // Wrong size and missing images name the file.
-    auto r = make_external_refiner("test -d {in} && mkdir -p {out} && oiiotool --pattern constant:color=0.5,0.5,0.5 10x10 3 -o {out}/f0000_v1.png", 60);
+    auto r = make_external_refiner("sh -c 'test -d \"$1\" && mkdir -p \"$2\" && oiiotool --pattern constant:color=0.5,0.5,0.5 10x10 3 -o \"$2\"/f0000_v1.png' sh {in} {out}", 60);
     const RefineReport rep = refine_patches(*r, {patches[0]}, join_path(dir, "in"), join_path(dir, "out4"));
     REQUIRE(rep.failures.size() == 1);
     CHECK(rep.failures[0].second.find("f0000_v1.png is 10x10, expected 40x30") != std::string::npos);
-    auto r2 = make_external_refiner("test -d {in} && mkdir -p {out}", 60);
+    auto r2 = make_external_refiner("sh -c 'test -d \"$1\" && mkdir -p \"$2\"' sh {in} {out}", 60);
     const RefineReport rep2 = refine_patches(*r2, {patches[0]}, join_path(dir, "in"), join_path(dir, "out5"));
     REQUIRE(rep2.failures.size() == 1);
     CHECK(rep2.failures[0].second.find("missing refined image f0000_v1.png") != std::string::npos);
   }
   CHECK_THROWS_WITH(make_external_refiner("denoise {in}", 1), Catch::Contains("{in} and {out}"));
+  // No shell runs the template: its operators are refused before any work, with the way to
+  // run a shell on purpose.
+  CHECK_THROWS_WITH(make_external_refiner("denoise {in} {out} > log", 1), Catch::Contains("'>' at character 20 is shell syntax"));
+  CHECK_THROWS_WITH(make_external_refiner("denoise {in} {out}; rm x", 1), Catch::Contains("sh -c 'SCRIPT"));
+  CHECK_THROWS_WITH(make_external_refiner("denoise \"$(x)\" {in} {out}", 1), Catch::Contains("inside double quotes"));
 }
 
 TEST_CASE("consistency mask separates oracle artifacts from clean pixels (ROC AUC >= 0.9)", "[refine][weights]") {
@@ -711,12 +716,38 @@ TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refi
   std::ostringstream o3, e3;
   CHECK(cli::run({"bench", "--smoke", "--out", dir, "--frames", "5", "--configs", "fillgs", "--quiet"}, o3, e3) == 1);
   CHECK(e3.str().find("made with other options") != std::string::npos);
-  // A finished run is not reused under another fine-tuning schedule (the earlier motion rates).
-  std::ostringstream o4, e4;
-  CHECK(cli::run({"bench", "--smoke", "--out", dir, "--configs", "fillgs", "--motion-rates", "gentle", "--quiet"}, o4, e4) == 1);
-  const std::string refused = e4.str();
-  CHECK(refused.find("fillgs/schedule.json: run fillgs was made with another fine-tuning schedule") != std::string::npos);
-  CHECK(std::count(refused.begin(), refused.end(), '\n') == 1);
+  // A finished run is reused only when every option that decides its result is the same:
+  // each of these is refused with one line naming the run and the first option that differs.
+  const std::vector<std::pair<std::vector<std::string>, std::string>> other_options = {
+      {{"--configs", "fillgs", "--motion-rates", "gentle"}, "run fillgs was made with other options (finetune.train.key_lr_scale: was 10"},
+      {{"--configs", "fillgs", "--artifact-strength", "0.25"}, "run fillgs was made with other options (refiner.artifacts.strength: was 0.5, now 0.25)"},
+      {{"--configs", "random", "--baseline-weighting", "none"}, "run random was made with other options (finetune.weighting: was \"exploregs\", now \"none\")"},
+      {{"--configs", "fillgs", "--time-stride", "2"}, "run fillgs was made with other options (finetune.select.time_stride: was 1, now 2)"},
+      {{"--configs", "no-refinement", "--support", "full"}, "run no-refinement was made with other options (refiner.support: was \"observed\", now \"full\")"},
+      {{"--configs", "upper.dense", "--iterations", "61"}, ""},  // the dense model does not fine-tune: reused
+  };
+  for (const auto& [extra, message] : other_options) {
+    std::vector<std::string> a = {"bench", "--smoke", "--out", dir, "--quiet"};
+    a.insert(a.end(), extra.begin(), extra.end());
+    std::ostringstream o4, e4;
+    const int code = cli::run(a, o4, e4);
+    const std::string refused = e4.str();
+    INFO(extra[3] << ": " << refused);
+    if (message.empty()) {
+      CHECK(code == 0);
+      CHECK(o4.str().find("upper.dense: reused") != std::string::npos);
+      continue;
+    }
+    CHECK(code == 1);
+    CHECK(refused.find("identity.json: " + message) != std::string::npos);
+    CHECK(refused.find("use another --out, or delete") != std::string::npos);
+    CHECK(std::count(refused.begin(), refused.end(), '\n') == 1);
+  }
+  // A run made before identities were recorded is not taken for one made now.
+  fs::remove(join_path(dir, "n3v_s1/runs/fillgs/identity.json"));
+  std::ostringstream o6, e6;
+  CHECK(cli::run({"bench", "--smoke", "--out", dir, "--configs", "fillgs", "--quiet"}, o6, e6) == 1);
+  CHECK(e6.str().find("has no identity.json (made by an older fillgs)") != std::string::npos);
   std::ostringstream o5, e5;
   CHECK(cli::run({"bench", "--smoke", "--out", dir, "--configs", "fillgs", "--position-lr", "-1", "--quiet"}, o5, e5) == 1);
   CHECK(e5.str().find("--position-lr and --key-lr-scale must be positive") != std::string::npos);
@@ -861,6 +892,10 @@ TEST_CASE("fillgs run: the whole pipeline prints its comparison and writes its r
   CHECK(embedded == pictures);
   CHECK(html.find("missing image") == std::string::npos);
   CHECK(html.find("<td>fillgs</td>") != std::string::npos);
+  // The same folder with another oracle support: refused, not reported as if made with it.
+  std::ostringstream o2, e2;
+  CHECK(cli::run({"run", "--smoke", "--out", dir, "--support", "full", "--quiet"}, o2, e2) == 1);
+  CHECK(e2.str().find("was made with other options (refiner.support: was \"observed\", now \"full\")") != std::string::npos);
 }
 
 TEST_CASE("bench report: FillGS paired against each method by seed (hand-made results)", "[refine][bench]") {

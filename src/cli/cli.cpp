@@ -644,7 +644,8 @@ void print_overview(std::ostream& out) {
     std::string name = c.name;
     out << "  " << name << std::string(name.size() < 10 ? 10 - name.size() : 1, ' ') << c.summary << "\n";
   }
-  out << "\n'fillgs <command> --help' lists a command's options with their defaults; 'fillgs --version'.\n";
+  out << "\n'fillgs <command> --help' lists a command's options with their defaults; 'fillgs --version'.\n"
+      << "README.md explains the workflow, from your own 4D model to fine-tuned results; the formats are in data/README.md.\n";
 }
 
 /// One command's parser: its flags, the common ones, and help made from them.

@@ -426,8 +426,9 @@ int run_pipeline(const RunFlags& f, const Invocation& in) {
                   fixed(r.train.psnr).c_str());
     in.out << line;
   }
-  in.out << "\nfillgs run: finished in " << fixed(seconds_since(t0), 0) << " s; report " << join_path(dir, "report.md") << " and "
-      << join_path(dir, "report.html") << "\n";
+  in.out << "\nfillgs run: finished in " << fixed(seconds_since(t0), 0) << " s.\n"
+      << "The report: " << join_path(dir, "report.html") << " (one self-contained page: open it in a browser, e.g. xdg-open "
+      << join_path(dir, "report.html") << "), or " << join_path(dir, "report.md") << " as text.\n";
   return 0;
 }
 

@@ -15,6 +15,7 @@
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/timing.hpp"
 #include "fillgs/base/fs_util.hpp"
+#include "fillgs/experiment/identity.hpp"
 #include "fillgs/io/html_report.hpp"
 #include "fillgs/base/limits.hpp"
 #include "fillgs/io/plot.hpp"
@@ -137,10 +138,15 @@ std::string fmt(double x, int digits = 2) {
 }
 
 /// The backbone: trained from the scene's points on `data` for the experiment's iterations.
-GaussianCloud train_backbone(const Dataset& data, const std::string& points, const ExperimentOptions& o, Progress& progress) {
+/// How a backbone (and the upper.dense model) is trained.
+TrainOptions backbone_train_options(const ExperimentOptions& o) {
   TrainOptions to = TrainOptions::scaled(o.backbone_iterations);
   to.seed = o.seed;
-  Trainer trainer(data, init_from_points(read_points(points)), to);
+  return to;
+}
+
+GaussianCloud train_backbone(const Dataset& data, const std::string& points, const ExperimentOptions& o, Progress& progress) {
+  Trainer trainer(data, init_from_points(read_points(points)), backbone_train_options(o));
   trainer.run(o.backbone_iterations, progress);
   return trainer.model();
 }
@@ -350,11 +356,13 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& op
   p.options = o;
   p.dir = join_path(root, o.scene_name() + "_s" + std::to_string(o.seed));
   const std::string scene_dir = p.scene_dir(), stamp_path = join_path(p.dir, "options.json");
-  const json stamp = options_json(o);
+  // The scene's and the backbone's identity: every option that decides them.
+  json stamp = options_json(o);
+  stamp["backbone_train"] = identity_json(backbone_train_options(o));
   if (fs::exists(stamp_path)) {
-    const json old = read_json_file(stamp_path);
-    if (old != stamp)
-      throw_error(stamp_path, ": this folder holds a run made with other options (", old.dump(), "); use another folder");
+    const std::string diff = identity_difference(read_json_file(stamp_path), stamp);
+    if (!diff.empty())
+      throw_error(stamp_path, ": this folder holds a scene and backbone made with other options (", diff, "); use another --out");
   }
   make_directories(p.dir);
   p.reused_scene = fs::exists(join_path(scene_dir, "synth.json")) && fs::exists(stamp_path);
@@ -494,28 +502,59 @@ RunResult evaluate_model(const PreparedScene& p, const GaussianCloud& model, con
 
 RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneOptions& base, Progress& progress, std::ostream& log) {
   const std::string dir = join_path(join_path(p.dir, "runs"), c.id);
-  const std::string result_path = join_path(dir, "result.json"), schedule_path = join_path(dir, "schedule.json");
-  // The fine-tuning schedule a run was made with: a folder is resumed only with the same one.
-  const json schedule = c.kind == RunKind::Dense ? json{{"backbone_iterations", p.options.backbone_iterations}}
-                                                 : json{{"iterations", base.iterations},
-                                                        {"select_every", base.select_every},
-                                                        {"position_lr", base.train.position_lr_init},
-                                                        {"key_lr_scale", base.train.key_lr_scale}};
-  if (fs::exists(result_path) && fs::exists(schedule_path)) {
-    const json old = read_json_file(schedule_path);
-    if (old != schedule)
-      throw_error(schedule_path, ": run ", c.id, " was made with another fine-tuning schedule (", old.dump(), ", now ", schedule.dump(),
-                  "); use another folder");
+  const std::string result_path = join_path(dir, "result.json"), identity_path = join_path(dir, "identity.json");
+  const int F = p.options.frames;
+  // What the run does, all of it decided before anything runs: its identity is every option
+  // among these (and the scene's, options.json), so a folder is reused only for the same run.
+  FinetuneOptions fo = base;
+  // The configuration picks the strategy and its ablations; the bench's own knobs (seed,
+  // --time-stride) come from `base`.
+  fo.select = c.select;
+  fo.select.seed = base.select.seed;
+  fo.select.time_stride = base.select.time_stride;
+  fo.trajectories = c.trajectories;
+  fo.weighting = c.weighting;
+  fo.mask = c.mask;
+  fo.work_dir = join_path(dir, "work");
+  size_t test_views = 0;
+  if (c.kind == RunKind::TestViews) {
+    // Clean ground truth at every test camera and frame, weight 1, drawn as often as the
+    // real views (with the generated views' 30% share each of the 260 n3v test views was
+    // drawn 1.4 times in 1,200 iterations, and the bound measured the budget, not the views).
+    test_views = p.interpolation->views().size() + p.extrapolation->views().size();
+    fo.train.refined_share = double(test_views) / (double(test_views) + double(p.train->views().size()));
+  }
+  OracleOptions oo;
+  oo.artifacts.strength = c.artifact_strength;
+  oo.artifacts.seed = p.options.seed;
+  oo.support = c.support;
+  for (const TrainView& v : p.train->views()) oo.observers.push_back(v.camera);
+  oo.frames = F;
+  json identity = {{"id", c.id}, {"scene", options_json(p.options)}};
+  if (c.kind == RunKind::Dense) {
+    identity["kind"] = "dense";
+    identity["train"] = identity_json(backbone_train_options(p.options));
+  } else {
+    identity["kind"] = c.kind == RunKind::TestViews ? "test-views" : "finetune";
+    identity["finetune"] = identity_json(fo);
+    identity["refiner"] = {{"name", "oracle"}, {"artifacts", identity_json(oo.artifacts)}, {"support", to_string(oo.support)}, {"window", oo.window}};
+    if (c.kind == RunKind::TestViews) identity["test_views"] = test_views;
   }
   if (fs::exists(result_path)) {
+    if (!fs::exists(identity_path))
+      throw_error(result_path, ": run ", c.id, " has no identity.json (made by an older fillgs), so what it was made with is unknown; use another --out, or delete ",
+                  dir, " to run it again");
+    const std::string diff = identity_difference(read_json_file(identity_path), identity);
+    if (!diff.empty())
+      throw_error(identity_path, ": run ", c.id, " was made with other options (", diff, "); use another --out, or delete ", dir,
+                  " to run it again");
     RunResult r = load_result(result_path);
     log << c.id << ": reused " << result_path << "\n";
     return r;
   }
   const auto t0 = Clock::now();
   make_directories(dir);
-  write_file_atomically(schedule_path, schedule.dump() + "\n");
-  const int F = p.options.frames;
+  write_file_atomically(identity_path, identity.dump(1) + "\n");
   if (c.kind == RunKind::Dense) {
     // Every camera of the rig, trained like the backbone.
     const Dataset all = Dataset::load(p.scene_dir(), join_path(p.scene_dir(), "transforms_train.json"));
@@ -532,33 +571,14 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
         << fmt(r.extrapolation.psnr_moving) << "), " << fmt(r.seconds_total, 0) << " s" << std::endl;
     return r;
   }
-  FinetuneOptions fo = base;
-  fo.select = c.select;
-  fo.select.seed = base.select.seed;
-  fo.trajectories = c.trajectories;
-  fo.weighting = c.weighting;
-  fo.mask = c.mask;
-  fo.work_dir = join_path(dir, "work");
   if (c.kind == RunKind::TestViews) {
-    // Clean ground truth at every test camera and frame, weight 1: what no selection can beat.
     FrameSampler truth(p.synth.scene);
     for (const Dataset* split : {p.interpolation.get(), p.extrapolation.get()})
       for (const TrainView& v : split->views()) {
         const size_t P = size_t(v.camera.width) * size_t(v.camera.height);
         fo.extra_views.push_back({v.camera, render(truth.at(v.camera.time), v.camera).rgb, std::vector<float>(P, 1.0f)});
       }
-    // Clean images are as good as real ones: every view, real or test, is drawn equally
-    // often (with the generated views' 30% share each of the 260 n3v test views was drawn
-    // 1.4 times in 1,200 iterations, and the bound measured the budget, not the views).
-    const double extra = double(fo.extra_views.size());
-    fo.train.refined_share = extra / (extra + double(p.train->views().size()));
   }
-  OracleOptions oo;
-  oo.artifacts.strength = c.artifact_strength;
-  oo.artifacts.seed = p.options.seed;
-  oo.support = c.support;
-  for (const TrainView& v : p.train->views()) oo.observers.push_back(v.camera);
-  oo.frames = F;
   SupportStats stats;
   const std::unique_ptr<Refiner> refiner = make_oracle_refiner(p.synth.scene, oo, &stats);
   const FinetuneResult fr = finetune(*p.train, p.backbone, *refiner, fo, progress);

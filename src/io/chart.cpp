@@ -1,16 +1,15 @@
 // Charts through gnuplot (README "Plots"): every chart is three files side by side, NAME.csv
 // (the numbers), NAME.gp (the gnuplot script that draws them: `cd DIR && gnuplot NAME.gp`
 // re-makes the figure, edited or not) and NAME.png (pngcairo). fillgs writes the CSV and
-// script, then pipes the script into gnuplot with the output sent to a temporary file that
-// is renamed into place, so a PNG is whole or absent. Without gnuplot (or when it fails) the
+// script, then gives the script to gnuplot on its standard input (started without a shell:
+// base/process.hpp) with the output sent to a temporary file that is renamed into place, so
+// a PNG is whole or absent. Without gnuplot (or when it fails) the
 // CSV and script stay and one warning line says so: a missing figure never fails a run.
 //
 // gnuplot rather than PLplot: the script beside each figure lets users re-plot from the CSV
 // with a tool they already have, without fillgs; it picks round ticks itself; pngcairo
 // draws antialiased text; and it runs as a separate process, so a plotting failure cannot
 // take a training run down with it.
-#include <pthread.h>
-#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -23,6 +22,7 @@
 
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/fs_util.hpp"
+#include "fillgs/base/process.hpp"
 #include "fillgs/io/plot.hpp"
 
 namespace fillgs {
@@ -113,35 +113,30 @@ void draw(const std::string& png_path, const std::string& csv, const std::string
                            stem_name + ".gp\n" + preamble(width, height);
   write_file_atomically(gp_path, head + "set output " + quoted(stem_name + ".png") + "\n" + body);
 
+  // gnuplot runs with an argument vector, not through a shell, and reads its script on
+  // stdin: every path in it is a gnuplot string literal (quoted), never shell syntax.
   const std::string log_path = join_path(dir, "." + stem_name + ".gnuplot" + std::to_string(::getpid()) + ".log");
-  const std::string command = gnuplot_program() + " > /dev/null 2> '" + log_path + "'";
+  std::string why;
   try {
+    if (png_path.find('\n') != std::string::npos) throw_error(png_path, ": a line break in the path");
     // The PNG appears whole or not at all: gnuplot draws into write_atomically's temporary file.
     write_atomically(png_path, [&](const std::string& tmp) {
-      // A gnuplot that stops reading (a script error, or none installed) must not end fillgs
-      // with SIGPIPE: the signal is blocked in this thread while writing, and a pending one consumed.
-      sigset_t pipe_signal, previous;
-      sigemptyset(&pipe_signal);
-      sigaddset(&pipe_signal, SIGPIPE);
-      pthread_sigmask(SIG_BLOCK, &pipe_signal, &previous);
-      bool ok = false;
-      if (FILE* pipe = ::popen(command.c_str(), "w")) {
-        const std::string script = "cd " + quoted(fs::absolute(dir).string()) + "\n" + head + "set output " +
-                                   quoted(fs::absolute(tmp).string()) + "\n" + body + "set output\n";
-        const bool written = std::fwrite(script.data(), 1, script.size(), pipe) == script.size();
-        ok = ::pclose(pipe) == 0 && written;
-      }
-      const timespec no_wait{0, 0};
-      while (sigtimedwait(&pipe_signal, nullptr, &no_wait) == SIGPIPE) {
-      }
-      pthread_sigmask(SIG_SETMASK, &previous, nullptr);
+      ProcessOptions po;
+      po.stdin_data = "cd " + quoted(fs::absolute(dir).string()) + "\n" + head + "set output " + quoted(fs::absolute(tmp).string()) + "\n" +
+                      body + "set output\n";
+      po.stderr_path = log_path;
+      po.timeout_seconds = 120;
+      const ProcessResult r = run_process({gnuplot_program()}, po);
       std::error_code ec;
-      if (!ok || !fs::exists(tmp, ec) || fs::file_size(tmp, ec) == 0) throw_error(png_path, ": gnuplot failed");
+      if (!r.started) why = r.error + "; Debian gnuplot-nox, which scripts/install-deps.sh installs";
+      else if (r.timed_out) why = "gnuplot ran longer than 120 s";
+      else if (r.status != 0) why = "gnuplot exited with status " + std::to_string(r.status);
+      if (!why.empty() || !fs::exists(tmp, ec) || fs::file_size(tmp, ec) == 0) throw_error(png_path, ": gnuplot failed");
     });
-  } catch (const Error&) {
-    std::string why = read_file_or_empty(log_path);
-    why = why.substr(0, why.find('\n'));
-    if (why.empty()) why = "could not run '" + gnuplot_program() + "' (Debian gnuplot-nox; scripts/install-deps.sh installs it)";
+  } catch (const Error& e) {
+    const std::string log = read_file_or_empty(log_path);
+    if (!log.empty()) why = log.substr(0, log.find('\n'));
+    if (why.empty()) why = e.what();
     std::cerr << "warning: " << png_path << " not drawn (" << why << "); its data and script are in " << stem_name << ".csv and "
               << stem_name << ".gp\n";
   }

@@ -1,10 +1,5 @@
 #include "fillgs/method/refine.hpp"
 
-#include <fcntl.h>
-#include <signal.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -12,12 +7,12 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
-#include <thread>
 
 #include "fillgs/model/frame_grid.hpp"
 #include "fillgs/io/camera_json.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/fs_util.hpp"
+#include "fillgs/base/process.hpp"
 #include "fillgs/base/random.hpp"
 #include "fillgs/render/raster.hpp"
 #include "fillgs/base/timing.hpp"
@@ -46,17 +41,6 @@ int nearest_observed(const std::vector<ObservedView>& views, int frame, const Ve
     if (best < 0 || d < bd) best = int(i), bd = d;
   }
   return best;
-}
-
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
-std::string replace_all(std::string s, const std::string& from, const std::string& to) {
-  for (size_t p = s.find(from); p != std::string::npos; p = s.find(from, p + to.size())) s.replace(p, from.size(), to);
-  return s;
 }
 
 /// Soft disc mask: 1 inside radius r, falling to 0 at 1.3 r.
@@ -190,14 +174,19 @@ class ExternalRefiner : public Refiner {
   ExternalRefiner(std::string command, double timeout) : command_(std::move(command)), timeout_(timeout) {
     if (command_.find("{in}") == std::string::npos || command_.find("{out}") == std::string::npos)
       throw_error("refiner: the command template must contain {in} and {out} (got \"", command_, "\")");
+    split_command(command_);  // shell syntax is refused before any work
   }
   std::string name() const override { return "external"; }
   void refine(const std::string& in, const std::string& out, const Patch&) override {
     make_directories(out);
-    const std::string cmd = replace_all(replace_all(command_, "{in}", quote(in)), "{out}", quote(out));
-    const int rc = run_command(cmd, timeout_, join_path(out, "refiner.log"));
-    if (rc == -1) throw_error("timed out after ", timeout_, " s (", join_path(out, "refiner.log"), ")");
-    if (rc != 0) throw_error("the refiner exited with status ", rc, " (", join_path(out, "refiner.log"), ")");
+    const std::string log = join_path(out, "refiner.log");
+    ProcessOptions po;
+    po.stdout_path = po.stderr_path = log;
+    po.timeout_seconds = timeout_;
+    const ProcessResult r = run_process(split_command(command_, {{"{in}", in}, {"{out}", out}}), po);
+    if (!r.started) throw_error("the refiner did not start: ", r.error);
+    if (r.timed_out) throw_error("timed out after ", timeout_, " s (", log, ")");
+    if (r.status != 0) throw_error("the refiner exited with status ", r.status, " (", log, ")");
   }
 
  private:
@@ -441,34 +430,6 @@ std::unique_ptr<Refiner> make_oracle_refiner(const GaussianCloud& truth, const A
 
 std::unique_ptr<Refiner> make_external_refiner(const std::string& command, double timeout) {
   return std::make_unique<ExternalRefiner>(command, timeout);
-}
-
-int run_command(const std::string& command, double timeout_seconds, const std::string& log_path) {
-  const pid_t pid = fork();
-  if (pid < 0) throw_error("refiner: cannot start a process");
-  if (pid == 0) {
-    setpgid(0, 0);
-    const int fd = open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (fd >= 0) dup2(fd, 1), dup2(fd, 2), close(fd);
-    execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  setpgid(pid, pid);
-  const auto t0 = Clock::now();
-  int status = 0;
-  for (;;) {
-    const pid_t r = waitpid(pid, &status, WNOHANG);
-    if (r == pid) break;
-    if (r < 0) throw_error("refiner: lost the process");
-    if (seconds_since(t0) > timeout_seconds) {
-      kill(-pid, SIGKILL);
-      waitpid(pid, &status, 0);
-      return -1;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  if (WIFEXITED(status)) return WEXITSTATUS(status);
-  return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
 }
 
 RefineReport refine_patches(Refiner& refiner, const std::vector<Patch>& patches, const std::string& in_root, const std::string& out_root,

@@ -163,13 +163,12 @@ struct RigPool {
 int nearest_pool_view(const RigPool& pool, const Camera& view, const RigOptions& options);
 std::unique_ptr<Refiner> make_rig_refiner(RigPool pool, const RigOptions& options);
 
-/// Runs `command` through /bin/sh with {in} and {out} replaced by the folders (quoted);
-/// killed after `timeout_seconds`. Its output goes to `out_dir`/refiner.log.
+/// Runs the program `command` names, without a shell: the template is split into words
+/// (split_command, base/process.hpp: quotes as in a shell, shell operators refused) and
+/// {in} and {out} in any word are replaced by the folders, so a path is never read as
+/// syntax. Killed with its process group after `timeout_seconds`; its output goes to
+/// `out_dir`/refiner.log. A template without {in} and {out}, or with shell syntax, throws.
 std::unique_ptr<Refiner> make_external_refiner(const std::string& command, double timeout_seconds);
-
-/// Runs a command line with a timeout (its process group is killed when it expires).
-/// Returns the exit status, or −1 when it timed out; stdout and stderr go to `log_path`.
-int run_command(const std::string& command, double timeout_seconds, const std::string& log_path);
 
 /// One refined virtual view, read back.
 struct RefinedImage {

@@ -1,0 +1,121 @@
+// Other programs are started without a shell (base/process.hpp): a command template is split
+// as a shell would split words but never run by one, and a quote or a $(...) in an output path
+// reaches no shell in any command that draws a chart or runs a refiner.
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/base/process.hpp"
+#include "fillgs/cli.hpp"
+#include "helpers.hpp"
+
+using namespace fillgs;
+using namespace fillgs::test;
+namespace fs = std::filesystem;
+
+using Words = std::vector<std::string>;
+
+TEST_CASE("split_command: words as a shell splits them, placeholders replaced inside words after splitting", "[process]") {
+  CHECK(split_command("a  'b c' \"d \\\"e\\\" \\\\ f\" g\\ h") == Words{"a", "b c", "d \"e\" \\ f", "g h"});
+  CHECK(split_command("tool --in={in} {out}/x '{in}'", {{"{in}", "/p q/it's $(touch Z)"}, {"{out}", "O"}}) ==
+        Words{"tool", "--in=/p q/it's $(touch Z)", "O/x", "/p q/it's $(touch Z)"});
+  // A value that holds the other placeholder is not replaced again.
+  CHECK(split_command("t {in} {out}", {{"{in}", "{out}"}, {"{out}", "B"}}) == Words{"t", "{out}", "B"});
+  CHECK(split_command("sh -c 'exit \"$1\"' sh 3") == Words{"sh", "-c", "exit \"$1\"", "sh", "3"});
+  CHECK(split_command("a#b c~") == Words{"a#b", "c~"});
+  for (const char* bad : {"a | b", "a && b", "a; b", "a > f", "a < f", "(a)", "a $X", "a `b`", "#a", "~/x", "a \"$(b)\""})
+    CHECK_THROWS_WITH(split_command(bad), Catch::Contains("is shell syntax"));
+  CHECK_THROWS_WITH(split_command("a 'b"), Catch::Contains("never closed"));
+  CHECK_THROWS_WITH(split_command("a \"b"), Catch::Contains("never closed"));
+  CHECK_THROWS_WITH(split_command("a \\"), Catch::Contains("lone backslash"));
+  CHECK_THROWS_WITH(split_command("   "), Catch::Contains("names no program"));
+}
+
+TEST_CASE("run_process: input on stdin, output to a file, exit status, signals, timeouts and programs that are missing", "[process]") {
+  const std::string dir = scratch("process");
+  ProcessOptions o;
+  o.stdin_data = "line one\nit's $(not run)\n";
+  o.stdout_path = join_path(dir, "out.txt");
+  ProcessResult r = run_process({"cat"}, o);
+  CHECK(r.started);
+  CHECK(r.status == 0);
+  CHECK(read_file(o.stdout_path) == o.stdin_data);
+
+  // Arguments arrive as they are: no word splitting, no expansion.
+  o.stdin_data.clear();
+  r = run_process({"printf", "%s|", "a b", "$(touch PWNED)", "*"}, o);
+  CHECK(r.status == 0);
+  CHECK(read_file(o.stdout_path) == "a b|$(touch PWNED)|*|");
+  CHECK_FALSE(fs::exists("PWNED"));
+
+  CHECK(run_process({"sh", "-c", "exit 7"}).status == 7);
+  CHECK(run_process({"sh", "-c", "kill -TERM $$"}).status == 128 + 15);
+
+  // A program that stops reading a large input: no SIGPIPE here, its status comes back.
+  ProcessOptions big;
+  big.stdin_data.assign(size_t(8) << 20, 'x');
+  r = run_process({"head", "-c", "1"}, big);
+  CHECK(r.started);
+  CHECK(r.status == 0);
+
+  r = run_process({"/nonexistent/program"});
+  CHECK_FALSE(r.started);
+  CHECK(r.error.find("No such file") != std::string::npos);
+
+  // The timeout kills the whole process group, the program's children included.
+  const auto t0 = std::chrono::steady_clock::now();
+  ProcessOptions slow;
+  slow.timeout_seconds = 0.3;
+  r = run_process({"sh", "-c", "sleep 30 & sleep 30"}, slow);
+  CHECK(r.timed_out);
+  CHECK(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < 5.0);
+}
+
+TEST_CASE("a quote and $(...) in --out reach no shell: train, observe, select and finetune draw their charts and run the refiner there", "[process][cli]") {
+  const std::string dir = scratch("hostile_paths");
+  const std::string marker = "PWNED_hostile";
+  fs::remove(marker);
+  std::ostringstream out, err;
+  REQUIRE(cli::run({"synth", "--out", join_path(dir, "scene"), "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06", "--quiet"},
+                   out, err) == 0);
+  const std::string images = join_path(dir, "scene"), cams = join_path(dir, "scene/transforms_train.json"),
+                    scene = join_path(dir, "scene/scene.ply");
+  // Each folder name closes a shell quote, runs a command substitution and backquotes (as
+  // one shell would see it inside single quotes, and inside double ones).
+  const std::string hostile = "x'$(touch " + marker + ")'y \"`touch " + marker + "`\"";
+  const bool gnuplot = run_process({"gnuplot", "-e", "exit"}).status == 0;
+  auto check_run = [&](const std::string& what, const std::vector<std::string>& args, const std::vector<std::string>& pictures) {
+    std::ostringstream o, e;
+    const int code = cli::run(args, o, e);
+    INFO(what << ": " << o.str() << e.str());
+    CHECK(code == 0);
+    CHECK_FALSE(fs::exists(marker));
+    CHECK_FALSE(fs::exists(join_path(dir, marker)));
+    CHECK(e.str().find("not drawn") == std::string::npos);
+    if (gnuplot)
+      for (const std::string& p : pictures) CHECK(fs::exists(join_path(args.back(), p)));
+  };
+  check_run("train", {"train", "--images", images, "--cameras", cams, "--iterations", "20", "--quiet", "--out", join_path(dir, "train " + hostile)},
+            {"loss.png"});
+  check_run("train (a folder with one quote)",
+            {"train", "--images", images, "--cameras", cams, "--iterations", "20", "--quiet", "--out", join_path(dir, "john's run")}, {"loss.png"});
+  check_run("observe", {"observe", "--scene", scene, "--cameras", cams, "--quiet", "--out", join_path(dir, "observe " + hostile)},
+            {"deficiency_heatmap.png", "visible_fraction.png"});
+  check_run("select", {"select", "--scene", scene, "--cameras", cams, "--trajectories", "2", "--quiet", "--out", join_path(dir, "select " + hostile)},
+            {"priority_heatmap.png"});
+  const std::string script = std::string(FILLGS_SOURCE_DIR) + "/scripts/refiners/median_denoise.sh";
+  const std::string ft = join_path(dir, "finetune " + hostile);
+  check_run("finetune", {"finetune", "--model", scene, "--images", images, "--cameras", cams, "--train-cameras", "cam04,cam06", "--iterations", "20",
+                         "--select-every", "10", "--trajectories", "1", "--refiner", "external", "--refiner-command", "bash " + script + " {in} {out}",
+                         "--quiet", "--out", ft},
+            {"loss.png"});
+  // The refiner got the folders as they are: its log lies in the hostile folder.
+  bool logged = false;
+  for (const auto& e : fs::recursive_directory_iterator(ft)) logged |= e.path().filename() == "refiner.log";
+  CHECK(logged);
+  fs::remove(marker);
+}
