@@ -10,7 +10,7 @@
 //  * how many model Gaussians move, how many of them move with the object, densification;
 //  * a picture per configuration: ground truth over model at five moments of one camera.
 // Configurations are written as `label:key=value;key=value` (keys below), so one run prints
-// the before/after rows of the README and any ablation.
+// the before/after rows of bench/results/README.md and any ablation.
 #include <iostream>
 #include <algorithm>
 #include <cmath>

@@ -24,7 +24,7 @@ export FILLGS_SHARED_DATA="${FILLGS_SHARED_DATA:-$(cd .. && pwd)/shared/data}"
 points="$FILLGS_SHARED_DATA/video/n3v_flame_steak_frame0/sparse/0/points3D.bin"
 mkdir -p "$out"
 # --no-flow-keys: placing motion keys by optical flow runs Farneback flow on every camera's
-# frame steps at full resolution, which is most of a short run's time here (README); memory
+# frame steps at full resolution, which is most of a short run's time here (bench/results/README.md); memory
 # is what this measures. FLOW=1 keeps the flow keys.
 flow=(--no-flow-keys)
 [ "${FLOW:-0}" = 1 ] && flow=()

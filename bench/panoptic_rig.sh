@@ -8,7 +8,7 @@
 #   bench/panoptic_rig.sh [--smoke] [--monocular] [OUT]
 #       (default OUT: bench/results/video/panoptic_rig, or panoptic_mono with --monocular)
 #
-# The split, fixed from the cameras' geometry before any run (README "Real captured video"):
+# The split, fixed from the cameras' geometry before any run (bench/results/README.md, "Real captured video"):
 # train on 18 and 12 (the y = -2.4 ring, 72 degrees apart in azimuth); the dome cameras inside
 # their azimuth arc alternate held-out / pool in azimuth order (4 held out, 3 pool, 22 held
 # out, 7 pool); those beyond the arc within 60 degrees alternate by angular distance from it

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The second build tree (README "Robustness"): clang with AddressSanitizer +
+# The second build tree (tests/README.md, "Robustness"): clang with AddressSanitizer +
 # UndefinedBehaviorSanitizer, the libFuzzer harnesses of tests/fuzz, and the robustness
 # tests, into build-fuzz/. Needs clang and libclang-rt-14-dev (scripts/install-deps.sh).
 set -euo pipefail

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Initial points for a calibrated rig, made by COLMAP as its users do (README "Real video"):
+# Initial points for a calibrated rig, made by COLMAP as its users do (data/README.md, "Real captured video"):
 # SIFT features, exhaustive matching, and triangulation with the rig's known poses
 # (`colmap point_triangulator`, no pose is re-estimated). The result, OUT/sparse/points3D.bin
 # (+ .txt), is what `fillgs train --points` reads.

@@ -18,7 +18,7 @@ packages=(
   nlohmann-json3-dev
   libhwy-dev               # Google Highway: portable SIMD with run-time dispatch
   libcli11-dev             # CLI11: the command line's flags, parsing and help
-  clang libclang-rt-14-dev # the sanitizer + libFuzzer tree (scripts/build-fuzz.sh, README "Robustness")
+  clang libclang-rt-14-dev # the sanitizer + libFuzzer tree (scripts/build-fuzz.sh, tests/README.md, "Robustness")
   python3-openvdb          # the OpenVDB Python binding: a test opens exploration.vdb with it
   colmap                   # COLMAP 3.8: a test round-trips the COLMAP export; triangulated initial points
   gnuplot-nox              # the plots (src/io/plot.cpp drives gnuplot through a pipe)

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs, builds, and runs every test (Catch2 through CTest, plus the benchmark smoke runs),
 # then the sanitizer tree: the reader, CLI, extremes and robustness tests under ASan + UBSan
-# and a short smoke of every fuzz harness (README "Robustness").
+# and a short smoke of every fuzz harness (tests/README.md, "Robustness").
 # Tests read ../shared/data (or $FILLGS_SHARED_DATA).
 set -euo pipefail
 cd "$(dirname "$0")/.."

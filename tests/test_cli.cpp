@@ -468,6 +468,11 @@ TEST_CASE("every command's help lists exactly the flags it accepts, each with it
     while (std::getline(in, line) && line.rfind("  ", 0) == 0) commands.push_back(line.substr(2, line.find(' ', 2) - 2));
   }
   CHECK(commands.size() == 13);
+  // The overview points to the documents that explain the workflow and the formats, each
+  // of which exists.
+  CHECK(overview.out.find("README.md explains the workflow") != std::string::npos);
+  CHECK(run_cli({"--help"}).out == overview.out);
+  for (const char* doc : {"README.md", "data/README.md"}) CHECK(fs::exists(std::string(FILLGS_SOURCE_DIR) + "/" + doc));
   for (const std::string& command : commands) {
     INFO("fillgs " << command);
     const Result h = run_cli({command, "--help"});

@@ -874,6 +874,8 @@ TEST_CASE("fillgs run: the whole pipeline prints its comparison and writes its r
   // The table: backbone, the control, FillGS and the baseline, each with both splits.
   for (const char* row : {"\nbackbone ", "\nno-refinement ", "\nfillgs ", "\ncoverage4d "}) CHECK(log.find(row) != std::string::npos);
   CHECK(log.find("interp PSNR (moving)") != std::string::npos);
+  // The last lines say where the report is and how to open it.
+  CHECK(log.find("The report: " + join_path(dir, "report.html") + " (one self-contained page: open it in a browser") != std::string::npos);
   const std::string report = read_file(join_path(dir, "report.md"));
   CHECK(report.find("| fillgs |") != std::string::npos);
   // Every picture the report shows exists: ground truth | backbone | each model at a moving moment.

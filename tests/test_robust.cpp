@@ -1,4 +1,4 @@
-// Inputs from anywhere (README "Robustness"): every defect class the fuzzing of commit
+// Inputs from anywhere (tests/README.md, "Robustness"): every defect class the fuzzing of commit
 // 1cc6089 found, as a regression test with the exact bytes, made here. Each bad input must
 // end in one line naming the file and the element, exit status 1, without a crash, without
 // taking memory on the file's word, and without changing the output folder.
@@ -286,7 +286,7 @@ TEST_CASE("size arithmetic: checked products, counts and numbers from text", "[r
 }
 
 TEST_CASE("valid input without undefined behaviour: alpha and depth channels, exact observation", "[robust]") {
-  // Under the sanitizer tree (README "Robustness") these ran into an empty vector at commit
+  // Under the sanitizer tree (tests/README.md, "Robustness") these ran into an empty vector at commit
   // 1cc6089; here they must also give the closed-form coverage of one opaque splat.
   const std::string dir = scratch("robust_valid");
   write(dir + "/s.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n0 0 0 0.1 0.2 0.3 9 -1 -1 -1 1 0 0 0\n");
@@ -344,7 +344,7 @@ TEST_CASE("images are read by the reader their extension names, and its complain
   CHECK_THROWS_WITH(read_image(dir + "/b.jpg"), Catch::Contains("b.jpg: cannot read image") && Catch::Contains("jpeg"));
   // A PNG cut after its header: libpng's two-line complaint comes back as one line.
   // OpenImageIO's PNG reader leaks a string on this path (libpng's longjmp skips its
-  // destructors; README "Robustness"): not fillgs's, so not counted under LeakSanitizer.
+  // destructors; tests/README.md, "Robustness"): not fillgs's, so not counted under LeakSanitizer.
   write(dir + "/cut.png", png.substr(0, 40));
   [[maybe_unused]] const LeaksIgnored oiio_png_leak;
   try {

@@ -70,7 +70,7 @@ TEST_CASE("synthetic scene: the shelf hides the moving chair from some cameras",
   CHECK(chair_max_weight(front, s) < kMinAlpha);
   const RenderOutput back = render(ev.at(0.5), s.train[8], o);
   CHECK(chair_max_weight(back, s) > 0.5f);
-  // The cameras that face the shelf's front (the README names them).
+  // The cameras that face the shelf's front (data/README.md names them).
   CHECK(hidden == std::vector<std::string>{"cam00", "cam01", "cam14", "cam15"});
   CHECK(seen >= 8);
 }

@@ -21,7 +21,7 @@ using namespace fillgs::test;
 
 namespace {
 
-/// The stated bound of the kernel's exp (README "Benchmarks"): relative error over [−87, 0].
+/// The stated bound of the kernel's exp (src/README.md, "The rasterizer"): relative error over [−87, 0].
 constexpr double kExpBound = 2.5e-7;
 
 Camera orbit_camera(const GaussianCloud& c, double angle, int w, int h) {

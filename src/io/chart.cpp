@@ -1,4 +1,4 @@
-// Charts through gnuplot (README "Plots"): every chart is three files side by side, NAME.csv
+// Charts through gnuplot (src/README.md, "Figures and reports"): every chart is three files side by side, NAME.csv
 // (the numbers), NAME.gp (the gnuplot script that draws them: `cd DIR && gnuplot NAME.gp`
 // re-makes the figure, edited or not) and NAME.png (pngcairo). fillgs writes the CSV and
 // script, then gives the script to gnuplot on its standard input (started without a shell:

@@ -166,7 +166,7 @@ const char* simd_target_name();
 /// Its lanes per instruction (the floats of one tile block).
 int simd_lane_count();
 
-/// max |exp_simd(x) − exp(x)| / exp(x) over `count` points spread on [lo, 0] (tests, README).
+/// max |exp_simd(x) − exp(x)| / exp(x) over `count` points spread on [lo, 0] (tests, src/README.md).
 double simd_exp_max_relative_error(float lo, int count);
 
 // ---- the scalar backward's definition (a template over the visitor) ----

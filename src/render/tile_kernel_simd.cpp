@@ -30,7 +30,7 @@ using DI = hn::RebindToSigned<D>;
 /// and e^f by its degree-6 Taylor polynomial (truncation ≤ (½ ln 2)⁷/7! ≈ 1.2e-7 relative);
 /// 14 instructions against Highway's Exp's ~25. Below −87 (e^x < 2^−125) the argument is
 /// clamped: α = o·e^x is then far under 1/255 and rejected. The measured bound, float
-/// rounding included, is in tests/test_tile_kernel.cpp and the README.
+/// rounding included, is in tests/test_tile_kernel.cpp and src/README.md.
 template <class DF, class V>
 HWY_INLINE V ExpNonPositive(DF d, V x) {
   const hn::RebindToSigned<DF> di;

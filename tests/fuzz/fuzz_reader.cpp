@@ -1,4 +1,4 @@
-// libFuzzer harness for one fillgs reader (README "Robustness"). Built once per reader with
+// libFuzzer harness for one fillgs reader (tests/README.md, "Robustness"). Built once per reader with
 // FILLGS_FUZZ_READER set to its name; every harness writes the input to files in its own
 // temporary folder and reads them back the way the command line does.
 //

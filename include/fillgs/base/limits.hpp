@@ -1,5 +1,5 @@
 #pragma once
-// Sizes taken on a file's word are checked before memory is taken (README "Robustness").
+// Sizes taken on a file's word are checked before memory is taken (tests/README.md, "Robustness").
 //
 // Readers never allocate from a count they read without first checking it against the
 // bytes left in the file (a record cannot be smaller than its fixed fields) or against

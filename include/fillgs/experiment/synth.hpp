@@ -15,7 +15,7 @@
 //    the counter, and a tall static pillar between the rig and the walker hides it from some
 //    cameras part of the time. The "n3v" rig is the real Neural 3D Video rig (rigs.hpp,
 //    0.25 m per COLMAP unit, looking at the walker's path); "technicolor" a 4×4 grid.
-//    Variant "kitchen". README "A paper-like scene" says what each element is for.
+//    Variant "kitchen". data/README.md, "The synthetic scenes", says what each element is for.
 // World axes: z up, metres.
 #include <cstdint>
 #include <string>

@@ -5,7 +5,7 @@
 //  * Spacetime Gaussians PLY (polynomial motion; its 6/9-channel colour features have no
 //    SH meaning: the first three, activated, become the base colour);
 //  * Ex4DGS keyframed pair (point_cloud.ply + dynamic_point_cloud.ply, cfg_args);
-//  * the fillgs 4D PLY (baked tracks, documented in README.md), read and written.
+//  * the fillgs 4D PLY (baked tracks, documented in data/README.md), read and written.
 #include <string>
 
 #include "fillgs/base/names.hpp"

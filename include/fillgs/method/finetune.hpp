@@ -39,10 +39,9 @@ struct FinetuneOptions {
 /// How fast fine-tuning moves Gaussians: the initial position learning rate (× the scene
 /// extent, decaying to a tenth of it over the run) and the keys' rate as a multiple of it.
 /// The default, `repair`, is training's initial rate with keys ×10: what repairing motion
-/// from new views takes (the upper bound upper.test-views came within 0.4 / 1.5 dB of the
-/// dense model's moving-region PSNR with it, 4.5 / 6.3 dB short before; README, "What
-/// limited the upper bound"). `gentle()` continues where training ended (its final rate
-/// ×10, keys ×3), the earlier default.
+/// from new views takes (with it the upper bound upper.test-views comes within 0.6 / 1.6 dB
+/// of the dense model's moving-region PSNR; bench/results/README.md, "The comparison").
+/// `gentle()` continues where training ended (its final rate ×10, keys ×3).
 struct MotionRates {
   double position_lr = 1.6e-4;
   double key_lr_scale = 10.0;
