@@ -8,8 +8,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "fillgs/base/error.hpp"
+#include "fillgs/base/limits.hpp"
 #include "fillgs/explore/exploration.hpp"
 #include "fillgs/base/fs_util.hpp"
 
@@ -111,54 +113,127 @@ void ExplorationGrid::write(const std::string& path) const {
   });
 }
 
-ExplorationGrid ExplorationGrid::read(const std::string& path) {
-  openvdb::initialize();
-  ExplorationGrid grid;
-  try {
-    openvdb::io::File file(path);
-    file.open();
-    openvdb::Int32Grid::Ptr labels;
-    if (file.hasGrid("occupied") && file.hasGrid("unexplored")) {
-      // This layout: two BoolGrids, merged into the in-memory labels.
-      for (const VoxelLabel label : {VoxelLabel::Occupied, VoxelLabel::Unexplored}) {
-        auto base = file.readGrid(to_string(label));
-        auto g = openvdb::gridPtrCast<openvdb::BoolGrid>(base);
-        if (!g) throw_error(path, ": grid '", to_string(label), "' is ", base->type(), ", expected bool");
-        if (!labels) {
-          labels = openvdb::Int32Grid::create(0);
-          labels->setName("labels");
-          labels->setTransform(g->transform().copy());
-          copy_fillgs_meta(*g, *labels);
-        }
-        auto acc = labels->getAccessor();
-        for (auto it = g->cbeginValueOn(); it; ++it)
-          if (*it) acc.setValue(it.getCoord(), int(label));
-      }
-    } else if (file.hasGrid("labels")) {
-      // The first layout: one Int32Grid of labels.
-      auto base = file.readGrid("labels");
-      labels = openvdb::gridPtrCast<openvdb::Int32Grid>(base);
-      if (!labels) throw_error(path, ": grid 'labels' is ", base->type(), ", expected Int32");
-    } else {
-      throw_error(path, ": no grids named 'occupied' and 'unexplored' (not written by fillgs explore)");
+namespace {
+
+/// Walks the OpenVDB file's own layout — header, file metadata, grid descriptors and each
+/// grid's metadata — checking every length and offset against the file's size before
+/// OpenVDB trusts them: a damaged length there made OpenVDB allocate gigabytes or loop for
+/// minutes. The voxel data itself is left to OpenVDB, which reports damage there itself.
+void check_vdb_layout(const std::string& path) {
+  const std::string b = read_file(path);
+  size_t at = 0;
+  auto need = [&](size_t n, const char* what) {
+    if (n > b.size() - at) throw_error(path, ": damaged OpenVDB file (", what, " at byte ", at, " runs past the end of the file)");
+  };
+  auto i32 = [&](const char* what) {
+    need(4, what);
+    int32_t v;
+    std::memcpy(&v, b.data() + at, 4);
+    at += 4;
+    if (v < 0) throw_error(path, ": damaged OpenVDB file (", what, " ", v, " at byte ", at - 4, ")");
+    return size_t(v);
+  };
+  auto i64 = [&](const char* what) {
+    need(8, what);
+    int64_t v;
+    std::memcpy(&v, b.data() + at, 8);
+    at += 8;
+    if (v < 0 || uint64_t(v) > b.size()) throw_error(path, ": damaged OpenVDB file (", what, " ", v, " at byte ", at - 8, ")");
+    return size_t(v);
+  };
+  auto bytes = [&](size_t n, const char* what) {
+    need(n, what);
+    at += n;
+  };
+  auto text = [&](const char* what) { bytes(i32(what), what); };
+  auto metadata = [&]() {
+    const size_t n = i32("metadata count");
+    for (size_t k = 0; k < n; ++k) {
+      text("metadata name");
+      text("metadata type");
+      bytes(i32("metadata value size"), "metadata value");
     }
-    file.close();
-    for (const char* key : {"fillgs_box_min", "fillgs_box_max", "fillgs_divisions"})
-      if (!(*labels)[key]) throw_error(path, ": metadata '", key, "' is missing");
-    const auto lo = labels->metaValue<openvdb::Vec3d>("fillgs_box_min");
-    const auto hi = labels->metaValue<openvdb::Vec3d>("fillgs_box_max");
-    const auto d = labels->metaValue<openvdb::Vec3i>("fillgs_divisions");
-    grid.box_.lo = Vec3d(lo.x(), lo.y(), lo.z());
-    grid.box_.hi = Vec3d(hi.x(), hi.y(), hi.z());
-    grid.dims_ = Vec3i(d.x(), d.y(), d.z());
-    if ((grid.dims_.array() < 1).any() || (grid.dims_.array() > kMaxDivisions).any() || !((grid.box_.hi - grid.box_.lo).array() > 0).all() ||
-        !grid.box_.lo.allFinite() || !grid.box_.hi.allFinite())
-      throw_error(path, ": metadata fillgs_box_min/max or fillgs_divisions is invalid");
-    grid.impl_->grid = labels;
-  } catch (const openvdb::Exception& e) {
-    throw_error(path, ": cannot read as an exploration grid (", e.what(), ")");
+  };
+  need(8 + 4 + 4 + 4 + 1 + 36, "the header");
+  if (b.compare(0, 4, " BDV") != 0) throw_error(path, ": not an OpenVDB file");
+  uint32_t version;
+  std::memcpy(&version, b.data() + 8, 4);
+  at = 8 + 4 + 4 + 4;
+  const bool offsets = b[at] != 0;
+  at += 1 + 36;  // the offsets flag, the UUID
+  metadata();
+  const size_t grids = i32("grid count");
+  for (size_t g = 0; g < grids; ++g) {
+    text("grid name");
+    text("grid type");
+    if (version >= 216) text("grid instance parent");
+    if (!offsets) return;  // without offsets the grids follow inline: left to OpenVDB
+    const size_t grid_at = i64("grid position"), block_at = i64("block position"), end_at = i64("end position");
+    if (!(grid_at <= block_at && block_at <= end_at)) throw_error(path, ": damaged OpenVDB file (grid ", g, " offsets out of order)");
+    const size_t next = end_at;
+    at = grid_at;
+    if (version >= 222) bytes(4, "compression flags");  // per-grid compression, from file version 222 on
+    metadata();
+    at = next;
   }
-  return grid;
+}
+
+}  // namespace
+
+ExplorationGrid ExplorationGrid::read(const std::string& path) {
+  require_regular_file(path);
+  check_vdb_layout(path);
+  openvdb::initialize();
+  // reading(): an allocation a damaged file provokes, or any library exception, becomes one
+  // line naming the file.
+  return reading(path, [&] {
+    ExplorationGrid grid;
+    try {
+      openvdb::io::File file(path);
+      file.open();
+      openvdb::Int32Grid::Ptr labels;
+      if (file.hasGrid("occupied") && file.hasGrid("unexplored")) {
+        // This layout: two BoolGrids, merged into the in-memory labels.
+        for (const VoxelLabel label : {VoxelLabel::Occupied, VoxelLabel::Unexplored}) {
+          auto base = file.readGrid(to_string(label));
+          auto g = openvdb::gridPtrCast<openvdb::BoolGrid>(base);
+          if (!g) throw_error(path, ": grid '", to_string(label), "' is ", base->type(), ", expected bool");
+          if (!labels) {
+            labels = openvdb::Int32Grid::create(0);
+            labels->setName("labels");
+            labels->setTransform(g->transform().copy());
+            copy_fillgs_meta(*g, *labels);
+          }
+          auto acc = labels->getAccessor();
+          for (auto it = g->cbeginValueOn(); it; ++it)
+            if (*it) acc.setValue(it.getCoord(), int(label));
+        }
+      } else if (file.hasGrid("labels")) {
+        // The first layout: one Int32Grid of labels.
+        auto base = file.readGrid("labels");
+        labels = openvdb::gridPtrCast<openvdb::Int32Grid>(base);
+        if (!labels) throw_error(path, ": grid 'labels' is ", base->type(), ", expected Int32");
+      } else {
+        throw_error(path, ": no grids named 'occupied' and 'unexplored' (not written by fillgs explore)");
+      }
+      file.close();
+      for (const char* key : {"fillgs_box_min", "fillgs_box_max", "fillgs_divisions"})
+        if (!(*labels)[key]) throw_error(path, ": metadata '", key, "' is missing");
+      const auto lo = labels->metaValue<openvdb::Vec3d>("fillgs_box_min");
+      const auto hi = labels->metaValue<openvdb::Vec3d>("fillgs_box_max");
+      const auto d = labels->metaValue<openvdb::Vec3i>("fillgs_divisions");
+      grid.box_.lo = Vec3d(lo.x(), lo.y(), lo.z());
+      grid.box_.hi = Vec3d(hi.x(), hi.y(), hi.z());
+      grid.dims_ = Vec3i(d.x(), d.y(), d.z());
+      if ((grid.dims_.array() < 1).any() || (grid.dims_.array() > kMaxDivisions).any() || !((grid.box_.hi - grid.box_.lo).array() > 0).all() ||
+          !grid.box_.lo.allFinite() || !grid.box_.hi.allFinite())
+        throw_error(path, ": metadata fillgs_box_min/max or fillgs_divisions is invalid");
+      grid.impl_->grid = labels;
+    } catch (const openvdb::Exception& e) {
+      throw_error(path, ": cannot read as an exploration grid (", e.what(), ")");
+    }
+    return grid;
+  });
 }
 
 VoxelLabel ExplorationGrid::label(const Vec3i& ijk) const {

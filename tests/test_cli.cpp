@@ -288,7 +288,8 @@ TEST_CASE("fillgs convert --to frames: one 3DGS PLY per frame, each the model at
   INFO(r.err);
   REQUIRE(r.code == 0);
   std::vector<std::string> names;
-  for (const auto& e : fs::directory_iterator(dir + "/frames")) names.push_back(e.path().filename().string());
+  for (const auto& e : fs::directory_iterator(dir + "/frames"))
+    if (e.path().filename() != ".fillgs-outputs") names.push_back(e.path().filename().string());
   std::sort(names.begin(), names.end());
   CHECK(names == std::vector<std::string>{"frame_0000.ply", "frame_0001.ply", "frame_0002.ply"});
   // The same bytes as converting at that one time.
@@ -576,4 +577,35 @@ TEST_CASE("ThreadLimit, what --threads n sets: one thread runs the library's loo
     const ThreadLimit none(0);
     CHECK(global_control::active_value(global_control::max_allowed_parallelism) == before);
   }
+}
+
+TEST_CASE("a rerun into a used folder leaves its own outputs only, and the user's files alone", "[cli][convert][robust]") {
+  const std::string dir = scratch("cli_rerun");
+  REQUIRE(run_cli({"synth", "--out", dir + "/scene", "--frames", "4", "--width", "32", "--height", "24", "--quiet"}).code == 0);
+  const std::string scene = dir + "/scene/scene.ply", cams = dir + "/scene/transforms_train.json";
+  auto listing = [](const std::string& folder) {
+    std::vector<std::string> names;
+    for (const auto& e : fs::directory_iterator(folder)) names.push_back(e.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  };
+  // 6 frames, then 3: three files on one time grid, not six on two; a file of the user's stays.
+  REQUIRE(run_cli({"convert", "--scene", scene, "--to", "frames", "--frames", "6", "--out", dir + "/frames"}).code == 0);
+  std::ofstream(dir + "/frames/notes.txt") << "mine";
+  const Result again = run_cli({"convert", "--scene", scene, "--to", "frames", "--frames", "3", "--out", dir + "/frames"});
+  INFO(again.err);
+  REQUIRE(again.code == 0);
+  CHECK(listing(dir + "/frames") == std::vector<std::string>{".fillgs-outputs", "frame_0000.ply", "frame_0001.ply", "frame_0002.ply", "notes.txt"});
+  // observe with dense tables, then with the moving Gaussians' only: no speed.npy of the first run is left.
+  REQUIRE(run_cli({"observe", "--scene", scene, "--cameras", cams, "--out", dir + "/obs", "--quiet"}).code == 0);
+  CHECK(fs::exists(dir + "/obs/speed.npy"));
+  REQUIRE(run_cli({"observe", "--scene", scene, "--cameras", cams, "--motion-tables", "dynamic", "--out", dir + "/obs", "--quiet"}).code == 0);
+  CHECK_FALSE(fs::exists(dir + "/obs/speed.npy"));
+  CHECK(fs::exists(dir + "/obs/speed_dynamic.npy"));
+  // COLMAP text into a folder that holds a binary model would be shadowed by it: refused.
+  fs::create_directories(dir + "/colmap");
+  std::ofstream(dir + "/colmap/cameras.bin") << "binary";
+  const Result shadowed = run_cli({"cameras", "--cameras", cams, "--to", "colmap", "--out", dir + "/colmap"});
+  expect_one_line_error(shadowed, {"cameras.bin", "binary COLMAP model"});
+  CHECK_FALSE(fs::exists(dir + "/colmap/cameras.txt"));
 }

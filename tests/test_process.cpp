@@ -119,3 +119,111 @@ TEST_CASE("a quote and $(...) in --out reach no shell: train, observe, select an
   CHECK(logged);
   fs::remove(marker);
 }
+
+// ---------------------------------------------------------------------------------
+// A failed write fails the command (the real executable: its streams and signals).
+
+namespace {
+
+ProcessResult fillgs_process(const std::vector<std::string>& args, const std::string& out, const std::string& log, const std::string& shell_prefix = "") {
+  // bash runs the prefix (ulimit, a pipe) and then fillgs with its arguments as they are.
+  std::vector<std::string> argv = {"bash", "-c", shell_prefix.empty() ? "exec \"$0\" \"$@\"" : shell_prefix, FILLGS_BINARY};
+  argv.insert(argv.end(), args.begin(), args.end());
+  ProcessOptions o;
+  o.stdout_path = out;
+  o.stderr_path = log;
+  o.timeout_seconds = 300;
+  return run_process(argv, o);
+}
+
+}  // namespace
+
+TEST_CASE("a standard output that cannot be written fails the command; a closed pipe does not kill it", "[process][robust]") {
+  const std::string dir = scratch("stdout_fails");
+  std::ostringstream o, e;
+  REQUIRE(cli::run({"synth", "--out", join_path(dir, "scene"), "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06", "--quiet"}, o, e) == 0);
+  const std::string scene = join_path(dir, "scene/scene.ply"), log = join_path(dir, "log.txt");
+  // info's output is its result: /dev/full takes none of it.
+  ProcessResult r = fillgs_process({"info", "--json", scene}, "/dev/full", log);
+  CHECK(r.status == 1);
+  std::string err = read_file(log);
+  CHECK(err.find("error: fillgs: cannot write to standard output (No space left on device); the files the command wrote are complete") != std::string::npos);
+  CHECK(std::count(err.begin(), err.end(), '\n') == 1);
+  r = fillgs_process({"info", "--json", scene}, join_path(dir, "info.json"), log);
+  CHECK(r.status == 0);
+  CHECK(read_file(join_path(dir, "info.json")).find("\"gaussians\"") != std::string::npos);
+  // `train | head`: the pipe closes early; training goes on, writes its model, and says so.
+  r = fillgs_process({"train", "--images", join_path(dir, "scene"), "--cameras", join_path(dir, "scene/transforms_train.json"), "--iterations",
+                      "30", "--quiet", "--out", join_path(dir, "trained")},
+                     "/dev/null", log, "\"$0\" \"$@\" | head -c 1 > /dev/null; exit ${PIPESTATUS[0]}");
+  err = read_file(log);
+  INFO(err);
+  CHECK(r.status == 1);
+  CHECK(err.find("cannot write to standard output (Broken pipe)") != std::string::npos);
+  CHECK(fs::exists(join_path(dir, "trained/model.ply")));
+}
+
+TEST_CASE("a file-size limit fails the write that meets it: no truncated image is committed", "[process][robust]") {
+  const std::string dir = scratch("fsize");
+  std::ostringstream o, e;
+  REQUIRE(cli::run({"synth", "--out", join_path(dir, "scene"), "--frames", "2", "--width", "320", "--height", "240", "--quiet"}, o, e) == 0);
+  const std::string log = join_path(dir, "log.txt");
+  // `ulimit -f 4`: 4 KiB, far under a 320x240 render of the scene.
+  const ProcessResult r = fillgs_process({"render", "--scene", join_path(dir, "scene/scene.ply"), "--cameras",
+                                          join_path(dir, "scene/transforms_train.json"), "--out", join_path(dir, "renders"), "--quiet"},
+                                         "/dev/null", log, "ulimit -f 4; exec \"$0\" \"$@\"");
+  const std::string err = read_file(log);
+  INFO(err);
+  CHECK(r.status == 1);
+  CHECK(std::count(err.begin(), err.end(), '\n') == 1);
+  CHECK((err.find("File too large") != std::string::npos || err.find("file-size limit") != std::string::npos));
+  CHECK(err.find(join_path(dir, "renders")) != std::string::npos);  // the output named, not a hidden staging folder
+  CHECK(err.find("staging") == std::string::npos);
+  CHECK_FALSE(fs::exists(join_path(dir, "renders")));
+}
+
+TEST_CASE("a train or finetune killed half-way leaves its folder marked unfinished, never an old result beside new state", "[process][robust]") {
+  const std::string dir = scratch("killed_runs");
+  std::ostringstream o, e;
+  REQUIRE(cli::run({"synth", "--out", join_path(dir, "scene"), "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06", "--quiet"}, o, e) == 0);
+  const std::string images = join_path(dir, "scene"), cams = join_path(dir, "scene/transforms_train.json"), log = join_path(dir, "log.txt");
+  const std::string out = join_path(dir, "trained");
+  REQUIRE(cli::run({"train", "--images", images, "--cameras", cams, "--iterations", "20", "--quiet", "--out", out}, o, e) == 0);
+  REQUIRE(fs::exists(join_path(out, "model.ply")));
+  CHECK_FALSE(fs::exists(join_path(out, ".fillgs-unfinished")));
+  // A second, long training in the same folder, killed (SIGKILL to its process group) after 4 s.
+  auto killed_after = [&](const std::vector<std::string>& args, double seconds) {
+    std::vector<std::string> argv = {FILLGS_BINARY};
+    argv.insert(argv.end(), args.begin(), args.end());
+    ProcessOptions po;
+    po.stdout_path = po.stderr_path = log;
+    po.timeout_seconds = seconds;
+    return run_process(argv, po);
+  };
+  ProcessResult r = killed_after({"train", "--images", images, "--cameras", cams, "--iterations", "1000000", "--quiet", "--out", out}, 4);
+  REQUIRE(r.timed_out);
+  CHECK(fs::exists(join_path(out, ".fillgs-unfinished")));
+  CHECK_FALSE(fs::exists(join_path(out, "model.ply")));
+  CHECK_FALSE(fs::exists(join_path(out, "summary.json")));
+  // A new run finishes the folder.
+  std::ostringstream o3, e3;
+  REQUIRE(cli::run({"train", "--images", images, "--cameras", cams, "--iterations", "20", "--quiet", "--out", out}, o3, e3) == 0);
+  CHECK_FALSE(fs::exists(join_path(out, ".fillgs-unfinished")));
+  CHECK(fs::exists(join_path(out, "model.ply")));
+  // A finetune killed half-way: the rerun says why it cannot resume.
+  const std::string ft = join_path(dir, "finetuned");
+  r = killed_after({"finetune", "--model", join_path(out, "model.ply"), "--images", images, "--cameras", cams, "--iterations", "1000000",
+                    "--refiner", "identity", "--quiet", "--out", ft},
+                   4);
+  REQUIRE(r.timed_out);
+  CHECK(fs::exists(join_path(ft, ".fillgs-unfinished")));
+  std::ostringstream o4, e4;
+  CHECK(cli::run({"finetune", "--model", join_path(out, "model.ply"), "--images", images, "--cameras", cams, "--iterations", "20", "--refiner",
+                  "identity", "--quiet", "--out", ft},
+                 o4, e4) == 1);
+  const std::string why = e4.str();
+  INFO(why);
+  CHECK(why.find("holds an interrupted finetune") != std::string::npos);
+  CHECK(why.find("not kept in checkpoints") != std::string::npos);
+  CHECK(std::count(why.begin(), why.end(), '\n') == 1);
+}

@@ -2,13 +2,17 @@
 // 1cc6089 found, as a regression test with the exact bytes, made here. Each bad input must
 // end in one line naming the file and the element, exit status 1, without a crash, without
 // taking memory on the file's word, and without changing the output folder.
+#include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <sstream>
 
 #if defined(__has_feature)
@@ -21,10 +25,12 @@
 #define FILLGS_LSAN 0
 #endif
 
+#include "fillgs/base/fs_util.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/io/image_io.hpp"
 #include "fillgs/base/limits.hpp"
 #include "fillgs/io/npy.hpp"
+#include "fillgs/render/loss.hpp"
 #include "fillgs/train/train.hpp"
 #include "cli_run.hpp"
 #include "helpers.hpp"
@@ -247,24 +253,114 @@ TEST_CASE("a failing command leaves its output folder exactly as it was, and kil
   expect_error(run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/cams.json", "--out", dir + "/new/deeper/out"}), {long_name.substr(0, 20)});
   CHECK_FALSE(fs::exists(dir + "/new"));
 
-  // What a killed run leaves (its staging folder beside the output, a temporary file inside
-  // it) is removed by the next run; files of the folder that the new run does not write stay.
+  // What killed runs leave — killed for real, by _exit in a child before any cleanup — is
+  // removed by the next run on the same output: a staging folder inside an existing output,
+  // one beside a new output, and a temporary file in the output. Files that merely look
+  // like them (the names older versions used, a staging name without its lock) are the
+  // user's and stay.
+  auto killed = [](const std::function<void()>& work) {
+    const pid_t p = ::fork();
+    if (p == 0) {
+      work();
+      ::_exit(0);
+    }
+    ::waitpid(p, nullptr, 0);
+  };
+  killed([&] {
+    OutputFolder f(dir + "/out");
+    write_file_atomically(join_path(f.path(), "first.png"), "half");
+    ::_exit(0);  // killed: no destructor runs
+  });
+  killed([&] {
+    OutputFolder f(dir + "/fresh");
+    write_file_atomically(join_path(f.path(), "first.png"), "half");
+    ::_exit(0);
+  });
+  killed([&] { write_atomically(dir + "/out/summary.json", [](const std::string& tmp) { std::ofstream(tmp) << "half"; ::_exit(0); }); });
+  std::vector<std::string> hidden;
+  for (const std::string& folder : {dir, dir + "/out"})
+    for (const auto& e : fs::directory_iterator(folder))
+      if (e.path().filename().string()[0] == '.') hidden.push_back(e.path().string());
+  INFO(hidden.size() << " hidden entries");
+  CHECK(hidden.size() == 3);  // the three leftovers
   const pid_t gone = dead_pid();
-  write(dir + "/.out.partial-" + std::to_string(gone) + "-0/first.png", "half");
-  write(dir + "/out/.summary.tmp" + std::to_string(gone) + "_0.json", "half");
+  write(dir + "/.out.partial-" + std::to_string(gone) + "-0/first.png", "user's");
+  write(dir + "/out/.summary.tmp" + std::to_string(gone) + "_0.json", "user's");
+  write(dir + "/out/.fillgs-staging-mine/notes.txt", "user's");
   write(dir + "/ok.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
       {"file_path": "first", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
-  const Result ok = run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/ok.json", "--out", dir + "/out"});
-  INFO(ok.err);
-  REQUIRE(ok.code == 0);
-  CHECK_FALSE(fs::exists(dir + "/.out.partial-" + std::to_string(gone) + "-0"));
-  CHECK_FALSE(fs::exists(dir + "/out/.summary.tmp" + std::to_string(gone) + "_0.json"));
+  for (const char* out : {"/out", "/fresh"}) {
+    const Result ok = run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/ok.json", "--out", dir + out});
+    INFO(ok.err);
+    REQUIRE(ok.code == 0);
+  }
+  for (const std::string& h : hidden) CHECK_FALSE(fs::exists(h));
+  CHECK(slurp(dir + "/.out.partial-" + std::to_string(gone) + "-0/first.png") == "user's");
+  CHECK(slurp(dir + "/out/.summary.tmp" + std::to_string(gone) + "_0.json") == "user's");
+  CHECK(slurp(dir + "/out/.fillgs-staging-mine/notes.txt") == "user's");
   CHECK(slurp(dir + "/out/first.png") != "old image");
   CHECK(slurp(dir + "/out/other.txt") == "kept");
-  left.clear();
-  for (const auto& e : fs::directory_iterator(dir)) left.push_back(e.path().filename().string());
-  std::sort(left.begin(), left.end());
-  CHECK(left == std::vector<std::string>{"cams.json", "ok.json", "out", "s.ply"});
+  CHECK(fs::exists(dir + "/fresh/first.png"));
+}
+
+TEST_CASE("one command at a time writes a folder, and a live run's files are never swept", "[robust]") {
+  const std::string dir = scratch("robust_live");
+  write(dir + "/s.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
+  write(dir + "/ok.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
+      {"file_path": "first", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  write(dir + "/out/old.txt", "old");
+  // A live run in another process: it holds the folder and writes a temporary file in it.
+  int go[2], ready[2];
+  REQUIRE(::pipe(go) == 0);
+  REQUIRE(::pipe(ready) == 0);
+  const pid_t live = ::fork();
+  if (live == 0) {
+    OutputFolder f(dir + "/out");
+    write_atomically(dir + "/out/live.json", [&](const std::string& tmp) {
+      std::ofstream(tmp) << "being written";
+      char c = 1;
+      (void)!::write(ready[1], &c, 1);
+      (void)!::read(go[0], &c, 1);  // until the parent has tried
+    });
+    ::_exit(0);
+  }
+  char c = 0;
+  REQUIRE(::read(ready[0], &c, 1) == 1);
+  std::vector<std::string> before;
+  for (const auto& e : fs::directory_iterator(dir + "/out")) before.push_back(e.path().filename().string());
+  const Result refused = run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/ok.json", "--out", dir + "/out"});
+  expect_error(refused, {dir + "/out", "another fillgs command is writing this folder"});
+  std::vector<std::string> after;
+  for (const auto& e : fs::directory_iterator(dir + "/out")) after.push_back(e.path().filename().string());
+  CHECK(after == before);  // the live run's staging folder and temporary file are untouched
+  (void)!::write(go[1], &c, 1);
+  int status = 0;
+  ::waitpid(live, &status, 0);
+  CHECK(slurp(dir + "/out/live.json") == "being written");
+  const Result ok = run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/ok.json", "--out", dir + "/out"});
+  INFO(ok.err);
+  CHECK(ok.code == 0);
+}
+
+TEST_CASE("outputs on another file system, through a link, are staged there", "[robust]") {
+  const std::string dir = scratch("robust_crossfs");
+  const std::string other = "/dev/shm/fillgs_crossfs_" + std::to_string(::getpid());
+  struct stat a {}, b {};
+  fs::create_directories(other);
+  if (::stat(dir.c_str(), &a) != 0 || ::stat(other.c_str(), &b) != 0 || a.st_dev == b.st_dev) {
+    fs::remove_all(other);
+    WARN("no second file system under /dev/shm: skipped");
+    return;
+  }
+  write(dir + "/s.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
+  write(dir + "/ok.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
+      {"file_path": "first", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  fs::create_directory_symlink(other, dir + "/out");
+  const Result ok = run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/ok.json", "--out", dir + "/out"});
+  INFO(ok.err);
+  CHECK(ok.code == 0);
+  CHECK(fs::exists(other + "/first.png"));
+  fs::remove_all(other);
 }
 
 TEST_CASE("size arithmetic: checked products, counts and numbers from text", "[robust]") {
@@ -280,9 +376,41 @@ TEST_CASE("size arithmetic: checked products, counts and numbers from text", "[r
   CHECK_THROWS_WITH(parse_number(std::string(100000, '9'), "f", "v"), Catch::Contains("..."));
   ::setenv("FILLGS_MAX_ALLOC", "1000", 1);
   CHECK(allocation_cap() == 1000);
-  CHECK_THROWS_WITH(check_allocation(1001, "f", "table"), Catch::Contains("f: table would need 1001 bytes, more than this machine's 1000"));
+  CHECK_THROWS_WITH(check_allocation(1001, "f", "table"), Catch::Contains("f: table would need 1001 bytes, more than FILLGS_MAX_ALLOC's 1000"));
   ::unsetenv("FILLGS_MAX_ALLOC");
   CHECK(allocation_cap() > (size_t(1) << 28));
+  // The limits the process actually has count, not only physical memory: under ulimit -v
+  // 3 GB (set in a child) the cap is 3 GB and says where it comes from.
+  const size_t three = size_t(3) << 30;
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define FILLGS_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__)
+#define FILLGS_ASAN 1
+#endif
+#ifndef FILLGS_ASAN  // AddressSanitizer's shadow memory does not live under an address-space limit
+  if (memory_limit().bytes > three) {
+    const pid_t p = ::fork();
+    if (p == 0) {
+      rlimit r{three, three};
+      if (::setrlimit(RLIMIT_AS, &r) != 0) ::_exit(2);
+      const MemoryLimit m = memory_limit();
+      bool said = false;
+      try {
+        check_allocation(three + 1, "f", "table");
+      } catch (const Error& e) {
+        said = std::string(e.what()).find("this process may use (ulimit -v)") != std::string::npos;
+      }
+      ::_exit(m.bytes == three && std::string(m.source) == "ulimit -v" && allocation_cap() == three && said ? 0 : 1);
+    }
+    int status = -1;
+    ::waitpid(p, &status, 0);
+    CHECK(WIFEXITED(status));
+    CHECK(WEXITSTATUS(status) == 0);
+  }
+#endif
 }
 
 TEST_CASE("valid input without undefined behaviour: alpha and depth channels, exact observation", "[robust]") {
@@ -368,4 +496,151 @@ TEST_CASE("an image made from given pixels keeps them in place, and a wrong coun
   CHECK(im.pixels == rgb);
   CHECK_THROWS_WITH(Image(3, 2, 3, std::vector<float>(17)), Catch::Contains("image: 17 values for 3x2x3"));
   CHECK_THROWS_WITH(Image(3, -2, 3, std::vector<float>(18)), Catch::Contains("image: 18 values for 3x-2x3"));
+}
+
+TEST_CASE("degenerate input: no Gaussians, unrepresentable cameras, extreme options, files that are not files", "[robust]") {
+  const std::string dir = scratch("robust_degenerate");
+  std::ostringstream o, e;
+  REQUIRE(cli::run({"synth", "--out", dir + "/scene", "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06", "--quiet"}, o, e) == 0);
+  const std::string cams = dir + "/scene/transforms_train.json";
+  // A scene with no Gaussians: info and render take it; select and finetune say why not.
+  write(dir + "/empty.ply", std::string("ply\nformat ascii 1.0\nelement vertex 0\n") + kVertex3dgs + "end_header\n");
+  CHECK(run_cli({"info", dir + "/empty.ply"}).code == 0);
+  for (const char* strategy : {"random", "fillgs", "coverage4d", "fisherrf", "interpolation"})
+    expect_error(run_cli({"select", "--scene", dir + "/empty.ply", "--cameras", cams, "--strategy", strategy, "--out", dir + "/sel"}),
+                 {"empty.ply", "has no Gaussians"});
+  expect_error(run_cli({"finetune", "--model", dir + "/empty.ply", "--images", dir + "/scene", "--cameras", cams, "--refiner", "identity",
+                        "--out", dir + "/ft"}),
+               {"empty.ply", "has no Gaussians"});
+  CHECK_FALSE(fs::exists(dir + "/sel"));
+  CHECK_FALSE(fs::exists(dir + "/ft"));
+  // Cameras no single-precision tracer can represent: refused where they are read.
+  const std::string frame = R"({"file_path": "a", "time": 0, "transform_matrix": [[1,0,0,X],[0,1,0,0],[0,0,1,4],[0,0,0,1]]})";
+  auto camera_file = [&](const std::string& name, const std::string& focal, const std::string& x) {
+    std::string f = frame;
+    f.replace(f.find('X'), 1, x);
+    write(dir + "/" + name, R"({"fl_x": )" + focal + R"(, "w": 48, "h": 32, "frames": [)" + f + "]}");
+    return dir + "/" + name;
+  };
+  expect_error(run_cli({"observe", "--scene", dir + "/scene/scene.ply", "--cameras", camera_file("tiny_focal.json", "1e-21", "0"), "--mode",
+                        "raytraced", "--out", dir + "/obs"}),
+               {"tiny_focal.json", "frame 0", "focal length"});
+  expect_error(run_cli({"explore", "--scene", dir + "/scene/scene.ply", "--cameras", camera_file("far.json", "40", "1e20"), "--out", dir + "/ex"}),
+               {"far.json", "frame 0", "world units from the origin"});
+  // An interval of keys far beyond the video: two keys, first and last frame, no overflow.
+  const Result keys = run_cli({"train", "--images", dir + "/scene", "--cameras", cams, "--iterations", "10", "--key-interval", "2147483646",
+                               "--quiet", "--out", dir + "/keys"});
+  INFO(keys.err);
+  CHECK(keys.code == 0);
+  // More frames than a video can have.
+  expect_error(run_cli({"train", "--images", dir + "/scene", "--cameras", cams, "--frames", "0:1000000000:1", "--out", dir + "/f"}),
+               {"1000000000 is more frames than fillgs reads"});
+  // Work without a bound is estimated and refused before it starts: views per trajectory,
+  // tables held for every Gaussian at every frame, tables written to disk.
+  expect_error(run_cli({"select", "--scene", dir + "/scene/scene.ply", "--cameras", cams, "--views", "1000000", "--out", dir + "/sel"}),
+               {"--views must be in [1, 1000], got 1000000"});
+  expect_error(run_cli({"select", "--scene", dir + "/scene/scene.ply", "--cameras", cams, "--frames", "1000000", "--out", dir + "/sel"}),
+               {"--frames 1000000", "would need", "this process may use"});
+  const auto t0 = std::chrono::steady_clock::now();
+  const Result huge = run_cli({"observe", "--scene", dir + "/scene/scene.ply", "--cameras", cams, "--frames", "100000000", "--out", dir + "/obs"});
+  expect_error(huge, {"100000000"});
+  CHECK(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < 30);
+  CHECK_FALSE(fs::exists(dir + "/sel"));
+  CHECK_FALSE(fs::exists(dir + "/obs"));
+  // What is not a regular file: a named pipe (read, it would hang), a character device
+  // (/dev/zero would be read until memory runs out), a folder.
+  REQUIRE(::mkfifo((dir + "/pipe.json").c_str(), 0644) == 0);
+  expect_error(run_cli({"cameras", "--cameras", dir + "/pipe.json", "--out", dir + "/o.json"}), {"pipe.json", "is a named pipe"});
+  REQUIRE(::mkfifo((dir + "/pipe.ply").c_str(), 0644) == 0);
+  expect_error(run_cli({"info", dir + "/pipe.ply"}), {"pipe.ply", "is a named pipe"});
+  expect_error(run_cli({"cameras", "--cameras", "/dev/zero", "--camera-format", "transforms", "--out", dir + "/o.json"}),
+               {"/dev/zero", "is a character device"});
+  expect_error(run_cli({"info", dir + "/scene"}), {"scene", "give a .ply file"});
+  CHECK_FALSE(fs::exists(dir + "/o.json"));
+}
+
+TEST_CASE("input that decodes with damage or belongs to something else is refused, naming the file", "[robust]") {
+  const std::string dir = scratch("robust_damaged");
+  // A JPEG cut in half: libjpeg would fill the rest with grey.
+  const std::string jpeg = shared_data_dir() + "/video/panoptic_basketball/ims/1/000000.jpg";
+  if (fs::exists(jpeg)) {
+    const std::string whole = slurp(jpeg);
+    CHECK(read_image(jpeg).width == 640);
+    write(dir + "/cut.jpg", whole.substr(0, whole.size() / 2));
+    CHECK_THROWS_WITH(read_image(dir + "/cut.jpg"), Catch::Contains("cut.jpg: the JPEG is cut short"));
+  }
+  std::ostringstream o, e;
+  REQUIRE(cli::run({"synth", "--out", dir + "/a", "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06", "--quiet"}, o, e) == 0);
+  REQUIRE(cli::run({"synth", "--rig", "n3v", "--out", dir + "/b", "--frames", "3", "--width", "48", "--height", "36", "--quiet"}, o, e) == 0);
+  const std::string cams_a = dir + "/a/transforms_train.json", cams_b = dir + "/b/transforms_train.json";
+  // An exploration grid made for another scene.
+  REQUIRE(cli::run({"explore", "--scene", dir + "/b/scene.ply", "--cameras", cams_b, "--out", dir + "/grid_b", "--quiet"}, o, e) == 0);
+  expect_error(run_cli({"select", "--scene", dir + "/a/scene.ply", "--cameras", cams_a, "--grid", dir + "/grid_b/exploration.vdb", "--out",
+                        dir + "/sel"}),
+               {"exploration.vdb", "made for another scene"});
+  // The same grid, damaged: 20 bytes flipped among its lengths and offsets (OpenVDB alone
+  // then allocated gigabytes or looped for minutes), and in its voxel data.
+  const std::string vdb = slurp(dir + "/grid_b/exploration.vdb");
+  for (size_t at : {size_t(60), size_t(160), vdb.size() / 2}) {
+    std::string damaged = vdb;
+    for (size_t k = 0; k < 20; ++k) damaged[at + k] = char(~damaged[at + k]);
+    write(dir + "/damaged.vdb", damaged);
+    const auto t0 = std::chrono::steady_clock::now();
+    const Result read = run_cli({"select", "--scene", dir + "/b/scene.ply", "--cameras", cams_b, "--grid", dir + "/damaged.vdb", "--trajectories",
+                                 "0", "--no-renders", "--out", dir + "/sel2"});
+    INFO("flipped at byte " << at << ": " << read.err);
+    // Either read (voxel data OpenVDB does not check) or refused naming the file, never a
+    // bare allocation failure, and quickly.
+    if (read.code != 0) expect_error(read, {"damaged.vdb"});
+    if (at < 200) CHECK(read.err.find("damaged OpenVDB file") != std::string::npos);
+    CHECK(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < 120);
+    fs::remove_all(dir + "/sel2");
+  }
+  CHECK_FALSE(fs::exists(dir + "/sel"));
+  // A checkpoint of another scene with as many views, and one already past --iterations.
+  REQUIRE(cli::run({"train", "--images", dir + "/a", "--cameras", cams_a, "--iterations", "20", "--out", dir + "/ta", "--quiet"}, o, e) == 0);
+  const std::string ckpt = dir + "/ta/checkpoints/latest.ckpt";
+  REQUIRE(fs::exists(ckpt));
+  write(dir + "/b_cams.json", slurp(cams_b));
+  expect_error(run_cli({"train", "--images", dir + "/b", "--cameras", cams_b, "--train-cameras", "cam00,cam01,cam02,cam03,cam04,cam05,cam06,cam07,"
+                        "cam08,cam09,cam10,cam11,cam12,cam13,cam14,cam15", "--iterations", "40", "--resume", ckpt, "--out", dir + "/tb"}),
+               {"latest.ckpt", "checkpoint was trained on other views"});
+  expect_error(run_cli({"train", "--images", dir + "/a", "--cameras", cams_a, "--iterations", "10", "--resume", ckpt, "--out", dir + "/tc"}),
+               {"--iterations 10", "already at iteration 20"});
+  // A transforms.json whose last row is not [0, 0, 0, 1] is not a pose.
+  write(dir + "/proj.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
+      {"file_path": "a", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0.5,1]]}]})");
+  expect_error(run_cli({"cameras", "--cameras", dir + "/proj.json", "--out", dir + "/o.json"}), {"proj.json", "frame 0", "last row"});
+  CHECK_FALSE(fs::exists(dir + "/o.json"));
+}
+
+TEST_CASE("numbers at the extremes: PSNR of identical images, colours out of range, models training cannot keep finite", "[robust]") {
+  // Identical images score the cap, a finite number; one 8-bit level in one channel of a
+  // 4x4 RGB image scores 10·log10(48·255²).
+  std::vector<float> a(48, 0.5f), b = a;
+  CHECK(psnr(a.data(), b.data(), 4, 4, 3) == kMaxPsnr);
+  b[7] += 1.0f / 255.0f;
+  CHECK(psnr(a.data(), b.data(), 4, 4, 3) == Approx(10.0 * std::log10(48.0 * 255.0 * 255.0)).epsilon(1e-6));
+  const std::vector<unsigned char> none(16, 0);
+  CHECK(std::isnan(psnr(a.data(), b.data(), 4, 4, 3, none.data())));  // nothing compared: NaN, written as null
+
+  const std::string dir = scratch("robust_extremes");
+  std::ostringstream o, e;
+  REQUIRE(cli::run({"synth", "--out", dir + "/scene", "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06", "--quiet"}, o, e) == 0);
+  const std::string cams = dir + "/scene/transforms_train.json";
+  expect_error(run_cli({"train", "--images", dir + "/scene", "--cameras", cams, "--background", "1e30,0,0", "--out", dir + "/t"}),
+               {"--background takes colours in [0, 1]", "1e30"});
+  expect_error(run_cli({"render", "--scene", dir + "/scene/scene.ply", "--cameras", cams, "--background", "1e39,0,0", "--out", dir + "/r"}),
+               {"--background takes colours in [0, 1]"});
+  // A model the reader accepts but training cannot keep finite is refused where it is read.
+  write(dir + "/huge.ply", std::string("ply\nformat ascii 1.0\nelement vertex 2\n") + kVertex3dgs + "end_header\n" + kRow +
+                               "0 0 0 0.1 0.2 0.3 1 89 -3 -3 1 0 0 0\n");
+  expect_error(run_cli({"finetune", "--model", dir + "/huge.ply", "--images", dir + "/scene", "--cameras", cams, "--refiner", "identity",
+                        "--out", dir + "/ft"}),
+               {"huge.ply", "Gaussian 1", "log-scale 89"});
+  write(dir + "/far.ply", std::string("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n") +
+                              "0 0 0\n1e20 0 0\n");
+  expect_error(run_cli({"train", "--images", dir + "/scene", "--cameras", cams, "--points", dir + "/far.ply", "--out", dir + "/t"}),
+               {"far.ply", "point 1", "beyond what training keeps finite"});
+  for (const char* out : {"/t", "/r", "/ft"}) CHECK_FALSE(fs::exists(dir + out));
 }

@@ -1,13 +1,21 @@
 #include "fillgs/base/fs_util.hpp"
 
+#include <algorithm>
 #include <atomic>
+#include <cstdio>
+#include <random>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 #include <csignal>
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/types.h>
 #include <unistd.h>
 
@@ -30,14 +38,27 @@ std::string join_path(const std::string& a, const std::string& b) {
 }
 
 void write_atomically(const std::string& path, const std::function<void(const std::string&)>& write) {
-  static std::atomic<unsigned> counter{0};
   const fs::path target(path);
   if (target.has_parent_path()) make_directories(target.parent_path().string());
-  std::ostringstream name;
-  name << "." << target.stem().string() << ".tmp" << ::getpid() << "_" << counter++ << target.extension().string();
-  const fs::path tmp = target.parent_path() / name.str();
+  const fs::path tmp = temporary_name(path);
+  // The temporary file exists and is locked (flock) while it is written, so that only a
+  // killed writer's leftover is ever swept (OutputFolder), never a live one.
+  const int lock = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (lock < 0) throw_error(path, ": cannot write (", std::strerror(errno), " creating ", tmp.string(), ")");
+  ::flock(lock, LOCK_EX);
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{lock};
   try {
     write(tmp.string());
+    // A file that reached the file-size limit lost what came after it (SIGXFSZ is ignored,
+    // so the write that met the limit failed with EFBIG), whether or not its writer noticed.
+    rlimit limit{};
+    struct stat st {};
+    if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY && ::stat(tmp.c_str(), &st) == 0 &&
+        rlim_t(st.st_size) >= limit.rlim_cur)
+      throw_error(path, ": cannot write (the file-size limit of ", limit.rlim_cur, " bytes was reached; see ulimit -f)");
   } catch (...) {
     std::error_code ec;
     fs::remove(tmp, ec);
@@ -46,50 +67,155 @@ void write_atomically(const std::string& path, const std::function<void(const st
   std::error_code ec;
   fs::rename(tmp, target, ec);
   if (ec) {
+    const std::string why = ec.message();  // before remove() resets ec
     fs::remove(tmp, ec);
-    throw_error(path, ": cannot write (", ec.message(), ")");
+    throw_error(path, ": cannot write (", why, ")");
   }
 }
 
+void write_file_checked(const std::string& file, const std::string& shown, const void* data, size_t size) {
+  const int fd = ::open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) throw_error(shown, ": cannot open for writing (", std::strerror(errno), ")");
+  const char* p = static_cast<const char*>(data);
+  size_t done = 0;
+  while (done < size) {
+    const ssize_t n = ::write(fd, p + done, size - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int e = n < 0 ? errno : ENOSPC;
+      ::close(fd);
+      throw_error(shown, ": write failed after ", done, " of ", size, " bytes (", std::strerror(e), ")");
+    }
+    done += size_t(n);
+  }
+  if (::close(fd) != 0) throw_error(shown, ": write failed (", std::strerror(errno), ")");
+}
+
 void write_file_atomically(const std::string& path, const std::string& bytes) {
-  write_atomically(path, [&](const std::string& tmp) {
-    std::ofstream out(tmp, std::ios::binary);
-    if (!out) throw_error(path, ": cannot open for writing (", std::strerror(errno), ")");
-    out.write(bytes.data(), std::streamsize(bytes.size()));
-    out.flush();
-    if (!out) throw_error(path, ": write failed (", std::strerror(errno), ")");
-  });
+  write_atomically(path, [&](const std::string& tmp) { write_file_checked(tmp, path, bytes.data(), bytes.size()); });
 }
 
 namespace {
 
-/// True when the text after `prefix` in `name` starts with the id of a process that no longer runs.
-bool owner_is_gone(const std::string& name, const std::string& prefix) {
-  if (name.compare(0, prefix.size(), prefix) != 0) return false;
-  const char* digits = name.c_str() + prefix.size();
-  char* end = nullptr;
-  const long pid = std::strtol(digits, &end, 10);
-  if (end == digits || pid <= 0) return false;
-  return ::kill(pid_t(pid), 0) != 0 && errno == ESRCH;
+/// A name no other program picks: the process id and 64 random bits.
+std::string unique_token() {
+  static std::atomic<unsigned> counter{0};
+  static const uint64_t salt = [] {
+    std::random_device rd;
+    return (uint64_t(rd()) << 32) ^ uint64_t(rd());
+  }();
+  char b[64];
+  std::snprintf(b, sizeof b, "%d-%016llx-%u", int(::getpid()), static_cast<unsigned long long>(salt), counter++);
+  return b;
 }
 
-/// Moves everything under `from` into `to`, replacing files of the same name.
-void move_into(const fs::path& from, const fs::path& to) {
+const char* const kStagingMark = ".fillgs-staging-";  ///< a staging folder's name holds this
+const char* const kTempMark = ".fillgs-tmp-";          ///< a temporary file's name holds this
+const char* const kLockName = ".fillgs-lock";          ///< held (flock) inside a live staging folder
+
+/// True when `file` is a regular file (not followed through a link) that no process holds
+/// a lock on: its writer ended without cleaning up. A file that cannot be opened or locked
+/// for another reason is not proved stale.
+bool unlocked_file(const fs::path& file) {
+  const int fd = ::open(file.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) return false;
+  struct stat st {};
+  const bool stale = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && ::flock(fd, LOCK_EX | LOCK_NB) == 0;
+  ::close(fd);
+  return stale;
+}
+
+/// Removes what killed fillgs runs provably left: staging folders (named with kStagingMark
+/// and holding an unlocked kLockName) among `folder`'s entries whose names start with
+/// `staging_prefix`, and — down to `depth` levels — temporary files (named with kTempMark)
+/// that no writer holds. Anything else, whatever its name, is the user's and stays.
+void sweep(const fs::path& folder, const std::string& staging_prefix, int depth) {
+  std::error_code ec;
+  std::vector<fs::path> stale;
+  for (auto it = fs::recursive_directory_iterator(folder, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    const fs::directory_entry& e = *it;
+    const std::string name = e.path().filename().string();
+    if (it.depth() >= depth - 1 || e.is_symlink(ec)) it.disable_recursion_pending();
+    if (it.depth() == 0 && name.rfind(staging_prefix, 0) == 0 && e.is_directory(ec) && !e.is_symlink(ec)) {
+      it.disable_recursion_pending();
+      if (unlocked_file(e.path() / kLockName)) stale.push_back(e.path());
+    } else if (name.size() > 1 && name[0] == '.' && name.find(kTempMark) != std::string::npos && unlocked_file(e.path())) {
+      stale.push_back(e.path());
+    }
+  }
+  for (const fs::path& p : stale) fs::remove_all(p, ec);
+}
+
+const char* const kManifest = ".fillgs-outputs";  ///< what the last command wrote into a folder
+
+/// Every file under `root` (relative paths, '/'-separated, sorted), less `skip` at the top.
+std::vector<std::string> files_under(const fs::path& root, const std::string& skip) {
+  std::vector<std::string> out;
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(root, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    if (it.depth() == 0 && it->path().filename() == skip) continue;
+    if (!it->is_directory(ec)) out.push_back(fs::relative(it->path(), root, ec).generic_string());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::vector<std::string> read_manifest(const fs::path& dir) {
+  std::vector<std::string> out;
+  std::ifstream in(dir / kManifest);
+  for (std::string line; std::getline(in, line);)
+    if (!line.empty() && line[0] != '#') out.push_back(line);
+  return out;
+}
+
+std::string manifest_text(const std::vector<std::string>& files) {
+  std::string t = "# The files the last fillgs command wrote into this folder; the next one removes those it does not write again.\n";
+  for (const std::string& f : files) t += f + "\n";
+  return t;
+}
+
+/// Moves everything under `from` into `to`, replacing files of the same name; `skip` (a
+/// name in `from` itself) stays behind. `moved` counts the files moved so far.
+void move_into(const fs::path& from, const fs::path& to, const std::string& skip, size_t& moved) {
   std::error_code ec;
   fs::create_directories(to, ec);
   if (ec) throw_error(to.string(), ": cannot create directory (", ec.message(), ")");
   for (const fs::directory_entry& e : fs::directory_iterator(from)) {
+    if (!skip.empty() && e.path().filename() == skip) continue;
     const fs::path target = to / e.path().filename();
     if (e.is_directory() && fs::is_directory(target)) {
-      move_into(e.path(), target);
+      move_into(e.path(), target, "", moved);
       continue;
     }
     fs::rename(e.path(), target, ec);
     if (ec) throw_error(target.string(), ": cannot move the new output into place (", ec.message(), ")");
+    moved += e.is_directory() ? 0 : 1;
   }
 }
 
+std::mutex staging_mutex;
+/// Every staging folder this process made and its output: kept after the folder is gone,
+/// since an error is printed after the stack that held it has unwound.
+std::vector<std::pair<std::string, std::string>> staging_to_output;
+
+void note_staging(const std::string& staging, const std::string& dir) {
+  std::lock_guard<std::mutex> lock(staging_mutex);
+  staging_to_output.emplace_back(staging, dir);
+}
+
 }  // namespace
+
+std::string output_paths(std::string message) {
+  std::lock_guard<std::mutex> lock(staging_mutex);
+  for (const auto& [staging, dir] : staging_to_output)
+    for (size_t at = message.find(staging); at != std::string::npos; at = message.find(staging, at + dir.size())) message.replace(at, staging.size(), dir);
+  return message;
+}
+
+std::string temporary_name(const std::string& path) {
+  const fs::path target(path);
+  return (target.parent_path() / ("." + target.stem().string() + kTempMark + unique_token() + target.extension().string())).string();
+}
 
 OutputFolder::OutputFolder(const std::string& dir) {
   fs::path d = fs::path(dir).lexically_normal();
@@ -98,47 +224,54 @@ OutputFolder::OutputFolder(const std::string& dir) {
   dir_ = d.string();
   fs::path parent = d.parent_path();
   if (parent.empty()) parent = ".";
+  std::error_code ec;
+  if (fs::exists(d, ec) && !fs::is_directory(d, ec)) throw_error(dir_, ": exists and is not a folder");
   // Parents that do not exist yet are created now and removed again if nothing is committed.
   std::vector<fs::path> missing;
-  std::error_code ec;
   for (fs::path p = parent; !p.empty() && !fs::exists(p, ec); p = p.parent_path()) missing.push_back(p);
   for (auto it = missing.rbegin(); it != missing.rend(); ++it) {
     fs::create_directory(*it, ec);
-    if (ec) throw_error(it->string(), ": cannot create directory (", ec.message(), ")");
+    if (ec) {
+      const std::string why = ec.message();
+      remove_created_parents();
+      throw_error(it->string(), ": cannot create directory (", why, ")");
+    }
     created_.push_back(it->string());
   }
-  if (fs::exists(d, ec) && !fs::is_directory(d, ec)) throw_error(dir_, ": exists and is not a folder");
   const std::string name = d.filename().string();
-  const std::string prefix = "." + name + ".partial-";
-  // What killed runs left: their staging folders beside this one, their temporary files in it.
-  for (const fs::directory_entry& e : fs::directory_iterator(parent, ec))
-    if (owner_is_gone(e.path().filename().string(), prefix)) fs::remove_all(e.path(), ec);
-  if (fs::is_directory(d, ec)) {
-    std::vector<fs::path> stale;
-    // Outputs nest at most a few levels (camera names with '/'): a folder like "." is not walked whole.
-    for (auto it = fs::recursive_directory_iterator(d, ec); !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-      const fs::directory_entry& e = *it;
-      if (it.depth() >= 3) it.disable_recursion_pending();
-      const std::string f = e.path().filename().string();
-      const size_t at = f.find(".tmp");
-      if ((!f.empty() && f[0] == '.' && at != std::string::npos && owner_is_gone(f.substr(at), ".tmp")) ||
-          (e.path().parent_path() == d && owner_is_gone(f, ".partial-")))
-        stale.push_back(e.path());
+  const bool exists = fs::is_directory(d, ec);
+  if (exists) {
+    // One command at a time writes an existing folder: a second one is refused, not mixed in.
+    dir_fd_ = ::open(dir_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (dir_fd_ < 0) throw_error(dir_, ": cannot open the folder (", std::strerror(errno), ")");
+    if (::flock(dir_fd_, LOCK_EX | LOCK_NB) != 0) {
+      const int e = errno;
+      ::close(dir_fd_);
+      dir_fd_ = -1;
+      if (e == EWOULDBLOCK) throw_error(dir_, ": another fillgs command is writing this folder; wait for it, or use another --out");
+      throw_error(dir_, ": cannot lock the folder (", std::strerror(e), ")");
     }
-    for (const fs::path& p : stale) fs::remove_all(p, ec);
   }
-  static std::atomic<unsigned> counter{0};
-  const std::string id = std::to_string(::getpid()) + "-" + std::to_string(counter++);
-  staging_ = (parent / (prefix + id)).string();
-  fs::create_directory(staging_, ec);
-  if (ec && fs::is_directory(d, ec)) {
-    // The parent is not writable (say --out is a mount point): stage inside the folder.
-    staging_ = (d / (".partial-" + id)).string();
-    fs::create_directory(staging_, ec);
+  // What killed runs left, proved by their unheld locks: staging folders beside a new output
+  // or inside an existing one, temporary files in it.
+  sweep(parent, "." + name + kStagingMark, 1);
+  if (exists) sweep(d, kStagingMark, 3);
+  // Staging lies on the output's own file system: inside the folder when it exists (a mount
+  // point, a link to another file system), else beside it, where it will be renamed to.
+  const std::string token = unique_token();
+  staging_ = exists ? (d / (kStagingMark + token)).string() : (parent / ("." + name + kStagingMark + token)).string();
+  if (!fs::create_directory(staging_, ec) || ec) {
+    const std::string why = ec ? ec.message() : "exists";
+    release();
+    throw_error(dir_, ": cannot create the staging folder ", staging_, " (", why, ")");
   }
-  if (ec) {
-    remove_created_parents();
-    throw_error(dir_, ": cannot create the staging folder ", staging_, " (", ec.message(), ")");
+  note_staging(staging_, dir_);
+  lock_fd_ = ::open((fs::path(staging_) / kLockName).c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lock_fd_ < 0 || ::flock(lock_fd_, LOCK_EX) != 0) {
+    const std::string why = std::strerror(errno);
+    fs::remove_all(staging_, ec);
+    release();
+    throw_error(dir_, ": cannot lock the staging folder ", staging_, " (", why, ")");
   }
 }
 
@@ -147,28 +280,111 @@ void OutputFolder::remove_created_parents() {
   for (auto it = created_.rbegin(); it != created_.rend(); ++it) fs::remove(*it, ec);  // only if still empty
 }
 
+void OutputFolder::release() {
+  if (lock_fd_ >= 0) ::close(lock_fd_);
+  if (dir_fd_ >= 0) ::close(dir_fd_);
+  lock_fd_ = dir_fd_ = -1;
+  if (!committed_) remove_created_parents();
+}
+
 OutputFolder::~OutputFolder() {
-  if (committed_) return;
-  std::error_code ec;
-  fs::remove_all(staging_, ec);
-  remove_created_parents();
+  if (!committed_) {
+    std::error_code ec;
+    fs::remove_all(staging_, ec);
+  }
+  release();
 }
 
 void OutputFolder::commit() {
   std::error_code ec;
+  const fs::path lock = fs::path(staging_) / kLockName;
+  // The folder keeps a list of what this command wrote, so that the next command on it
+  // removes what it does not write again (40 frames, then 10: 10 stay) and nothing else.
+  const std::vector<std::string> files = files_under(staging_, kLockName);
+  write_file_atomically((fs::path(staging_) / kManifest).string(), manifest_text(files));
   if (!fs::exists(dir_, ec)) {
+    // A new folder appears whole, by one rename.
+    fs::remove(lock, ec);
     fs::rename(staging_, dir_, ec);
-    if (ec) throw_error(dir_, ": cannot move the new output into place (", ec.message(), ")");
+    if (ec) {
+      const std::string why = ec.message();
+      throw_error(dir_, ": cannot move the new output into place (", why,
+                  fs::exists(dir_) ? "; another command created the folder meanwhile, nothing of this run was committed)" : ")");
+    }
   } else {
-    move_into(staging_, dir_);  // also when staging inside dir_: its entries move up one level
+    // An existing folder holds the user's files too, so it cannot be swapped whole: the new
+    // files replace the old ones one rename each, then the previous command's files that
+    // this one did not write go. A commit that stops half-way says what it left.
+    const std::vector<std::string> previous = read_manifest(dir_);
+    size_t moved = 0;
+    try {
+      move_into(staging_, dir_, kLockName, moved);  // also when staging inside dir_: its entries move up one level
+    } catch (const Error& e) {
+      throw_error(e.what(), "; the commit stopped after ", moved, " of ", files.size(), " new files: ", dir_,
+                  " now holds those and the previous run's others (the rest stays in ", staging_, ")");
+    }
     fs::remove_all(staging_, ec);
+    for (const std::string& old : previous) {
+      if (old.empty() || old.find("..") != std::string::npos || old[0] == '/' || std::binary_search(files.begin(), files.end(), old)) continue;
+      const fs::path stale = fs::path(dir_) / old;
+      if (fs::is_regular_file(fs::symlink_status(stale, ec))) fs::remove(stale, ec);
+      // Folders it emptied go too (never the output folder itself).
+      for (fs::path p = stale.parent_path(); p != fs::path(dir_) && p.string().size() > dir_.size(); p = p.parent_path())
+        if (!fs::remove(p, ec)) break;
+    }
   }
   committed_ = true;
 }
 
-std::string read_file(const std::string& path) {
+std::string UnfinishedMarker::path_in(const std::string& dir) { return join_path(dir, ".fillgs-unfinished"); }
+
+bool UnfinishedMarker::present(const std::string& dir) {
   std::error_code ec;
-  if (fs::is_directory(path, ec)) throw_error(path, ": is a directory, expected a file");
+  return fs::exists(path_in(dir), ec);
+}
+
+UnfinishedMarker::UnfinishedMarker(const std::string& dir, const std::string& command) : path_(path_in(dir)) {
+  make_directories(dir);
+  fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw_error(path_, ": cannot write (", std::strerror(errno), ")");
+  if (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd_);
+    fd_ = -1;
+    throw_error(dir, ": another fillgs command is writing this folder; wait for it, or use another --out");
+  }
+  const std::string text = "fillgs " + command + " (process " + std::to_string(::getpid()) +
+                           ") is writing this folder, or stopped before it finished: its files are not a finished run.\n";
+  if (::ftruncate(fd_, 0) != 0 || ::write(fd_, text.data(), text.size()) != ssize_t(text.size()))
+    throw_error(path_, ": cannot write (", std::strerror(errno), ")");
+}
+
+void UnfinishedMarker::finish() {
+  if (fd_ < 0) return;
+  std::error_code ec;
+  fs::remove(path_, ec);
+  ::close(fd_);
+  fd_ = -1;
+}
+
+UnfinishedMarker::~UnfinishedMarker() {
+  if (fd_ >= 0) ::close(fd_);  // not finished: the marker stays
+}
+
+void require_regular_file(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) throw_error(path, ": cannot open (", std::strerror(errno), ")");
+  if (S_ISREG(st.st_mode)) return;
+  const char* what = S_ISDIR(st.st_mode)    ? "is a directory"
+                     : S_ISFIFO(st.st_mode) ? "is a named pipe"
+                     : S_ISCHR(st.st_mode)  ? "is a character device"
+                     : S_ISBLK(st.st_mode)  ? "is a block device"
+                     : S_ISSOCK(st.st_mode) ? "is a socket"
+                                            : "is not a regular file";
+  throw_error(path, ": ", what, ", expected a file");
+}
+
+std::string read_file(const std::string& path) {
+  require_regular_file(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw_error(path, ": cannot open (", std::strerror(errno), ")");
   std::ostringstream ss;

@@ -4,9 +4,46 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <sys/resource.h>
 #include <unistd.h>
 
+#include <fstream>
+#include <string>
+#include <utility>
+
 namespace fillgs {
+
+namespace {
+
+/// A cgroup's memory limit in bytes from its file ("max" or unreadable: none).
+size_t cgroup_limit(const char* file) {
+  std::ifstream in(file);
+  std::string text;
+  if (!(in >> text) || text == "max") return 0;
+  char* end = nullptr;
+  const unsigned long long v = std::strtoull(text.c_str(), &end, 10);
+  // cgroup v1 writes "no limit" as a huge number near 2^63.
+  return end != text.c_str() && *end == '\0' && v < (1ull << 60) ? size_t(v) : 0;
+}
+
+}  // namespace
+
+MemoryLimit memory_limit() {
+  MemoryLimit m;
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+  m.bytes = pages > 0 && page > 0 ? size_t(pages) * size_t(page) : size_t(1) << 36;  // 64 GiB when the system does not say
+  m.source = "physical memory";
+  auto lower = [&](size_t bytes, const char* source) {
+    if (bytes > 0 && bytes < m.bytes) m.bytes = bytes, m.source = source;
+  };
+  for (const auto& [resource, name] : {std::pair<int, const char*>{RLIMIT_AS, "ulimit -v"}, {RLIMIT_DATA, "ulimit -d"}}) {
+    rlimit r{};
+    if (::getrlimit(resource, &r) == 0 && r.rlim_cur != RLIM_INFINITY) lower(size_t(r.rlim_cur), name);
+  }
+  lower(cgroup_limit("/sys/fs/cgroup/memory.max"), "the cgroup's memory.max");
+  lower(cgroup_limit("/sys/fs/cgroup/memory/memory.limit_in_bytes"), "the cgroup's memory.limit_in_bytes");
+  return m;
+}
 
 size_t allocation_cap() {
   if (const char* env = std::getenv("FILLGS_MAX_ALLOC")) {
@@ -14,9 +51,7 @@ size_t allocation_cap() {
     const unsigned long long v = std::strtoull(env, &end, 10);
     if (end != env && *end == '\0' && v > 0) return size_t(v);
   }
-  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
-  if (pages <= 0 || page <= 0) return size_t(1) << 36;  // 64 GiB when the system does not say
-  return size_t(pages) * size_t(page);
+  return memory_limit().bytes;
 }
 
 int image_side(double v, const std::string& source, const std::string& element, const char* what) {
@@ -32,7 +67,10 @@ size_t checked_mul(size_t a, size_t b, const std::string& source, const std::str
 
 void check_allocation(size_t bytes, const std::string& source, const std::string& what) {
   const size_t cap = allocation_cap();
-  if (bytes > cap) throw_error(source, ": ", what, " would need ", bytes, " bytes, more than this machine's ", cap);
+  if (bytes <= cap) return;
+  if (std::getenv("FILLGS_MAX_ALLOC")) throw_error(source, ": ", what, " would need ", bytes, " bytes, more than FILLGS_MAX_ALLOC's ", cap);
+  const MemoryLimit m = memory_limit();
+  throw_error(source, ": ", what, " would need ", bytes, " bytes, more than the ", cap, " this process may use (", m.source, ")");
 }
 
 namespace {

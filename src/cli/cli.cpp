@@ -291,8 +291,15 @@ struct CamerasFlags {
 
 int convert_cameras(const CamerasFlags& f, const Invocation& in) {
   const std::vector<Camera> cams = read_cameras(f.cameras, f.read);
-  if (f.to == CameraTarget::Transforms) write_transforms_json(f.out, cams);
-  else write_colmap_text(f.out, cams);
+  if (f.to == CameraTarget::Transforms) {
+    write_transforms_json(f.out, cams);
+  } else {
+    // Three files, committed together through a staging folder.
+    check_colmap_text_target(f.out);
+    OutputFolder folder(f.out);
+    write_colmap_text(folder.path(), cams);
+    folder.commit();
+  }
   in.out << "wrote " << cams.size() << " cameras to " << f.out << " (" << to_string(f.to) << ")\n";
   return 0;
 }
@@ -341,6 +348,22 @@ ObserveJob observe_job(const ObserveFlags& f, const Invocation& in) {
   job.cameras = read_cameras(f.cameras, f.camera_read);
   if (job.cameras.empty()) throw_error(f.cameras, ": no cameras");
   job.times = observe_times(in, f.time, job.cloud, job.cameras, &job.frame_step);
+  {
+    // The tables' size on disk, before any work: [T, N] counts (1 byte, 2 above 255 views)
+    // and speed and deficiency (4 bytes each, over the moving Gaussians only with
+    // --motion-tables dynamic), against the space free where they will be written.
+    const size_t T = job.times.size(), N = job.cloud.size(), M = job.cloud.dynamic_count();
+    const size_t tables = checked_mul(T, checked_mul(N, 2, "--frames", "the tables") + checked_mul(job.output.dense_motion_tables ? N : M, 8, "--frames", "the tables"),
+                                      "--frames", "the tables");
+    namespace fs = std::filesystem;
+    fs::path where = fs::absolute(f.out);
+    std::error_code ec;
+    while (!where.empty() && !fs::exists(where, ec)) where = where.parent_path();
+    const fs::space_info space = fs::space(where, ec);
+    if (!ec && tables > space.available)
+      in.fail("the tables of ", N, " Gaussians at ", T, " frames need up to ", tables, " bytes, more than the ", space.available, " free under ",
+              where.string());
+  }
   if (in.given("--shard")) {
     // --shard i/n: the i-th of n contiguous blocks of frames (1-based), for observe --merge.
     const std::string& spec = f.shard;
@@ -512,6 +535,9 @@ int train(const TrainFlags& f, const Invocation& in) {
   PointSet init_points;  // written beside the model when made from the views
   if (in.given("--resume")) {
     trainer = std::make_unique<Trainer>(Trainer::resume(data, f.resume, o));
+    if (trainer->iteration() >= iterations)
+      in.fail("--iterations ", iterations, ": ", f.resume, " is already at iteration ", trainer->iteration(),
+              "; give more iterations to continue it");
   } else {
     // Initial points: --points, else points.ply beside the cameras, else from the views
     // (init.hpp: random points the first frame's cameras see, plus the foreground's visual
@@ -522,7 +548,11 @@ int train(const TrainFlags& f, const Invocation& in) {
     const std::string init = in.given("--init") ? f.init : points.empty() ? "random+carve" : "points";
     if (init == "points") {
       if (points.empty()) in.fail("--init points needs --points (no points.ply beside ", f.cameras, ")");
-      trainer = std::make_unique<Trainer>(data, init_from_points(read_points(points)), o);
+      const PointSet ps = read_points(points);
+      for (size_t i = 0; i < ps.positions.size(); ++i)
+        if (!(ps.positions[i].cwiseAbs().maxCoeff() <= kMaxTrainCoordinate))
+          throw_error(points, ": point ", i, " lies beyond what training keeps finite (|x| <= 1e7)");
+      trainer = std::make_unique<Trainer>(data, init_from_points(ps), o);
     } else if (init == "random" || init == "random+carve") {
       ViewInitOptions vo = f.view_init;
       vo.method = parse_name<ViewInit>(init);
@@ -539,6 +569,16 @@ int train(const TrainFlags& f, const Invocation& in) {
       in.fail("unknown --init \"", init, "\" (points, random, random+carve)");
     }
   }
+  // The folder is unfinished until the model is written; a new run first removes the
+  // results of a finished one it would replace, so a run killed half-way never leaves an
+  // old model.ply and summary.json beside its own checkpoint.
+  UnfinishedMarker unfinished(f.out, "train");
+  if (!in.given("--resume"))
+    for (const char* old : {"model.ply", "frame0_3dgs.ply", "summary.json", "colour_correction.json", "init_points.ply", "loss.png", "loss.csv",
+                            "loss.gp"}) {
+      std::error_code ec;
+      std::filesystem::remove(join_path(f.out, old), ec);
+    }
   make_directories(join_path(f.out, "checkpoints"));
   if (!init_points.positions.empty()) write_points_ply(join_path(f.out, "init_points.ply"), init_points);
   in.out << "training on " << data.views().size() << " views (" << data.rigs().size() << " cameras x " << data.frames() << " frames; "
@@ -578,6 +618,7 @@ int train(const TrainFlags& f, const Invocation& in) {
     in.out << "\n";
   }
   const TrainingReport report = write_training_report(f.out, *trainer, model, data, o, test.get(), train_seconds);
+  unfinished.finish();
   in.out << "trained " << model.size() << " Gaussians (" << model.dynamic_count() << " moving) in " << train_seconds << " s; train PSNR "
          << report.train.psnr << " dB";
   if (test) in.out << ", test PSNR " << report.test.psnr << " dB over " << report.test.views << " views";
@@ -713,13 +754,13 @@ int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     const Invocation in{command->name, *app, common, args, out, err};
     return action(in);
   } catch (const Error& e) {
-    err << "error: " << e.what() << "\n";
+    err << "error: " << output_paths(e.what()) << "\n";
     return 1;
   } catch (const std::bad_alloc&) {
     err << "error: out of memory\n";
     return 1;
   } catch (const std::exception& e) {
-    err << "error: " << e.what() << "\n";
+    err << "error: " << output_paths(e.what()) << "\n";
     return 1;
   }
 }

@@ -67,6 +67,8 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   TerminalProgress loading(in.err, in.progress());
   const Dataset data = Dataset::load(f.images, f.cameras, f.data, loading);
   const GaussianCloud model = read_scene(f.model, f.read);
+  if (model.size() == 0) throw_error(f.model, ": has no Gaussians; fine-tuning needs a trained model");
+  check_trainable(model, f.model);
   // --paper-schedule picks the paper's counts; the flags given override them.
   FinetuneOptions o = f.paper_schedule ? FinetuneOptions::paper() : FinetuneOptions();
   if (in.given("--iterations")) o.iterations = f.finetune.iterations;
@@ -122,14 +124,18 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     pool.image = [d = pool_data.get()](size_t i) { return d->image(i); };
     refiner = make_rig_refiner(std::move(pool), f.rig);
   }
+  if (UnfinishedMarker::present(f.out))
+    throw_error(f.out, ": holds an interrupted finetune (", UnfinishedMarker::path_in(f.out),
+                "); fine-tuning does not resume, because its refined views and weights are not kept in checkpoints: remove the folder or use another --out");
   require_fresh(f.out, "finetune");
-  make_directories(f.out);
+  UnfinishedMarker unfinished(f.out, "finetune");
   in.out << "fine-tuning " << model.size() << " Gaussians on " << data.views().size() << " views for " << o.iterations << " iterations; "
       << o.trajectories << " trajectories (" << to_string(o.select.strategy) << ") every " << o.select_every << ", refiner "
       << refiner->name() << ", weights " << to_string(o.weighting) << "\n";
   TerminalProgress progress(in.err, in.progress());
   const FinetuneResult r = finetune(data, model, *refiner, o, progress);
   const FinetuneReport report = write_finetune_report(f.out, r, data, o, refiner->name(), seconds_since(t0));
+  unfinished.finish();
   for (const FinetuneRound& rd : r.rounds)
     for (const auto& [patch, why] : rd.refine_failures) in.err << "warning: refinement failed for " << why << "\n";
   const size_t dropped = report.dropped;
@@ -152,7 +158,7 @@ Action declare_finetune(CLI::App& app) {
   add_text(app, "--out", f->out, "the folder for model.ply, virtual_views.json, work/ and summary.json (new or empty)", "DIR")->required();
   add_number(app, "--iterations", o.iterations, "fine-tuning iterations", at_least(1));
   add_number(app, "--select-every", o.select_every, "M: a selection round every M iterations", at_least(1));
-  add_number(app, "--trajectories", o.trajectories, "K: trajectories per round", at_least(0));
+  add_number(app, "--trajectories", o.trajectories, "K: trajectories per round (at most 100000)", within(0, 100000));
   add_flag(app, "--paper-schedule", f->paper_schedule, "the paper's counts: 30,000 iterations, 20 trajectories every 6,000");
   add_number(app, "--seed", f->seed, "random seed (training and selection)");
   add_number(app, "--refined-share", f->refined_share, "share of iterations that draw a refined view", within(0, 1));

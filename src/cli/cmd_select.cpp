@@ -1,6 +1,9 @@
 // fillgs explore and fillgs select.
+#include <algorithm>
+#include <array>
 #include <filesystem>
 #include <memory>
+#include <sstream>
 
 #include "commands.hpp"
 #include "options.hpp"
@@ -55,6 +58,43 @@ int explore(const ExploreFlags& f, const Invocation& in) {
 
 // ------------------------------------------------------------------ select
 
+/// logit(0.1): the default occupancy threshold of the exploration grid.
+constexpr float kOccupyingLogit = -2.1972246f;
+
+/// A grid given with --grid must be this scene's: its box holds every training camera and
+/// the bulk of the static Gaussians that occupy space (1st to 99th percentile per axis), to
+/// a voxel. A grid
+/// made for another scene would make select sample candidates from the wrong space.
+void check_grid_fits(const std::string& path, const ExplorationGrid& grid, const GaussianCloud& cloud, const std::vector<Camera>& cams) {
+  const Vec3d slack = grid.voxel_size();
+  Box3 loose{grid.box().lo - slack, grid.box().hi + slack};
+  auto where = [](const Vec3d& p) {
+    std::ostringstream s;
+    s << "(" << p.x() << ", " << p.y() << ", " << p.z() << ")";
+    return s.str();
+  };
+  const std::string box = where(grid.box().lo) + " to " + where(grid.box().hi);
+  for (const Camera& c : cams)
+    if (!loose.contains(c.centre()))
+      throw_error(path, ": camera ", c.name, " at ", where(c.centre()), " lies outside the grid's box ", box,
+                  ": the grid was made for another scene or other cameras; build it with fillgs explore on these");
+  std::vector<char> moving(cloud.size(), 0);
+  for (uint32_t g : cloud.dynamic_ids) moving[g] = 1;
+  std::array<std::vector<double>, 3> coords;
+  for (uint32_t g = 0; g < cloud.size(); ++g)
+    if (!moving[g] && cloud.opacity_logits[g] >= kOccupyingLogit)  // the Gaussians that shape the grid's box
+      for (int k = 0; k < 3; ++k) coords[size_t(k)].push_back(cloud.means[g][k]);
+  if (coords[0].size() < 10) return;
+  for (int k = 0; k < 3; ++k) {
+    auto& v = coords[size_t(k)];
+    std::sort(v.begin(), v.end());
+    const double lo = v[v.size() / 100], hi = v[v.size() - 1 - v.size() / 100];
+    if (lo < loose.lo[k] || hi > loose.hi[k])
+      throw_error(path, ": the scene's Gaussians reach from ", lo, " to ", hi, " along axis ", "xyz"[k], ", beyond the grid's box ", box,
+                  ": the grid was made for another scene; build it with fillgs explore on this one");
+  }
+}
+
 struct SelectFlags {
   std::string scene, cameras, images, out, grid;
   TimeFlags time;
@@ -74,6 +114,7 @@ int select_views(const SelectFlags& f, const Invocation& invocation) {
   // Inputs, all read before anything is written.
   const std::string& cameras_path = f.cameras;
   const GaussianCloud cloud = read_scene(f.scene, f.read);
+  if (cloud.size() == 0) throw_error(f.scene, ": has no Gaussians, so no camera observes anything and there is no view to choose");
   SelectInput in;
   in.scene = &cloud;
   in.background = f.background;
@@ -88,7 +129,7 @@ int select_views(const SelectFlags& f, const Invocation& invocation) {
     const std::vector<Camera> read = read_cameras(cameras_path, f.camera_read);
     if (read.empty()) throw_error(cameras_path, ": no cameras");
     double step = 0;
-    in.frames = int(observe_times(invocation, f.time, cloud, read, &step).size());
+    in.frames = int(observe_times(invocation, f.time, cloud, read, &step, true).size());
     cams = timed_cameras(read, in.frames);
   }
   in.views = observed_views(cams, in.frames);
@@ -99,7 +140,10 @@ int select_views(const SelectFlags& f, const Invocation& invocation) {
   ExplorationStats gstats;
   std::unique_ptr<ExplorationGrid> grid;
   ExplorationOptions go = f.grid_options;
-  if (invocation.given("--grid")) grid = std::make_unique<ExplorationGrid>(ExplorationGrid::read(f.grid));
+  if (invocation.given("--grid")) {
+    grid = std::make_unique<ExplorationGrid>(ExplorationGrid::read(f.grid));
+    check_grid_fits(f.grid, *grid, cloud, cams);
+  }
   else grid = std::make_unique<ExplorationGrid>(build_exploration_grid(cloud, cams, {}, go, &gstats, progress));
   in.grid = grid.get();
   const double grid_s = seconds_since(t0);
@@ -144,10 +188,10 @@ Action declare_select(CLI::App& app) {
   add_text(app, "--out", f->out, "the folder for trajectories.json, renders, priorities and pictures", "DIR")->required();
   add_text(app, "--images", f->images, "the training images (the priority's error term L needs them)", "DIR");
   add_time_flags(app, f->time, false);
-  add_number(app, "--trajectories", o.trajectories, "trajectories to select", at_least(0));
+  add_number(app, "--trajectories", o.trajectories, "trajectories to select (at most 100000)", within(0, 100000));
   add_number(app, "--seed", o.seed, "random seed");
-  add_number(app, "--views", o.views, "virtual poses per trajectory", at_least(1));
-  add_number(app, "--patch-frames", o.patch_frames, "consecutive frames each pose is rendered at", at_least(1));
+  add_number(app, "--views", o.views, "virtual poses per trajectory (at most 1000: each is scored, rendered and refined)", within(1, 1000));
+  add_number(app, "--patch-frames", o.patch_frames, "consecutive frames each pose is rendered at (at most 1000)", within(1, 1000));
   add_number(app, "--render-scale", o.render_scale, "priority renders at this fraction of the resolution", within_open(0, 1e3));
   add_choice(app, "--renderer", o.renderer, "how candidate maps are rendered");
   add_number(app, "--stride", o.stride, "raytraced candidate maps: one ray every s pixels", at_least(1));

@@ -1,3 +1,4 @@
+#include "fillgs/base/limits.hpp"
 #include "options.hpp"
 
 #include <algorithm>
@@ -118,6 +119,10 @@ CLI::Option* add_colour(CLI::App& app, const std::string& flag, Vec3f& dest, con
         while (std::getline(ss, part, ',') && parse_number(part, &x)) c.push_back(x);
         if (c.size() != 3 || !ss.eof() || (!v.empty() && v.back() == ','))
           throw_error(name, ": ", flag, " expects 3 comma-separated numbers, got '", v, "'");
+        // Colours are what images hold: [0, 1] per channel (a background of 1e30 would turn
+        // every gradient into inf and NaN).
+        for (double x : c)
+          if (!(x >= 0.0 && x <= 1.0)) throw_error(name, ": ", flag, " takes colours in [0, 1] per channel, got '", v, "'");
         dest = Vec3f(float(c[0]), float(c[1]), float(c[2]));
         return true;
       },
@@ -209,7 +214,7 @@ void add_time_flags(CLI::App& app, TimeFlags& f, bool times) {
 }
 
 std::vector<double> observe_times(const Invocation& in, const TimeFlags& tf, const GaussianCloud& cloud, const std::vector<Camera>& cams,
-                                  double* frame_step) {
+                                  double* frame_step, bool tables_in_memory) {
   int frames = tf.frames;
   if (!frames && cloud.motion == MotionModel::Keyframed && cloud.keyframed.first_key_time == 0.0 && cloud.keyframed.key_count >= 2 &&
       std::fabs(cloud.keyframed.key_spacing * (cloud.keyframed.key_count - 1) - 1.0) < 1e-6)
@@ -222,6 +227,15 @@ std::vector<double> observe_times(const Invocation& in, const TimeFlags& tf, con
   }
   if (!frames && cloud.dynamic_count() == 0) frames = 1;  // a static scene has one time
   if (!frames) in.fail("cannot tell the frame count from the scene or the cameras; give --frames F");
+  // The work asked for, before any of it is done: a view per camera and time, and, where the
+  // command keeps them, the observation tables of every Gaussian at every time.
+  {
+    const std::string what = std::to_string(cams.size()) + " camera(s) at " + std::to_string(frames) + " frames";
+    const size_t views = checked_mul(cams.size(), size_t(frames), "--frames", what);
+    size_t bytes = checked_mul(views, sizeof(Camera) + 64, "--frames", what);
+    if (tables_in_memory) bytes += checked_mul(checked_mul(cloud.size(), size_t(frames), "--frames", what), 10, "--frames", what);
+    check_allocation(bytes, "--frames " + std::to_string(frames), what + (tables_in_memory ? " with the tables of " + std::to_string(cloud.size()) + " Gaussians" : ""));
+  }
   *frame_step = FrameGrid(frames).step();  // the speeds' Δt
   if (in.given("--times")) {
     if (frames < 2) in.fail("give --frames F with --times (the speed's Δt is one frame, 1/(F-1))");

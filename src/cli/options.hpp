@@ -222,8 +222,11 @@ struct TimeFlags {
 };
 /// --frames F and, with `times`, --times t1,t2,...
 void add_time_flags(CLI::App& app, TimeFlags& f, bool times);
+/// The times to observe at. Refuses, before any work, a frame count whose views (a camera
+/// per time) and, with `tables_in_memory`, [T, N] tables would need more memory than the
+/// process may use.
 std::vector<double> observe_times(const Invocation& in, const TimeFlags& f, const GaussianCloud& cloud, const std::vector<Camera>& cams,
-                                  double* frame_step);
+                                  double* frame_step, bool tables_in_memory = false);
 
 }  // namespace fillgs::cli
 

@@ -126,7 +126,7 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
   }
   if (m.moving_pixels > 0) {
     const double mse = moving_se / (3.0 * double(m.moving_pixels));
-    m.psnr_moving = mse > 0 ? 10.0 * std::log10(1.0 / mse) : std::numeric_limits<double>::infinity();
+    m.psnr_moving = psnr_of_mse(mse);
   }
   m.seconds = seconds_since(t0);
   return m;

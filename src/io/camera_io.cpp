@@ -42,6 +42,8 @@ Mat3d quat_wxyz_to_matrix(const std::string& source, const std::string& element,
   return quat_to_matrix<double>(q);
 }
 
+constexpr double kMinFocal = 1e-3, kMaxFocal = 1e9, kMaxCoordinate = 1e7;
+
 /// What every reader checks before a camera is used: finite, positive intrinsics; a rotation
 /// (orthonormal, determinant +1, to 1e-3); a size within [1, 65536] whose render buffers
 /// (about 32 bytes a pixel) fit this machine; a time, when there is one, in [0, 1].
@@ -50,6 +52,16 @@ void check_camera(const std::string& source, const std::string& element, const C
                   c.R.allFinite() && c.t.allFinite() && c.fx > 0 && c.fy > 0 && c.width > 0 && c.height > 0;
   if (!ok) throw_error(source, ": ", element, " has a non-finite or non-positive value (f ", c.fx, ", ", c.fy,
                        ", size ", c.width, "x", c.height, ")");
+  // What the renderer and the tracer (single precision) can represent: a focal length of at
+  // least a thousandth of a pixel (a field of view under 180 degrees) and at most 1e9 pixels,
+  // a principal point and a camera position within 1e7 of the origin.
+  if (!(c.fx >= kMinFocal && c.fy >= kMinFocal && c.fx <= kMaxFocal && c.fy <= kMaxFocal))
+    throw_error(source, ": ", element, " has focal length (", c.fx, ", ", c.fy, ") pixels, outside [", kMinFocal, ", ", kMaxFocal, "]");
+  if (!(std::abs(c.cx) <= kMaxCoordinate && std::abs(c.cy) <= kMaxCoordinate))
+    throw_error(source, ": ", element, " has principal point (", c.cx, ", ", c.cy, "), beyond ", kMaxCoordinate, " pixels");
+  if (!(c.t.cwiseAbs().maxCoeff() <= kMaxCoordinate && c.centre().cwiseAbs().maxCoeff() <= kMaxCoordinate))
+    throw_error(source, ": ", element, " stands at (", c.centre().x(), ", ", c.centre().y(), ", ", c.centre().z(), "), beyond ", kMaxCoordinate,
+                " world units from the origin, where single precision loses the scene");
   image_side(c.width, source, element, "width");
   image_side(c.height, source, element, "height");
   check_allocation(size_t(c.width) * size_t(c.height) * 32, source, element + " (" + std::to_string(c.width) + "x" +
@@ -365,9 +377,18 @@ std::vector<Camera> read_transforms(const std::string& path, const CameraReadOpt
       if (const json* d = pick(k))
         if (d->is_number() && d->get<double>() != 0.0)
           throw_error(path, ": ", el, " has distortion '", k, "' = ", d->get<double>(), ", which fillgs does not undistort");
-    if (!f.contains("transform_matrix") || !f["transform_matrix"].is_array() || f["transform_matrix"].size() < 3)
+    if (!f.contains("transform_matrix") || !f["transform_matrix"].is_array() || f["transform_matrix"].size() < 3 ||
+        f["transform_matrix"].size() > 4)
       throw_error(path, ": ", el, " has no 4x4 'transform_matrix'");
     Mat4d m = Mat4d::Identity();
+    // A fourth row, when written (it usually is), must be [0, 0, 0, 1]: anything else is a
+    // projective matrix, not a pose, and dropping it would place the camera silently wrong.
+    if (f["transform_matrix"].size() == 4) {
+      const json& row = f["transform_matrix"][3];
+      bool affine = row.is_array() && row.size() == 4;
+      for (size_t k = 0; affine && k < 4; ++k) affine = row[k].is_number() && row[k].get<double>() == (k == 3 ? 1.0 : 0.0);
+      if (!affine) throw_error(path, ": ", el, " 'transform_matrix' last row is ", row.dump(), ", not [0, 0, 0, 1]");
+    }
     for (int r = 0; r < 3; ++r) {
       const json& row = f["transform_matrix"][size_t(r)];
       if (!row.is_array() || row.size() < 4) throw_error(path, ": ", el, " 'transform_matrix' row ", r, " is not 4 numbers");
@@ -564,6 +585,7 @@ CameraFormat detect_camera_format(const std::string& path) {
   // Dynamic 3D Gaussians names its camera files train_meta.json and test_meta.json.
   if (name.size() > 10 && name.compare(name.size() - 10, 10, "_meta.json") == 0) return CameraFormat::D3dgs;
   if (ext == ".json") {
+    require_regular_file(path);
     std::ifstream in(path);
     char ch = 0;
     while (in.get(ch) && std::isspace(static_cast<unsigned char>(ch))) {}
@@ -628,7 +650,19 @@ void write_transforms_json(const std::string& path, const std::vector<Camera>& c
   write_file_atomically(path, root.dump(2) + "\n");
 }
 
+void check_colmap_text_target(const std::string& dir) {
+  // COLMAP and fillgs read a folder's binary model before its text one: text cameras
+  // written beside cameras.bin or images.bin would never be read back.
+  for (const char* binary : {"cameras.bin", "images.bin"}) {
+    std::error_code ec;
+    if (std::filesystem::exists(join_path(dir, binary), ec))
+      throw_error(join_path(dir, binary), ": the folder holds a binary COLMAP model, which readers take before the text one this would write; "
+                                          "write elsewhere or remove the .bin files");
+  }
+}
+
 void write_colmap_text(const std::string& dir, const std::vector<Camera>& cams) {
+  check_colmap_text_target(dir);
   make_directories(dir);
   std::ostringstream cs, is;
   cs.precision(17);

@@ -92,8 +92,10 @@ FrameRange FrameRange::parse(const std::string& text) {
   }
   auto whole = [&](const std::string& p, int fallback) {
     if (p.empty()) return fallback;
-    if (p.size() > 9 || p.find_first_not_of("0123456789") != std::string::npos)
+    if (p.find_first_not_of("0123456789") != std::string::npos)
       throw_error("frame range \"", text, "\": '", p, "' is not a frame number (first:last:step, e.g. 0:150:5)");
+    if (p.size() > 9)
+      throw_error("frame range \"", text, "\": ", p, " is more frames than fillgs reads from a video (at most 999999999)");
     return int(std::strtol(p.c_str(), nullptr, 10));
   };
   if (parts.size() > 3) throw_error("frame range \"", text, "\": expected first:last:step");

@@ -1,11 +1,13 @@
 #include "fillgs/io/image_io.hpp"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cctype>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -29,6 +31,11 @@ void write_image(const std::string& path, const Image& img) {
     auto out = OIIO::ImageOutput::create(tmp);
     if (!out) throw_error(path, ": cannot create image writer (", OIIO::geterror(), ")");
     OIIO::ImageSpec spec(img.width, img.height, img.channels, is_float ? OIIO::TypeDesc::FLOAT : OIIO::TypeDesc::UINT8);
+    // The image is encoded in memory and its bytes written by fillgs, which checks every
+    // write: an encoder's own file writes (libpng's) do not report a full disk or a file-size
+    // limit, and would leave a truncated image that looks written.
+    OIIO::Filesystem::IOVecOutput memory;
+    const bool in_memory = out->supports("ioproxy") && out->set_ioproxy(&memory);
     if (!out->open(tmp, spec)) throw_error(path, ": cannot open for writing (", out->geterror(), ")");
     bool ok;
     if (is_float) {
@@ -43,6 +50,7 @@ void write_image(const std::string& path, const Image& img) {
       ok = out->write_image(OIIO::TypeDesc::UINT8, bytes.data());
     }
     if (!ok || !out->close()) throw_error(path, ": write failed (", out->geterror(), ")");
+    if (in_memory) write_file_checked(tmp, path, memory.buffer().data(), memory.buffer().size());
   });
 }
 
@@ -75,6 +83,11 @@ std::string image_extension(const std::string& path) {
 /// Trying them all on a damaged PNG is slow and hands it to readers that trust it more
 /// (WebP's allocates ~450 MB for a 44-byte input). Null with `why` set when it cannot.
 std::unique_ptr<OIIO::ImageInput> open_image(const std::string& path, std::string* why) {
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec)) {
+    *why = "not a regular file";  // a named pipe would hang the reader
+    return nullptr;
+  }
   const std::string ext = image_extension(path);
   // create() given a format name (not the file's) makes that reader and no other.
   std::unique_ptr<OIIO::ImageInput> in = ext.empty() ? OIIO::ImageInput::open(path) : OIIO::ImageInput::create(ext);
@@ -87,6 +100,26 @@ std::unique_ptr<OIIO::ImageInput> open_image(const std::string& path, std::strin
   if (in->open(path, spec)) return in;
   *why = std::string("not a readable ") + in->format_name() + " file: " + one_line(in->geterror());
   return nullptr;
+}
+
+}  // namespace
+
+namespace {
+
+/// True when the JPEG at `path` has an end-of-image marker (FF D9) in its last megabyte: a
+/// marker cannot occur inside entropy-coded data (0xFF is stuffed there), and data may
+/// follow it (appended thumbnails, metadata).
+bool has_jpeg_end(const std::string& path) {
+  std::ifstream f(path, std::ios::binary | std::ios::ate);
+  const std::streamoff size = f.tellg();
+  if (!f || size < 4) return false;
+  const std::streamoff tail = std::min<std::streamoff>(size, 1 << 20);
+  std::string bytes(size_t(tail), '\0');
+  f.seekg(size - tail);
+  f.read(bytes.data(), tail);
+  for (size_t i = bytes.size() - 1; i > 0; --i)
+    if (static_cast<unsigned char>(bytes[i - 1]) == 0xFF && static_cast<unsigned char>(bytes[i]) == 0xD9) return true;
+  return false;
 }
 
 }  // namespace
@@ -105,6 +138,9 @@ Image read_image(const std::string& path) {
   Image img(spec.width, spec.height, spec.nchannels);
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, img.pixels.data()))
     throw_error(path, ": cannot decode image (", one_line(in->geterror()), ")");
+  // libjpeg decodes a JPEG cut short as grey from where the data ends, with a warning no
+  // caller sees: a JPEG must hold its end-of-image marker.
+  if (std::string(in->format_name()) == "jpeg" && !has_jpeg_end(path)) throw_error(path, ": the JPEG is cut short (no end-of-image marker)");
   in->close();
   return img;
 }

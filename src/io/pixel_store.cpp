@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 
@@ -31,12 +32,16 @@ void PixelStore::reset(const std::vector<size_t>& sizes, size_t budget, const st
     memory_.resize(sizes.size());
     return;
   }
-  const std::string dir = spill_dir.empty() ? std::filesystem::temp_directory_path().string() : spill_dir;
+  // $TMPDIR as the user set it (std::filesystem::temp_directory_path throws a message that
+  // does not say which variable named the missing folder).
+  const char* tmpdir = std::getenv("TMPDIR");
+  const bool from_env = spill_dir.empty() && tmpdir && *tmpdir;
+  const std::string dir = !spill_dir.empty() ? spill_dir : from_env ? std::string(tmpdir) : std::string("/tmp");
   std::string templ = (std::filesystem::path(dir) / "fillgs-images-XXXXXX").string();
   auto f = std::make_shared<File>();
   f->fd = ::mkstemp(templ.data());
   if (f->fd < 0)
-    throw_error(dir, ": cannot make the image cache for ", total_, " bytes of images (", std::strerror(errno),
+    throw_error(dir, from_env ? " (TMPDIR)" : "", ": cannot make the image cache for ", total_, " bytes of images (", std::strerror(errno),
                 "); give another folder with TMPDIR or raise --image-memory");
   f->path = templ;
   ::unlink(templ.c_str());  // gone with the process, whatever ends it

@@ -41,6 +41,7 @@ std::pair<std::string, std::string> ex4dgs_pair(const std::string& path) {
 
 /// Reads the header of a PLY only (up to end_header) to sniff the format cheaply.
 std::string read_header(const std::string& path) {
+  require_regular_file(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw_error(path, ": cannot open");
   std::string header, line;
@@ -230,6 +231,9 @@ Ex4dgsConfig read_ex4dgs_config(const std::string& static_ply) {
     if (value("interp_type", &v)) {
       const size_t b = v.find_first_of("'\""), e = v.find_last_of("'\"");
       cfg.interp = (b != std::string::npos && e > b) ? v.substr(b + 1, e - b - 1) : v;
+      // What fillgs evaluates; any other name would silently become cubic keys.
+      if (cfg.interp != "cube" && cfg.interp != "linear" && cfg.interp != "pchip")
+        throw_error(source, ": interp_type '", cfg.interp.substr(0, 40), "' is not one fillgs evaluates (cube, linear, pchip)");
     }
     cfg.source = f.string();
     break;

@@ -634,6 +634,7 @@ class Selector {
 SelectResult select_viewpoints(const SelectInput& in, const SelectOptions& o, Progress& progress) {
   if (!in.scene || !in.grid) throw_error("select: a scene and an exploration grid are required");
   if (in.views.empty()) throw_error("select: no observed viewpoints");
+  if (in.scene->size() == 0) throw_error("select: the scene has no Gaussians, so no camera observes anything and there is no view to choose");
   if (o.trajectories < 0) throw_error("select: trajectories must be at least 0");
   if (o.views < 1) throw_error("select: views must be at least 1");
   if (o.patch_frames < 1) throw_error("select: patch_frames must be at least 1");

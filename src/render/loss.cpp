@@ -197,9 +197,10 @@ double psnr(const float* a, const float* b, int W, int H, int C, const unsigned 
     }
   }
   if (count == 0) return std::numeric_limits<double>::quiet_NaN();
-  const double mse = se / double(count);
-  return mse > 0 ? -10.0 * std::log10(mse) : std::numeric_limits<double>::infinity();
+  return psnr_of_mse(se / double(count));
 }
+
+double psnr_of_mse(double mse) { return std::min(kMaxPsnr, -10.0 * std::log10(std::max(mse, 1e-300))); }
 
 double ssim(const float* a, const float* b, int W, int H, int C) {
   const size_t P = size_t(W) * H;

@@ -79,7 +79,7 @@ int simd_lanes() { return tiles::simd_lane_count(); }
 RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOptions& opt) {
   const int W = cam.width, H = cam.height;
   FILLGS_CHECK(W > 0 && H > 0);
-  FILLGS_CHECK(opt.feature_channels == 0 || opt.features != nullptr);
+  FILLGS_CHECK(opt.feature_channels == 0 || opt.features != nullptr || G.size() == 0);  // no Gaussians: no features
   const size_t N = G.size();
   const int F = opt.feature_channels;
   const int C = (opt.rgb ? 3 : 0) + (opt.depth ? 1 : 0) + F;

@@ -30,7 +30,7 @@ namespace fillgs {
 
 namespace {
 constexpr char kMagic[8] = {'F', 'I', 'L', 'L', 'G', 'S', 'C', 'K'};
-constexpr uint32_t kVersion = 3;  // 2: keyed-opacity flag; 3: Gaussians on changing pixels
+constexpr uint32_t kVersion = 4;  // 2: keyed-opacity flag; 3: Gaussians on changing pixels; 4: the dataset's fingerprint
 
 struct Writer {
   std::string bytes;
@@ -115,6 +115,30 @@ ModelParams<float> read_params(Reader& r) {
 }
 }  // namespace
 
+namespace {
+
+/// What a checkpoint was trained on, as one number: every view's rig camera, frame, image
+/// size and pose (to 1e-6). A checkpoint resumes only on the dataset it was made from.
+uint64_t dataset_fingerprint(const Dataset& data) {
+  uint64_t h = 1469598103934665603ull;  // FNV-1a
+  auto mix = [&](const void* p, size_t n) {
+    for (size_t i = 0; i < n; ++i) h = (h ^ static_cast<const unsigned char*>(p)[i]) * 1099511628211ull;
+  };
+  for (const TrainView& v : data.views()) {
+    mix(v.rig.data(), v.rig.size());
+    const int64_t ints[3] = {v.frame, v.camera.width, v.camera.height};
+    mix(ints, sizeof ints);
+    for (int i = 0; i < 3; ++i) {
+      const int64_t row[4] = {std::llround(v.camera.R(i, 0) * 1e6), std::llround(v.camera.R(i, 1) * 1e6), std::llround(v.camera.R(i, 2) * 1e6),
+                              std::llround(v.camera.t[i] * 1e6)};
+      mix(row, sizeof row);
+    }
+  }
+  return h;
+}
+
+}  // namespace
+
 void Trainer::save_checkpoint(const std::string& path) const {
   Writer w;
   w.bytes.append(kMagic, 8);
@@ -123,6 +147,7 @@ void Trainer::save_checkpoint(const std::string& path) const {
   w.pod(uint8_t(opacity_was_reset_));
   w.pod(uint64_t(data_->views().size()));
   w.pod(options_.seed);
+  w.pod(dataset_fingerprint(*data_));
   write_params(w, params_);
   write_params(w, adam_m_);
   write_params(w, adam_v_);
@@ -153,13 +178,16 @@ Trainer Trainer::resume(const Dataset& data, const std::string& path, const Trai
   Reader r{bytes, path};
   if (bytes.size() < 8 || std::memcmp(bytes.data(), kMagic, 8) != 0) throw_error(path, ": not a fillgs checkpoint");
   r.at = 8;
-  if (r.pod<uint32_t>() != kVersion) throw_error(path, ": unsupported checkpoint version");
+  if (const uint32_t version = r.pod<uint32_t>(); version != kVersion)
+    throw_error(path, ": checkpoint version ", version, ", this fillgs reads version ", kVersion, " (made by another fillgs; train again)");
   const int it = r.pod<int32_t>();
   const bool was_reset = r.pod<uint8_t>() != 0;
   const uint64_t views = r.pod<uint64_t>();
   if (views != data.views().size())
     throw_error(path, ": checkpoint was trained on ", views, " views, this dataset has ", data.views().size());
   if (r.pod<uint64_t>() != options.seed) throw_error(path, ": checkpoint was trained with another seed");
+  if (r.pod<uint64_t>() != dataset_fingerprint(data))
+    throw_error(path, ": checkpoint was trained on other views (another scene, other cameras, frames or image sizes)");
   ModelParams<float> p = read_params(r);
   Trainer t(data, p, options);
   t.params_ = std::move(p);  // as saved: the constructor's conversions (keys for every Gaussian) do not apply

@@ -145,6 +145,7 @@ PointSet read_points(const std::string& path) {
     if (at != bytes.size()) throw_error(path, ": ", bytes.size() - at, " bytes after the last point");
   } else {
     // COLMAP points3D.txt: POINT3D_ID X Y Z R G B ERROR TRACK[]
+    require_regular_file(path);
     std::ifstream in(path);
     std::string line;
     size_t line_no = 0;
@@ -293,9 +294,33 @@ TrainOptions TrainOptions::scaled(int iterations) {
 // ---------------------------------------------------------------------------------
 // Trainer
 
+void check_trainable(const GaussianCloud& cloud, const std::string& source) {
+  auto refuse = [&](size_t g, const char* what, double v, const char* bound) {
+    throw_error(source, ": Gaussian ", g, " has ", what, " ", v, ", beyond what training keeps finite (", bound, ")");
+  };
+  for (size_t g = 0; g < cloud.size(); ++g) {
+    for (int k = 0; k < 3; ++k) {
+      const double m = cloud.means[g][k], s = cloud.log_scales[g][k];
+      if (!(std::abs(m) <= kMaxTrainCoordinate)) refuse(g, "a position coordinate", m, "|x| <= 1e7");
+      if (!(s >= kMinTrainLogScale && s <= kMaxTrainLogScale)) refuse(g, "a log-scale", s, "-30 to 20");
+    }
+    const int C = cloud.sh_count() * 3;
+    for (int c = 0; c < C; ++c) {
+      const double v = cloud.sh[g * size_t(C) + size_t(c)];
+      if (!(std::abs(v) <= kMaxTrainSh)) refuse(g, "an SH coefficient", v, "|c| <= 1e4");
+    }
+  }
+  const std::vector<float>& keys = cloud.keyframed.positions;
+  for (size_t i = 0; i < keys.size(); ++i)
+    if (!(std::abs(keys[i]) <= kMaxTrainCoordinate)) refuse(i / 3, "a key position coordinate", keys[i], "|x| <= 1e7");
+}
+
 Trainer::Trainer(const Dataset& data, ModelParams<float> initial, const TrainOptions& options)
     : data_(&data), options_(options), params_(std::move(initial)) {
   if (params_.size() == 0) throw_error("training: the initial model has no Gaussians");
+  for (size_t i = 0; i < params_.means.size(); ++i)
+    if (!(std::abs(params_.means[i]) <= kMaxTrainCoordinate))
+      throw_error("training: initial Gaussian ", i / 3, " stands at coordinate ", params_.means[i], ", beyond what training keeps finite (|x| <= 1e7)");
   extent_ = data.camera_extent().second;
   if (params_.key_count == 0) set_key_layout(params_, data.frames(), options_.key_interval_frames);
   // Densification must reach the frames the time window adds last: content that appears
@@ -1099,6 +1124,9 @@ void Trainer::run(int until, Progress& progress) {
   const int first = iteration_;
   while (iteration_ < until) {
     step();
+    if (!std::isfinite(status_.loss))
+      throw_error("training: the loss became ", status_.loss, " at iteration ", iteration_,
+                  "; the optimisation diverged (an extreme input or option?) and nothing was written");
     const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     status_.iterations_per_second = secs > 0 ? (iteration_ - first) / secs : 0;
     std::ostringstream s;

@@ -147,8 +147,10 @@ ModelParams<Real> params_from_cloud(const GaussianCloud& cloud_in, int bake_fram
 template <typename Real>
 void set_key_layout(ModelParams<Real>& p, int frames, int interval) {
   FILLGS_CHECK(p.dynamic_count() == 0);  // existing keys would change meaning
-  const int step = std::max(1, interval);
-  p.key_count = frames > 1 ? (frames - 1 + step - 1) / step + 1 : 1;
+  // An interval beyond the video is the video: keys at its first and last frame (and no
+  // int arithmetic near INT_MAX).
+  const int step = std::clamp(interval, 1, std::max(1, frames - 1));
+  p.key_count = frames > 1 ? int((int64_t(frames) - 1 + step - 1) / step + 1) : 1;
   p.first_key_time = 0.0;
   p.key_spacing = frames > 1 ? double(step) / (frames - 1) : 1.0;
 }

@@ -22,14 +22,25 @@ constexpr int kMaxImageSide = 65536;
 /// "SOURCE: ELEMENT WHAT v is not a whole number of pixels in [1, 65536]".
 int image_side(double v, const std::string& source, const std::string& element, const char* what);
 
-/// The most bytes one allocation may take: this machine's physical memory, or the
-/// FILLGS_MAX_ALLOC environment variable (bytes) when set (tests use it).
+/// The memory this process may use: the smallest of physical memory, its address-space
+/// and data limits (ulimit -v, -d) and its cgroup's limit (v2 memory.max, v1
+/// memory.limit_in_bytes), with the name of the one that sets it.
+struct MemoryLimit {
+  size_t bytes = 0;
+  const char* source = "";
+};
+MemoryLimit memory_limit();
+
+/// The most bytes one allocation may take: memory_limit(), or the FILLGS_MAX_ALLOC
+/// environment variable (bytes) when set (tests use it). The default image budget of a
+/// dataset is a quarter of it.
 size_t allocation_cap();
 
 /// a · b, or an Error "SOURCE: WHAT overflows (a × b)".
 size_t checked_mul(size_t a, size_t b, const std::string& source, const std::string& what);
 
-/// Throws "SOURCE: WHAT would need N bytes, more than this machine's M" when bytes > allocation_cap().
+/// Throws "SOURCE: WHAT would need N bytes, more than the M this process may use (LIMIT)"
+/// when bytes > allocation_cap().
 void check_allocation(size_t bytes, const std::string& source, const std::string& what);
 
 /// A non-negative integer from decimal text (digits only, optional surrounding blanks), at

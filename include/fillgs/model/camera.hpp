@@ -83,5 +83,8 @@ void write_transforms_json(const std::string& path, const std::vector<Camera>& c
 /// Writes COLMAP text (cameras.txt, images.txt, empty points3D.txt) into a directory;
 /// one PINHOLE camera per view.
 void write_colmap_text(const std::string& dir, const std::vector<Camera>& cams);
+/// Throws naming the file when `dir` holds a binary COLMAP model (cameras.bin, images.bin),
+/// which readers take before a text one: text cameras written there would be shadowed.
+void check_colmap_text_target(const std::string& dir);
 
 }  // namespace fillgs

@@ -21,8 +21,17 @@ template <typename Real>
 LossValue photometric_loss(const Real* render, const float* target, int width, int height, const Real* weights,
                            double lambda_dssim, Real* grad);
 
+/// The PSNR of identical images, and the most any pair scores: 150 dB, above what any two
+/// 8-bit images can differ by (one level in one channel of a 65536² image is 149 dB), so
+/// the cap never changes a real difference and an exact match stays a finite number that
+/// averages over a split (NaN is kept for "nothing to compare").
+constexpr double kMaxPsnr = 150.0;
+/// 10·log10(1 / mse), at most kMaxPsnr.
+double psnr_of_mse(double mse);
+
 /// Peak signal-to-noise ratio for images in [0, 1] (values clamped to [0, 1] first, like an
-/// 8-bit save). `mask` ([H·W], nonzero = counted) restricts it to a region; +inf when equal.
+/// 8-bit save). `mask` ([H·W], nonzero = counted) restricts it to a region; kMaxPsnr when
+/// equal, NaN when the mask counts no pixel.
 double psnr(const float* a, const float* b, int width, int height, int channels, const unsigned char* mask = nullptr);
 
 /// Mean SSIM over pixels and channels (window as above), images clamped to [0, 1].

@@ -64,6 +64,15 @@ PointSet pseudo_sfm_points(const GaussianCloud& scene, double t, double fraction
 enum class MotionLearning { All, Promote };
 FILLGS_ENUM_NAMES(MotionLearning, "motion learning", {MotionLearning::All, "all"}, {MotionLearning::Promote, "promote"});
 
+/// What training keeps finite: positions within 1e7 world units, log-scales in [-30, 20],
+/// SH coefficients within 1e4 (a model beyond these turns into inf and NaN under the
+/// optimiser's steps).
+constexpr double kMaxTrainCoordinate = 1e7, kMinTrainLogScale = -30, kMaxTrainLogScale = 20, kMaxTrainSh = 1e4;
+
+/// Throws one line naming `source`, the Gaussian and the value when `cloud` holds a value
+/// outside those bounds; train and finetune call it on what they read.
+void check_trainable(const GaussianCloud& cloud, const std::string& source);
+
 struct TrainOptions {
   int iterations = 3000;
   uint64_t seed = 1;
