@@ -119,6 +119,9 @@ TEST_CASE("crashes: long .npy and cfg_args headers, descr with trailing characte
   write(pc + "point_cloud.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
   write(pc + "dynamic_point_cloud.ply", "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nend_header\n");
   expect_error(run_cli({"info", pc + "point_cloud.ply"}), {"cfg_args", "duration"});
+  // An interpolation fillgs does not evaluate is refused, not replaced by cubic keys.
+  write(dir + "/ex/cfg_args", "Namespace(duration=21, time_interval=5, interp_type='bogus')");
+  expect_error(run_cli({"info", pc + "point_cloud.ply"}), {"cfg_args", "interp_type 'bogus'", "cube, linear, pchip"});
   CHECK_FALSE(fs::exists(dir + "/o.json"));
 }
 
@@ -643,4 +646,28 @@ TEST_CASE("numbers at the extremes: PSNR of identical images, colours out of ran
   expect_error(run_cli({"train", "--images", dir + "/scene", "--cameras", cams, "--points", dir + "/far.ply", "--out", dir + "/t"}),
                {"far.ply", "point 1", "beyond what training keeps finite"});
   for (const char* out : {"/t", "/r", "/ft"}) CHECK_FALSE(fs::exists(dir + out));
+}
+
+TEST_CASE("a commit that stops half-way says what it left, and a missing TMPDIR is named", "[robust]") {
+  const std::string dir = scratch("robust_commit");
+  write(dir + "/s.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
+  write(dir + "/ok.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
+      {"file_path": "first", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  // A folder of the user's stands where the new image goes: that rename fails.
+  write(dir + "/out/first.png/keep.txt", "mine");
+  const Result r = run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/ok.json", "--out", dir + "/out"});
+  expect_error(r, {dir + "/out/first.png", "cannot move the new output into place", "the commit stopped after", "of 2 new files"});
+  CHECK(r.err.find("(Success)") == std::string::npos);  // the reason is the rename's, not a reset error code
+  CHECK(slurp(dir + "/out/first.png/keep.txt") == "mine");
+
+  std::ostringstream o, e;
+  REQUIRE(cli::run({"synth", "--out", dir + "/scene", "--frames", "2", "--width", "32", "--height", "24", "--quiet"}, o, e) == 0);
+  const char* old = std::getenv("TMPDIR");
+  const std::string saved = old ? old : "";
+  ::setenv("TMPDIR", (dir + "/no/such/folder").c_str(), 1);
+  const Result t = run_cli({"train", "--images", dir + "/scene", "--cameras", dir + "/scene/transforms_train.json", "--image-memory", "0",
+                            "--iterations", "5", "--out", dir + "/t"});
+  if (old) ::setenv("TMPDIR", saved.c_str(), 1);
+  else ::unsetenv("TMPDIR");
+  expect_error(t, {dir + "/no/such/folder (TMPDIR)", "cannot make the image cache"});
 }
