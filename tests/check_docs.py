@@ -115,7 +115,7 @@ def walkthrough(repo, fillgs):
     work = tempfile.mkdtemp(prefix="fillgs_walkthrough_")
     try:
         scene = os.path.join(work, "scene")
-        subprocess.run([fillgs, "synth", "--out", scene, "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06",
+        subprocess.run([fillgs, "synth", "--out", scene, "--frames", "3", "--width", "32", "--height", "24", "--spacing", "0.1",
                         "--quiet"], check=True, stdout=subprocess.DEVNULL)
         # "Your" capture: two training cameras of the synthetic rig, judged on the others.
         cams = json.load(open(os.path.join(scene, "transforms_train.json")))
