@@ -103,6 +103,13 @@ pid_t dead_pid() {
   return p;
 }
 
+/// One splat (s.ply) and one camera looking at it (ok.json, its view named "first") in `dir`.
+void one_splat_scene(const std::string& dir) {
+  write(dir + "/s.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
+  write(dir + "/ok.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
+      {"file_path": "first", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+}
+
 }  // namespace
 
 TEST_CASE("crashes: long .npy and cfg_args headers, descr with trailing characters", "[robust]") {
@@ -308,9 +315,7 @@ TEST_CASE("a failing command leaves its output folder exactly as it was, and kil
 
 TEST_CASE("one command at a time writes a folder, and a live run's files are never swept", "[robust]") {
   const std::string dir = scratch("robust_live");
-  write(dir + "/s.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
-  write(dir + "/ok.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
-      {"file_path": "first", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  one_splat_scene(dir);
   write(dir + "/out/old.txt", "old");
   // A live run in another process: it holds the folder and writes a temporary file in it.
   int go[2], ready[2];
@@ -355,9 +360,7 @@ TEST_CASE("outputs on another file system, through a link, are staged there", "[
     WARN("no second file system under /dev/shm: skipped");
     return;
   }
-  write(dir + "/s.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
-  write(dir + "/ok.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
-      {"file_path": "first", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  one_splat_scene(dir);
   fs::create_directory_symlink(other, dir + "/out");
   const Result ok = run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/ok.json", "--out", dir + "/out"});
   INFO(ok.err);
@@ -644,9 +647,7 @@ TEST_CASE("numbers at the extremes: PSNR of identical images, colours out of ran
 
 TEST_CASE("a commit that stops half-way says what it left, and a missing TMPDIR is named", "[robust]") {
   const std::string dir = scratch("robust_commit");
-  write(dir + "/s.ply", std::string("ply\nformat ascii 1.0\nelement vertex 1\n") + kVertex3dgs + "end_header\n" + kRow);
-  write(dir + "/ok.json", R"({"fl_x": 40, "w": 48, "h": 32, "frames": [
-      {"file_path": "first", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,4],[0,0,0,1]]}]})");
+  one_splat_scene(dir);
   // A folder of the user's stands where the new image goes: that rename fails.
   write(dir + "/out/first.png/keep.txt", "mine");
   const Result r = run_cli({"render", "--scene", dir + "/s.ply", "--cameras", dir + "/ok.json", "--out", dir + "/out"});
