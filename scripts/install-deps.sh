@@ -18,6 +18,8 @@ packages=(
   nlohmann-json3-dev
   libhwy-dev               # Google Highway: portable SIMD with run-time dispatch
   libcli11-dev             # CLI11: the command line's flags, parsing and help
+  zlib1g-dev               # zlib: deflated entries of .npz archives and .pth files
+  python3-torch            # PyTorch (CPU): tests/make_model_fixtures.py saves E-D3DGS, 4DGaussians and 4DGS models as their code does
   clang libclang-rt-14-dev # the sanitizer + libFuzzer tree (scripts/build-fuzz.sh, tests/README.md, "Robustness")
   python3-openvdb          # the OpenVDB Python binding: a test opens exploration.vdb with it
   colmap                   # COLMAP 3.8: a test round-trips the COLMAP export; triangulated initial points

@@ -553,7 +553,7 @@ TEST_CASE("degenerate input: no Gaussians, unrepresentable cameras, extreme opti
   expect_error(run_cli({"info", dir + "/pipe.ply"}), {"pipe.ply", "is a named pipe"});
   expect_error(run_cli({"cameras", "--cameras", "/dev/zero", "--camera-format", "transforms", "--out", dir + "/o.json"}),
                {"/dev/zero", "is a character device"});
-  expect_error(run_cli({"info", dir + "/scene"}), {"scene", "give a .ply file"});
+  expect_error(run_cli({"info", dir + "/scene"}), {"scene", "holds no model fillgs reads"});
   CHECK_FALSE(fs::exists(dir + "/o.json"));
 }
 

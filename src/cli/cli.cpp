@@ -82,13 +82,21 @@ struct InfoFlags {
 
 int info(const InfoFlags& f, const Invocation& in) {
   const GaussianCloud c = read_scene(f.scene, f.read);
-  const nlohmann::json j = scene_summary(c);
+  nlohmann::json j = scene_summary(c);
+  j["format"] = to_string(f.read.format == SceneFormat::Auto ? detect_scene_format(f.scene) : f.read.format);
+  j["moving_share"] = c.size() ? double(c.dynamic_count()) / double(c.size()) : 0.0;
+  if (c.motion == MotionModel::Keyframed) {
+    const KeyframedMotion& k = c.keyframed;
+    j["key_times"] = {k.first_key_time, k.first_key_time + k.key_spacing * (k.key_count - 1)};
+  }
+  if (!c.model_times.empty()) j["model_times"] = c.model_times;
   if (f.json) {
     in.out << j.dump(2) << "\n";
     return 0;
   }
   in.out << "scene        " << f.scene << "\n";
-  for (const char* key : {"gaussians", "sh_degree", "motion_model", "static", "dynamic", "keyframes", "bbox_min", "bbox_max"})
+  for (const char* key : {"format", "gaussians", "sh_degree", "motion_model", "static", "dynamic", "moving_share", "keyframes", "key_times",
+                          "model_times", "bbox_min", "bbox_max"})
     if (j.contains(key)) {
       std::string label = key;
       std::replace(label.begin(), label.end(), '_', ' ');
@@ -105,7 +113,9 @@ int info(const InfoFlags& f, const Invocation& in) {
 
 Action declare_info(CLI::App& app) {
   auto f = std::make_shared<InfoFlags>();
-  app.add_option("scene", f->scene, "the model (PLY: 3DGS, Spacetime Gaussians, Ex4DGS or fillgs)")->type_name("SCENE")->required();
+  app.add_option("scene", f->scene, "the model: a PLY (3DGS, Spacetime Gaussians, Ex4DGS, fillgs) or a trained model (E-D3DGS or 4DGaussians run, 4DGS chkpnt*.pth, params.npz, a folder of per-frame PLYs)")
+      ->type_name("SCENE")
+      ->required();
   add_flag(app, "--json", f->json, "the summary as JSON");
   add_scene_flags(app, f->read);
   return bind(f, info);

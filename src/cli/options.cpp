@@ -153,6 +153,14 @@ void add_scene_flags(CLI::App& app, SceneReadOptions& o) {
   add_number(app, "--stg-duration", o.stg_duration, "Spacetime Gaussians: frames one model covers", at_least(1))->group("Scene options");
   add_text(app, "--stg-color", o.stg_color_activation, "Spacetime Gaussians colour activation: auto, sigmoid, clamp or none", "NAME")
       ->group("Scene options");
+  add_number(app, "--model-frames", o.model_frames, "trained models: frames the model covers (0: E-D3DGS's cfg_args; 4DGaussians, 4DGS, Deformable 3D Gaussians need it)", at_least(0))
+      ->group("Scene options");
+  add_text(app, "--model-time-range", o.model_time_range, "E-D3DGS, 4DGaussians, 4DGS: the model times the frames span, T0:T1 (frame f at T0 + f (T1-T0)/F; default 0:1; 4DGS: its time_duration)", "T0:T1")
+      ->group("Scene options");
+  add_number(app, "--model-camera", o.model_camera, "E-D3DGS: the training camera whose time offset to use (-1: their mean, as at test views)", at_least(-1))
+      ->group("Scene options");
+  add_number(app, "--model-iteration", o.model_iteration, "E-D3DGS: the iteration its coarse-to-fine schedule is at (-1: the saved one)", at_least(-1))
+      ->group("Scene options");
   add_number(app, "--static-threshold", o.partition.static_speed_threshold, "speed below which a Gaussian counts as static", at_least(0))
       ->group("Scene options");
 }

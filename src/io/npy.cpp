@@ -26,8 +26,9 @@ template <> const char* npy_descr<uint32_t>() { return "<u4"; }
 template <> const char* npy_descr<int32_t>() { return "<i4"; }
 template <> const char* npy_descr<int64_t>() { return "<i8"; }
 
-NpyArray read_npy(const std::string& path) {
-  const std::string b = read_file(path);
+NpyArray read_npy(const std::string& path) { return parse_npy(read_file(path), path); }
+
+NpyArray parse_npy(const std::string& b, const std::string& path) {
   if (b.size() < 10 || b.compare(0, 6, "\x93NUMPY") != 0) throw_error(path, ": not a .npy file (bad magic)");
   const int major = static_cast<unsigned char>(b[6]);
   size_t header_len = 0, offset = 0;

@@ -13,6 +13,7 @@
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/base/limits.hpp"
 #include "fillgs/io/ply.hpp"
+#include "fillgs/io/trained_models.hpp"
 #include "fillgs/model/sh.hpp"
 
 namespace fs = std::filesystem;
@@ -435,6 +436,14 @@ GaussianCloud read_fillgs(const std::string& path) {
       for (size_t r = 0; r < M; ++r) km.opacity_logits[r * K + k] = col[r];
     }
   }
+  if (tr->has("motion_dc_0_0")) {
+    km.colours.resize(M * K * 3);
+    for (int k = 0; k < K; ++k)
+      for (int a = 0; a < 3; ++a) {
+        const auto& col = tr->finite_column("motion_dc_" + std::to_string(k) + "_" + std::to_string(a));
+        for (size_t r = 0; r < M; ++r) km.colours[(r * K + k) * 3 + a] = col[r];
+      }
+  }
   c.motion = MotionModel::Keyframed;
   c.dynamic_ids = iota_ids(M, uint32_t(v.count - M));
   return c;
@@ -446,11 +455,16 @@ SceneFormat detect_scene_format(const std::string& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw_error(path, ": no such file or directory");
   if (!ex4dgs_pair(path).first.empty()) return SceneFormat::Ex4dgs;
-  if (fs::is_directory(path, ec)) throw_error(path, ": directory holds no dynamic_point_cloud.ply; give a .ply file");
+  const SceneFormat trained = detect_trained_model(path);
+  if (trained != SceneFormat::Auto) return trained;
+  if (fs::is_directory(path, ec))
+    throw_error(path, ": a folder that holds no model fillgs reads (Ex4DGS pair, E-D3DGS, 4DGaussians or Deformable 3D Gaussians run, 4DGS chkpnt*.pth, "
+                      "params.npz, time_*.ply / frame_*.ply frames); give a file or --scene-format");
   const std::string header = read_header(path);
   if (header.compare(0, 3, "ply") != 0) throw_error(path, ": not a PLY file (missing 'ply' magic line)");
   if (header.find(kFillgsMagic) != std::string::npos) return SceneFormat::Fillgs4D;
   if (header.find(" trbf_center\n") != std::string::npos) return SceneFormat::Spacetime;
+  refuse_canonical_ply(path, header);
   return SceneFormat::Gaussian3D;
 }
 
@@ -459,7 +473,16 @@ GaussianCloud read_scene(const std::string& path, const SceneReadOptions& option
   return reading(path, [&] {
     GaussianCloud c;
     switch (f) {
-      case SceneFormat::Gaussian3D: c = read_3dgs(path); break;
+      case SceneFormat::Gaussian3D:
+        refuse_canonical_ply(path, read_header(path));
+        c = read_3dgs(path);
+        break;
+      case SceneFormat::Ed3dgs:
+      case SceneFormat::FourDGaussians:
+      case SceneFormat::FourDGS:
+      case SceneFormat::Dynamic3DGS:
+      case SceneFormat::PlyFrames:
+      case SceneFormat::Deformable3DGS: c = sample_trained_model(*open_trained_model(path, f, options)); break;
       case SceneFormat::Spacetime: c = read_spacetime(path, options); break;
       case SceneFormat::Fillgs4D: c = read_fillgs(path); break;
       case SceneFormat::Ex4dgs: {
@@ -489,7 +512,7 @@ void add_column(PlyElement& e, const std::string& name, std::vector<float> value
 /// Standard 3DGS vertex element from per-Gaussian raw values in the given order.
 PlyElement standard_vertex(const GaussianCloud& c, const std::vector<uint32_t>& order, const std::vector<Vec3f>& means,
                            const std::vector<Vec3f>& log_scales, const std::vector<Vec4f>& rots,
-                           const std::vector<float>& opacity_logits) {
+                           const std::vector<float>& opacity_logits, const float* sh) {
   PlyElement v;
   v.name = "vertex";
   v.count = order.size();
@@ -503,11 +526,11 @@ PlyElement standard_vertex(const GaussianCloud& c, const std::vector<uint32_t>& 
   for (const char* n : {"nx", "ny", "nz"}) add_column(v, n, std::vector<float>(order.size(), 0.0f));
   const int K = c.sh_count();
   for (int ch = 0; ch < 3; ++ch)
-    add_column(v, "f_dc_" + std::to_string(ch), gather([&](uint32_t g) { return c.sh[size_t(g) * K * 3 + ch]; }));
+    add_column(v, "f_dc_" + std::to_string(ch), gather([&](uint32_t g) { return sh[size_t(g) * K * 3 + ch]; }));
   for (int ch = 0; ch < 3; ++ch)
     for (int k = 1; k < K; ++k)
       add_column(v, "f_rest_" + std::to_string(ch * (K - 1) + k - 1),
-                 gather([&](uint32_t g) { return c.sh[(size_t(g) * K + k) * 3 + ch]; }));
+                 gather([&](uint32_t g) { return sh[(size_t(g) * K + k) * 3 + ch]; }));
   add_column(v, "opacity", gather([&](uint32_t g) { return opacity_logits[g]; }));
   for (int a = 0; a < 3; ++a) add_column(v, "scale_" + std::to_string(a), gather([&](uint32_t g) { return log_scales[g][a]; }));
   for (int a = 0; a < 4; ++a) add_column(v, "rot_" + std::to_string(a), gather([&](uint32_t g) { return rots[g][a]; }));
@@ -523,7 +546,7 @@ std::vector<uint32_t> static_first_order(const GaussianCloud& c) {
 }  // namespace
 
 void write_3dgs_ply(const std::string& path, const GaussianCloud& cloud, double t) {
-  const FrameGaussians f = frame_at(cloud, t);
+  FrameGaussians f = frame_at(cloud, t);
   std::vector<Vec3f> log_scales(cloud.size());
   std::vector<float> logits(cloud.size());
   for (size_t g = 0; g < cloud.size(); ++g) {
@@ -536,8 +559,24 @@ void write_3dgs_ply(const std::string& path, const GaussianCloud& cloud, double 
   for (size_t g = 0; g < order.size(); ++g) order[g] = uint32_t(g);
   std::vector<Vec4f> rots = f.rotations;
   for (uint32_t g : cloud.static_ids()) rots[g] = cloud.rotations[g];  // raw, as stored
+  // At a key's own time, a keyframed Gaussian is written with the key's raw values, so that
+  // frames read from PLYs and written again are the same bytes.
+  const KeyframedMotion& km = cloud.keyframed;
+  const double u = cloud.motion == MotionModel::Keyframed ? (t - km.first_key_time) / km.key_spacing : -1.0;
+  const long key = std::lround(u);
+  if (cloud.motion == MotionModel::Keyframed && !km.ex4dgs_edges && km.temporal_opacity.empty() && key >= 0 && key < km.key_count &&
+      std::fabs(u - double(key)) < 1e-9) {
+    const size_t K = size_t(km.key_count), k = size_t(key);
+    for (size_t j = 0; j < cloud.dynamic_ids.size(); ++j) {
+      const uint32_t g = cloud.dynamic_ids[j];
+      f.means[g] = Eigen::Map<const Vec3f>(&km.positions[(j * K + k) * 3]);
+      if (!km.rotations.empty()) rots[g] = Eigen::Map<const Vec4f>(&km.rotations[(j * K + k) * 4]);
+      if (!km.log_scales.empty()) log_scales[g] = Eigen::Map<const Vec3f>(&km.log_scales[(j * K + k) * 3]);
+      if (!km.opacity_logits.empty()) logits[g] = km.opacity_logits[j * K + k];
+    }
+  }
   PlyData ply;
-  ply.elements.push_back(standard_vertex(cloud, order, f.means, log_scales, rots, logits));
+  ply.elements.push_back(standard_vertex(cloud, order, f.means, log_scales, rots, logits, f.sh));
   write_ply(path, ply);
 }
 
@@ -556,6 +595,9 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
   km.opacity_logits.resize(M * K);
   const bool keyed_scales = cloud.motion == MotionModel::Keyframed && !cloud.keyframed.log_scales.empty();
   if (keyed_scales) km.log_scales.resize(M * K * 3);
+  const bool keyed_colours = cloud.motion == MotionModel::Keyframed && !cloud.keyframed.colours.empty();
+  if (keyed_colours) km.colours.resize(M * K * 3);
+  const size_t sh_row = size_t(cloud.sh_count()) * 3;
   FrameSampler ev(cloud);
   bool opacity_varies = false;
   for (size_t k = 0; k < K; ++k) {
@@ -566,6 +608,8 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
       for (int a = 0; a < 4; ++a) km.rotations[(j * K + k) * 4 + a] = f.rotations[g][a];
       if (keyed_scales)
         for (int a = 0; a < 3; ++a) km.log_scales[(j * K + k) * 3 + a] = std::log(f.scales[g][a]);
+      if (keyed_colours)
+        for (int a = 0; a < 3; ++a) km.colours[(j * K + k) * 3 + a] = f.sh[g * sh_row + a];
       km.opacity_logits[j * K + k] = logit(f.opacities[g]);
       if (std::fabs(f.opacities[g] - sigmoid(cloud.opacity_logits[g])) > 1e-6f) opacity_varies = true;
     }
@@ -587,7 +631,7 @@ void write_fillgs_ply(const std::string& path, const GaussianCloud& cloud_in, in
   const std::vector<uint32_t> order = static_first_order(c);
   PlyData ply;
   ply.comments.push_back(kFillgsMagic);
-  ply.elements.push_back(standard_vertex(c, order, c.means, c.log_scales, c.rotations, c.opacity_logits));
+  ply.elements.push_back(standard_vertex(c, order, c.means, c.log_scales, c.rotations, c.opacity_logits, c.sh.data()));
   const size_t M = c.dynamic_ids.size();
   if (M > 0) {
     const KeyframedMotion& km = c.keyframed;
@@ -614,6 +658,9 @@ void write_fillgs_ply(const std::string& path, const GaussianCloud& cloud_in, in
         for (int a = 0; a < 3; ++a) add_column(tr, "motion_scale_" + std::to_string(k) + "_" + std::to_string(a), col(km.log_scales, 3, k, a));
     if (!km.opacity_logits.empty())
       for (int k = 0; k < K; ++k) add_column(tr, "motion_opacity_" + std::to_string(k), col(km.opacity_logits, 1, k, 0));
+    if (!km.colours.empty())
+      for (int k = 0; k < K; ++k)
+        for (int a = 0; a < 3; ++a) add_column(tr, "motion_dc_" + std::to_string(k) + "_" + std::to_string(a), col(km.colours, 3, k, a));
     ply.elements.push_back(std::move(tr));
   }
   write_ply(path, ply);

@@ -91,6 +91,8 @@ void GaussianCloud::validate(const std::string& source) const {
     if (!k.log_scales.empty() && k.log_scales.size() != m * K * 3) throw_error(source, ": keyframe scales do not match");
     if (!k.opacity_logits.empty() && k.opacity_logits.size() != m * K) throw_error(source, ": keyframe opacities do not match");
     if (!k.temporal_opacity.empty() && k.temporal_opacity.size() != m * 4) throw_error(source, ": temporal opacity does not match");
+    if (!k.colours.empty() && k.colours.size() != m * K * 3) throw_error(source, ": keyframe colours do not match");
+    check_finite_array(source, "keyframe colour", k.colours.data(), k.colours.size(), 3 * K);
     check_finite_array(source, "keyframe position", k.positions.data(), k.positions.size(), 3 * K);
     check_finite_array(source, "keyframe rotation", k.rotations.data(), k.rotations.size(), 4 * K);
     check_finite_array(source, "keyframe scale", k.log_scales.data(), k.log_scales.size(), 3 * K);
@@ -110,6 +112,7 @@ struct DynamicState {
   Vec3f log_scale;
   float opacity_logit;
   float opacity_factor;  // temporal factor multiplied after the sigmoid
+  Vec3f dc = Vec3f::Zero();  // SH DC coefficients, where colour is keyed
 };
 
 struct KeyPosition {
@@ -206,6 +209,10 @@ DynamicState keyframed_at(const GaussianCloud& c, size_t j, double t) {
   } else {
     st.opacity_logit = c.opacity_logits[g];
   }
+  if (!k.colours.empty()) {
+    const float* C = &k.colours[j * K * 3];
+    for (int a = 0; a < 3; ++a) st.dc[a] = C[3 * kp.i + a] + kp.s * (C[3 * i1 + a] - C[3 * kp.i + a]);
+  }
   st.opacity_factor = 1.0f;
   if (!k.temporal_opacity.empty()) {
     const float* T = &k.temporal_opacity[j * 4];
@@ -255,6 +262,10 @@ FrameSampler::FrameSampler(const GaussianCloud& cloud) : cloud_(cloud) {
   const size_t n = cloud.size();
   frame_.sh_degree = cloud.sh_degree;
   frame_.sh = cloud.sh.data();
+  if (cloud.motion == MotionModel::Keyframed && !cloud.keyframed.colours.empty()) {
+    frame_.sh_storage = cloud.sh;
+    frame_.sh = frame_.sh_storage.data();
+  }
   frame_.means.resize(n);
   frame_.scales.resize(n);
   frame_.rotations.resize(n);
@@ -279,6 +290,8 @@ const FrameGaussians& FrameSampler::at(double t) {
                         frame_.scales[g] = st.log_scale.array().exp();
                         frame_.rotations[g] = st.rotation;
                         frame_.opacities[g] = sigmoid(st.opacity_logit) * st.opacity_factor;
+                        if (!frame_.sh_storage.empty())
+                          for (int a = 0; a < 3; ++a) frame_.sh_storage[size_t(g) * size_t(c.sh_count()) * 3 + size_t(a)] = st.dc[a];
                       }
                     });
   return frame_;
@@ -286,7 +299,9 @@ const FrameGaussians& FrameSampler::at(double t) {
 
 FrameGaussians frame_at(const GaussianCloud& cloud, double t) {
   FrameSampler ev(cloud);
-  return ev.at(t);
+  FrameGaussians f = ev.at(t);
+  if (!f.sh_storage.empty()) f.sh = f.sh_storage.data();  // the copy's own SH, not the sampler's
+  return f;
 }
 
 void dynamic_means_at(const GaussianCloud& cloud, double t, std::vector<Vec3f>& out) {
@@ -349,10 +364,11 @@ size_t partition_static_dynamic(GaussianCloud& c, const PartitionOptions& opt) {
       }
       const bool still = max_speed <= opt.static_speed_threshold && rows_constant(k.rotations, j, K, 4) &&
                          rows_constant(k.log_scales, j, K, 3) && rows_constant(k.opacity_logits, j, K, 1) &&
+                         rows_constant(k.colours, j, K, 3) &&
                          k.temporal_opacity.empty();
       if (still) {
         keep[j] = 0;
-        frozen[j] = sum / float(K);
+        frozen[j] = max_speed == 0.0f ? Vec3f(P[0], P[1], P[2]) : Vec3f(sum / float(K));  // keys all equal: keep them exactly
       }
     }
   } else if (c.motion == MotionModel::Polynomial) {
@@ -394,6 +410,8 @@ size_t partition_static_dynamic(GaussianCloud& c, const PartitionOptions& opt) {
       if (!c.keyframed.rotations.empty()) c.rotations[g] = Eigen::Map<const Vec4f>(&c.keyframed.rotations[j * K * 4]);
       if (!c.keyframed.log_scales.empty()) c.log_scales[g] = Eigen::Map<const Vec3f>(&c.keyframed.log_scales[j * K * 3]);
       if (!c.keyframed.opacity_logits.empty()) c.opacity_logits[g] = c.keyframed.opacity_logits[j * K];
+      if (!c.keyframed.colours.empty())
+        for (int a = 0; a < 3; ++a) c.sh[size_t(g) * size_t(c.sh_count()) * 3 + size_t(a)] = c.keyframed.colours[j * K * 3 + size_t(a)];
     }
     ++moved;
   }
@@ -404,6 +422,7 @@ size_t partition_static_dynamic(GaussianCloud& c, const PartitionOptions& opt) {
     keep_rows(k.rotations, K * 4, keep);
     keep_rows(k.log_scales, K * 3, keep);
     keep_rows(k.opacity_logits, K, keep);
+    keep_rows(k.colours, K * 3, keep);
     keep_rows(k.temporal_opacity, 4, keep);
   } else {
     auto& p = c.polynomial;

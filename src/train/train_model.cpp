@@ -112,6 +112,20 @@ ModelParams<Real> params_from_cloud(const GaussianCloud& cloud_in, int bake_fram
       cloud_in.motion == MotionModel::Static ||
       (cloud_in.motion == MotionModel::Keyframed && !km.ex4dgs_edges && km.position_interp == KeyInterp::CatmullRom &&
        km.temporal_opacity.empty() && !km.rotations.empty());
+  GaussianCloud uncoloured;
+  if (trainable_as_is && !km.colours.empty()) {
+    // The trainer keeps colour constant in time: each moving Gaussian starts from its keys' mean.
+    uncoloured = cloud_in;
+    const size_t K = size_t(km.key_count), row = size_t(cloud_in.sh_count()) * 3;
+    for (size_t j = 0; j < cloud_in.dynamic_ids.size(); ++j)
+      for (size_t a = 0; a < 3; ++a) {
+        double sum = 0;
+        for (size_t k = 0; k < K; ++k) sum += km.colours[(j * K + k) * 3 + a];
+        uncoloured.sh[cloud_in.dynamic_ids[j] * row + a] = float(sum / double(K));
+      }
+    uncoloured.keyframed.colours.clear();
+    cloud = &uncoloured;
+  }
   if (!trainable_as_is) {
     if (bake_frames < 2)
       throw_error("model with ", to_string(cloud_in.motion),

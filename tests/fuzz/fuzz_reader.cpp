@@ -23,6 +23,7 @@
 #include "fillgs/io/npy.hpp"
 #include "fillgs/io/ply.hpp"
 #include "fillgs/io/scene_io.hpp"
+#include "fillgs/io/torch_file.hpp"
 #include "fillgs/train/train.hpp"
 
 namespace fs = std::filesystem;
@@ -129,6 +130,49 @@ void read_one(const std::string& data) {
     read_image(put("refined.png", data));
   } else if (r == "image_jpeg") {  // what datasets hold (Panoptic's ims/<camera>/<frame>.jpg)
     read_image(put("000000.jpg", data));
+  } else if (r == "pickle") {
+    PickleValues v;
+    run_pickle(data, "data.pkl", v);
+  } else if (r == "pth") {
+    const TorchFile tf(put("model.pth", data));
+    for (size_t i = 0; i < tf.value_count(); ++i)
+      if (tf.kind(PickleValues::Ref(i)) == PickleValues::Kind::Tensor) tf.tensor(PickleValues::Ref(i), "tensor");
+  } else if (r == "npz_dynamic3dgs") {
+    SceneReadOptions o;
+    o.format = SceneFormat::Dynamic3DGS;
+    read_scene(put("d3dgs/params.npz", data), o);
+  } else if (r == "ed3dgs" || r == "4dgaussians") {
+    const std::vector<std::string> p = split(data, 3);
+    const std::string run = r + "_run";
+    put(run + "/point_cloud/iteration_100/point_cloud.ply", p[0]);
+    put(run + "/point_cloud/iteration_100/deformation.pth", p[1]);
+    put(run + "/cfg_args", p[2]);
+    SceneReadOptions o;
+    o.format = r == "ed3dgs" ? SceneFormat::Ed3dgs : SceneFormat::FourDGaussians;
+    o.model_frames = r == "ed3dgs" ? 0 : 3;
+    read_scene(join_path(work_dir(), run), o);
+  } else if (r == "deformable3dgs") {
+    const std::vector<std::string> p = split(data, 3);
+    put("deformable_run/point_cloud/iteration_100/point_cloud.ply", p[0]);
+    put("deformable_run/deform/iteration_100/deform.pth", p[1]);
+    put("deformable_run/cfg_args", p[2]);
+    SceneReadOptions o;
+    o.format = SceneFormat::Deformable3DGS;
+    o.model_frames = 3;
+    read_scene(join_path(work_dir(), "deformable_run"), o);
+  } else if (r == "4dgs") {
+    SceneReadOptions o;
+    o.format = SceneFormat::FourDGS;
+    o.model_frames = 3;
+    o.model_time_range = "0:1";
+    read_scene(put("4dgs/chkpnt100.pth", data), o);
+  } else if (r == "ply_frames") {
+    const std::vector<std::string> p = split(data, 2);
+    put("frames/time_00000.ply", p[0]);
+    put("frames/time_00001.ply", p[1]);
+    SceneReadOptions o;
+    o.format = SceneFormat::PlyFrames;
+    read_scene(join_path(work_dir(), "frames"), o);
   } else if (r == "checkpoint") {
     TrainOptions o;
     o.iterations = 1;
@@ -291,6 +335,39 @@ void make_seeds(const std::string& dir) {
     for (size_t i = 0; i < im.pixels.size(); ++i) im.pixels[i] = float(i % 13) / 13.0f;
     write_image(tmp + ".jpg", im);
     seed("seed.jpg", read_file(tmp + ".jpg"));
+  } else if (r == "pickle" || r == "pth" || r == "npz_dynamic3dgs" || r == "ed3dgs" || r == "4dgaussians" || r == "4dgs" ||
+             r == "ply_frames" || r == "deformable3dgs") {
+    // Files only PyTorch / NumPy write: the tiny models tests/make_model_fixtures.py saves
+    // (bench/fuzz runs it and sets FILLGS_MODEL_FIXTURES).
+    const char* env = std::getenv("FILLGS_MODEL_FIXTURES");
+    if (!env) throw Error("FILLGS_MODEL_FIXTURES is not set (bench/fuzz sets it)");
+    const std::string f = join_path(env, "fuzz");
+    auto pth_of = [&](const std::string& run) { return read_file(join_path(f, run + "/point_cloud/iteration_100/deformation.pth")); };
+    if (r == "pickle") {
+      for (const char* run : {"ed3dgs", "4dgaussians"}) {
+        const ZipArchive z(join_path(f, std::string(run) + "/point_cloud/iteration_100/deformation.pth"));
+        for (const std::string& n : z.names())
+          if (n.size() > 9 && n.compare(n.size() - 9, 9, "/data.pkl") == 0) seed(std::string("seed_") + run + ".pkl", z.read(n));
+      }
+      const ZipArchive z(join_path(f, "4dgs/chkpnt100.pth"));
+      for (const std::string& n : z.names())
+        if (n.size() > 9 && n.compare(n.size() - 9, 9, "/data.pkl") == 0) seed("seed_4dgs.pkl", z.read(n));
+    } else if (r == "pth") {
+      seed("seed_ed3dgs.pth", pth_of("ed3dgs"));
+      seed("seed_4dgs.pth", read_file(join_path(f, "4dgs/chkpnt100.pth")));
+    } else if (r == "npz_dynamic3dgs") {
+      seed("seed.npz", read_file(join_path(f, "dynamic3dgs/params.npz")));
+    } else if (r == "ed3dgs" || r == "4dgaussians") {
+      seed("seed", read_file(join_path(f, r + "/point_cloud/iteration_100/point_cloud.ply")) + kSplit + pth_of(r) + kSplit +
+                       read_file(join_path(f, r + "/cfg_args")));
+    } else if (r == "deformable3dgs") {
+      seed("seed", read_file(join_path(f, "deformable3dgs/point_cloud/iteration_100/point_cloud.ply")) + kSplit +
+                       read_file(join_path(f, "deformable3dgs/deform/iteration_100/deform.pth")) + kSplit + read_file(join_path(f, "deformable3dgs/cfg_args")));
+    } else if (r == "4dgs") {
+      seed("seed.pth", read_file(join_path(f, "4dgs/chkpnt100.pth")));
+    } else {
+      seed("seed", read_file(join_path(f, "ply_frames/time_00000.ply")) + kSplit + read_file(join_path(f, "ply_frames/time_00001.ply")));
+    }
   } else if (r == "checkpoint") {
     PointSet points;
     points.positions = {Vec3f(0, 0, 0), Vec3f(0.2f, 0, 0.1f), Vec3f(0, 0.2f, -0.1f), Vec3f(0.1f, 0.1f, 0)};

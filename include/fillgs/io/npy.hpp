@@ -18,6 +18,9 @@ struct NpyArray {
 
 NpyArray read_npy(const std::string& path);
 
+/// As read_npy, from bytes held in memory (an .npz entry); `source` names them in errors.
+NpyArray parse_npy(const std::string& bytes, const std::string& source);
+
 /// Writes a C-order array atomically. T: float, double, uint8_t, uint16_t, uint32_t, int32_t, int64_t.
 template <typename T>
 void write_npy(const std::string& path, const T* data, const std::vector<size_t>& shape);

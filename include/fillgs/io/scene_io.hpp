@@ -13,10 +13,13 @@
 
 namespace fillgs {
 
-enum class SceneFormat { Auto, Gaussian3D, Spacetime, Ex4dgs, Fillgs4D };
+enum class SceneFormat { Auto, Gaussian3D, Spacetime, Ex4dgs, Fillgs4D, Ed3dgs, FourDGaussians, FourDGS, Dynamic3DGS, PlyFrames, Deformable3DGS };
 FILLGS_ENUM_NAMES(SceneFormat, "scene format",
     {SceneFormat::Auto, "auto"}, {SceneFormat::Gaussian3D, "3dgs"}, {SceneFormat::Spacetime, "stg"}, {SceneFormat::Ex4dgs, "ex4dgs"},
-    {SceneFormat::Fillgs4D, "fillgs"}, {SceneFormat::Spacetime, "spacetime"});
+    {SceneFormat::Fillgs4D, "fillgs"}, {SceneFormat::Ed3dgs, "e-d3dgs"}, {SceneFormat::FourDGaussians, "4dgaussians"},
+    {SceneFormat::FourDGS, "4dgs"}, {SceneFormat::Dynamic3DGS, "dynamic3dgs"}, {SceneFormat::PlyFrames, "ply-frames"},
+    {SceneFormat::Deformable3DGS, "deformable3dgs"},
+    {SceneFormat::Spacetime, "spacetime"});
 
 struct SceneReadOptions {
   SceneFormat format = SceneFormat::Auto;
@@ -29,6 +32,15 @@ struct SceneReadOptions {
   int ex4dgs_duration = 0;
   int ex4dgs_interval = 0;
   int ex4dgs_pad = -1;
+  /// Trained 4D models (E-D3DGS, 4DGaussians, 4DGS): frames the model covers (0: from its
+  /// files: E-D3DGS's cfg_args), the model-time range they span ("T0:T1"; frame f at
+  /// T0 + f (T1 - T0) / F; empty: 0:1), E-D3DGS's camera whose time offset to use (-1: the
+  /// mean, as its renderer at test views) and the iteration its coarse-to-fine schedule is at
+  /// (-1: the saved one).
+  int model_frames = 0;
+  std::string model_time_range;
+  int model_camera = -1;
+  int model_iteration = -1;
   PartitionOptions partition;
 };
 

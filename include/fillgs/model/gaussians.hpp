@@ -48,6 +48,9 @@ struct KeyframedMotion {
   std::vector<float> rotations;       ///< [M][K][4] raw quaternions; empty: constant (cloud value)
   std::vector<float> log_scales;      ///< [M][K][3]; empty: constant
   std::vector<float> opacity_logits;  ///< [M][K]; empty: constant
+  /// [M][K][3] the SH DC coefficients (colour) per key, linearly interpolated; empty: the
+  /// cloud's constant SH. Higher SH bands stay constant in time.
+  std::vector<float> colours;
   /// Ex4DGS temporal opacity, [M][4]: c0, c1, v0, v1 in key units; empty: none.
   std::vector<float> temporal_opacity;
   double temporal_width_pad = 0.0;  ///< Ex4DGS var_pad / (2.36 * I)
@@ -68,6 +71,7 @@ struct GaussianCloud {
   KeyframedMotion keyframed;
 
   std::vector<std::string> notes;     ///< what the reader approximated, for `info`
+  std::string model_times;            ///< the model's own time at t = 0 … 1, where it has one (trained models), for `info`
 
   size_t size() const { return means.size(); }
   int sh_count() const { return (sh_degree + 1) * (sh_degree + 1); }
@@ -90,8 +94,26 @@ struct FrameGaussians {
   std::vector<Vec3f> scales;     ///< exp(log-scale)
   std::vector<Vec4f> rotations;  ///< unit quaternions
   std::vector<float> opacities;  ///< sigmoid(logit) times any temporal factor
-  const float* sh = nullptr;     ///< the cloud's SH array ([N][K][3]); constant in time
+  const float* sh = nullptr;     ///< [N][K][3]: the cloud's SH array, or sh_storage where colour is keyed
+  std::vector<float> sh_storage; ///< the SH at `time` when the cloud has colour keys; empty otherwise
   size_t size() const { return means.size(); }
+
+  FrameGaussians() = default;
+  FrameGaussians(FrameGaussians&&) = default;  // a moved vector keeps its buffer: `sh` stays valid
+  FrameGaussians& operator=(FrameGaussians&&) = default;
+  FrameGaussians(const FrameGaussians& o) { *this = o; }
+  /// Copies; `sh` then points into the copy's own storage where colour is keyed.
+  FrameGaussians& operator=(const FrameGaussians& o) {
+    time = o.time;
+    sh_degree = o.sh_degree;
+    means = o.means;
+    scales = o.scales;
+    rotations = o.rotations;
+    opacities = o.opacities;
+    sh_storage = o.sh_storage;
+    sh = sh_storage.empty() ? o.sh : sh_storage.data();
+    return *this;
+  }
 };
 
 /// The Gaussians of a cloud at any time, touching only the dynamic set after the first call.

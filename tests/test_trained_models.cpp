@@ -1,0 +1,272 @@
+// Trained 4D models (E-D3DGS, 4DGaussians, 4DGS, Dynamic 3D Gaussians, per-frame PLYs)
+// against what PyTorch evaluates from the same files. The files and the expected values are
+// made by tests/make_model_fixtures.py (real PyTorch, each repository's architecture and
+// save call); CTest runs it first and points FILLGS_MODEL_FIXTURES at its output.
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "cli_run.hpp"
+#include "helpers.hpp"
+#include "fillgs/base/error.hpp"
+#include "fillgs/io/npy.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/io/torch_file.hpp"
+#include "fillgs/io/trained_models.hpp"
+#include "fillgs/model/frame_grid.hpp"
+
+namespace fs = std::filesystem;
+using namespace fillgs;
+using fillgs::test::run_cli;
+
+namespace {
+
+std::string fixtures() {
+  const char* d = std::getenv("FILLGS_MODEL_FIXTURES");
+  REQUIRE(d != nullptr);  // CTest sets it after running tests/make_model_fixtures.py
+  REQUIRE(fs::is_directory(d));
+  return d;
+}
+
+struct Expect {
+  std::map<std::string, std::vector<double>> arrays;
+  std::map<std::string, std::vector<size_t>> shapes;
+  const std::vector<double>& operator[](const std::string& k) const { return arrays.at(k); }
+  bool has(const std::string& k) const { return arrays.count(k) != 0; }
+};
+
+Expect read_expect(const std::string& dir) {
+  const std::string path = dir + "/expect.npz";
+  const ZipArchive zip(path);
+  Expect e;
+  for (const std::string& n : zip.names()) {
+    const NpyArray a = parse_npy(zip.read(n), path);
+    const std::string key = n.substr(0, n.size() - 4);
+    e.arrays[key] = a.to_doubles(path);
+    e.shapes[key] = a.shape;
+  }
+  return e;
+}
+
+/// |a - b| <= 1e-5 (|b| + mean |b| of the quantity): relative, with the quantity's own scale
+/// for values near zero.
+void check_close(const std::vector<double>& got, const std::vector<double>& want, size_t from, const std::string& what) {
+  double scale = 0;
+  for (size_t i = 0; i < got.size(); ++i) scale += std::fabs(want[from + i]);
+  scale /= double(std::max<size_t>(1, got.size()));
+  double worst = 0;
+  size_t at = 0;
+  for (size_t i = 0; i < got.size(); ++i) {
+    const double err = std::fabs(got[i] - want[from + i]) / (std::fabs(want[from + i]) + scale);
+    if (err > worst) {
+      worst = err;
+      at = i;
+    }
+  }
+  INFO(what << ": worst relative error " << worst << " at element " << at << " (got " << got[at] << ", PyTorch " << want[from + at] << ")");
+  CHECK(worst <= 1e-5);
+}
+
+SceneReadOptions options_for(const std::string& name) {
+  SceneReadOptions o;
+  if (name == "4dgaussians") o.model_frames = 10;
+  if (name.rfind("deformable3dgs", 0) == 0) o.model_frames = 9;
+  if (name.rfind("4dgs", 0) == 0) {
+    o.model_frames = 10;
+    o.model_time_range = "0:2";
+  }
+  return o;
+}
+
+/// The activated values a renderer gets, in the fixture's layout.
+struct Activated {
+  std::vector<double> means, scales, rotations, cov, opacities, sh;
+};
+
+Activated activate(const ModelState& s) {
+  Activated a;
+  for (size_t i = 0; i < s.size(); ++i) {
+    const Vec4f q = normalize_quat(s.rotations[i]);
+    Vec3d sc;
+    for (int k = 0; k < 3; ++k) {
+      a.means.push_back(s.means[i][k]);
+      sc[k] = std::exp(double(s.log_scales[i][k]));
+      a.scales.push_back(sc[k]);
+    }
+    for (int k = 0; k < 4; ++k) a.rotations.push_back(q[k]);
+    const Mat3d R = quat_to_matrix(Vec4d(q.cast<double>()));
+    const Mat3d C = R * sc.cwiseAbs2().asDiagonal() * R.transpose();
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) a.cov.push_back(C(r, c));
+    a.opacities.push_back(sigmoid(double(s.opacity_logits[i])) * (s.opacity_factor.empty() ? 1.0 : s.opacity_factor[i]));
+  }
+  a.sh.assign(s.sh.begin(), s.sh.end());
+  return a;
+}
+
+void check_model(const std::string& name) {
+  const std::string dir = fixtures() + "/" + name;
+  const Expect e = read_expect(dir);
+  const SceneFormat f = detect_scene_format(dir);
+  const auto model = open_trained_model(dir, f, options_for(name));
+  const size_t T = e.shapes.at("times")[0], N = e.shapes.at("means")[1];
+  REQUIRE(model->size() == N);
+  for (size_t k = 0; k < T; ++k) {
+    const double t = e["times"][k];
+    const Activated a = activate(model->at(t));
+    const std::string at = name + " at model time " + std::to_string(t);
+    check_close(a.means, e["means"], k * N * 3, at + ": positions");
+    if (e.has("cov")) {
+      check_close(a.cov, e["cov"], k * N * 9, at + ": covariances");
+    } else {
+      check_close(a.scales, e["scales"], k * N * 3, at + ": scales");
+      check_close(a.rotations, e["rotations"], k * N * 4, at + ": rotations");
+    }
+    check_close(a.opacities, e["opacities"], k * N, at + ": opacities");
+    check_close(a.sh, e["sh"], k * a.sh.size(), at + ": SH");
+  }
+}
+
+}  // namespace
+
+TEST_CASE("E-D3DGS: positions, scales, rotations, opacities, SH equal PyTorch's at frames and between", "[trained-models]") {
+  check_model("ed3dgs");        // coarse embedding at min_embeddings, fine at the full table, opacity deformed
+  check_model("ed3dgs_early");  // mid coarse-to-fine (12 of 20 rows), annealing at half strength
+}
+
+TEST_CASE("4DGaussians: HexPlane sampling and MLP heads equal PyTorch's", "[trained-models]") { check_model("4dgaussians"); }
+
+TEST_CASE("4DGS: the 3D Gaussian at t (4D and 3D rotations), temporal marginal and time SH equal PyTorch's", "[trained-models]") {
+  check_model("4dgs");
+  check_model("4dgs_3drot");
+}
+
+TEST_CASE("Deformable 3D Gaussians: encoded MLP with skip, with and without its time network, equals PyTorch's", "[trained-models]") {
+  check_model("deformable3dgs");
+  check_model("deformable3dgs_blender");
+}
+
+TEST_CASE("Dynamic 3D Gaussians and per-frame PLYs: every frame as saved", "[trained-models]") {
+  check_model("dynamic3dgs");
+  check_model("ply_frames");
+}
+
+TEST_CASE("a trained model read as a scene gives PyTorch's values at its frames, static Gaussians static", "[trained-models]") {
+  for (const std::string name : {"ed3dgs", "4dgaussians", "4dgs", "deformable3dgs", "dynamic3dgs", "ply_frames"}) {
+    const std::string dir = fixtures() + "/" + name;
+    const Expect e = read_expect(dir);
+    const SceneReadOptions o = options_for(name);
+    const GaussianCloud c = read_scene(dir, o);
+    const auto model = open_trained_model(dir, detect_scene_format(dir), o);
+    const FrameGrid grid(model->frames);
+    FrameSampler sampler(c);
+    const size_t N = c.size(), K = size_t(c.sh_count()) * 3;
+    for (size_t k = 0; k < e.shapes.at("times")[0]; ++k) {
+      // Which frame is this time? (the fixtures evaluate some frames and some times between)
+      const double t = e["times"][k];
+      int frame = -1;
+      for (int f = 0; f < model->frames; ++f)
+        if (std::fabs(model->frame_time(f) - t) < 1e-9) frame = f;
+      if (frame < 0) continue;
+      const FrameGaussians& g = sampler.at(grid.time(frame));
+      std::vector<double> means, opac, dc, want_dc;
+      for (size_t i = 0; i < N; ++i) {
+        for (int a = 0; a < 3; ++a) {
+          means.push_back(g.means[i][a]);
+          dc.push_back(g.sh[i * K + size_t(a)]);
+          want_dc.push_back(e["sh"][(k * N + i) * K + size_t(a)]);
+        }
+        opac.push_back(g.opacities[i]);
+      }
+      const std::string at = name + " frame " + std::to_string(frame);
+      check_close(means, e["means"], k * N * 3, at + ": positions");
+      check_close(dc, want_dc, 0, at + ": colour (SH DC)");
+      // Opacity through a logit clamped at 1e-7: compared absolutely.
+      for (size_t i = 0; i < N; ++i) REQUIRE(std::fabs(opac[i] - e["opacities"][k * N + i]) < 2e-6);
+    }
+  }
+  // The fixtures' still Gaussians (a third of Dynamic 3D Gaussians', half of the PLY frames') are static.
+  CHECK(read_scene(fixtures() + "/dynamic3dgs").static_count() == 250 / 3);
+  CHECK(read_scene(fixtures() + "/ply_frames").static_count() == 100);
+}
+
+TEST_CASE("colour keys survive the fillgs 4D PLY and per-frame folders round-trip bit for bit", "[trained-models]") {
+  const std::string tmp = test::scratch("trained_roundtrip");
+  const GaussianCloud c = read_scene(fixtures() + "/dynamic3dgs");
+  REQUIRE(!c.keyframed.colours.empty());
+  write_fillgs_ply(tmp + "/model.ply", c);
+  const GaussianCloud back = read_scene(tmp + "/model.ply");
+  REQUIRE(back.keyframed.colours.size() == c.keyframed.colours.size());
+  FrameSampler a(c), b(back);
+  for (int f = 0; f < 8; ++f) {
+    const double t = FrameGrid(8).time(f);
+    const FrameGaussians &x = a.at(t), &y = b.at(t);
+    // Static first in the file: compare by sorting both into (static, dynamic) order.
+    std::vector<uint32_t> order = c.static_ids();
+    order.insert(order.end(), c.dynamic_ids.begin(), c.dynamic_ids.end());
+    for (size_t i = 0; i < order.size(); ++i) {
+      REQUIRE(x.means[order[i]] == y.means[i]);
+      for (int ch = 0; ch < 3; ++ch) REQUIRE(x.sh[order[i] * 3 + size_t(ch)] == y.sh[i * 3 + size_t(ch)]);
+    }
+  }
+  // Per-frame folder -> fillgs convert --to frames -> read as a folder -> convert again: the same bytes.
+  const std::string src = fixtures() + "/ply_frames";
+  REQUIRE(run_cli({"convert", "--scene", src, "--to", "frames", "--out", tmp + "/once", "--quiet"}).code == 0);
+  REQUIRE(run_cli({"convert", "--scene", tmp + "/once", "--to", "frames", "--out", tmp + "/twice", "--quiet"}).code == 0);
+  size_t files = 0;
+  for (const auto& e : fs::directory_iterator(tmp + "/once")) {
+    if (e.path().extension() != ".ply") continue;
+    ++files;
+    std::ifstream p(e.path(), std::ios::binary), q(tmp + "/twice/" + e.path().filename().string(), std::ios::binary);
+    std::stringstream ps, qs;
+    ps << p.rdbuf();
+    qs << q.rdbuf();
+    REQUIRE(ps.str() == qs.str());
+  }
+  CHECK(files == 6);
+}
+
+TEST_CASE("trained models: the bare canonical PLY and broken files are refused with one line, nothing written", "[trained-models]") {
+  const std::string tmp = test::scratch("trained_refusals");
+  const std::string F = fixtures();
+  struct Case {
+    std::string path, says;
+  };
+  const std::vector<Case> cases = {
+      {F + "/ed3dgs/point_cloud/iteration_14000/point_cloud.ply", "canonical point cloud of an E-D3DGS model"},
+      {F + "/4dgaussians/point_cloud/iteration_14000/point_cloud.ply", "canonical point cloud of a deformation model (deformation.pth lies beside it)"},
+      {F + "/broken_shape", "key 'pos_deform_f.3.bias' has shape [3], expected [5]"},
+      {F + "/broken_missing", "key 'scales_deform_c.1.bias' missing"},
+      {F + "/broken_truncated", "truncated"},
+      {F + "/broken_not_state_dict", "is a list, not a state dict"},
+      {F + "/4dgaussians", "give --model-frames"},
+      {F + "/4dgs", "--model-time-range"},
+      {F + "/deformable3dgs/point_cloud/iteration_40000/point_cloud.ply", "Deformable 3D Gaussians model (a deform/ folder lies beside it)"},
+      {F + "/deformable3dgs", "give --model-frames"},
+  };
+  int k = 0;
+  for (const Case& c : cases) {
+    const std::string out = tmp + "/out" + std::to_string(k++) + ".ply";
+    for (const std::vector<std::string>& args : {std::vector<std::string>{"info", c.path},
+                                                 std::vector<std::string>{"convert", "--scene", c.path, "--to", "fillgs", "--frames", "4", "--out", out}}) {
+      const auto r = run_cli(args);
+      INFO(args[0] << " " << c.path << " -> " << r.err);
+      CHECK(r.code == 1);
+      CHECK(r.err.find(c.says) != std::string::npos);
+      CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+      CHECK(!fs::exists(out));
+    }
+  }
+  // A 3DGS PLY of a static scene stays readable: the guard looks only at deformation models.
+  CHECK(run_cli({"info", F + "/ply_frames/time_00000.ply"}).code == 0);
+}
+
+TEST_CASE("cfg_args: Python literals read as JSON, bad ones refused with a position", "[trained-models]") {
+  CHECK(python_literal_to_json("Namespace(a=1, b='x', c=[1, 2.5], d={'k': True}, e=None, f=-3e-4, g=(1,))", "cfg") ==
+        R"({"a":1,"b":"x","c":[1,2.5],"d":{"k":true},"e":null,"f":-0.0003,"g":[1]})");
+  CHECK_THROWS_WITH(python_literal_to_json("Namespace(a=1", "cfg"), Catch::Contains("cfg: ") && Catch::Contains("at character"));
+  CHECK_THROWS_WITH(python_literal_to_json("Namespace(a=os.system('x'))", "cfg"), Catch::Contains("is not a literal"));
+}
