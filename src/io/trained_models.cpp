@@ -413,6 +413,26 @@ void set_times(TrainedModel& m, int frames, std::pair<double, double> range) {
   m.time_last = range.first + (range.second - range.first) * double(frames - 1) / double(frames);
 }
 
+/// A deformation model's run: its iteration folder (point_cloud.ply + deformation.pth) and
+/// its settings (cfg_args two folders up).
+struct DeformationRun {
+  RunFolder folder;
+  std::string cfg_path, ply_path, pth;
+  nlohmann::json cfg;
+};
+
+DeformationRun open_run(const std::string& path, TrainedModel& m, const char* code) {
+  DeformationRun r;
+  r.folder = run_folder(path, "deformation.pth");
+  m.source = r.folder.iteration_dir;
+  r.cfg_path = join_path(r.folder.run, "cfg_args");
+  r.cfg = read_cfg_args(r.cfg_path);
+  if (r.cfg.empty()) m.notes.push_back(std::string("no cfg_args beside the model: ") + code + "'s defaults used");
+  r.ply_path = join_path(r.folder.iteration_dir, "point_cloud.ply");
+  r.pth = join_path(r.folder.iteration_dir, "deformation.pth");
+  return r;
+}
+
 // ---------------------------------------------------------------------------------
 // E-D3DGS
 
@@ -420,12 +440,10 @@ class Ed3dgs : public TrainedModel {
  public:
   Ed3dgs(const std::string& path, const SceneReadOptions& opt) {
     format = SceneFormat::Ed3dgs;
-    const RunFolder rf = run_folder(path, "deformation.pth");
-    source = rf.iteration_dir;
-    const std::string cfg_path = join_path(rf.run, "cfg_args");
-    const nlohmann::json c = read_cfg_args(cfg_path);
-    if (c.empty()) notes.push_back("no cfg_args beside the model: E-D3DGS's defaults used");
-    const std::string ply_path = join_path(rf.iteration_dir, "point_cloud.ply");
+    const DeformationRun run = open_run(path, *this, "E-D3DGS");
+    const RunFolder& rf = run.folder;
+    const std::string &cfg_path = run.cfg_path, &ply_path = run.ply_path, &pth = run.pth;
+    const nlohmann::json& c = run.cfg;
     const PlyData ply = read_ply(ply_path);
     const PlyElement& v = ply.element("vertex");
     canonical_ = read_canonical(v, ply_path);
@@ -437,7 +455,6 @@ class Ed3dgs : public TrainedModel {
       const auto& col = v.finite_column(emb[d]);
       for (size_t i = 0; i < v.count; ++i) embedding_[i * emb.size() + d] = col[i];
     }
-    const std::string pth = join_path(rf.iteration_dir, "deformation.pth");
     const TorchFile tf(pth);
     const StateDict sd(tf, tf.root(), "deformation.pth");
     // Settings (cfg_args, E-D3DGS's ModelHiddenParams defaults otherwise).
@@ -603,14 +620,10 @@ class FourDGaussians : public TrainedModel {
  public:
   FourDGaussians(const std::string& path, const SceneReadOptions& opt) {
     format = SceneFormat::FourDGaussians;
-    const RunFolder rf = run_folder(path, "deformation.pth");
-    source = rf.iteration_dir;
-    const std::string cfg_path = join_path(rf.run, "cfg_args");
-    const nlohmann::json c = read_cfg_args(cfg_path);
-    if (c.empty()) notes.push_back("no cfg_args beside the model: 4DGaussians' defaults used");
-    const std::string ply_path = join_path(rf.iteration_dir, "point_cloud.ply");
+    const DeformationRun run = open_run(path, *this, "4DGaussians");
+    const std::string &cfg_path = run.cfg_path, &ply_path = run.ply_path, &pth = run.pth;
+    const nlohmann::json& c = run.cfg;
     canonical_ = read_canonical(read_ply(ply_path).element("vertex"), ply_path);
-    const std::string pth = join_path(rf.iteration_dir, "deformation.pth");
     const TorchFile tf(pth);
     const StateDict sd(tf, tf.root(), "deformation.pth");
     for (const char* k : {"no_grid", "static_mlp", "empty_voxel", "apply_rotation"})
