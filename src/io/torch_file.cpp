@@ -561,6 +561,11 @@ TorchTensor TorchFile::tensor(Ref r, const std::string& what) const {
   const size_t have = data.size() / item;
   if (numel > 0 && (last >= have || size_t(st.offset) > have))
     throw_error(source_, ": ", what, " of shape ", out.shape_text(), " reaches element ", last, " of a storage of ", have);
+  // Zero strides repeat elements; a saved parameter repeats none, so a tensor far larger than
+  // its storage is a corrupt header, not data.
+  if (numel > 64 * std::max<size_t>(have, 1) + 1024)
+    throw_error(source_, ": ", what, " of shape ", out.shape_text(), " has ", numel, " elements from a storage of ", have);
+  check_allocation(checked_mul(numel, sizeof(float), source_, what + " size"), source_, what);
   out.values.resize(numel);
   std::vector<int64_t> idx(t.shape.size(), 0);
   for (size_t i = 0; i < numel; ++i) {

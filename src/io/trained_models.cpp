@@ -12,6 +12,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <type_traits>
 
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/fs_util.hpp"
@@ -168,6 +169,15 @@ nlohmann::json read_cfg_args(const std::string& path) {
 template <typename T>
 T cfg(const nlohmann::json& j, const std::string& key, T fallback, const std::string& source) {
   if (!j.contains(key) || j[key].is_null()) return fallback;
+  if constexpr (std::is_same_v<T, int>) {
+    const double v = j[key].is_number() ? j[key].get<double>() : std::nan("");
+    if (!(v >= -1e9 && v <= 1e9) || v != std::floor(v))
+      throw_error(source, ": setting '", key, "' is not an integer in [-1e9, 1e9] (", j[key].dump().substr(0, 40), ")");
+    return int(v);
+  }
+  if constexpr (std::is_same_v<T, bool>) {
+    if (!j[key].is_boolean()) throw_error(source, ": setting '", key, "' is not True or False (", j[key].dump().substr(0, 40), ")");
+  }
   try {
     return j[key].get<T>();
   } catch (const std::exception&) {
@@ -645,7 +655,8 @@ class FourDGaussians : public TrainedModel {
       for (int p = 0; p < 6; ++p) {
         const std::string key = "deformation_net.grid.grids." + std::to_string(s) + "." + std::to_string(p);
         TorchTensor t = sd.get(key);
-        if (t.shape.size() != 4 || t.shape[0] != 1) throw_error(pth, ": key '", key, "' has shape ", t.shape_text(), ", expected [1, C, H, W]");
+        if (t.shape.size() != 4 || t.shape[0] != 1 || t.shape[1] < 1 || t.shape[2] < 1 || t.shape[3] < 1)
+          throw_error(pth, ": key '", key, "' has shape ", t.shape_text(), ", expected [1, C, H, W] with C, H, W >= 1");
         if (p > 0) sd.expect(key, t, {1, sc.planes[0].shape[1], -1, -1});
         sc.planes[p] = std::move(t);
       }
@@ -776,7 +787,7 @@ class Deformable3dgs : public TrainedModel {
       l.b = Eigen::Map<const Eigen::RowVectorXf>(b.values.data(), l.out);
       layers_.push_back(std::move(l));
     }
-    if (layers_.empty()) throw_error(pth, ": key 'linear.0.weight' missing");
+    if (layers_.size() < 2) throw_error(pth, ": ", layers_.size(), " 'linear.*' layers; its network has at least 2 (the skip joins after the middle one)");
     skip_ = int(layers_.size()) / 2;
     t_freqs_ = blender_ ? 6 : 10;
     const int x_in = 3 * (1 + 2 * 10), t_in = 1 + 2 * t_freqs_;
