@@ -2,8 +2,9 @@
 # Reads every trained-model format the field's codebases save, end to end: PyTorch saves one
 # model per format with the architecture of its code's N3V configuration and N Gaussians
 # (tests/make_model_fixtures.py --bench), then `fillgs info` and `fillgs observe` (ray traced,
-# four cameras, every frame) run on each. Writes OUT/results.md (a table with provenance)
-# and OUT/results.json.
+# four cameras, every frame) run on each. Writes OUT/results.md (a table with provenance),
+# OUT/results.json and each command's JSON summary; the models themselves are made in a
+# scratch folder and removed.
 #
 #   bench/trained_models.sh [--fillgs BIN] [--gaussians N] [--frames F] [--smoke] OUT
 #
@@ -28,7 +29,10 @@ done
 [ -n "$out" ] || { echo "bench/trained_models.sh: give the output folder" >&2; exit 2; }
 python="${FILLGS_TORCH_PYTHON:-/usr/bin/python3}"
 mkdir -p "$out"
-models="$out/models"
+# The models and the observation tables are large: they live in a scratch folder, removed at the end.
+work="$(mktemp -d "${TMPDIR:-/tmp}/fillgs_trained_models.XXXXXX")"
+trap 'rm -rf "$work"' EXIT
+models="$work/models"
 command_line="bench/trained_models.sh --gaussians $gaussians --frames $frames"
 echo "making the models ($gaussians Gaussians, $frames frames) ..."
 "$python" "$root/tests/make_model_fixtures.py" --bench "$gaussians" --frames "$frames" "$models" >/dev/null
@@ -65,7 +69,8 @@ for fmt in e-d3dgs 4dgaussians 4dgs deformable3dgs dynamic3dgs ply-frames; do
   "$fillgs" info --json ${flags[$fmt]} "$model" >"$out/$fmt.info.json"
   t1=$(date +%s.%N)
   # shellcheck disable=SC2086
-  "$fillgs" observe --quiet --scene "$model" ${flags[$fmt]} --cameras "$out/cameras.json" --mode raytraced --no-plots --out "$out/observe-$fmt" >/dev/null
+  "$fillgs" observe --quiet --scene "$model" ${flags[$fmt]} --cameras "$out/cameras.json" --mode raytraced --no-plots --out "$work/observe-$fmt" >/dev/null
+  cp "$work/observe-$fmt/summary.json" "$out/$fmt.observe.json"
   t2=$(date +%s.%N)
   read -r n dyn keys < <("$python" -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["gaussians"], j["dynamic"], j.get("keyframes", 1))' "$out/$fmt.info.json")
   read_s=$(awk "BEGIN{printf \"%.1f\", $t1-$t0}")
