@@ -1,5 +1,5 @@
-// libFuzzer harness for one fillgs reader (tests/README.md, "Robustness"). Built once per reader with
-// FILLGS_FUZZ_READER set to its name; every harness writes the input to files in its own
+// libFuzzer harness for one fillgs reader (tests/README.md, "Robustness"). Compiled once and linked
+// into one executable per reader, fuzz_<reader>, whose name picks the reader; every harness writes the input to files in its own
 // temporary folder and reads them back the way the command line does.
 //
 // The contract a harness enforces: any input either reads, or fails with a fillgs::Error
@@ -66,9 +66,8 @@ std::string put(const std::string& name, const std::string& bytes) {
   return path;
 }
 
-#define FILLGS_STR2(x) #x
-#define FILLGS_STR(x) FILLGS_STR2(x)
-const std::string kReader = FILLGS_STR(FILLGS_FUZZ_READER);
+/// The reader this executable fuzzes: its name without "fuzz_" (set by LLVMFuzzerInitialize).
+std::string kReader;
 
 /// One 8×6 view, for the checkpoint reader (a checkpoint is read against its dataset).
 const Dataset& tiny_dataset() {
@@ -178,7 +177,7 @@ void read_one(const std::string& data) {
     o.iterations = 1;
     Trainer::resume(tiny_dataset(), put("latest.ckpt", data), o);
   } else {
-    std::abort();  // an unknown harness name is a build error, not a finding
+    std::abort();  // an executable named for no reader is a build error, not a finding
   }
 }
 
@@ -382,7 +381,14 @@ void make_seeds(const std::string& dir) {
 
 }  // namespace
 
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
+extern "C" int LLVMFuzzerInitialize(int* argc, char*** argv) {
+  // One object file serves every harness: the executable's name says which reader it is.
+  const std::string self = *argc > 0 ? fs::path((*argv)[0]).filename().string() : "";
+  if (self.rfind("fuzz_", 0) != 0) {
+    std::fprintf(stderr, "fuzz harness: run it as fuzz_<reader> (got '%s')\n", self.c_str());
+    std::exit(1);
+  }
+  kReader = self.substr(5);
   if (const char* dir = std::getenv("FILLGS_FUZZ_SEEDS")) {
     try {
       make_seeds(dir);
