@@ -536,6 +536,19 @@ def make_bench(out, n, frames):
     make_deformable3dgs(out, "deformable3dgs", 26, is_blender=False, n=n, frames=frames, width=256, expect=False)
 
 
+def make_dtypes(out):
+    """Tensors of every dtype a state dict may hold, one of them a transposed view (strides
+    (1, 3)), and their values as float64 written by NumPy: the .pth reader's conversions."""
+    base = torch.tensor([[1.5, -2.0, 65504.0], [6.0e-8, 0.1, -0.0]])
+    sd = {"f32": base, "f64": base.double(), "f16": base.half(), "bf16": base.bfloat16(), "i64": torch.tensor([-3, 0, 2 ** 40]),
+          "i32": torch.tensor([-7, 5], dtype=torch.int32), "u8": torch.tensor([0, 255], dtype=torch.uint8),
+          "bool": torch.tensor([True, False, True]), "t": base.t()}
+    d = os.path.join(out, "dtypes")
+    os.makedirs(d)
+    torch.save(sd, os.path.join(d, "tensors.pth"))
+    np.savez(os.path.join(d, "expect.npz"), **{k: v.float().numpy().astype(np.float64) for k, v in sd.items()})
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("out")
@@ -561,6 +574,7 @@ def main():
     make_deformable3dgs(out, "deformable3dgs_blender", 9, is_blender=True)
     make_ply_frames(out, "ply_frames", 7)
     make_broken(out, ed)
+    make_dtypes(out)
     # Tiny copies: the fuzz harnesses' seeds (tests/fuzz, bench/fuzz).
     fz = os.path.join(out, "fuzz")
     os.makedirs(fz)

@@ -264,6 +264,25 @@ TEST_CASE("trained models: the bare canonical PLY and broken files are refused w
   CHECK(run_cli({"info", F + "/ply_frames/time_00000.ply"}).code == 0);
 }
 
+TEST_CASE(".pth tensors of every dtype and strides read as PyTorch converts them to float", "[trained-models]") {
+  const std::string dir = fixtures() + "/dtypes";
+  const TorchFile tf(dir + "/tensors.pth");
+  const Expect e = read_expect(dir);
+  size_t seen = 0;
+  for (const auto& [key, ref] : tf.string_entries(tf.root(), "tensors.pth")) {
+    const TorchTensor t = tf.tensor(ref, key);
+    const std::vector<double>& want = e[key];
+    REQUIRE(t.values.size() == want.size());
+    for (size_t i = 0; i < want.size(); ++i) {
+      INFO(key << " element " << i);
+      CHECK(double(t.values[i]) == want[i]);  // exact: both are the same float conversion
+    }
+    ++seen;
+  }
+  CHECK(seen == 9);
+  CHECK(tf.tensor(tf.find(tf.root(), "t"), "t").shape_text() == "[3, 2]");
+}
+
 TEST_CASE("cfg_args: Python literals read as JSON, bad ones refused with a position", "[trained-models]") {
   CHECK(python_literal_to_json("Namespace(a=1, b='x', c=[1, 2.5], d={'k': True}, e=None, f=-3e-4, g=(1,))", "cfg") ==
         R"({"a":1,"b":"x","c":[1,2.5],"d":{"k":true},"e":null,"f":-0.0003,"g":[1]})");

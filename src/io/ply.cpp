@@ -1,5 +1,6 @@
 #include "fillgs/io/ply.hpp"
 
+#include <fstream>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -371,6 +372,18 @@ void write_ply(const std::string& path, const PlyData& data) {
     }
   }
   write_file_atomically(path, out);
+}
+
+std::string read_ply_header(const std::string& path) {
+  require_regular_file(path);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw_error(path, ": cannot open");
+  std::string header, line;
+  while (std::getline(in, line)) {
+    header += line + "\n";
+    if (line.rfind("end_header", 0) == 0 || header.size() > (1 << 20)) break;
+  }
+  return header;
 }
 
 }  // namespace fillgs

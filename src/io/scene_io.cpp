@@ -40,19 +40,6 @@ std::pair<std::string, std::string> ex4dgs_pair(const std::string& path) {
   return {};
 }
 
-/// Reads the header of a PLY only (up to end_header) to sniff the format cheaply.
-std::string read_header(const std::string& path) {
-  require_regular_file(path);
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw_error(path, ": cannot open");
-  std::string header, line;
-  while (std::getline(in, line)) {
-    header += line + "\n";
-    if (line.rfind("end_header", 0) == 0 || header.size() > (1 << 20)) break;
-  }
-  return header;
-}
-
 int sh_degree_of(const PlyElement& v, const std::string& rest_prefix) {
   const size_t n = v.indexed_properties(rest_prefix).size();
   if (n % 3 != 0) throw_error(v.source, ": ", n, " '", rest_prefix, "*' properties is not a multiple of 3");
@@ -460,7 +447,7 @@ SceneFormat detect_scene_format(const std::string& path) {
   if (fs::is_directory(path, ec))
     throw_error(path, ": a folder that holds no model fillgs reads (Ex4DGS pair, E-D3DGS, 4DGaussians or Deformable 3D Gaussians run, 4DGS chkpnt*.pth, "
                       "params.npz, time_*.ply / frame_*.ply frames); give a file or --scene-format");
-  const std::string header = read_header(path);
+  const std::string header = read_ply_header(path);
   if (header.compare(0, 3, "ply") != 0) throw_error(path, ": not a PLY file (missing 'ply' magic line)");
   if (header.find(kFillgsMagic) != std::string::npos) return SceneFormat::Fillgs4D;
   if (header.find(" trbf_center\n") != std::string::npos) return SceneFormat::Spacetime;
@@ -474,7 +461,7 @@ GaussianCloud read_scene(const std::string& path, const SceneReadOptions& option
     GaussianCloud c;
     switch (f) {
       case SceneFormat::Gaussian3D:
-        refuse_canonical_ply(path, read_header(path));
+        if (options.format != SceneFormat::Auto) refuse_canonical_ply(path, read_ply_header(path));  // detection did it otherwise
         c = read_3dgs(path);
         break;
       case SceneFormat::Ed3dgs:

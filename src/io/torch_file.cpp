@@ -2,6 +2,8 @@
 
 #include <zlib.h>
 
+#include <Eigen/Core>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -145,24 +147,9 @@ std::string ZipArchive::read(const std::string& name) const {
 // ---------------------------------------------------------------------------------
 // Pickle
 
-const char* PickleValues::kind_name(Ref r) const {
-  switch (kind(r)) {
-    case Kind::None: return "None";
-    case Kind::Bool: return "bool";
-    case Kind::Int: return "int";
-    case Kind::Float: return "float";
-    case Kind::Str: return "str";
-    case Kind::Bytes: return "bytes";
-    case Kind::Tuple: return "tuple";
-    case Kind::List: return "list";
-    case Kind::Dict: return "dict";
-    case Kind::Global: return "global";
-    case Kind::Tensor: return "tensor";
-    case Kind::Storage: return "storage";
-    case Kind::Object: return "object";
-    case Kind::Mark: return "mark";
-  }
-  return "?";
+const char* PickleValues::kind_text(Kind k) {
+  static const char* const names[] = {"None", "bool", "int", "float", "str", "bytes", "tuple", "list", "dict", "global", "tensor", "storage", "object", "mark"};
+  return names[int(k)];
 }
 
 double PickleValues::number(Ref r) const { return kind(r) == Kind::Float ? values_[r].f : double(values_[r].i); }
@@ -395,10 +382,7 @@ class PickleMachine {
     auto& items = v_[dict].items;
     items.insert(items.end(), kv.begin(), kv.end());
   }
-  const char* kind_name(Ref r) const {
-    static const char* names[] = {"None", "bool", "int", "float", "str", "bytes", "tuple", "list", "dict", "global", "tensor", "storage", "object", "mark"};
-    return names[int(v_[r].kind)];
-  }
+  const char* kind_name(Ref r) const { return PickleValues::kind_text(v_[r].kind); }
   // BINPERSID: ('storage', storage_type, key, location, numel)
   Ref storage(Ref pid) {
     const auto& t = v_[pid];
@@ -517,30 +501,6 @@ std::string TorchTensor::shape_text() const {
   return s + "]";
 }
 
-namespace {
-
-float half_to_float(uint16_t h) {
-  const uint32_t sign = uint32_t(h >> 15) << 31, exp = (h >> 10) & 31, mant = h & 1023;
-  uint32_t bits;
-  if (exp == 0) {
-    if (mant == 0) {
-      bits = sign;
-    } else {  // subnormal
-      const float f = std::ldexp(float(mant), -24);
-      return sign ? -f : f;
-    }
-  } else if (exp == 31) {
-    bits = sign | 0x7f800000u | (mant << 13);
-  } else {
-    bits = sign | ((exp + 112) << 23) | (mant << 13);
-  }
-  float f;
-  std::memcpy(&f, &bits, 4);
-  return f;
-}
-
-}  // namespace
-
 TorchTensor TorchFile::tensor(Ref r, const std::string& what) const {
   if (kind(r) != Kind::Tensor) throw_error(source_, ": ", what, " is a ", kind_name(r), ", not a tensor");
   const Value& t = values_[r];
@@ -580,10 +540,9 @@ TorchTensor TorchFile::tensor(Ref r, const std::string& what) const {
       std::memcpy(&d, p, 8);
       v = float(d);
     } else if (out.dtype == "float16") {
-      v = half_to_float(uint16_t(le(data, e * 2, 2)));
+      v = float(Eigen::numext::bit_cast<Eigen::half>(uint16_t(le(data, e * 2, 2))));
     } else if (out.dtype == "bfloat16") {
-      const uint32_t bits = uint32_t(le(data, e * 2, 2)) << 16;
-      std::memcpy(&v, &bits, 4);
+      v = float(Eigen::numext::bit_cast<Eigen::bfloat16>(uint16_t(le(data, e * 2, 2))));
     } else if (out.dtype == "int64") {
       v = float(int64_t(le(data, e * 8, 8)));
     } else if (out.dtype == "int32") {

@@ -251,6 +251,23 @@ struct Linear {
     return y;
   }
 };
+/// `t` with its shape checked against `shape` (-1: any) and every value finite; `what`
+/// names it in the one-line error ("key 'weight'", "entry 4 (_scaling)").
+TorchTensor checked(TorchTensor t, const std::string& source, const std::string& what, const std::vector<int64_t>& shape) {
+  bool ok = shape.empty() || t.shape.size() == shape.size();
+  for (size_t d = 0; ok && d < shape.size(); ++d) ok = shape[d] < 0 || shape[d] == t.shape[d];
+  if (!ok) {
+    TorchTensor want;
+    want.shape = shape;
+    std::string w = want.shape_text();
+    for (size_t p = w.find("-1"); p != std::string::npos; p = w.find("-1")) w.replace(p, 2, "*");
+    throw_error(source, ": ", what, " has shape ", t.shape_text(), ", expected ", w);
+  }
+  for (size_t i = 0; i < t.values.size(); ++i)
+    if (!std::isfinite(t.values[i])) throw_error(source, ": ", what, " element ", i, " is not finite");
+  return t;
+}
+
 /// A state dict's tensors by key, with shape checks that name the file, the key and both shapes.
 class StateDict {
  public:
@@ -268,22 +285,8 @@ class StateDict {
   TorchTensor get(const std::string& key, const std::vector<int64_t>& shape = {}) const {
     const auto it = refs_.find(key);
     if (it == refs_.end()) throw_error(file_.source(), ": key '", key, "' missing");
-    TorchTensor t = file_.tensor(it->second, "key '" + key + "'");
-    if (!shape.empty()) expect(key, t, shape);
-    for (size_t i = 0; i < t.values.size(); ++i)
-      if (!std::isfinite(t.values[i])) throw_error(file_.source(), ": key '", key, "' element ", i, " is not finite");
-    return t;
-  }
-  void expect(const std::string& key, const TorchTensor& t, const std::vector<int64_t>& shape) const {
-    bool ok = t.shape.size() == shape.size();
-    for (size_t d = 0; ok && d < shape.size(); ++d) ok = shape[d] < 0 || shape[d] == t.shape[d];
-    if (!ok) {
-      TorchTensor want;
-      want.shape = shape;
-      std::string w = want.shape_text();
-      for (size_t p = w.find("-1"); p != std::string::npos; p = w.find("-1")) w.replace(p, 2, "*");
-      throw_error(file_.source(), ": key '", key, "' has shape ", t.shape_text(), ", expected ", w);
-    }
+    const std::string what = "key '" + key + "'";
+    return checked(file_.tensor(it->second, what), file_.source(), what, shape);
   }
   /// An nn.Sequential's Linear layers (keys PREFIX.<i>.weight / .bias in index order).
   std::vector<Linear> sequential(const std::string& prefix) const {
@@ -657,7 +660,7 @@ class FourDGaussians : public TrainedModel {
         TorchTensor t = sd.get(key);
         if (t.shape.size() != 4 || t.shape[0] != 1 || t.shape[1] < 1 || t.shape[2] < 1 || t.shape[3] < 1)
           throw_error(pth, ": key '", key, "' has shape ", t.shape_text(), ", expected [1, C, H, W] with C, H, W >= 1");
-        if (p > 0) sd.expect(key, t, {1, sc.planes[0].shape[1], -1, -1});
+        if (p > 0) checked(t, pth, "key '" + key + "'", {1, sc.planes[0].shape[1], -1, -1});
         sc.planes[p] = std::move(t);
       }
       feat_ += int(sc.planes[0].shape[1]);
@@ -840,7 +843,7 @@ class Deformable3dgs : public TrainedModel {
       std::vector<float> te(size_t(1 + 2 * t_freqs_));
       encode(&t, 1, t_freqs_, te.data());
       RowMat tvec = Eigen::Map<const Eigen::RowVectorXf>(te.data(), Eigen::Index(te.size()));
-      if (blender_) tvec = run_trunk_relu_between(timenet_, tvec);
+      if (blender_) tvec = run_trunk(timenet_, tvec);  // Linear, ReLU, Linear
       RowMat te_rows(B, tvec.cols());
       te_rows.rowwise() = tvec.row(0);
       RowMat h(B, x_in + tvec.cols());
@@ -879,8 +882,6 @@ class Deformable3dgs : public TrainedModel {
       for (int a = 0; a < d; ++a) out[k++] = std::cos(x[a] * w);
     }
   }
-  /// Linear, ReLU, Linear (its timenet).
-  static RowMat run_trunk_relu_between(const std::vector<Linear>& l, const RowMat& x) { return run_trunk(l, x); }
 
   ModelState canonical_;
   std::vector<Linear> layers_, timenet_;
@@ -915,19 +916,8 @@ class FourDGS : public TrainedModel {
     if (m.size() != 19)
       throw_error(source, ": model tuple has ", m.size(), " entries; a 4D (gaussian_dim 4) 4DGS checkpoint has 19");
     auto tensor = [&](size_t i, const char* name, std::vector<int64_t> shape) {
-      TorchTensor t = tf.tensor(m[i], std::string("entry ") + std::to_string(i) + " (" + name + ")");
-      bool ok = t.shape.size() == shape.size();
-      for (size_t d = 0; ok && d < shape.size(); ++d) ok = shape[d] < 0 || shape[d] == t.shape[d];
-      if (!ok) {
-        TorchTensor want;
-        want.shape = shape;
-        std::string w = want.shape_text();
-        for (size_t p = w.find("-1"); p != std::string::npos; p = w.find("-1")) w.replace(p, 2, "N");
-        throw_error(source, ": entry ", i, " (", name, ") has shape ", t.shape_text(), ", expected ", w);
-      }
-      for (size_t k = 0; k < t.values.size(); ++k)
-        if (!std::isfinite(t.values[k])) throw_error(source, ": entry ", i, " (", name, ") element ", k, " is not finite");
-      return t;
+      const std::string what = "entry " + std::to_string(i) + " (" + name + ")";
+      return checked(tf.tensor(m[i], what), source, what, shape);
     };
     if (!tf.is_number(m[0]) || !tf.is_number(m[18])) throw_error(source, ": entries 0 and 18 (active SH degrees) are not numbers");
     deg_ = int(tf.integer(m[0]));
@@ -1302,16 +1292,7 @@ SceneFormat detect_trained_model(const std::string& path) {
     }
     try {
       const RunFolder rf = run_folder(path, "deformation.pth");
-      const std::string header = [&] {
-        const std::string ply = join_path(rf.iteration_dir, "point_cloud.ply");
-        std::string h, line;
-        std::ifstream in(ply, std::ios::binary);
-        while (std::getline(in, line) && h.size() < (1 << 20)) {
-          h += line + "\n";
-          if (line.rfind("end_header", 0) == 0) break;
-        }
-        return h;
-      }();
+      const std::string header = read_ply_header(join_path(rf.iteration_dir, "point_cloud.ply"));
       return header.find(" embedding_0\n") != std::string::npos ? SceneFormat::Ed3dgs : SceneFormat::FourDGaussians;
     } catch (const Error&) {
     }

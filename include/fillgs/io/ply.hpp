@@ -43,6 +43,9 @@ struct PlyData {
 /// Reads a PLY file. Throws fillgs::Error on any malformed or truncated input.
 PlyData read_ply(const std::string& path);
 
+/// The header of a PLY only (up to end_header, at most 1 MiB), to sniff a format cheaply.
+std::string read_ply_header(const std::string& path);
+
 /// Writes elements of float properties atomically (temporary file, then rename).
 void write_ply(const std::string& path, const PlyData& data);
 

@@ -61,7 +61,8 @@ class PickleValues {
   using Ref = uint32_t;
 
   Kind kind(Ref r) const { return values_[r].kind; }
-  const char* kind_name(Ref r) const;
+  const char* kind_name(Ref r) const { return kind_text(kind(r)); }
+  static const char* kind_text(Kind k);
   Ref root() const { return root_; }
   size_t value_count() const { return values_.size(); }
 
