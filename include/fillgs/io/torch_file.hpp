@@ -11,8 +11,9 @@
 // data. Every problem is one fillgs::Error naming the file and what was wrong.
 //
 // Why our own reader and not libtorch (Debian's libtorch-dev): the two files we read are
-// a state dict and a tuple; libtorch would add ~1 GB of packages and a C++ ABI to the build
-// for that, and its own unpickler still needs the same walk over the values afterwards.
+// a state dict and a tuple; libtorch (libtorch1.13: 131 MB installed, by apt-cache, plus its
+// dependencies) would add a C++ API to the build for that, and its own unpickler still
+// needs the same walk over the values afterwards (data/README.md, "Reading .pth files").
 #include <cstdint>
 #include <string>
 #include <vector>
