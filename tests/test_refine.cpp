@@ -677,12 +677,13 @@ TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refi
   const RunResult dense = load_result(join_path(dir, "n3v_s1/runs/upper.dense/result.json"));
   const RunResult bb = load_result(join_path(dir, "n3v_s1/backbone/result.json"));
   CHECK(dense.extrapolation.psnr > bb.extrapolation.psnr);
-  // FillGS ran with the observation-limited oracle and says how much of its views it supported.
+  // FillGS ran with the reference-conditioned refiner and says how much of its views the
+  // references supported, with a record of every refined view.
   const RunResult fg = load_result(join_path(dir, "n3v_s1/runs/fillgs/result.json"));
-  CHECK(fg.support == "observed");
+  CHECK(fg.support == "reference");
   CHECK(fg.support_share > 0.0);
   CHECK(fg.support_share <= 1.0);
-  CHECK(fs::exists(join_path(dir, "n3v_s1/runs/fillgs/work/refined/r0_t00/support")));
+  CHECK(read_refined_view_records(join_path(dir, "n3v_s1/runs/fillgs/refined_views.csv")).size() == fg.views_added);
   // Where it looked: every refined view in virtual_views.json, and their top view.
   CHECK(read_cameras(join_path(dir, "n3v_s1/runs/fillgs/virtual_views.json")).size() == fg.views_added);
   CHECK(fs::exists(join_path(dir, "n3v_s1/runs/fillgs/views.png")));
@@ -723,7 +724,8 @@ TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refi
       {{"--configs", "fillgs", "--artifact-strength", "0.25"}, "run fillgs was made with other options (refiner.artifacts.strength: was 0.5, now 0.25)"},
       {{"--configs", "random", "--baseline-weighting", "none"}, "run random was made with other options (finetune.weighting: was \"exploregs\", now \"none\")"},
       {{"--configs", "fillgs", "--time-stride", "2"}, "run fillgs was made with other options (finetune.select.time_stride: was 1, now 2)"},
-      {{"--configs", "no-refinement", "--support", "full"}, "run no-refinement was made with other options (refiner.support: was \"observed\", now \"full\")"},
+      {{"--configs", "fillgs", "--refiner", "oracle"}, "run fillgs was made with other options (refiner."},
+      {{"--configs", "no-refinement", "--refiner", "oracle-full"}, ""},  // the control refines nothing: reused
       {{"--configs", "upper.dense", "--iterations", "61"}, ""},  // the dense model does not fine-tune: reused
   };
   for (const auto& [extra, message] : other_options) {
@@ -735,7 +737,7 @@ TEST_CASE("bench: a run interrupted half way continues where it stopped", "[refi
     INFO(extra[3] << ": " << refused);
     if (message.empty()) {
       CHECK(code == 0);
-      CHECK(o4.str().find("upper.dense: reused") != std::string::npos);
+      CHECK(o4.str().find(extra[1] + ": reused") != std::string::npos);
       continue;
     }
     CHECK(code == 1);
@@ -885,7 +887,10 @@ TEST_CASE("fillgs run: the whole pipeline prints its comparison and writes its r
     CHECK(fs::exists(join_path(dir, file)));
     ++pictures;
   }
-  CHECK(pictures == 6);  // two moments, two PSNR charts, the virtual views of FillGS and the baseline
+  // two moments, two PSNR charts, the refiner's views against the truth, the virtual views of FillGS and the baseline
+  CHECK(pictures == 7);
+  CHECK(report.find("refiner `reference`") != std::string::npos);
+  CHECK(report.find("**Measured here:** FillGS") != std::string::npos);
   CHECK(report.find("```\nfillgs run --smoke") != std::string::npos);
   // The HTML page embeds every one of them and names no file outside itself.
   const std::string html = read_file(join_path(dir, "report.html"));
@@ -894,10 +899,10 @@ TEST_CASE("fillgs run: the whole pipeline prints its comparison and writes its r
   CHECK(embedded == pictures);
   CHECK(html.find("missing image") == std::string::npos);
   CHECK(html.find("<td>fillgs</td>") != std::string::npos);
-  // The same folder with another oracle support: refused, not reported as if made with it.
+  // The same folder with another refiner: refused, not reported as if made with it.
   std::ostringstream o2, e2;
-  CHECK(cli::run({"run", "--smoke", "--out", dir, "--support", "full", "--quiet"}, o2, e2) == 1);
-  CHECK(e2.str().find("was made with other options (refiner.support: was \"observed\", now \"full\")") != std::string::npos);
+  CHECK(cli::run({"run", "--smoke", "--out", dir, "--refiner", "oracle-full", "--quiet"}, o2, e2) == 1);
+  CHECK(e2.str().find("run fillgs was made with other options (refiner.") != std::string::npos);
 }
 
 TEST_CASE("bench report: FillGS paired against each method by seed (hand-made results)", "[refine][bench]") {
@@ -915,7 +920,7 @@ TEST_CASE("bench report: FillGS paired against each method by seed (hand-made re
   const std::vector<RunResult> results = {
       result("backbone", 1, 18, 12),       result("fillgs", 1, 20, 13),        result("fillgs", 2, 21, 14),
       result("interpolation", 1, 19, 13.5), result("interpolation", 2, 21.5, 13), result("random", 3, 25, 25),  // no fillgs at seed 3
-      result("fillgs@full", 1, 22, 15),    result("random@full", 1, 21, 16),
+      result("fillgs@oracle", 1, 22, 15),    result("random@oracle", 1, 21, 16),
       result("fillgs.clean", 1, 19, 12),   result("coverage4d.clean", 1, 21.5, 12.25)};
   const std::vector<PairedDifference> d = paired_differences(results);
   REQUIRE(d.size() == 3);
@@ -928,7 +933,7 @@ TEST_CASE("bench report: FillGS paired against each method by seed (hand-made re
   CHECK(d[0].mean[2] == Approx(0.25));
   CHECK(d[0].sd[2] == Approx(0.75 * std::sqrt(2.0)));
   // The second support pairs with its own FillGS run.
-  CHECK(d[1].id == "random@full");
+  CHECK(d[1].id == "random@oracle");
   CHECK(d[1].seeds == 1);
   CHECK(d[1].mean[0] == Approx(1.0));
   CHECK(d[1].mean[2] == Approx(-1.0));

@@ -21,12 +21,13 @@ namespace fs = std::filesystem;
 
 namespace fillgs::cli {
 /// What turns a rendered patch into a refined one (--refiner).
-enum class RefinerChoice { Identity, Oracle, External, Rig };
+enum class RefinerChoice { Identity, Oracle, External, Rig, Reference, Warp };
 }  // namespace fillgs::cli
 
 namespace fillgs {
 FILLGS_ENUM_NAMES(cli::RefinerChoice, "refiner", {cli::RefinerChoice::Identity, "identity"}, {cli::RefinerChoice::Oracle, "oracle"},
-                  {cli::RefinerChoice::External, "external"}, {cli::RefinerChoice::Rig, "rig"});
+                  {cli::RefinerChoice::External, "external"}, {cli::RefinerChoice::Rig, "rig"}, {cli::RefinerChoice::Reference, "reference"},
+                  {cli::RefinerChoice::Warp, "warp"});
 }  // namespace fillgs
 
 namespace fillgs::cli {
@@ -52,7 +53,7 @@ struct FinetuneFlags {
   RefinerChoice refiner = RefinerChoice::Identity;
   bool paper_schedule = false;
   uint64_t seed = 1;
-  double refiner_timeout = 600.0, refined_share = TrainOptions().refined_share;
+  double refiner_timeout = 600.0, refined_share = TrainOptions().refined_share, reference_angle = 0;
   FinetuneOptions finetune;
   OracleOptions oracle;
   std::vector<std::string> pool_cameras;
@@ -103,6 +104,17 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     for (const TrainView& v : data.views()) oo.observers.push_back(v.camera);
     oo.frames = data.frames();
     refiner = make_oracle_refiner(*truth, oo);
+  } else if (kind == RefinerChoice::Reference || kind == RefinerChoice::Warp) {
+    // The benchmark's calibrated refiner (bench/results/README.md, "Calibrating the refiner").
+    ReferenceOptions ro = bench_reference_options(f.oracle.artifacts.strength, o.train.seed);
+    if (in.given("--reference-angle")) ro.angle_scale_degrees = f.reference_angle;
+    if (in.given("--truth")) truth = std::make_unique<GaussianCloud>(read_scene(f.truth, f.read));
+    if (kind == RefinerChoice::Reference) {
+      if (!truth) in.fail("--refiner reference needs --truth (the ground-truth scene; on real data use --refiner warp)");
+      refiner = make_reference_refiner(*truth, ro);
+    } else {
+      refiner = make_warp_refiner(ro, nullptr, truth.get());
+    }
   } else if (kind == RefinerChoice::External) {
     if (!in.given("--refiner-command")) in.fail("missing --refiner-command");
     refiner = make_external_refiner(f.refiner_command, f.refiner_timeout);
@@ -167,11 +179,17 @@ Action declare_finetune(CLI::App& app) {
   add_choice(app, "--mask", o.mask.method, "how consistency with the real views is measured");
   add_choice(app, "--covis", o.mask.covisibility, "how the co-visibility weight reads the observation tables");
   add_text(app, "--confidence", f->confidence, "consistency maps computed elsewhere (a folder)", "DIR");
-  add_choice(app, "--refiner", f->refiner, "oracle: the ground truth; external: a command; rig: real pool cameras");
+  add_choice(app, "--covis-scale", o.mask.scale, "the co-visibility weight's D-hat scale: per frame over the visible moving Gaussians, or global");
+  add_flag(app, "--normalise-weights", o.mask.normalise, "divide each refined view's weights by their mean");
+  add_choice(app, "--refiner", f->refiner,
+             "reference: conditioned on the start view (synthetic, needs --truth); warp: the start photograph warped through the render's depth "
+             "(any data); oracle: the ground truth; external: a command; rig: real pool cameras");
+  add_number(app, "--reference-angle", f->reference_angle, "reference/warp: the parallax angle (degrees) at which confidence falls to 1/e",
+             positive());
   add_text(app, "--refiner-command", f->refiner_command, "external: the command, with {in} and {out}", "CMD");
   add_number(app, "--refiner-timeout", f->refiner_timeout, "external: seconds per patch", positive());
-  add_text(app, "--truth", f->truth, "oracle: the ground-truth scene", "PATH");
-  add_number(app, "--artifact-strength", f->oracle.artifacts.strength, "oracle: strength of the simulated refiner artifacts", at_least(0));
+  add_text(app, "--truth", f->truth, "oracle/reference: the ground-truth scene (warp: only for its records)", "PATH");
+  add_number(app, "--artifact-strength", f->oracle.artifacts.strength, "oracle/reference/warp: strength of the simulated refiner artifacts", at_least(0));
   add_choice(app, "--support", f->oracle.support, "oracle: truth everywhere, or only where the training cameras observed");
   add_number(app, "--support-window", f->oracle.window, "oracle: frames either side that count as observed", at_least(0));
   add_list(app, "--pool-cameras", f->pool_cameras, "rig: cameras neither trained on nor held out");
@@ -273,32 +291,14 @@ BenchSetup bench_setup(const SetupFlags& s, const Invocation& in) {
   return b;
 }
 
-/// --support observed|full|both.
-enum class SupportChoice { Observed, Full, Both };
-
-}  // namespace
-}  // namespace fillgs::cli
-
-namespace fillgs {
-FILLGS_ENUM_NAMES(cli::SupportChoice, "oracle support",
-    {cli::SupportChoice::Observed, "observed"}, {cli::SupportChoice::Full, "full"}, {cli::SupportChoice::Both, "both"});
-}  // namespace fillgs
-
-namespace fillgs::cli {
-namespace {
-
-std::vector<OracleSupport> supports_of(SupportChoice s) {
-  if (s == SupportChoice::Both) return {OracleSupport::Observed, OracleSupport::Full};
-  return {s == SupportChoice::Full ? OracleSupport::Full : OracleSupport::Observed};
-}
-
 struct BenchFlags {
   std::string out = "fillgs_bench";
   std::vector<std::string> scenes = {"n3v"}, seeds, configs, merge;
   std::vector<ConfigGroup> only;
   double artifact_strength = 0.5;
   Weighting baseline_weighting = Weighting::ExploreGS;
-  SupportChoice support = SupportChoice::Observed;
+  std::vector<BenchRefiner> refiners = {BenchRefiner::Reference};
+  double reference_angle = 0;
   SetupFlags setup;
 };
 
@@ -309,7 +309,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
     // Tables over finished runs only: bench folders or results.csv files, nothing run.
     if (!in.given("--out")) in.fail("--merge needs --out DIR (the folder for the merged tables)");
     for (const char* k : {"--scenes", "--seeds", "--only", "--configs", "--iterations", "--select-every", "--backbone-iterations", "--width",
-                          "--height", "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--support", "--motion-rates",
+                          "--height", "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--refiner", "--reference-angle", "--motion-rates",
                           "--position-lr", "--key-lr-scale", "--smoke"})
       if (in.given(k)) in.fail("--merge runs nothing, so ", k, " has no meaning with it");
     const std::vector<RunResult> all = merge_results(f.merge);
@@ -324,14 +324,19 @@ int bench(const BenchFlags& f, const Invocation& in) {
   std::vector<uint64_t> seeds;
   for (const std::string& s : in.given("--seeds") ? f.seeds : std::vector<std::string>(smoke ? std::vector<std::string>{"1"} : std::vector<std::string>{"1", "2", "3"}))
     seeds.push_back(uint64_t(parse_count(s, size_t(1) << 62, "fillgs bench", "--seeds value")));
-  std::vector<RunConfig> configs = standard_configs(f.baseline_weighting, f.artifact_strength, supports_of(f.support));
+  for (size_t i = 0; i < f.refiners.size(); ++i)
+    for (size_t j = 0; j < i; ++j)
+      if (f.refiners[i] == f.refiners[j]) in.fail("--refiner names ", to_string(f.refiners[i]), " twice");
+  std::vector<RunConfig> configs = standard_configs(f.baseline_weighting, f.artifact_strength, f.refiners);
+  for (RunConfig& c : configs) c.reference_angle_degrees = f.reference_angle;
   const std::vector<ConfigGroup>& only = f.only;
   const std::vector<std::string>& ids = f.configs;
   std::vector<RunConfig> chosen;
   for (const RunConfig& c : configs) {
     const bool by_group = only.empty() || std::count(only.begin(), only.end(), c.group);
     const bool by_id = ids.empty() || std::count(ids.begin(), ids.end(), c.id);
-    const bool in_smoke = c.group == ConfigGroup::Control || c.group == ConfigGroup::Strategy || c.group == ConfigGroup::Upper;
+    const bool in_smoke = c.group == ConfigGroup::Control || c.group == ConfigGroup::Calibration || c.group == ConfigGroup::Strategy ||
+                          c.group == ConfigGroup::Upper;
     if (by_group && by_id && (!smoke || in_smoke)) chosen.push_back(c);
   }
   if (chosen.empty()) in.fail("--only/--configs select no configuration");
@@ -375,20 +380,20 @@ int bench(const BenchFlags& f, const Invocation& in) {
 
 // ------------------------------------------------------------------ run
 
-/// The oracle's artifact strength in `fillgs run` (the benchmark's default).
+/// The refiner's artifact strength in `fillgs run` (the benchmark's default).
 constexpr double kRunArtifactStrength = 0.5;
 
 struct RunFlags {
   std::string out = "fillgs_run", scene = "n3v";
   Strategy baseline = Strategy::Coverage4D;
-  OracleSupport support = OracleSupport::Observed;
+  BenchRefiner refiner = BenchRefiner::Reference;
   SetupFlags setup;
 };
 
 int run_pipeline(const RunFlags& f, const Invocation& in) {
   const std::string& dir = f.out;
   const std::string baseline = to_string(f.baseline);
-  const OracleSupport support = f.support;
+  const BenchRefiner refiner = f.refiner;
   if (f.baseline == Strategy::FillGS) in.fail("--baseline must be another strategy than fillgs");
   const auto t0 = Clock::now();
   BenchSetup setup = bench_setup(f.setup, in);
@@ -399,13 +404,13 @@ int run_pipeline(const RunFlags& f, const Invocation& in) {
   const ExperimentOptions eo = setup.scene.resolved();
   in.out << "fillgs run: the whole pipeline on the built-in scene (" << eo.scene_name() << ", " << eo.width << "x" << eo.height << ", "
       << eo.frames << " frames): train a backbone on 2 cameras, then fine-tune it without generated views, with FillGS's and with "
-      << baseline << "'s viewpoints (oracle refiner, " << to_string(support) << " support, artifacts) -> " << dir << "\n";
+      << baseline << "'s viewpoints (" << to_string(refiner) << " refiner, artifacts) -> " << dir << "\n";
   const PreparedScene p = prepare_scene(dir, setup.scene, progress, in.out);
   RunResult bb = evaluate_model(p, p.backbone, "backbone", "", progress);
   bb.group = ConfigGroup::Control;
   std::vector<RunResult> results;
   std::vector<std::string> run_ids;
-  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, kRunArtifactStrength, {support}))
+  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, kRunArtifactStrength, {refiner}))
     if (c.id == "no-refinement" || c.id == "fillgs" || c.id == baseline) {
       results.push_back(run_config(p, c, setup.finetune, progress, in.out));
       run_ids.push_back(c.id);
@@ -419,7 +424,7 @@ int run_pipeline(const RunFlags& f, const Invocation& in) {
   report.results = all;
   report.run_ids = run_ids;
   report.finetune = setup.finetune;
-  report.support = support;
+  report.refiner = refiner;
   report.artifact_strength = kRunArtifactStrength;
   report.command = "fillgs";
   for (const std::string& s : in.args) report.command += " " + s;  // args[0] is "run"
@@ -481,7 +486,10 @@ Action declare_bench(CLI::App& app) {
   add_list(app, "--configs", f->configs, "only these configurations");
   add_number(app, "--artifact-strength", f->artifact_strength, "strength of the oracle's simulated refiner artifacts", at_least(0));
   add_choice(app, "--baseline-weighting", f->baseline_weighting, "the weights the baseline strategies fine-tune with");
-  add_choice(app, "--support", f->support, "the oracle's support (both: a row each)");
+  add_choice_list(app, "--refiner", f->refiners,
+                  "refiners, a table each (the first's rows unsuffixed, the others' ending @NAME): reference (calibrated, the default), oracle, oracle-full");
+  add_number(app, "--reference-angle", f->reference_angle,
+             "the reference refiner's confidence angle in degrees (the calibration's knob; default: the calibrated value)", positive());
   add_list(app, "--merge", f->merge, "tables over finished runs: bench folders or results.csv files (needs --out)");
   add_setup_flags(app, f->setup, true);
   return bind(f, bench);
@@ -492,7 +500,7 @@ Action declare_run(CLI::App& app) {
   add_text(app, "--out", f->out, "the folder for the report, pictures and runs", "DIR");
   add_text(app, "--scene", f->scene, "built-in scene: " + join_names(bench_scenes()), "NAME");
   add_choice(app, "--baseline", f->baseline, "the strategy FillGS is compared with");
-  add_choice(app, "--support", f->support, "the oracle's support");
+  add_choice(app, "--refiner", f->refiner, "the refiner: reference (calibrated, the default), oracle (truth where any camera saw), oracle-full");
   add_setup_flags(app, f->setup, false);
   return bind(f, run_pipeline);
 }

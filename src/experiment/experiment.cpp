@@ -177,7 +177,7 @@ namespace {
 /// Runs of one scene and seed in the order of standard_configs (backbone first, then by id).
 void sort_by_configuration(std::vector<RunResult>::iterator first, std::vector<RunResult>::iterator last) {
   std::vector<std::string> order = {"backbone"};
-  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, 0.5, {OracleSupport::Observed, OracleSupport::Full})) order.push_back(c.id);
+  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, 0.5, values_of<BenchRefiner>())) order.push_back(c.id);
   auto rank = [&](const std::string& id) { return size_t(std::find(order.begin(), order.end(), id) - order.begin()); };
   std::stable_sort(first, last, [&](const RunResult& a, const RunResult& b) { return rank(a.id) != rank(b.id) ? rank(a.id) < rank(b.id) : a.id < b.id; });
 }
@@ -207,7 +207,12 @@ std::vector<RunResult> read_results_csv(const std::string& path) {
   const std::string text = read_file(path);
   std::istringstream in(text);
   std::string line;
-  if (!std::getline(in, line) || line != kResultsCsvHeader)
+  // The header before the reference refiner named the column "support", its values the
+  // oracle's support: observed (now "oracle") or full ("oracle-full").
+  std::string old_header = kResultsCsvHeader;
+  old_header.replace(old_header.find(",refiner,"), 9, ",support,");
+  bool old_names = false;
+  if (!std::getline(in, line) || (line != kResultsCsvHeader && !(old_names = line == old_header)))
     throw_error(path, ": not a fillgs bench results.csv (the first line must be the header '", kResultsCsvHeader, "')");
   constexpr size_t kColumns = 23;
   std::vector<RunResult> out;
@@ -242,6 +247,8 @@ std::vector<RunResult> read_results_csv(const std::string& path) {
       throw_error(path, ": ", where, " column 4: ", e.what());
     }
     r.support = f[4];
+    if (old_names && r.support == "observed") r.support = to_string(BenchRefiner::Oracle);
+    if (old_names && r.support == "full") r.support = to_string(BenchRefiner::OracleFull);
     r.interpolation.split = "interpolation", r.extrapolation.split = "extrapolation", r.train.split = "train";
     r.interpolation.psnr = num(5), r.interpolation.ssim = num(6), r.interpolation.psnr_moving = num(7);
     r.extrapolation.psnr = num(8), r.extrapolation.ssim = num(9), r.extrapolation.psnr_moving = num(10);
@@ -404,11 +411,35 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& op
   return p;
 }
 
-std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double strength, const std::vector<OracleSupport>& supports) {
+ReferenceOptions bench_reference_options(double artifact_strength, uint64_t seed) {
+  // The calibration (bench/results/README.md, "Calibrating the refiner"): θ0 set once from
+  // the unweighted random views against the control on the n3v scene, before any other
+  // strategy ran with this refiner; never changed afterwards. The rest fixed a priori.
+  ReferenceOptions o;
+  o.angle_scale_degrees = 10.0;
+  o.shift_per_degree = 0.001;
+  o.blur_per_degree = 0.0005;
+  o.flicker = 0.05;
+  o.fill_strength = 0.5;
+  o.artifacts.strength = artifact_strength;
+  o.artifacts.seed = seed;
+  return o;
+}
+
+std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double strength, const std::vector<BenchRefiner>& refiners) {
   std::vector<RunConfig> out;
-  for (size_t si = 0; si < supports.size(); ++si) {
-    const OracleSupport support = supports[si];
-    const std::string suffix = si == 0 ? "" : std::string("@") + to_string(support);
+  {
+    RunConfig c;  // the control has no generated views: one row whatever the refiners
+    c.id = "no-refinement";
+    c.group = ConfigGroup::Control;
+    c.weighting = Weighting::None;
+    c.trajectories = 0;
+    c.refiner = refiners.empty() ? BenchRefiner::Reference : refiners.front();
+    out.push_back(c);
+  }
+  for (size_t ri = 0; ri < refiners.size(); ++ri) {
+    const BenchRefiner refiner = refiners[ri];
+    const std::string suffix = ri == 0 ? "" : std::string("@") + to_string(refiner);
     auto add = [&](const std::string& id, ConfigGroup group, Strategy s, Weighting w, double a, int k) {
       RunConfig c;
       c.id = id + suffix;
@@ -417,11 +448,11 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
       c.weighting = w;
       c.artifact_strength = a;
       c.trajectories = k;
-      c.support = support;
+      c.refiner = refiner;
       out.push_back(c);
       return &out.back();
     };
-    add("no-refinement", ConfigGroup::Control, Strategy::FillGS, Weighting::None, strength, 0);
+    add("random.w-none", ConfigGroup::Calibration, Strategy::Random, Weighting::None, strength, 5);
     for (Strategy s : values_of<Strategy>()) add(to_string(s), ConfigGroup::Strategy, s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, strength, 5);
     const char* ablations[] = {"no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring",
                                "no-global",          "count-only",    "speed-only"};
@@ -436,11 +467,18 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
       if (n == "count-only") c->select.score = CandidateScore::CountOnly;
       if (n == "speed-only") c->select.score = CandidateScore::SpeedOnly;
     }
+    // Table 3's "other selection strategy" rows: each strategy's views with FillGS's fine-tuning and weights.
+    for (Strategy s : values_of<Strategy>())
+      if (s != Strategy::FillGS) add(std::string(to_string(s)) + ".w-fillgs", ConfigGroup::Selection, s, Weighting::FillGS, strength, 5);
     for (Weighting w : {Weighting::None, Weighting::NoConsistency, Weighting::NoCovisibility, Weighting::Enhancer3DGS, Weighting::ExploreGS,
                         Weighting::UA4DGS})
       add(std::string("fillgs.w-") + to_string(w), ConfigGroup::Weighting, Strategy::FillGS, w, strength, 5);
-    // fillgs's own options beyond the paper: model-independent sweep matching, co-visibility rules
-    // that weigh static content by its observation density (static-count, density).
+    // fillgs's own options beyond the paper: the weights' D̂ scaled over every moving Gaussian
+    // of every frame (the earlier rule), the weighted loss normalised by the view's mean
+    // weight, model-independent sweep matching, co-visibility rules that weigh static content
+    // by its observation density (static-count, density).
+    add("fillgs.covis-global", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.scale = CovisibilityScale::Global;
+    add("fillgs.normalised", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.normalise = true;
     add("fillgs.m-sweep", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.method = MaskMethod::Sweep;
     add("fillgs.covis-static-count", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.covisibility =
         Covisibility::StaticCount;
@@ -461,6 +499,15 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
       c->select.spread_starts = true;
       c->select.score_gain = true;
     }
+    // The score alone: FillGS's candidate score and coverage4d's, both unweighted from the
+    // same shuffled starts (no start selection; the same seed shuffles the same way).
+    {
+      RunConfig* c = add("fillgs.w-none.no-start-selection", ConfigGroup::Ablation, Strategy::FillGS, Weighting::None, strength, 5);
+      c->select.no_start_selection = true;
+      add("coverage4d.w-none", ConfigGroup::Ablation, Strategy::Coverage4D, Weighting::None, strength, 5);
+    }
+    // The exploration space as the paper masks it: occupied voxels only, no "unexplored" label.
+    add("fillgs.occupied-only", ConfigGroup::Ablation, Strategy::FillGS, Weighting::FillGS, strength, 5)->grid.label_unexplored = false;
     for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), ConfigGroup::Budget, Strategy::FillGS, Weighting::FillGS, strength, k);
     for (Strategy s : values_of<Strategy>())
       add(std::string(to_string(s)) + ".clean", ConfigGroup::Refiner, s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);
@@ -472,7 +519,6 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
   tv.weighting = Weighting::None;
   tv.artifact_strength = 0;
   tv.trajectories = 0;
-  tv.support = OracleSupport::Full;
   out.push_back(tv);
   RunConfig dense = tv;
   dense.id = "upper.dense";
@@ -515,6 +561,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   fo.trajectories = c.trajectories;
   fo.weighting = c.weighting;
   fo.mask = c.mask;
+  fo.grid.label_unexplored = c.grid.label_unexplored;  // the one exploration option a configuration sets
   fo.work_dir = join_path(dir, "work");
   size_t test_views = 0;
   if (c.kind == RunKind::TestViews) {
@@ -524,12 +571,15 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
     test_views = p.interpolation->views().size() + p.extrapolation->views().size();
     fo.train.refined_share = double(test_views) / (double(test_views) + double(p.train->views().size()));
   }
+  const bool generated = c.kind == RunKind::Finetune && c.trajectories > 0;
   OracleOptions oo;
   oo.artifacts.strength = c.artifact_strength;
   oo.artifacts.seed = p.options.seed;
-  oo.support = c.support;
+  oo.support = c.refiner == BenchRefiner::OracleFull ? OracleSupport::Full : OracleSupport::Observed;
   for (const TrainView& v : p.train->views()) oo.observers.push_back(v.camera);
   oo.frames = F;
+  ReferenceOptions ro = bench_reference_options(c.artifact_strength, p.options.seed);
+  if (c.reference_angle_degrees > 0) ro.angle_scale_degrees = c.reference_angle_degrees;
   json identity = {{"id", c.id}, {"scene", options_json(p.options)}};
   if (c.kind == RunKind::Dense) {
     identity["kind"] = "dense";
@@ -537,7 +587,10 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   } else {
     identity["kind"] = c.kind == RunKind::TestViews ? "test-views" : "finetune";
     identity["finetune"] = identity_json(fo);
-    identity["refiner"] = {{"name", "oracle"}, {"artifacts", identity_json(oo.artifacts)}, {"support", to_string(oo.support)}, {"window", oo.window}};
+    // The refiner is part of what a run is only where it refines something.
+    if (generated && c.refiner == BenchRefiner::Reference) identity["refiner"] = identity_json(ro);
+    if (generated && c.refiner != BenchRefiner::Reference)
+      identity["refiner"] = {{"name", "oracle"}, {"artifacts", identity_json(oo.artifacts)}, {"support", to_string(oo.support)}, {"window", oo.window}};
     if (c.kind == RunKind::TestViews) identity["test_views"] = test_views;
   }
   if (fs::exists(result_path)) {
@@ -580,15 +633,17 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
       }
   }
   SupportStats stats;
-  const std::unique_ptr<Refiner> refiner = make_oracle_refiner(p.synth.scene, oo, &stats);
+  const std::unique_ptr<Refiner> refiner = c.refiner == BenchRefiner::Reference ? make_reference_refiner(p.synth.scene, ro, &stats)
+                                                                                 : make_oracle_refiner(p.synth.scene, oo, &stats);
   const FinetuneResult fr = finetune(*p.train, p.backbone, *refiner, fo, progress);
   RunResult r = evaluate_model(p, fr.model, c.id, "", progress);
   r.group = c.group;
   r.trajectories = 0;
-  if (c.kind == RunKind::Finetune && c.trajectories > 0) {
-    r.support = to_string(c.support);
+  if (generated) {
+    r.support = to_string(c.refiner);
     r.support_share = stats.share();
   }
+  if (!stats.views.empty()) write_refined_view_records(join_path(dir, "refined_views.csv"), stats.views);
   for (const FinetuneRound& round : fr.rounds) {
     r.trajectories += round.trajectories;
     r.views_added += round.views_added;
@@ -618,6 +673,76 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   if (!r.support.empty()) log << ", supported " << fmt(100 * r.support_share, 1) << "%";
   log << ", " << fmt(r.seconds_total, 0) << " s" << std::endl;
   return r;
+}
+
+void write_refined_view_records(const std::string& path, const std::vector<RefinedViewRecord>& records) {
+  std::ostringstream csv;
+  csv.precision(7);
+  csv << "file,frame,parallax_degrees,axis_degrees,baseline,support,confidence,psnr_refined,psnr_render\n";
+  for (const RefinedViewRecord& r : records)
+    csv << r.file << "," << r.frame << "," << r.parallax_degrees << "," << r.axis_degrees << "," << r.baseline << "," << r.support << ","
+        << r.confidence << "," << r.psnr_refined << "," << r.psnr_render << "\n";
+  write_file_atomically(path, csv.str());
+}
+
+std::vector<RefinedViewRecord> read_refined_view_records(const std::string& path) {
+  std::istringstream in(read_file(path));
+  std::string line;
+  std::getline(in, line);
+  std::vector<RefinedViewRecord> out;
+  for (size_t row = 2; std::getline(in, line); ++row) {
+    if (line.empty()) continue;
+    std::vector<std::string> f;
+    std::stringstream ls(line);
+    for (std::string cell; std::getline(ls, cell, ',');) f.push_back(cell);
+    if (f.size() != 9) throw_error(path, ": line ", row, " has ", f.size(), " columns, expected 9");
+    double v[8];
+    for (size_t k = 1; k < 9; ++k) {
+      if (f[k] == "nan" || f[k] == "-nan") v[k - 1] = std::nan("");
+      else if (!parse_number(f[k], &v[k - 1])) throw_error(path, ": line ", row, " column ", k + 1, ": '", f[k], "' is not a number");
+    }
+    RefinedViewRecord r;
+    r.file = f[0], r.frame = int(v[0]), r.parallax_degrees = v[1], r.axis_degrees = v[2], r.baseline = v[3], r.support = v[4];
+    r.confidence = v[5], r.psnr_refined = v[6], r.psnr_render = v[7];
+    out.push_back(r);
+  }
+  return out;
+}
+
+void write_refiner_calibration(const std::string& path, const std::vector<std::pair<std::string, std::vector<RefinedViewRecord>>>& runs,
+                               const std::string& title) {
+  constexpr double kBin = 5.0;
+  std::vector<ScatterSeries> series;
+  std::map<int, std::array<Moments, 3>> bins;  // bin -> refined, render, support
+  for (const auto& [label, records] : runs) {
+    ScatterSeries pts;
+    pts.name = "refined, " + label;
+    pts.joined = false;
+    for (const RefinedViewRecord& r : records) {
+      if (!std::isfinite(r.psnr_refined)) continue;
+      pts.x.push_back(r.parallax_degrees), pts.y.push_back(r.psnr_refined);
+      std::array<Moments, 3>& b = bins[int(r.parallax_degrees / kBin)];
+      b[0].add(r.psnr_refined);
+      if (std::isfinite(r.psnr_render)) b[1].add(r.psnr_render);
+      b[2].add(r.support);
+    }
+    if (!pts.x.empty()) series.push_back(std::move(pts));
+  }
+  if (series.empty()) return;
+  ScatterSeries refined_mean{"refined, mean per 5 degrees", {}, {}, {}, true}, render_mean{"render given, mean per 5 degrees", {}, {}, {}, true};
+  std::ostringstream md;
+  md << "| parallax to the reference (degrees) | views | refined PSNR (dB) | render PSNR (dB) | reference support |\n|---|---|---|---|---|\n";
+  for (const auto& [bin, m] : bins) {
+    const double centre = (bin + 0.5) * kBin;
+    refined_mean.x.push_back(centre), refined_mean.y.push_back(m[0].mean());
+    if (m[1].n) render_mean.x.push_back(centre), render_mean.y.push_back(m[1].mean());
+    md << "| " << fmt(bin * kBin, 0) << "–" << fmt((bin + 1) * kBin, 0) << " | " << m[0].n << " | " << fmt(m[0].mean(), 2) << " ± " << fmt(m[0].sd(), 2)
+       << " | " << (m[1].n ? fmt(m[1].mean(), 2) : "–") << " | " << fmt(100 * m[2].mean(), 1) << "% |\n";
+  }
+  series.push_back(refined_mean);
+  if (!render_mean.x.empty()) series.push_back(render_mean);
+  write_scatter_png(path + ".png", series, {title, "parallax angle to the reference view (degrees, median over the view)", "PSNR against the truth (dB)"}, false);
+  write_file_atomically(path + ".md", md.str());
 }
 
 std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& results, const std::string& reference) {
@@ -708,19 +833,22 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   md << "# fillgs bench\n\nMean ± standard deviation over seeds, per scene; " << scenes.size() << " scene run(s):";
   for (const std::string& s : scenes) md << " " << s << ";";
   md << "\nPSNR in dB. \"moving\": PSNR over the pixels of the moving objects (ground truth). Train: PSNR on the training cameras. "
-        "Oracle support: \"observed\" restores only what the training cameras saw, \"full\" the ground truth everywhere. "
-        "\"supported\": share of the refined pixels the observations support.\n\n";
+        "Refiner: \"reference\" is conditioned on the start view's own image at each frame (calibrated; bench/results/README.md), "
+        "\"oracle\" restores the truth wherever any training camera saw it, \"oracle-full\" everywhere. "
+        "\"supported\": share of the refined pixels the refiner's observations support.\n\n";
   const std::pair<ConfigGroup, const char*> groups[] = {{ConfigGroup::Control, "Without generated views"},
                                                       {ConfigGroup::Upper, "Upper bounds"},
+                                                      {ConfigGroup::Calibration, "Refiner calibration (random views, no weights)"},
                                                       {ConfigGroup::Strategy, "Viewpoint selection strategies (Table 1 of the paper)"},
                                                       {ConfigGroup::Ablation, "FillGS selection ablations (Table 3 of the paper)"},
+                                                      {ConfigGroup::Selection, "Other strategies with FillGS's fine-tuning and weights (Table 3 of the paper)"},
                                                       {ConfigGroup::Weighting, "Fine-tuning weights (Table 4 of the paper)"},
                                                       {ConfigGroup::Budget, "Trajectory budget per round"},
-                                                      {ConfigGroup::Refiner, "Clean oracle (no generation artifacts)"}};
+                                                      {ConfigGroup::Refiner, "Clean refiner (no injected artifacts)"}};
   auto in_group = [](const Mean& m, ConfigGroup g) { return m.group == g || (g == ConfigGroup::Control && m.id == "backbone"); };
   for (const auto& g : groups) {
     if (std::none_of(means.begin(), means.end(), [&](const Mean& m) { return in_group(m, g.first); })) continue;
-    md << "## " << g.second << "\n\n| Scene | Method | oracle | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | weight | supported | runs |\n"
+    md << "## " << g.second << "\n\n| Scene | Method | refiner | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | weight | supported | runs |\n"
        << "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const Mean& m : means) {
       if (!in_group(m, g.first)) continue;
@@ -782,10 +910,60 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
     write_bar_chart_png(join_path(root, "time_per_phase.png"), std::vector<std::string>(phases, phases + 5), t,
                         {"mean seconds per phase and run", "", "seconds"});
   }
+  // Each strategy's gain over the control (same scene), per refiner: the chart the
+  // comparison is read from.
+  std::vector<std::string> figures = {"psnr_interpolation", "psnr_extrapolation", "budget", "time_per_phase"};
+  {
+    std::vector<std::string> gain_names;
+    std::vector<double> gain_interp, gain_extrap;
+    for (const Mean& m : means) {
+      if (m.variant != plotted || m.group != ConfigGroup::Strategy) continue;
+      const auto control = std::find_if(means.begin(), means.end(), [&](const Mean& x) { return x.variant == m.variant && x.id == "no-refinement"; });
+      if (control == means.end()) continue;
+      gain_names.push_back(m.id);
+      gain_interp.push_back(m.mean(0) - control->mean(0));
+      gain_extrap.push_back(m.mean(3) - control->mean(3));
+    }
+    if (!gain_names.empty()) {
+      write_bar_chart_png(join_path(root, "gain_interpolation.png"), gain_names, gain_interp,
+                          {"interpolation: gain over the control per strategy and refiner (" + plotted + ")", "", "PSNR gain (dB)"});
+      write_bar_chart_png(join_path(root, "gain_extrapolation.png"), gain_names, gain_extrap,
+                          {"extrapolation: gain over the control per strategy and refiner (" + plotted + ")", "", "PSNR gain (dB)"});
+      figures.insert(figures.begin(), {"gain_interpolation", "gain_extrapolation"});
+    }
+  }
+  // The refiner's calibration: refined-vs-truth PSNR against the angle to the reference, over
+  // the calibration runs this folder holds (one per refiner that records its views).
+  if (fs::is_directory(root)) {
+    std::map<std::string, std::vector<std::pair<std::string, std::vector<RefinedViewRecord>>>> by_id;
+    std::vector<fs::path> scene_dirs;
+    for (const auto& e : fs::directory_iterator(root))
+      if (e.is_directory()) scene_dirs.push_back(e.path());
+    std::sort(scene_dirs.begin(), scene_dirs.end());
+    for (const fs::path& sc : scene_dirs) {
+      if (!fs::is_directory(sc / "runs")) continue;
+      std::vector<fs::path> runs;
+      for (const auto& e : fs::directory_iterator(sc / "runs")) runs.push_back(e.path());
+      std::sort(runs.begin(), runs.end());
+      for (const fs::path& run : runs)
+        if (run.filename().string().rfind("random.w-none", 0) == 0 && fs::exists(run / "refined_views.csv") && fs::exists(run / "result.json"))
+          by_id[run.filename().string()].emplace_back(sc.filename().string(), read_refined_view_records((run / "refined_views.csv").string()));
+    }
+    for (const auto& [id, runs] : by_id) {
+      const std::string name = "calibration" + id.substr(std::string("random.w-none").size());
+      write_refiner_calibration(join_path(root, name), runs, "refiner calibration: " + id + " (random views)");
+      if (fs::exists(join_path(root, name + ".md"))) {
+        md << "\n## Refiner calibration (" << id << ")\n\nRefined-vs-truth PSNR of the random views against the parallax angle to "
+              "their reference view, per 5° bin over every seed (the render it was given alongside).\n\n"
+           << read_file(join_path(root, name + ".md")) << "\n";
+        figures.push_back(name);
+      }
+    }
+  }
   // The figures drawn above, named in the Markdown (and so embedded in the HTML page).
   md << "\n## Figures\n\nEach figure's numbers are in the CSV of its name, and `gnuplot NAME.gp` re-draws it.\n\n";
-  for (const char* f : {"psnr_interpolation", "psnr_extrapolation", "budget", "time_per_phase"})
-    if (fs::exists(join_path(root, std::string(f) + ".png"))) md << "![" << f << "](" << f << ".png)\n\n";
+  for (const std::string& f : figures)
+    if (fs::exists(join_path(root, f + ".png"))) md << "![" << f << "](" << f << ".png)\n\n";
   write_file_atomically(join_path(root, "results.md"), md.str());
   write_html_report(join_path(root, "results.md"), join_path(root, "results.html"));
 }
@@ -821,9 +999,35 @@ void write_run_report(const std::string& dir, const RunReportInput& in) {
      << " frames; backbone trained on " << in.scene->train->rigs().size() << " cameras (";
   for (size_t k = 0; k < in.scene->options.train_cameras.size(); ++k) md << (k ? ", " : "") << in.scene->options.train_cameras[k];
   md << ") for " << o.backbone_iterations << " iterations; each fine-tuning: " << in.finetune.iterations << " iterations, "
-     << in.finetune.trajectories << " trajectories every " << in.finetune.select_every << " iterations, oracle refiner ("
-     << to_string(in.support) << " support) with artifacts (strength " << in.artifact_strength << "). Baselines use ExploreGS weights (the paper's protocol); FillGS its own.\n\n"
-     << "| Method | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | seconds |\n|---|---|---|---|---|---|---|---|---|\n";
+     << in.finetune.trajectories << " trajectories every " << in.finetune.select_every << " iterations, refiner `" << to_string(in.refiner) << "` "
+     << (in.refiner == BenchRefiner::Reference
+             ? "(conditioned on each patch's start view alone, confidence falling with the parallax angle to it, calibrated before any strategy "
+               "ran with it; see the calibration below)"
+             : in.refiner == BenchRefiner::Oracle ? "(ground truth wherever any training camera saw it: a bound, not a generator)"
+                                                  : "(ground truth everywhere: a bound, not a generator)")
+     << " with artifacts (strength " << in.artifact_strength << "). Baselines use ExploreGS weights (the paper's protocol); FillGS its own.\n\n";
+  // The result as measured, in one sentence.
+  auto find = [&](const std::string& id) -> const RunResult* {
+    for (const RunResult& r : in.results)
+      if (r.id == id) return &r;
+    return nullptr;
+  };
+  const RunResult* ours = find("fillgs");
+  const RunResult* control = find("no-refinement");
+  const RunResult* other = nullptr;
+  for (const std::string& id : in.run_ids)
+    if (id != "fillgs" && id != "no-refinement") other = find(id);
+  if (ours && control && other) {
+    auto signed_db = [](double x) { return (x >= 0 ? "+" : "") + fmt(x) + " dB"; };
+    md << "**Measured here:** FillGS " << fmt(ours->interpolation.psnr) << " / " << fmt(ours->extrapolation.psnr) << " dB (interpolation / "
+       << "extrapolation), " << other->id << " " << fmt(other->interpolation.psnr) << " / " << fmt(other->extrapolation.psnr)
+       << " dB, no generated views " << fmt(control->interpolation.psnr) << " / " << fmt(control->extrapolation.psnr) << " dB: FillGS "
+       << signed_db(ours->interpolation.psnr - other->interpolation.psnr) << " / " << signed_db(ours->extrapolation.psnr - other->extrapolation.psnr)
+       << " against " << other->id << ", " << signed_db(ours->interpolation.psnr - control->interpolation.psnr) << " / "
+       << signed_db(ours->extrapolation.psnr - control->extrapolation.psnr)
+       << " against the control. One seed; the benchmark's tables over three seeds are in bench/results/README.md.\n\n";
+  }
+  md << "| Method | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | seconds |\n|---|---|---|---|---|---|---|---|---|\n";
   for (const RunResult& r : in.results) {
     md << "| " << r.id << " | " << fmt(r.interpolation.psnr) << " | " << fmt(r.interpolation.ssim, 3) << " | " << fmt(r.interpolation.psnr_moving)
        << " | " << fmt(r.extrapolation.psnr) << " | " << fmt(r.extrapolation.ssim, 3) << " | " << fmt(r.extrapolation.psnr_moving) << " | "
@@ -834,6 +1038,17 @@ void write_run_report(const std::string& dir, const RunReportInput& in) {
   for (const std::string& f : pictures) md << "![" << f << "](" << f << ")\n\n";
   for (const char* chart : {"psnr_interpolation", "psnr_extrapolation"})
     if (fs::exists(join_path(dir, std::string(chart) + ".png"))) md << "![" << chart << "](" << chart << ".png)\n\n";
+  // What the refiner made of these runs' views against the truth.
+  std::vector<std::pair<std::string, std::vector<RefinedViewRecord>>> records;
+  for (const std::string& id : in.run_ids) {
+    const std::string csv = join_path(join_path(join_path(in.scene->dir, "runs"), id), "refined_views.csv");
+    if (fs::exists(csv)) records.emplace_back(id, read_refined_view_records(csv));
+  }
+  write_refiner_calibration(join_path(dir, "refiner"), records, "the refiner on this run's views");
+  if (fs::exists(join_path(dir, "refiner.png")))
+    md << "## The refiner\n\nEach refined view against the truth, by the parallax angle to the start view it was conditioned on (the "
+          "benchmark's calibration on random views: bench/results/README.md, \"Calibrating the refiner\").\n\n![refiner](refiner.png)\n\n"
+       << read_file(join_path(dir, "refiner.md")) << "\n";
   // The virtual views each strategy chose (top view), copied beside the report.
   md << "## Virtual views\n\n";
   for (const std::string& id : in.run_ids) {

@@ -28,10 +28,11 @@ json vec3(const Vec3f& v) { return json::array({v.x(), v.y(), v.z()}); }
 static_assert(sizeof(TrainOptions) == 336, "TrainOptions changed: add the new field to identity_json(TrainOptions), then update this size");
 static_assert(sizeof(SelectOptions) == 112, "SelectOptions changed: add the new field to identity_json(SelectOptions), then update this size");
 static_assert(sizeof(VisibilityOptions) == 20, "VisibilityOptions changed: add the new field to identity_json(SelectOptions), then update this size");
-static_assert(sizeof(MaskOptions) == 96, "MaskOptions changed: add the new field to identity_json(MaskOptions), then update this size");
-static_assert(sizeof(ExplorationOptions) == 24, "ExplorationOptions changed: add the new field to identity_json(ExplorationOptions), then update this size");
+static_assert(sizeof(MaskOptions) == 104, "MaskOptions changed: add the new field to identity_json(MaskOptions), then update this size");
+static_assert(sizeof(ExplorationOptions) == 32, "ExplorationOptions changed: add the new field to identity_json(ExplorationOptions), then update this size");
 static_assert(sizeof(ArtifactOptions) == 24, "ArtifactOptions changed: add the new field to identity_json(ArtifactOptions), then update this size");
-static_assert(sizeof(FinetuneOptions) == 648, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
+static_assert(sizeof(ReferenceOptions) == 88, "ReferenceOptions changed: add the new field to identity_json(ReferenceOptions), then update this size");
+static_assert(sizeof(FinetuneOptions) == 664, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
 #endif
 
 void differences(const json& was, const json& now, const std::string& path, std::string& first) {
@@ -144,15 +145,29 @@ json identity_json(const MaskOptions& o) {
           {"window", o.window},                    {"search", o.search},
           {"depth_tolerance", o.depth_tolerance},  {"min_alpha", o.min_alpha},
           {"sweep_planes", o.sweep_planes},        {"sweep_near", o.sweep_near},
-          {"external_dir", o.external_dir},        {"covisibility", to_string(o.covisibility)}};
+          {"external_dir", o.external_dir},        {"covisibility", to_string(o.covisibility)},
+          {"scale", to_string(o.scale)},           {"normalise", o.normalise}};
 }
 
 json identity_json(const ExplorationOptions& o) {
-  return {{"divisions", o.divisions}, {"occupancy_alpha", o.occupancy_alpha}, {"bounds_quantile", o.bounds_quantile}, {"margin", o.margin}};
+  return {{"divisions", o.divisions}, {"occupancy_alpha", o.occupancy_alpha}, {"bounds_quantile", o.bounds_quantile}, {"margin", o.margin},
+          {"label_unexplored", o.label_unexplored}};
 }
 
 json identity_json(const ArtifactOptions& o) {
   return {{"strength", o.strength}, {"seed", o.seed}, {"region_fraction", o.region_fraction}};
+}
+
+json identity_json(const ReferenceOptions& o) {
+  return {{"name", "reference"},
+          {"angle_scale_degrees", o.angle_scale_degrees},
+          {"shift_per_degree", o.shift_per_degree},
+          {"blur_per_degree", o.blur_per_degree},
+          {"flicker", o.flicker},
+          {"artifacts", identity_json(o.artifacts)},
+          {"fill_strength", o.fill_strength},
+          {"background", vec3(o.background)},
+          {"depth_tolerance", o.depth_tolerance}};
 }
 
 json identity_json(const FinetuneOptions& o) {

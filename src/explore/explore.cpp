@@ -158,6 +158,7 @@ ExplorationGrid build_exploration_grid(const GaussianCloud& scene, const std::ve
   for (size_t c = 0; c < training.size(); ++c)
     if (!poses[groups[c]]) poses[groups[c]] = &training[c];
   // ---- unexplored: centres inside no training frustum (one test per distinct pose)
+  if (o.label_unexplored)
   tbb::parallel_for(tbb::blocked_range<int>(0, dims.z()), [&](const tbb::blocked_range<int>& r) {
     for (int kz = r.begin(); kz < r.end(); ++kz)
       for (int jy = 0; jy < dims.y(); ++jy)

@@ -10,6 +10,7 @@
 #include "fillgs/base/timing.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/image_io.hpp"
+#include "fillgs/method/weights.hpp"
 #include "fillgs/render/raster.hpp"
 #include "fillgs/train/train_model.hpp"
 #include "fillgs/visibility/visibility.hpp"
@@ -112,6 +113,7 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
       }
       r.seconds_render = seconds_since(t0);
       t0 = Clock::now();
+      refiner.begin_round(current, to.background);
       const RefineReport rep = refine_patches(refiner, patches, patch_root, refined_root, progress);
       r.seconds_refine = seconds_since(t0);
       r.refine_failures = rep.failures;
@@ -119,7 +121,19 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
 
       // Weights, written next to every refined image.
       t0 = Clock::now();
-      const DeficiencyField field(sel.initial_tables, so.deficiency_quantile);
+      // The weights' D̂ is scaled per frame by the moving Gaussians visible there (their
+      // opacity at each frame of the tables), unless the global scale is asked for.
+      std::vector<float> opacity;
+      if (o.mask.scale == CovisibilityScale::Visible) {
+        const ObservationTables& t = sel.initial_tables;
+        const size_t M = t.dynamic_ids.size();
+        opacity.resize(t.times.size() * M);
+        for (size_t f = 0; f < t.times.size(); ++f) {
+          const FrameGaussians fg = frame_at(current, t.times[f]);
+          for (size_t j = 0; j < M; ++j) opacity[f * M + j] = fg.opacities[t.dynamic_ids[j]];
+        }
+      }
+      const DeficiencyField field(sel.initial_tables, so.deficiency_quantile, opacity.empty() ? nullptr : &opacity);
       WeightContext ctx;
       ctx.model = &current;
       ctx.views = views;
@@ -134,13 +148,14 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
       for (const RefinedImage& ri : rep.images) {
         const Camera& cam = ri.image.camera;
         const std::string rel = patches[size_t(ri.patch)].name + "/" + ri.image.file;
-        const ViewWeights w = compute_weights(ctx, ri.rgb, cam, o.weighting, o.mask, rel);
+        ViewWeights w = compute_weights(ctx, ri.rgb, cam, o.weighting, o.mask, rel);
         const std::string base = join_path(join_path(refined_root, patches[size_t(ri.patch)].name), stem(ri.image.file));
         if (!w.consistency.empty()) write_image(base + "_mask.png", grey(w.consistency, cam.width, cam.height));
         if (!w.covisibility.empty()) write_image(base + "_covis.png", grey(w.covisibility, cam.width, cam.height));
         write_image(base + "_weight.png", grey(w.weight, cam.width, cam.height));
         for (float x : w.weight) weight_sum += x;
         weight_count += w.weight.size();
+        if (o.mask.normalise) normalise_by_mean(w.weight);
         added.push_back({cam, ri.rgb.pixels, w.weight});
         result.virtual_views.push_back(cam);
         progress.advance();

@@ -76,8 +76,8 @@ class IdentityRefiner : public Refiner {
   }
 };
 
-/// The model's render where the observations do not reach, degraded as a diffusion model
-/// fails there: blurred, colours drifted, one hallucinated blob.
+}  // namespace
+
 void degrade_unsupported(Image& image, double strength, uint64_t seed, uint64_t key) {
   const int W = image.width, H = image.height;
   cv::Mat img(H, W, CV_32FC3, image.pixels.data());
@@ -94,6 +94,8 @@ void degrade_unsupported(Image& image, double strength, uint64_t seed, uint64_t 
   const cv::Mat colour(H, W, CV_32FC3, cv::Scalar(u(), u(), u()));
   blend(img, colour, m, 0.8f);
 }
+
+namespace {
 
 class OracleRefiner : public Refiner {
  public:

@@ -174,10 +174,41 @@ std::vector<Camera> Trajectory::views() const {
 // ------------------------------------------------------------------ deficiency field
 
 
-DeficiencyField::DeficiencyField(ObservationTables tables, float quantile) : tables_(std::move(tables)) {
+float weighted_quantile(const std::vector<float>& values, const std::vector<float>& weights, double quantile) {
+  FILLGS_CHECK(values.size() == weights.size());
+  std::vector<std::pair<float, float>> vw;
+  double total = 0;
+  for (size_t i = 0; i < values.size(); ++i)
+    if (weights[i] > 0) vw.emplace_back(values[i], weights[i]), total += double(weights[i]);
+  if (vw.empty()) return 1.0f;
+  std::sort(vw.begin(), vw.end());
+  const double target = std::clamp(quantile, 0.0, 1.0) * total;
+  double cumulative = 0;
+  for (const auto& [v, w] : vw) {
+    cumulative += double(w);
+    if (cumulative >= target) return v;
+  }
+  return vw.back().first;
+}
+
+DeficiencyField::DeficiencyField(ObservationTables tables, float quantile, const std::vector<float>* opacity) : tables_(std::move(tables)) {
   dynamic_index_.assign(tables_.gaussians, -1);
-  for (size_t j = 0; j < tables_.dynamic_ids.size(); ++j) dynamic_index_[tables_.dynamic_ids[j]] = int32_t(j);
+  const size_t M = tables_.dynamic_ids.size(), T = size_t(tables_.frames());
+  for (size_t j = 0; j < M; ++j) dynamic_index_[tables_.dynamic_ids[j]] = int32_t(j);
   scale_ = tables_.deficiency_scale(quantile);
+  if (opacity) {
+    if (opacity->size() != T * M) throw_error("deficiency: ", opacity->size(), " opacities for ", T, " frames x ", M, " moving Gaussians");
+    frame_scale_.assign(T, scale_);
+    std::vector<float> d, w;
+    for (size_t f = 0; f < T; ++f) {
+      d.clear(), w.clear();
+      for (size_t j = 0; j < M; ++j) {
+        const float D = tables_.dynamic_deficiency[f * M + j], a = (*opacity)[f * M + j];
+        if (D > 0 && a >= kMinAlpha) d.push_back(D), w.push_back(a);
+      }
+      if (!d.empty()) frame_scale_[f] = std::max(weighted_quantile(d, w, quantile), 1e-30f);
+    }
+  }
   std::vector<float> speeds;
   for (float s : tables_.dynamic_speed)
     if (s > 0) speeds.push_back(s);
@@ -194,7 +225,7 @@ std::vector<float> DeficiencyField::values(int f, CandidateScore score) const {
   switch (score) {
     case CandidateScore::Deficiency:
       for (size_t j = 0; j < M; ++j)
-        v[tables_.dynamic_ids[j]] = std::min(1.0f, tables_.dynamic_deficiency[size_t(f) * M + j] / scale_);
+        v[tables_.dynamic_ids[j]] = std::min(1.0f, tables_.dynamic_deficiency[size_t(f) * M + j] / scale(f));
       break;
     case CandidateScore::SpeedOnly:
       for (size_t j = 0; j < M; ++j) v[tables_.dynamic_ids[j]] = std::min(1.0f, tables_.dynamic_speed[size_t(f) * M + j] / speed_scale_);
@@ -215,7 +246,7 @@ std::vector<float> DeficiencyField::covisibility(int f, Covisibility rule) const
   for (size_t j = 0; j < M; ++j) {
     const uint32_t g = tables_.dynamic_ids[j];
     v[g] = rule == Covisibility::StaticCount
-               ? std::min(1.0f, tables_.dynamic_deficiency[size_t(f) * M + j] / scale_)
+               ? std::min(1.0f, tables_.dynamic_deficiency[size_t(f) * M + j] / scale(f))
                : std::min(1.0f, (1.0f + tables_.dynamic_speed[size_t(f) * M + j] / speed_scale_) * v[g]);
   }
   return v;

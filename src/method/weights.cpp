@@ -8,6 +8,7 @@
 #include "fillgs/model/frame_grid.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/fs_util.hpp"
+#include "fillgs/method/refine.hpp"
 #include "fillgs/render/raster.hpp"
 
 namespace fillgs {
@@ -52,6 +53,15 @@ std::vector<float> ones(const Camera& c) { return std::vector<float>(size_t(c.wi
 
 }  // namespace
 
+void normalise_by_mean(std::vector<float>& w) {
+  if (w.empty()) return;
+  double sum = 0;
+  for (float x : w) sum += double(x);
+  if (!(sum > 0)) return;
+  const float k = float(double(w.size()) / sum);
+  for (float& x : w) x *= k;
+}
+
 std::vector<float> expected_depth(const FrameGaussians& frame, const Camera& camera, double min_alpha) {
   RenderOptions ro;
   ro.rgb = false;
@@ -70,26 +80,17 @@ std::vector<float> consistency_with(const Image& refined, const Camera& cam, con
   if (observed.width != OW || observed.height != OH || observed.channels < 3) throw_error("consistency: observed image does not match its camera");
   if (depth.size() != size_t(W) * H || odepth.size() != size_t(OW) * OH) throw_error("consistency: depth maps do not match the cameras");
   cv::Mat diff(H, W, CV_32F, cv::Scalar(0)), valid(H, W, CV_32F, cv::Scalar(0));
-  const Mat3d Rt = cam.R.transpose();
+  const std::vector<WarpedPixel> warp = warp_pixels(cam, depth, ocam, odepth, o.depth_tolerance);
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
-      const float z = depth[size_t(y) * W + x];
-      if (!(z > 0)) continue;
-      const Vec3d pc((x + 0.5 - cam.cx) / cam.fx * z, (y + 0.5 - cam.cy) / cam.fy * z, z);
-      const Vec3d pw = Rt * (pc - cam.t);
-      const Vec3d q = ocam.project(pw);  // corner convention: pixel i spans [i, i+1)
-      if (!(q.z() > kNearPlane)) continue;
-      const double u = q.x() - 0.5, v = q.y() - 0.5;
-      if (u < 0 || v < 0 || u > OW - 1 || v > OH - 1) continue;
-      const int ni = std::clamp(int(std::lround(u)), 0, OW - 1), nj = std::clamp(int(std::lround(v)), 0, OH - 1);
-      const float oz = odepth[size_t(nj) * OW + ni];
-      if (!(oz > 0) || std::abs(oz - q.z()) > o.depth_tolerance * q.z()) continue;  // occluded in the observed view
+      const WarpedPixel& w = warp[size_t(y) * W + x];
+      if (!w.valid) continue;
       // Colour difference to the warped observation, the best within ±search pixels (the
       // warp through a rendered depth is not exact at texture edges and silhouettes).
       double d2 = 1e30;
       for (int dv = -o.search; dv <= o.search; ++dv)
         for (int du = -o.search; du <= o.search; ++du) {
-          const double su = std::clamp(u + du, 0.0, double(OW - 1)), sv = std::clamp(v + dv, 0.0, double(OH - 1));
+          const double su = std::clamp(w.u + du, 0.0, double(OW - 1)), sv = std::clamp(w.v + dv, 0.0, double(OH - 1));
           d2 = std::min(d2, squared_difference(refined, x, y, observed, su, sv));
         }
       diff.at<float>(y, x) = float(d2 / 3);

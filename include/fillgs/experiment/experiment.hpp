@@ -19,16 +19,31 @@
 #include "fillgs/base/names.hpp"
 #include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/method/finetune.hpp"
+#include "fillgs/method/refine.hpp"
 #include "fillgs/experiment/synth.hpp"
 #include "fillgs/train/train.hpp"
 
 namespace fillgs {
 
 /// The part of the comparison a configuration belongs to (a section of the report).
-enum class ConfigGroup { Control, Upper, Strategy, Ablation, Weighting, Budget, Refiner };
+/// Calibration: the unweighted random views the refiner is calibrated with; Selection: the
+/// other strategies with FillGS's fine-tuning and weights (the paper's Table 3 protocol).
+enum class ConfigGroup { Control, Upper, Calibration, Strategy, Ablation, Selection, Weighting, Budget, Refiner };
 FILLGS_ENUM_NAMES(ConfigGroup, "configuration group", {ConfigGroup::Control, "control"}, {ConfigGroup::Upper, "upper"},
-                  {ConfigGroup::Strategy, "strategy"}, {ConfigGroup::Ablation, "ablation"}, {ConfigGroup::Weighting, "weighting"},
-                  {ConfigGroup::Budget, "budget"}, {ConfigGroup::Refiner, "refiner"});
+                  {ConfigGroup::Calibration, "calibration"}, {ConfigGroup::Strategy, "strategy"}, {ConfigGroup::Ablation, "ablation"},
+                  {ConfigGroup::Selection, "selection"}, {ConfigGroup::Weighting, "weighting"}, {ConfigGroup::Budget, "budget"},
+                  {ConfigGroup::Refiner, "refiner"});
+
+/// The refiner a configuration's generated views come from: the reference-conditioned one
+/// (the benchmark's default, calibrated: refine.hpp, ReferenceOptions), or the oracle with
+/// observed or full support (labelled bounds).
+enum class BenchRefiner { Reference, Oracle, OracleFull };
+FILLGS_ENUM_NAMES(BenchRefiner, "bench refiner", {BenchRefiner::Reference, "reference"}, {BenchRefiner::Oracle, "oracle"},
+                  {BenchRefiner::OracleFull, "oracle-full"});
+
+/// The reference refiner of the benchmark: its calibrated parameters (bench/results/README.md,
+/// "Calibrating the refiner"), with the configuration's artifact strength and seed.
+ReferenceOptions bench_reference_options(double artifact_strength, uint64_t seed);
 
 /// A scene of the comparison by name: "n3v", "technicolor" (the kitchen on those rigs) or a
 /// ring variant ("chair", "orbit", "lift"). Throws for other names.
@@ -84,18 +99,22 @@ struct RunConfig {
   SelectOptions select;     ///< strategy and ablation flags
   Weighting weighting = Weighting::FillGS;
   MaskOptions mask;
-  double artifact_strength = 0.5;  ///< oracle artifacts (0: clean ground truth)
+  ExplorationOptions grid;  ///< the exploration space (label_unexplored is the one a configuration sets)
+  double artifact_strength = 0.5;  ///< the refiner's injected artifacts (0: none)
   int trajectories = 5;     ///< per round; 0: fine-tune on the real views only (the control)
-  OracleSupport support = OracleSupport::Observed;
+  BenchRefiner refiner = BenchRefiner::Reference;
+  double reference_angle_degrees = 0;  ///< the reference refiner's θ0; 0: the calibrated value
 };
 
-/// The paper's comparison, for every oracle support in `supports` (ids of the Full support
-/// end in "@full"; the first support's have no suffix): the control (no refined views),
-/// every strategy (FillGS with its weights, baselines with `baseline_weighting`, the
-/// paper's protocol: ExploreGS), FillGS's selection ablations, weighting ablations, budgets
-/// 1/10/20, the clean oracle; then the two upper bounds (once).
+/// The paper's comparison, for every refiner in `refiners` (ids of the second and later
+/// end in "@<refiner>", e.g. "random@oracle"; the first's have no suffix): the control (no
+/// refined views, once), the calibration row (random views, no weights), every strategy
+/// (FillGS with its weights, baselines with `baseline_weighting`, the paper's protocol:
+/// ExploreGS), FillGS's selection ablations and the other strategies with FillGS's
+/// weights (Table 3), weighting ablations (Table 4), budgets 1/10/20, the clean refiner;
+/// then the two upper bounds (once).
 std::vector<RunConfig> standard_configs(Weighting baseline_weighting = Weighting::ExploreGS, double artifact_strength = 0.5,
-                                        const std::vector<OracleSupport>& supports = {OracleSupport::Observed});
+                                        const std::vector<BenchRefiner>& refiners = {BenchRefiner::Reference});
 
 struct RunResult {
   std::string id, variant;         ///< variant: the scene name
@@ -105,8 +124,8 @@ struct RunResult {
   int trajectories = 0;
   size_t views_added = 0;
   double mean_weight = 0;
-  std::string support;             ///< "observed", "full", or "" (no oracle)
-  double support_share = 0;        ///< mean support of the refined pixels (1 for full)
+  std::string support;             ///< the refiner ("reference", "oracle", "oracle-full"), or "" (no generated views)
+  double support_share = 0;        ///< mean share of the refined pixels its reference (oracle: the training cameras) supports
   double seconds_select = 0, seconds_refine = 0, seconds_weights = 0, seconds_train = 0, seconds_eval = 0, seconds_total = 0;
   int refine_failures = 0;
 };
@@ -132,7 +151,7 @@ std::vector<RunResult> collect_results(const std::string& root);
 
 /// The first line of a bench's results.csv (one run a row; write_bench_report writes it).
 inline constexpr const char* kResultsCsvHeader =
-    "scene,seed,id,group,support,interp_psnr,interp_ssim,interp_psnr_moving,extrap_psnr,extrap_ssim,extrap_psnr_moving,train_psnr,"
+    "scene,seed,id,group,refiner,interp_psnr,interp_ssim,interp_psnr_moving,extrap_psnr,extrap_ssim,extrap_psnr_moving,train_psnr,"
     "trajectories,views_added,mean_weight,support_share,refine_failures,s_select,s_refine,s_weights,s_train,s_eval,s_total";
 
 /// The runs of a results.csv. What the CSV does not hold (view and pixel counts, LPIPS,
@@ -166,13 +185,24 @@ std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& r
 /// budget.png, time_per_phase.png.
 void write_bench_report(const std::string& root, const std::vector<RunResult>& results);
 
+/// The records of a run's refined views (SupportStats::views) as CSV (atomic), and back.
+void write_refined_view_records(const std::string& path, const std::vector<RefinedViewRecord>& records);
+std::vector<RefinedViewRecord> read_refined_view_records(const std::string& path);
+
+/// The refiner's behaviour: refined-vs-truth PSNR against the parallax angle to the
+/// reference, one point series per entry (a label, e.g. "seed 1", and its records), the
+/// means per 5° bin of the refined images and of the renders they were given; `path`.png
+/// with its .csv and .gp, and `path`.md, the binned table. Nothing is written without records.
+void write_refiner_calibration(const std::string& path, const std::vector<std::pair<std::string, std::vector<RefinedViewRecord>>>& runs,
+                               const std::string& title);
+
 /// What `fillgs run` compared, for its report.
 struct RunReportInput {
   const PreparedScene* scene = nullptr;
   std::vector<RunResult> results;    ///< the backbone first, then each run
   std::vector<std::string> run_ids;  ///< the fine-tuned runs, their models under <scene dir>/runs/<id>
   FinetuneOptions finetune;          ///< their schedule
-  OracleSupport support = OracleSupport::Observed;
+  BenchRefiner refiner = BenchRefiner::Reference;
   double artifact_strength = 0;
   std::string command;               ///< the command line, as typed
 };

@@ -24,6 +24,7 @@ nlohmann::json identity_json(const ExplorationOptions& o);
 /// they are).
 nlohmann::json identity_json(const FinetuneOptions& o);
 nlohmann::json identity_json(const ArtifactOptions& o);
+nlohmann::json identity_json(const ReferenceOptions& o);  ///< with "name": "reference"
 
 /// "" when equal; else the first differing key as a path with both values, e.g.
 /// "finetune.weighting: was \"explore-gs\", now \"fillgs\"" (a key only one side has: "absent").

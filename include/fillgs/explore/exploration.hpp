@@ -43,6 +43,9 @@ struct ExplorationOptions {
   float occupancy_alpha = 0.1f;   ///< a Gaussian occupies where its α reaches this
   double bounds_quantile = 0.01;  ///< robust Gaussian bounds: this and 1 − this quantile per axis
   double margin = 0.05;           ///< box grown by this fraction of its size on every side
+  /// Label voxels no training frustum contains "unexplored" (trajectories do not enter
+  /// them); off: only occupied voxels are masked, as the paper does.
+  bool label_unexplored = true;
 };
 
 struct ExplorationStats {

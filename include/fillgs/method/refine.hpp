@@ -76,6 +76,10 @@ struct ArtifactOptions {
 /// A change counts as an artifact above this (≈ 8/255 in some channel): fainter changes (the
 /// soft rims of the regions) are below what any check of agreement could see.
 constexpr float kArtifactVisible = 0.03f;
+/// The model's render where a refiner cannot know the content, degraded as diffusion models
+/// fail there: blurred (σ 2 + 3a px), colours drifted (±20a %), one hallucinated blob, a =
+/// `strength`, every draw from (seed, key).
+void degrade_unsupported(Image& image, double strength, uint64_t seed, uint64_t key);
 /// Applies artifacts to `image` in place; returns the artifact mask ([H][W], 1 where the
 /// image changed by more than kArtifactVisible in some channel).
 std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& options, uint64_t key);
@@ -95,6 +99,9 @@ class Refiner {
   virtual void refine(const std::string& in_dir, const std::string& out_dir, const Patch& patch) = 0;
   /// The pose of the image refine() returns for a virtual view; the default: its own.
   virtual RefinedPose pose(const PatchImage& /*image*/) const { return {}; }
+  /// Called before a round's patches are refined, with the model that rendered them (a
+  /// refiner that reads the render's geometry keeps it until the next call).
+  virtual void begin_round(const GaussianCloud& /*current*/, const Vec3f& /*background*/) {}
 };
 
 /// Copies the rendered images.
@@ -123,12 +130,83 @@ struct OracleOptions {
   Vec3f background = Vec3f::Zero();
 };
 
-/// Mean support of the virtual views an oracle refined (1 for Full).
+/// One virtual view a reference-conditioned refiner made, measured: what the calibration
+/// plots (refined-vs-truth PSNR against the angle to the reference).
+struct RefinedViewRecord {
+  std::string file;               ///< <patch>/<file>
+  int frame = 0;
+  double parallax_degrees = 0;    ///< median over the view's surface pixels of the angle between the rays to the two camera centres
+  double axis_degrees = 0;        ///< angle between the view's and the reference's optical axes
+  double baseline = 0;            ///< distance between the camera centres (world units)
+  double support = 0;             ///< share of the pixels whose surface the reference saw (warp: that the warp reached)
+  double confidence = 0;          ///< mean blending confidence
+  double psnr_refined = 0;        ///< refined image against the truth (NaN without one)
+  double psnr_render = 0;         ///< the render it was given against the truth (NaN without one)
+};
+
+/// Mean support of the virtual views an oracle refined (1 for Full), and, for the
+/// reference-conditioned refiners, every view's record.
 struct SupportStats {
   double support_sum = 0;
   size_t pixels = 0;
+  std::vector<RefinedViewRecord> views;
   double share() const { return pixels ? support_sum / double(pixels) : 0.0; }
 };
+
+/// A refiner conditioned on one observed view, as the published generative refiners are
+/// (3DGS-Enhancer, ViewCrafter, Difix3D+, the video diffusion of ExploreGS and of the
+/// paper): it sees the rendered patch and the patch's own reference observation at each
+/// frame (the start camera's image; a frame without one takes the patch's nearest frame
+/// that has one) and nothing else. Per pixel of a virtual view, with θ the parallax angle
+/// between the rays from the two camera centres to the surface point:
+///   refined = c · (reference content, misplaced by shift·θ px and blurred by blur·θ px)
+///           + (1 − c) · (the render, degraded where the refiner cannot know: blurred,
+///             colours drifted, a hallucinated blob — the oracle's fill),
+///   c = seen · exp(−θ / θ0), θ0 halved on moving content, whose content also drifts twice
+///   as far; a per-frame gain flickers by ±flicker·(1 − exp(−θ̄ / θ0)); the ArtifactOptions
+///   go on top at strength·(1 − exp(−θ̄ / θ0)) (θ̄: the view's median parallax).
+/// Every departure from the reference vanishes at θ = 0: a virtual view at the reference's
+/// pose gets the reference back. Two forms:
+///  * `reference` (synthetic scenes): the content is the ground truth rendered at the
+///    virtual view; "seen" where the reference camera saw the surface at that frame (exact
+///    visibility of the truth, α·T ≥ 1/255, at least half of the pixel's rendered opacity);
+///    θ from the truth's depth. No truth reaches a pixel the reference did not see.
+///  * `warp` (any data, real video included): the reference photograph warped into the
+///    virtual view through the *render's* depth (the model of the round, begin_round),
+///    occlusion-checked against the render's depth at the reference; "seen" where the warp
+///    lands inside the reference and passes the check; θ from the render's depth.
+/// The parameters are the benchmark's calibration (bench/results/README.md, "Calibrating
+/// the refiner"): θ0 was set once, from the unweighted random views against the control,
+/// before any other strategy ran with it; the others are fixed a priori.
+struct ReferenceOptions {
+  double angle_scale_degrees = 10.0;  ///< θ0: confidence exp(−θ/θ0)
+  double shift_per_degree = 0.001;    ///< texture misplacement, fraction of the image width per degree of parallax
+  double blur_per_degree = 0.0005;    ///< blur σ, fraction of the width per degree
+  double flicker = 0.05;              ///< per-frame gain jitter at full distance
+  ArtifactOptions artifacts;          ///< injected on top (scaled as above); artifacts.seed seeds every draw
+  double fill_strength = 0.5;         ///< degradation of the render where c < 1 (the oracle's fill)
+  Vec3f background = Vec3f::Zero();
+  double depth_tolerance = 0.05;      ///< warp: occlusion test |z − z_reference| ≤ this × z
+};
+/// The synthetic form: ground truth `truth` seen by the reference.
+std::unique_ptr<Refiner> make_reference_refiner(const GaussianCloud& truth, const ReferenceOptions& options, SupportStats* stats = nullptr);
+/// The real-data form: the reference photograph warped through the render's depth. With
+/// `truth` (synthetic scenes) its records carry PSNRs against it.
+std::unique_ptr<Refiner> make_warp_refiner(const ReferenceOptions& options, SupportStats* stats = nullptr, const GaussianCloud* truth = nullptr);
+/// The parallax angle (degrees) at world point `p` between the rays from the centres of `a` and `b`.
+double parallax_degrees(const Vec3d& p, const Vec3d& centre_a, const Vec3d& centre_b);
+
+/// Where each pixel of `camera` (expected depth `depth`, 0 = none) lands in `other`
+/// (expected depth `other_depth`): pixel-index coordinates (u, v) and the world point, or
+/// invalid where it has no depth, falls outside, or is occluded there
+/// (|z − z_other| > tolerance · z, nearest pixel).
+struct WarpedPixel {
+  bool valid = false;
+  double u = 0, v = 0;
+  Vec3d world = Vec3d::Zero();
+};
+std::vector<WarpedPixel> warp_pixels(const Camera& camera, const std::vector<float>& depth, const Camera& other,
+                                     const std::vector<float>& other_depth, double tolerance);
 
 /// The support of every Gaussian of `truth` at every frame ([F][N], 1 = seen), as the
 /// Observed oracle uses it: exact visibility from `observers`, static Gaussians at any frame,

@@ -61,6 +61,10 @@ enum class Covisibility {
 FILLGS_ENUM_NAMES(Covisibility, "co-visibility rule",
     {Covisibility::Paper, "paper"}, {Covisibility::StaticCount, "static-count"}, {Covisibility::Density, "density"});
 
+/// Where the scale of D̂ in the co-visibility weight comes from (DeficiencyField).
+enum class CovisibilityScale { Visible, Global };
+FILLGS_ENUM_NAMES(CovisibilityScale, "co-visibility scale", {CovisibilityScale::Visible, "visible"}, {CovisibilityScale::Global, "global"});
+
 /// How candidate maps are rendered: rays through the Embree proxies every `stride`
 /// pixels, or the rasterizer at full resolution.
 enum class MapRenderer { Raytraced, Raster };
@@ -203,12 +207,25 @@ double mean_value(const std::vector<float>& map);
 /// Camera half-way (or at fraction s) between a and b: centre lerped, rotation slerped.
 Camera interpolate_camera(const Camera& a, const Camera& b, double s);
 
+/// The quantile of `values` weighted by `weights` (> 0): the smallest value whose
+/// cumulative weight, in ascending order of value, reaches `quantile` × the total weight.
+/// 1 when nothing has positive weight.
+float weighted_quantile(const std::vector<float>& values, const std::vector<float>& weights, double quantile);
+
 /// Per-Gaussian values whose rendering scores a candidate at frame f (D̂, 1/(1+C) or ŝ).
 class DeficiencyField {
  public:
-  DeficiencyField(ObservationTables tables, float quantile);
+  /// D̂ = min(1, D / scale). Without `dynamic_opacity` the scale is the `quantile` of D > 0
+  /// over every moving Gaussian of every frame (ObservationTables::deficiency_scale). With
+  /// it ([T][Ndyn]: each moving Gaussian's opacity at each frame of the tables) the scale is
+  /// per frame: the opacity-weighted `quantile` of D over the moving Gaussians visible at
+  /// that frame (opacity ≥ 1/255, D > 0), so that faint Gaussians drifting through a frame
+  /// do not set the scale of the ones it shows (the global one where a frame has none).
+  DeficiencyField(ObservationTables tables, float quantile, const std::vector<float>* dynamic_opacity = nullptr);
   const ObservationTables& tables() const { return tables_; }
   float scale() const { return scale_; }
+  /// The scale D̂ uses at frame f.
+  float scale(int frame) const { return frame_scale_.empty() ? scale_ : frame_scale_[size_t(frame)]; }
   /// D̂ (or the ablation's value) for all N Gaussians at frame f.
   std::vector<float> values(int frame, CandidateScore score) const;
   /// The co-visibility weight's per-Gaussian value at frame f (weights.hpp, Covisibility).
@@ -220,6 +237,7 @@ class DeficiencyField {
   ObservationTables tables_;
   std::vector<int32_t> dynamic_index_;
   float scale_ = 1, speed_scale_ = 1;
+  std::vector<float> frame_scale_;  ///< per frame (visible-set scale), empty: scale_ everywhere
 };
 
 }  // namespace fillgs

@@ -59,7 +59,17 @@ struct MaskOptions {
   /// named `name` (the refined image's path relative to the refined root).
   std::string external_dir;
   Covisibility covisibility = Covisibility::Paper;
+  /// The scale of D̂ in the co-visibility weight (DeficiencyField): per frame over the moving
+  /// Gaussians visible at it, opacity-weighted (the default), or over every moving Gaussian
+  /// of every frame (the earlier rule).
+  CovisibilityScale scale = CovisibilityScale::Visible;
+  /// Divide each refined view's weights by their mean (a view with mean weight m then
+  /// weighs as much in the loss as an unweighted one; the map only redistributes it).
+  bool normalise = false;
 };
+
+/// Divides `weights` by their mean (left as they are when the mean is 0).
+void normalise_by_mean(std::vector<float>& weights);
 
 /// Expected depth Σ α·T·z / α of a render, 0 where α < min_alpha.
 std::vector<float> expected_depth(const FrameGaussians& frame, const Camera& camera, double min_alpha);

@@ -1,0 +1,353 @@
+// The reference-conditioned refiners (refine.hpp, ReferenceOptions): `reference` on
+// synthetic scenes (ground truth where the reference camera saw it), `warp` on any data
+// (the reference photograph warped through the render's depth).
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <opencv2/imgproc.hpp>
+
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/base/random.hpp"
+#include "fillgs/method/refine.hpp"
+#include "fillgs/method/weights.hpp"
+#include "fillgs/render/loss.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/visibility/visibility.hpp"
+
+namespace fillgs {
+
+double parallax_degrees(const Vec3d& p, const Vec3d& a, const Vec3d& b) {
+  const Vec3d u = a - p, v = b - p;
+  const double nu = u.norm(), nv = v.norm();
+  if (!(nu > 0) || !(nv > 0)) return 0.0;
+  return std::acos(std::clamp(u.dot(v) / (nu * nv), -1.0, 1.0)) * 180.0 / kPi;
+}
+
+std::vector<WarpedPixel> warp_pixels(const Camera& cam, const std::vector<float>& depth, const Camera& other,
+                                     const std::vector<float>& other_depth, double tolerance) {
+  const int W = cam.width, H = cam.height, OW = other.width, OH = other.height;
+  if (depth.size() != size_t(W) * H || other_depth.size() != size_t(OW) * OH) throw_error("warp: depth maps do not match the cameras");
+  std::vector<WarpedPixel> out(size_t(W) * H);
+  const Mat3d Rt = cam.R.transpose();
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const float z = depth[size_t(y) * W + x];
+      if (!(z > 0)) continue;
+      WarpedPixel& w = out[size_t(y) * W + x];
+      const Vec3d pc((x + 0.5 - cam.cx) / cam.fx * z, (y + 0.5 - cam.cy) / cam.fy * z, z);
+      w.world = Rt * (pc - cam.t);
+      const Vec3d q = other.project(w.world);  // corner convention: pixel i spans [i, i+1)
+      if (!(q.z() > kNearPlane)) continue;
+      // Inside the other image's pixels (centres at 0 .. OW − 1, each half a pixel wide).
+      const double u = q.x() - 0.5, v = q.y() - 0.5;
+      if (u < -0.5 || v < -0.5 || u > OW - 0.5 || v > OH - 0.5) continue;
+      const int ni = std::clamp(int(std::lround(u)), 0, OW - 1), nj = std::clamp(int(std::lround(v)), 0, OH - 1);
+      const float oz = other_depth[size_t(nj) * OW + ni];
+      if (!(oz > 0) || std::abs(oz - q.z()) > tolerance * q.z()) continue;  // occluded in the other view
+      w.valid = true, w.u = std::clamp(u, 0.0, double(OW - 1)), w.v = std::clamp(v, 0.0, double(OH - 1));
+    }
+  return out;
+}
+
+namespace {
+
+/// What one virtual view is composed from.
+struct ViewInputs {
+  std::vector<float> content;   ///< [H][W][3]: what the reference shows there (truth, or the warped photograph)
+  std::vector<float> seen;      ///< [H][W] in {0, 1}
+  std::vector<float> parallax;  ///< [H][W] degrees, < 0 where no surface
+  std::vector<float> moving;    ///< [H][W] share of moving content
+  double fallback_degrees = 0;  ///< θ where no pixel has a surface: the angle between the optical axes
+};
+
+double median_of(std::vector<float> v) {
+  if (v.empty()) return 0.0;
+  const size_t k = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
+  return v[k];
+}
+
+/// The refined image of one view (ReferenceOptions): content where the reference reaches,
+/// blended by its confidence with the degraded render. Fills `record`'s support,
+/// confidence and parallax.
+Image compose(const ReferenceOptions& o, const ViewInputs& in, const Image& rendered, uint64_t key, uint64_t frame_key, RefinedViewRecord* record) {
+  const int W = rendered.width, H = rendered.height;
+  const size_t P = size_t(W) * H;
+  std::vector<float> surface;
+  for (float t : in.parallax)
+    if (t >= 0) surface.push_back(t);
+  const double median = surface.empty() ? in.fallback_degrees : median_of(surface);
+  const double theta0 = o.angle_scale_degrees;
+  const double far = 1.0 - std::exp(-median / theta0);
+  const uint64_t seed = o.artifacts.seed;
+  uint64_t draw = 2000;  // apart from degrade_unsupported's and inject_artifacts' draws for the same key
+  auto u = [&] { return uniform(seed, key, draw++); };
+  // Misplaced texture: every pixel shifted along one direction by shift·θ (twice on moving
+  // content, which drifts along a direction of its own frame).
+  const double phi = 2 * kPi * u();
+  const double phi_moving = 2 * kPi * uniform(seed, frame_key, 1);
+  cv::Mat mx(H, W, CV_32F), my(H, W, CV_32F);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const size_t p = size_t(y) * W + x;
+      const double t = in.parallax[p] >= 0 ? in.parallax[p] : median;
+      const double s = o.shift_per_degree * W * t, m = in.moving[p];
+      const double dx = (1 - m) * s * std::cos(phi) + m * 2 * s * std::cos(phi_moving);
+      const double dy = (1 - m) * s * std::sin(phi) + m * 2 * s * std::sin(phi_moving);
+      mx.at<float>(y, x) = float(x - dx), my.at<float>(y, x) = float(y - dy);
+    }
+  cv::Mat content(H, W, CV_32FC3, const_cast<float*>(in.content.data())), moved;
+  cv::remap(content, moved, mx, my, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  const double sigma = o.blur_per_degree * W * median;
+  if (sigma > 0.05) cv::GaussianBlur(moved, moved, cv::Size(0, 0), sigma);
+  const double gain = 1 + o.flicker * far * (2 * uniform(seed, frame_key, 0) - 1);
+  Image fill = rendered;
+  degrade_unsupported(fill, o.fill_strength, seed, key);
+  Image out(W, H, 3);
+  double confidence = 0, seen = 0;
+  for (size_t p = 0; p < P; ++p) {
+    const double t = in.parallax[p] >= 0 ? in.parallax[p] : median;
+    const double scale = in.moving[p] >= 0.5 ? 0.5 * theta0 : theta0;
+    const double c = in.seen[p] * std::exp(-t / scale);
+    confidence += c, seen += in.seen[p];
+    const float* m = moved.ptr<float>(0) + p * 3;
+    for (int ch = 0; ch < 3; ++ch) out.pixels[p * 3 + ch] = float(c * gain * m[ch] + (1 - c) * fill.pixels[p * 3 + ch]);
+  }
+  if (o.artifacts.strength > 0 && far > 0) {
+    ArtifactOptions a = o.artifacts;
+    a.strength *= far;
+    inject_artifacts(out, a, key);
+  }
+  record->parallax_degrees = median;
+  record->support = seen / double(P);
+  record->confidence = confidence / double(P);
+  return out;
+}
+
+/// The patch's observed image at `frame`, or at its nearest frame that has one.
+const PatchImage& reference_of(const Patch& patch, int frame) {
+  const PatchImage* best = nullptr;
+  for (const PatchImage& im : patch.images)
+    if (im.observed && (!best || std::abs(im.frame - frame) < std::abs(best->frame - frame))) best = &im;
+  if (!best) throw_error("patch ", patch.name, " has no observed image: a reference-conditioned refiner needs one");
+  return *best;
+}
+
+double axis_degrees(const Camera& a, const Camera& b) {
+  const double c = std::clamp(a.R.row(2).dot(b.R.row(2)), -1.0, 1.0);
+  return std::acos(c) * 180.0 / kPi;
+}
+
+Image read_rgb(const std::string& path, const Camera& cam) {
+  Image im = read_image(path);
+  if (im.width != cam.width || im.height != cam.height || im.channels < 3)
+    throw_error(path, ": not a ", cam.width, "x", cam.height, " RGB image");
+  if (im.channels == 3) return im;
+  Image rgb(im.width, im.height, 3);
+  for (size_t p = 0; p < size_t(im.width) * im.height; ++p)
+    for (int c = 0; c < 3; ++c) rgb.pixels[p * 3 + c] = im.pixels[p * size_t(im.channels) + size_t(c)];
+  return rgb;
+}
+
+/// Parallax per pixel from an expected-depth map (< 0 where there is none).
+std::vector<float> parallax_map(const Camera& cam, const std::vector<float>& depth, const Vec3d& reference_centre) {
+  std::vector<float> out(depth.size(), -1.0f);
+  const Mat3d Rt = cam.R.transpose();
+  const Vec3d c = cam.centre();
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      const float z = depth[size_t(y) * cam.width + x];
+      if (!(z > 0)) continue;
+      const Vec3d pc((x + 0.5 - cam.cx) / cam.fx * z, (y + 0.5 - cam.cy) / cam.fy * z, z);
+      out[size_t(y) * cam.width + x] = float(parallax_degrees(Rt * (pc - cam.t), c, reference_centre));
+    }
+  return out;
+}
+
+void check_options(const ReferenceOptions& o) {
+  auto finite_at_least = [](double v, double lo) { return std::isfinite(v) && v >= lo; };
+  if (!(finite_at_least(o.angle_scale_degrees, 0) && o.angle_scale_degrees > 0))
+    throw_error("reference refiner: the angle scale must be a positive number of degrees (got ", o.angle_scale_degrees, ")");
+  if (!finite_at_least(o.shift_per_degree, 0) || !finite_at_least(o.blur_per_degree, 0) || !finite_at_least(o.flicker, 0) ||
+      !finite_at_least(o.fill_strength, 0) || !finite_at_least(o.artifacts.strength, 0) || !finite_at_least(o.depth_tolerance, 0))
+    throw_error("reference refiner: shift, blur, flicker, fill and artifact strengths and the depth tolerance must be finite and at least 0");
+}
+
+/// What both forms share: the loop over a patch's virtual views, the records.
+class ReferenceConditioned : public Refiner {
+ public:
+  ReferenceConditioned(const ReferenceOptions& o, SupportStats* stats, const GaussianCloud* truth) : o_(o), stats_(stats), truth_(truth) {
+    check_options(o_);
+  }
+  void refine(const std::string& in, const std::string& out, const Patch& patch) override {
+    make_directories(out);
+    for (const PatchImage& im : patch.images) {
+      if (im.observed) continue;
+      const PatchImage& ref = reference_of(patch, im.frame);
+      const Image rendered = read_rgb(join_path(in, im.file), im.camera);
+      ViewInputs vi = inputs(in, ref, im);
+      vi.fallback_degrees = axis_degrees(im.camera, ref.camera);
+      RefinedViewRecord rec;
+      const uint64_t key = string_key((patch.name + "/" + im.file).c_str());
+      const uint64_t frame_key = string_key((patch.name + "/frame" + std::to_string(im.frame)).c_str());
+      const Image refined = compose(o_, vi, rendered, key, frame_key, &rec);
+      write_image(join_path(out, im.file), refined);
+      if (!stats_) continue;
+      rec.file = patch.name + "/" + im.file;
+      rec.frame = im.frame;
+      rec.axis_degrees = vi.fallback_degrees;
+      rec.baseline = (im.camera.centre() - ref.camera.centre()).norm();
+      rec.psnr_refined = rec.psnr_render = std::nan("");
+      if (truth_) {
+        const std::vector<float> t = render(frame_at(*truth_, im.camera.time), im.camera, truth_options()).rgb;
+        rec.psnr_refined = psnr(refined.pixels.data(), t.data(), refined.width, refined.height, 3);
+        rec.psnr_render = psnr(rendered.pixels.data(), t.data(), refined.width, refined.height, 3);
+      }
+      stats_->support_sum += rec.support * double(refined.width) * refined.height;
+      stats_->pixels += size_t(refined.width) * refined.height;
+      stats_->views.push_back(rec);
+    }
+  }
+
+ protected:
+  virtual ViewInputs inputs(const std::string& in_dir, const PatchImage& reference, const PatchImage& view) = 0;
+  RenderOptions truth_options() const {
+    RenderOptions ro;
+    ro.background = o_.background;
+    return ro;
+  }
+  ReferenceOptions o_;
+  SupportStats* stats_;
+  const GaussianCloud* truth_;
+};
+
+class ReferenceRefiner : public ReferenceConditioned {
+ public:
+  ReferenceRefiner(const GaussianCloud& truth, const ReferenceOptions& o, SupportStats* stats)
+      : ReferenceConditioned(o, stats, &truth), engine_(truth, exact()), moving_(truth.size(), 0.0f) {
+    for (uint32_t g : truth.dynamic_ids) moving_[g] = 1.0f;
+  }
+  std::string name() const override { return "reference"; }
+
+ protected:
+  ViewInputs inputs(const std::string&, const PatchImage& ref, const PatchImage& im) override {
+    // Which Gaussians the reference camera saw at its own time (cached per camera and time).
+    const std::string id = ref.camera.name + "@" + std::to_string(ref.camera.time);
+    auto it = seen_.find(id);
+    if (it == seen_.end()) {
+      engine_.set_time(ref.camera.time);
+      std::vector<float> flags(truth_->size() * 2, 0.0f);
+      for (uint32_t g : engine_.visible_set(ref.camera)) flags[size_t(g) * 2] = 1.0f;
+      for (size_t g = 0; g < truth_->size(); ++g) flags[g * 2 + 1] = moving_[g];
+      it = seen_.emplace(id, std::move(flags)).first;
+    }
+    RenderOptions ro = truth_options();
+    ro.depth = true;
+    ro.features = it->second.data();
+    ro.feature_channels = 2;
+    const RenderOutput r = render(frame_at(*truth_, im.camera.time), im.camera, ro);
+    const size_t P = r.alpha.size();
+    ViewInputs vi;
+    vi.content = r.rgb;
+    vi.seen.assign(P, 0.0f);
+    vi.moving.assign(P, 0.0f);
+    std::vector<float> depth(P, 0.0f);
+    for (size_t p = 0; p < P; ++p) {
+      const float a = r.alpha[p];
+      // Seen where surfaces the reference saw make up at least half of what the pixel shows.
+      vi.seen[p] = a > 1e-4f && r.features[p * 2] >= 0.5f * a ? 1.0f : 0.0f;
+      vi.moving[p] = a > 1e-4f ? std::clamp(r.features[p * 2 + 1] / a, 0.0f, 1.0f) : 0.0f;
+      if (a >= 0.5f) depth[p] = r.depth[p] / a;
+    }
+    vi.parallax = parallax_map(im.camera, depth, ref.camera.centre());
+    return vi;
+  }
+
+ private:
+  static VisibilityOptions exact() {
+    VisibilityOptions v;
+    v.mode = VisibilityMode::Exact;
+    return v;
+  }
+  VisibilityEngine engine_;
+  std::vector<float> moving_;
+  std::map<std::string, std::vector<float>> seen_;
+};
+
+class WarpRefiner : public ReferenceConditioned {
+ public:
+  WarpRefiner(const ReferenceOptions& o, SupportStats* stats, const GaussianCloud* truth) : ReferenceConditioned(o, stats, truth) {}
+  std::string name() const override { return "warp"; }
+  void begin_round(const GaussianCloud& current, const Vec3f& background) override {
+    model_ = &current;
+    background_ = background;
+    reference_depths_.clear();
+    moving_.assign(current.size(), 0.0f);
+    for (uint32_t g : current.dynamic_ids) moving_[g] = 1.0f;
+  }
+
+ protected:
+  ViewInputs inputs(const std::string& in_dir, const PatchImage& ref, const PatchImage& im) override {
+    if (!model_) throw_error("warp refiner: no model (begin_round was not called)");
+    const Image photo = read_rgb(join_path(in_dir, ref.file), ref.camera);
+    const std::string id = ref.camera.name + "@" + std::to_string(ref.camera.time);
+    auto it = reference_depths_.find(id);
+    if (it == reference_depths_.end())
+      it = reference_depths_.emplace(id, expected_depth(frame_at(*model_, ref.camera.time), ref.camera, 0.5)).first;
+    RenderOptions ro;
+    ro.rgb = false;
+    ro.depth = true;
+    ro.features = moving_.data();
+    ro.feature_channels = 1;
+    ro.background = background_;
+    const RenderOutput r = render(frame_at(*model_, im.camera.time), im.camera, ro);
+    const size_t P = r.alpha.size();
+    std::vector<float> depth(P, 0.0f);
+    ViewInputs vi;
+    vi.moving.assign(P, 0.0f);
+    for (size_t p = 0; p < P; ++p) {
+      if (r.alpha[p] >= 0.5f) depth[p] = r.depth[p] / r.alpha[p];
+      if (r.alpha[p] > 1e-4f) vi.moving[p] = std::clamp(r.features[p] / r.alpha[p], 0.0f, 1.0f);
+    }
+    const std::vector<WarpedPixel> warp = warp_pixels(im.camera, depth, ref.camera, it->second, o_.depth_tolerance);
+    vi.content.assign(P * 3, 0.0f);
+    vi.seen.assign(P, 0.0f);
+    vi.parallax.assign(P, -1.0f);
+    const Vec3d rc = ref.camera.centre(), vc = im.camera.centre();
+    const int OW = photo.width, OH = photo.height;
+    for (size_t p = 0; p < P; ++p) {
+      const WarpedPixel& w = warp[p];
+      if (depth[p] > 0) vi.parallax[p] = float(parallax_degrees(w.world, vc, rc));
+      if (!w.valid) continue;
+      vi.seen[p] = 1.0f;
+      const int i0 = std::min(int(w.u), std::max(0, OW - 2)), j0 = std::min(int(w.v), std::max(0, OH - 2));
+      const int i1 = std::min(i0 + 1, OW - 1), j1 = std::min(j0 + 1, OH - 1);
+      const double a = std::clamp(w.u - i0, 0.0, 1.0), b = std::clamp(w.v - j0, 0.0, 1.0);
+      for (int c = 0; c < 3; ++c) {
+        auto at = [&](int i, int j) { return double(photo.pixels[(size_t(j) * OW + size_t(i)) * 3 + size_t(c)]); };
+        vi.content[p * 3 + size_t(c)] =
+            float((1 - a) * (1 - b) * at(i0, j0) + a * (1 - b) * at(i1, j0) + (1 - a) * b * at(i0, j1) + a * b * at(i1, j1));
+      }
+    }
+    return vi;
+  }
+
+ private:
+  const GaussianCloud* model_ = nullptr;
+  Vec3f background_ = Vec3f::Zero();
+  std::vector<float> moving_;
+  std::map<std::string, std::vector<float>> reference_depths_;
+};
+
+}  // namespace
+
+std::unique_ptr<Refiner> make_reference_refiner(const GaussianCloud& truth, const ReferenceOptions& options, SupportStats* stats) {
+  return std::make_unique<ReferenceRefiner>(truth, options, stats);
+}
+
+std::unique_ptr<Refiner> make_warp_refiner(const ReferenceOptions& options, SupportStats* stats, const GaussianCloud* truth) {
+  return std::make_unique<WarpRefiner>(options, stats, truth);
+}
+
+}  // namespace fillgs
