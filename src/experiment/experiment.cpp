@@ -678,10 +678,10 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
 void write_refined_view_records(const std::string& path, const std::vector<RefinedViewRecord>& records) {
   std::ostringstream csv;
   csv.precision(7);
-  csv << "file,frame,parallax_degrees,axis_degrees,baseline,support,confidence,psnr_refined,psnr_render\n";
+  csv << "file,frame,parallax_degrees,axis_degrees,baseline,support,confidence,psnr_refined,psnr_render,psnr_seen\n";
   for (const RefinedViewRecord& r : records)
     csv << r.file << "," << r.frame << "," << r.parallax_degrees << "," << r.axis_degrees << "," << r.baseline << "," << r.support << ","
-        << r.confidence << "," << r.psnr_refined << "," << r.psnr_render << "\n";
+        << r.confidence << "," << r.psnr_refined << "," << r.psnr_render << "," << r.psnr_seen << "\n";
   write_file_atomically(path, csv.str());
 }
 
@@ -695,15 +695,15 @@ std::vector<RefinedViewRecord> read_refined_view_records(const std::string& path
     std::vector<std::string> f;
     std::stringstream ls(line);
     for (std::string cell; std::getline(ls, cell, ',');) f.push_back(cell);
-    if (f.size() != 9) throw_error(path, ": line ", row, " has ", f.size(), " columns, expected 9");
-    double v[8];
-    for (size_t k = 1; k < 9; ++k) {
+    if (f.size() != 10) throw_error(path, ": line ", row, " has ", f.size(), " columns, expected 10");
+    double v[9];
+    for (size_t k = 1; k < 10; ++k) {
       if (f[k] == "nan" || f[k] == "-nan") v[k - 1] = std::nan("");
       else if (!parse_number(f[k], &v[k - 1])) throw_error(path, ": line ", row, " column ", k + 1, ": '", f[k], "' is not a number");
     }
     RefinedViewRecord r;
     r.file = f[0], r.frame = int(v[0]), r.parallax_degrees = v[1], r.axis_degrees = v[2], r.baseline = v[3], r.support = v[4];
-    r.confidence = v[5], r.psnr_refined = v[6], r.psnr_render = v[7];
+    r.confidence = v[5], r.psnr_refined = v[6], r.psnr_render = v[7], r.psnr_seen = v[8];
     out.push_back(r);
   }
   return out;
@@ -713,34 +713,41 @@ void write_refiner_calibration(const std::string& path, const std::vector<std::p
                                const std::string& title) {
   constexpr double kBin = 5.0;
   std::vector<ScatterSeries> series;
-  std::map<int, std::array<Moments, 3>> bins;  // bin -> refined, render, support
+  std::map<int, std::array<Moments, 4>> bins;  // bin -> refined where the reference saw, whole refined image, render, support
   for (const auto& [label, records] : runs) {
     ScatterSeries pts;
-    pts.name = "refined, " + label;
+    pts.name = "where the reference saw, " + label;
     pts.joined = false;
     for (const RefinedViewRecord& r : records) {
       if (!std::isfinite(r.psnr_refined)) continue;
-      pts.x.push_back(r.parallax_degrees), pts.y.push_back(r.psnr_refined);
-      std::array<Moments, 3>& b = bins[int(r.parallax_degrees / kBin)];
-      b[0].add(r.psnr_refined);
-      if (std::isfinite(r.psnr_render)) b[1].add(r.psnr_render);
-      b[2].add(r.support);
+      std::array<Moments, 4>& b = bins[int(r.parallax_degrees / kBin)];
+      if (std::isfinite(r.psnr_seen)) {
+        pts.x.push_back(r.parallax_degrees), pts.y.push_back(r.psnr_seen);
+        b[0].add(std::min(r.psnr_seen, 60.0));  // an exact match (150 dB) would swamp a mean
+      }
+      b[1].add(r.psnr_refined);
+      if (std::isfinite(r.psnr_render)) b[2].add(r.psnr_render);
+      b[3].add(r.support);
     }
     if (!pts.x.empty()) series.push_back(std::move(pts));
   }
-  if (series.empty()) return;
-  ScatterSeries refined_mean{"refined, mean per 5 degrees", {}, {}, {}, true}, render_mean{"render given, mean per 5 degrees", {}, {}, {}, true};
+  if (bins.empty()) return;
+  ScatterSeries seen_mean{"where the reference saw, mean per 5 degrees", {}, {}, {}, true},
+      whole_mean{"whole image, mean per 5 degrees", {}, {}, {}, true}, render_mean{"the render it was given, mean per 5 degrees", {}, {}, {}, true};
   std::ostringstream md;
-  md << "| parallax to the reference (degrees) | views | refined PSNR (dB) | render PSNR (dB) | reference support |\n|---|---|---|---|---|\n";
+  md << "| parallax to the reference (degrees) | views | refined PSNR where the reference saw (dB) | refined PSNR, whole image (dB) | "
+        "render given, whole image (dB) | share the reference saw |\n|---|---|---|---|---|---|\n";
   for (const auto& [bin, m] : bins) {
     const double centre = (bin + 0.5) * kBin;
-    refined_mean.x.push_back(centre), refined_mean.y.push_back(m[0].mean());
-    if (m[1].n) render_mean.x.push_back(centre), render_mean.y.push_back(m[1].mean());
-    md << "| " << fmt(bin * kBin, 0) << "–" << fmt((bin + 1) * kBin, 0) << " | " << m[0].n << " | " << fmt(m[0].mean(), 2) << " ± " << fmt(m[0].sd(), 2)
-       << " | " << (m[1].n ? fmt(m[1].mean(), 2) : "–") << " | " << fmt(100 * m[2].mean(), 1) << "% |\n";
+    if (m[0].n) seen_mean.x.push_back(centre), seen_mean.y.push_back(m[0].mean());
+    whole_mean.x.push_back(centre), whole_mean.y.push_back(m[1].mean());
+    if (m[2].n) render_mean.x.push_back(centre), render_mean.y.push_back(m[2].mean());
+    md << "| " << fmt(bin * kBin, 0) << "–" << fmt((bin + 1) * kBin, 0) << " | " << m[1].n << " | "
+       << (m[0].n ? fmt(m[0].mean(), 2) + " ± " + fmt(m[0].sd(), 2) : "–") << " | " << fmt(m[1].mean(), 2) << " ± " << fmt(m[1].sd(), 2) << " | "
+       << (m[2].n ? fmt(m[2].mean(), 2) : "–") << " | " << fmt(100 * m[3].mean(), 1) << "% |\n";
   }
-  series.push_back(refined_mean);
-  if (!render_mean.x.empty()) series.push_back(render_mean);
+  for (ScatterSeries* s : {&seen_mean, &whole_mean, &render_mean})
+    if (!s->x.empty()) series.push_back(*s);
   write_scatter_png(path + ".png", series, {title, "parallax angle to the reference view (degrees, median over the view)", "PSNR against the truth (dB)"}, false);
   write_file_atomically(path + ".md", md.str());
 }

@@ -198,11 +198,14 @@ class ReferenceConditioned : public Refiner {
       rec.frame = im.frame;
       rec.axis_degrees = vi.fallback_degrees;
       rec.baseline = (im.camera.centre() - ref.camera.centre()).norm();
-      rec.psnr_refined = rec.psnr_render = std::nan("");
+      rec.psnr_refined = rec.psnr_render = rec.psnr_seen = std::nan("");
       if (truth_) {
         const std::vector<float> t = render(frame_at(*truth_, im.camera.time), im.camera, truth_options()).rgb;
         rec.psnr_refined = psnr(refined.pixels.data(), t.data(), refined.width, refined.height, 3);
         rec.psnr_render = psnr(rendered.pixels.data(), t.data(), refined.width, refined.height, 3);
+        std::vector<unsigned char> seen(vi.seen.size());
+        for (size_t q = 0; q < seen.size(); ++q) seen[q] = vi.seen[q] > 0;
+        rec.psnr_seen = psnr(refined.pixels.data(), t.data(), refined.width, refined.height, 3, seen.data());
       }
       stats_->support_sum += rec.support * double(refined.width) * refined.height;
       stats_->pixels += size_t(refined.width) * refined.height;

@@ -141,6 +141,7 @@ struct RefinedViewRecord {
   double support = 0;             ///< share of the pixels whose surface the reference saw (warp: that the warp reached)
   double confidence = 0;          ///< mean blending confidence
   double psnr_refined = 0;        ///< refined image against the truth (NaN without one)
+  double psnr_seen = 0;           ///< the same over the pixels whose surface the reference saw (NaN without one or without such pixels)
   double psnr_render = 0;         ///< the render it was given against the truth (NaN without one)
 };
 
