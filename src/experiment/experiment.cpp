@@ -580,6 +580,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   oo.frames = F;
   ReferenceOptions ro = bench_reference_options(c.artifact_strength, p.options.seed);
   if (c.reference_angle_degrees > 0) ro.angle_scale_degrees = c.reference_angle_degrees;
+  if (c.reference_hallucination >= 0) ro.hallucination = c.reference_hallucination;
   json identity = {{"id", c.id}, {"scene", options_json(p.options)}};
   if (c.kind == RunKind::Dense) {
     identity["kind"] = "dense";

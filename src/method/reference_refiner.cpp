@@ -50,6 +50,23 @@ std::vector<WarpedPixel> warp_pixels(const Camera& cam, const std::vector<float>
   return out;
 }
 
+Image reference_fill(const Image& render, const Image& reference, double strength, double hallucination, uint64_t seed, uint64_t key) {
+  Image fill = render;
+  degrade_unsupported(fill, strength, seed, key);
+  if (!(hallucination > 0)) return fill;
+  if (reference.width != render.width || reference.height != render.height || reference.channels != 3 || render.channels != 3)
+    throw_error("reference fill: the reference and the render differ in size");
+  const int W = render.width, H = render.height;
+  const double phi = 2 * kPi * uniform(seed, key, 3000), r = (0.15 + 0.2 * uniform(seed, key, 3001)) * W;
+  const cv::Mat T = (cv::Mat_<double>(2, 3) << 1, 0, r * std::cos(phi), 0, 1, r * std::sin(phi));
+  cv::Mat ref(H, W, CV_32FC3, const_cast<float*>(reference.pixels.data())), moved;
+  cv::warpAffine(ref, moved, T, ref.size(), cv::INTER_LINEAR, cv::BORDER_REFLECT);
+  const float h = float(std::min(1.0, hallucination));
+  const float* m = moved.ptr<float>(0);
+  for (size_t i = 0; i < fill.pixels.size(); ++i) fill.pixels[i] = (1 - h) * fill.pixels[i] + h * m[i];
+  return fill;
+}
+
 namespace {
 
 /// What one virtual view is composed from.
@@ -71,7 +88,8 @@ double median_of(std::vector<float> v) {
 /// The refined image of one view (ReferenceOptions): content where the reference reaches,
 /// blended by its confidence with the degraded render. Fills `record`'s support,
 /// confidence and parallax.
-Image compose(const ReferenceOptions& o, const ViewInputs& in, const Image& rendered, uint64_t key, uint64_t frame_key, RefinedViewRecord* record) {
+Image compose(const ReferenceOptions& o, const ViewInputs& in, const Image& rendered, const Image& reference, uint64_t key, uint64_t frame_key,
+              RefinedViewRecord* record) {
   const int W = rendered.width, H = rendered.height;
   const size_t P = size_t(W) * H;
   std::vector<float> surface;
@@ -102,8 +120,7 @@ Image compose(const ReferenceOptions& o, const ViewInputs& in, const Image& rend
   const double sigma = o.blur_per_degree * W * median;
   if (sigma > 0.05) cv::GaussianBlur(moved, moved, cv::Size(0, 0), sigma);
   const double gain = 1 + o.flicker * far * (2 * uniform(seed, frame_key, 0) - 1);
-  Image fill = rendered;
-  degrade_unsupported(fill, o.fill_strength, seed, key);
+  const Image fill = reference_fill(rendered, reference, o.fill_strength, o.hallucination, seed, key);
   Image out(W, H, 3);
   double confidence = 0, seen = 0;
   for (size_t p = 0; p < P; ++p) {
@@ -170,7 +187,7 @@ void check_options(const ReferenceOptions& o) {
   if (!(finite_at_least(o.angle_scale_degrees, 0) && o.angle_scale_degrees > 0))
     throw_error("reference refiner: the angle scale must be a positive number of degrees (got ", o.angle_scale_degrees, ")");
   if (!finite_at_least(o.shift_per_degree, 0) || !finite_at_least(o.blur_per_degree, 0) || !finite_at_least(o.flicker, 0) ||
-      !finite_at_least(o.fill_strength, 0) || !finite_at_least(o.artifacts.strength, 0) || !finite_at_least(o.depth_tolerance, 0))
+      !finite_at_least(o.fill_strength, 0) || !finite_at_least(o.hallucination, 0) || !finite_at_least(o.artifacts.strength, 0) || !finite_at_least(o.depth_tolerance, 0))
     throw_error("reference refiner: shift, blur, flicker, fill and artifact strengths and the depth tolerance must be finite and at least 0");
 }
 
@@ -191,7 +208,7 @@ class ReferenceConditioned : public Refiner {
       RefinedViewRecord rec;
       const uint64_t key = string_key((patch.name + "/" + im.file).c_str());
       const uint64_t frame_key = string_key((patch.name + "/frame" + std::to_string(im.frame)).c_str());
-      const Image refined = compose(o_, vi, rendered, key, frame_key, &rec);
+      const Image refined = compose(o_, vi, rendered, read_rgb(join_path(in, ref.file), ref.camera), key, frame_key, &rec);
       write_image(join_path(out, im.file), refined);
       if (!stats_) continue;
       rec.file = patch.name + "/" + im.file;

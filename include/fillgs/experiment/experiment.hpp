@@ -104,6 +104,7 @@ struct RunConfig {
   int trajectories = 5;     ///< per round; 0: fine-tune on the real views only (the control)
   BenchRefiner refiner = BenchRefiner::Reference;
   double reference_angle_degrees = 0;  ///< the reference refiner's θ0; 0: the calibrated value
+  double reference_hallucination = -1;  ///< its hallucination; < 0: the calibrated value
 };
 
 /// The paper's comparison, for every refiner in `refiners` (ids of the second and later

@@ -80,6 +80,12 @@ constexpr float kArtifactVisible = 0.03f;
 /// fail there: blurred (σ 2 + 3a px), colours drifted (±20a %), one hallucinated blob, a =
 /// `strength`, every draw from (seed, key).
 void degrade_unsupported(Image& image, double strength, uint64_t seed, uint64_t key);
+/// The reference-conditioned refiners' fill where they cannot know the content: the render
+/// degraded as above (`strength`), blended by `hallucination` with plausible, wrong content —
+/// the reference image translated by 15–35% of the width along a seeded direction
+/// (reflected at the borders): the scene's own texture in the wrong place. Every draw from
+/// (seed, key); the images must be the same size.
+Image reference_fill(const Image& render, const Image& reference, double strength, double hallucination, uint64_t seed, uint64_t key);
 /// Applies artifacts to `image` in place; returns the artifact mask ([H][W], 1 where the
 /// image changed by more than kArtifactVisible in some channel).
 std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& options, uint64_t key);
@@ -162,7 +168,8 @@ struct SupportStats {
 /// between the rays from the two camera centres to the surface point:
 ///   refined = c · (reference content, misplaced by shift·θ px and blurred by blur·θ px)
 ///           + (1 − c) · (the render, degraded where the refiner cannot know: blurred,
-///             colours drifted, a hallucinated blob — the oracle's fill),
+///             colours drifted, a hallucinated blob — the oracle's fill — blended by
+///             `hallucination` with the reference's texture in the wrong place: reference_fill),
 ///   c = seen · exp(−θ / θ0), θ0 halved on moving content, whose content also drifts twice
 ///   as far; a per-frame gain flickers by ±flicker·(1 − exp(−θ̄ / θ0)); the ArtifactOptions
 ///   go on top at strength·(1 − exp(−θ̄ / θ0)) (θ̄: the view's median parallax).
@@ -186,6 +193,7 @@ struct ReferenceOptions {
   double flicker = 0.05;              ///< per-frame gain jitter at full distance
   ArtifactOptions artifacts;          ///< injected on top (scaled as above); artifacts.seed seeds every draw
   double fill_strength = 0.5;         ///< degradation of the render where c < 1 (the oracle's fill)
+  double hallucination = 0.0;         ///< share of misplaced reference texture in the fill (reference_fill)
   Vec3f background = Vec3f::Zero();
   double depth_tolerance = 0.05;      ///< warp: occlusion test |z − z_reference| ≤ this × z
 };
