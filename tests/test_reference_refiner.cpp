@@ -154,6 +154,36 @@ TEST_CASE("reference refiner: behind a wall the reference never saw, the output 
   CHECK(red / (32 * 24) < 0.3);
 }
 
+TEST_CASE("reference refiner: it cannot create geometry the render lacks", "[refine][reference]") {
+  // The reference sees the wall at 2 m; the model of the round put it at 3 m, or nowhere:
+  // the refined view is then the fill, as where the reference saw nothing.
+  const GaussianCloud truth = textured_wall(2.0);
+  const Camera ref = orbit_camera(0);
+  const std::string d = scratch("reference_placed");
+  const Patch p = write_test_patch(join_path(d, "in"), truth, ref, {orbit_camera(4)});
+  ReferenceOptions o = test_options(5);
+  o.artifacts.strength = 0;
+  const Image expected = reference_fill(read_image(join_path(join_path(d, "in"), "f0000_v1.png")), read_image(join_path(join_path(d, "in"), "f0000_v0.png")),
+                                        o.fill_strength, o.hallucination, o.artifacts.seed, string_key("p/f0000_v1.png"));
+  for (const GaussianCloud& model : {textured_wall(3.0), GaussianCloud()}) {
+    SupportStats stats;
+    const auto refiner = make_reference_refiner(truth, o, &stats);
+    refiner->begin_round(model, Vec3f::Zero());
+    const std::string out = join_path(d, model.size() ? "misplaced" : "empty");
+    refiner->refine(join_path(d, "in"), out, p);
+    CHECK(max_difference(read_image(join_path(out, "f0000_v1.png")).pixels, expected.pixels) <= 0.5 / 255 + 1e-6);
+    REQUIRE(stats.views.size() == 1);
+    CHECK(stats.views[0].support < 1e-6);
+  }
+  // The model that places the wall right gets the reference's content back (most of the view seen).
+  SupportStats stats;
+  const auto refiner = make_reference_refiner(truth, o, &stats);
+  refiner->begin_round(truth, Vec3f::Zero());
+  refiner->refine(join_path(d, "in"), join_path(d, "right"), p);
+  REQUIRE(stats.views.size() == 1);
+  CHECK(stats.views[0].support > 0.95);
+}
+
 TEST_CASE("reference refiner: its error grows with the angle to the reference on a planar textured scene", "[refine][reference]") {
   const GaussianCloud wall = textured_wall();
   const std::vector<double> angles = {0, 3, 6, 10, 15, 20, 30};

@@ -31,7 +31,7 @@ static_assert(sizeof(VisibilityOptions) == 20, "VisibilityOptions changed: add t
 static_assert(sizeof(MaskOptions) == 104, "MaskOptions changed: add the new field to identity_json(MaskOptions), then update this size");
 static_assert(sizeof(ExplorationOptions) == 32, "ExplorationOptions changed: add the new field to identity_json(ExplorationOptions), then update this size");
 static_assert(sizeof(ArtifactOptions) == 24, "ArtifactOptions changed: add the new field to identity_json(ArtifactOptions), then update this size");
-static_assert(sizeof(ReferenceOptions) == 96, "ReferenceOptions changed: add the new field to identity_json(ReferenceOptions), then update this size");
+static_assert(sizeof(ReferenceOptions) == 104, "ReferenceOptions changed: add the new field to identity_json(ReferenceOptions), then update this size");
 static_assert(sizeof(FinetuneOptions) == 664, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
 #endif
 
@@ -168,7 +168,8 @@ json identity_json(const ReferenceOptions& o) {
           {"fill_strength", o.fill_strength},
           {"hallucination", o.hallucination},
           {"background", vec3(o.background)},
-          {"depth_tolerance", o.depth_tolerance}};
+          {"depth_tolerance", o.depth_tolerance},
+          {"placement_tolerance", o.placement_tolerance}};
 }
 
 json identity_json(const FinetuneOptions& o) {

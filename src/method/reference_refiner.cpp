@@ -187,7 +187,7 @@ void check_options(const ReferenceOptions& o) {
   if (!(finite_at_least(o.angle_scale_degrees, 0) && o.angle_scale_degrees > 0))
     throw_error("reference refiner: the angle scale must be a positive number of degrees (got ", o.angle_scale_degrees, ")");
   if (!finite_at_least(o.shift_per_degree, 0) || !finite_at_least(o.blur_per_degree, 0) || !finite_at_least(o.flicker, 0) ||
-      !finite_at_least(o.fill_strength, 0) || !finite_at_least(o.hallucination, 0) || !finite_at_least(o.artifacts.strength, 0) || !finite_at_least(o.depth_tolerance, 0))
+      !finite_at_least(o.fill_strength, 0) || !finite_at_least(o.hallucination, 0) || !(finite_at_least(o.placement_tolerance, 0) && o.placement_tolerance > 0) || !finite_at_least(o.artifacts.strength, 0) || !finite_at_least(o.depth_tolerance, 0))
     throw_error("reference refiner: shift, blur, flicker, fill and artifact strengths and the depth tolerance must be finite and at least 0");
 }
 
@@ -196,6 +196,13 @@ class ReferenceConditioned : public Refiner {
  public:
   ReferenceConditioned(const ReferenceOptions& o, SupportStats* stats, const GaussianCloud* truth) : o_(o), stats_(stats), truth_(truth) {
     check_options(o_);
+  }
+  void begin_round(const GaussianCloud& current, const Vec3f& background) override {
+    model_ = &current;
+    background_ = background;
+    round_cache_.clear();
+    model_moving_.assign(current.size(), 0.0f);
+    for (uint32_t g : current.dynamic_ids) model_moving_[g] = 1.0f;
   }
   void refine(const std::string& in, const std::string& out, const Patch& patch) override {
     make_directories(out);
@@ -221,7 +228,7 @@ class ReferenceConditioned : public Refiner {
         rec.psnr_refined = psnr(refined.pixels.data(), t.data(), refined.width, refined.height, 3);
         rec.psnr_render = psnr(rendered.pixels.data(), t.data(), refined.width, refined.height, 3);
         std::vector<unsigned char> seen(vi.seen.size());
-        for (size_t q = 0; q < seen.size(); ++q) seen[q] = vi.seen[q] > 0;
+        for (size_t q = 0; q < seen.size(); ++q) seen[q] = vi.seen[q] >= 0.5f;
         rec.psnr_seen = psnr(refined.pixels.data(), t.data(), refined.width, refined.height, 3, seen.data());
       }
       stats_->support_sum += rec.support * double(refined.width) * refined.height;
@@ -237,9 +244,22 @@ class ReferenceConditioned : public Refiner {
     ro.background = o_.background;
     return ro;
   }
+  /// The model's expected depth at `camera` (its time), 0 where it renders less than half
+  /// an opacity; cached per camera and time for the round when `cache`.
+  const std::vector<float>& model_depth(const Camera& camera, bool cache) {
+    const std::string id = camera.name + "@" + std::to_string(camera.time);
+    if (!cache) round_cache_.erase(id);
+    auto it = round_cache_.find(id);
+    if (it == round_cache_.end()) it = round_cache_.emplace(id, expected_depth(frame_at(*model_, camera.time), camera, 0.5)).first;
+    return it->second;
+  }
   ReferenceOptions o_;
   SupportStats* stats_;
   const GaussianCloud* truth_;
+  const GaussianCloud* model_ = nullptr;  ///< the round's model (begin_round)
+  Vec3f background_ = Vec3f::Zero();
+  std::vector<float> model_moving_;
+  std::map<std::string, std::vector<float>> round_cache_;
 };
 
 class ReferenceRefiner : public ReferenceConditioned {
@@ -281,6 +301,19 @@ class ReferenceRefiner : public ReferenceConditioned {
       if (a >= 0.5f) depth[p] = r.depth[p] / a;
     }
     vi.parallax = parallax_map(im.camera, depth, ref.camera.centre());
+    // It restores what the render roughly places and cannot create geometry the render
+    // lacks: "seen" only where the model's depth agrees with the truth's (within
+    // placement_tolerance × depth, soft), nowhere the model renders nothing.
+    if (model_) {
+      const std::vector<float>& placed = model_depth(im.camera, false);
+      const double tol = o_.placement_tolerance;
+      for (size_t p = 0; p < P; ++p) {
+        if (vi.seen[p] <= 0) continue;
+        const double zt = depth[p], zm = placed[p];
+        const double e = zt > 0 && zm > 0 ? (zm - zt) / (tol * zt) : 1e9;
+        vi.seen[p] = float(std::exp(-e * e));
+      }
+    }
     return vi;
   }
 
@@ -299,26 +332,16 @@ class WarpRefiner : public ReferenceConditioned {
  public:
   WarpRefiner(const ReferenceOptions& o, SupportStats* stats, const GaussianCloud* truth) : ReferenceConditioned(o, stats, truth) {}
   std::string name() const override { return "warp"; }
-  void begin_round(const GaussianCloud& current, const Vec3f& background) override {
-    model_ = &current;
-    background_ = background;
-    reference_depths_.clear();
-    moving_.assign(current.size(), 0.0f);
-    for (uint32_t g : current.dynamic_ids) moving_[g] = 1.0f;
-  }
 
  protected:
   ViewInputs inputs(const std::string& in_dir, const PatchImage& ref, const PatchImage& im) override {
     if (!model_) throw_error("warp refiner: no model (begin_round was not called)");
     const Image photo = read_rgb(join_path(in_dir, ref.file), ref.camera);
-    const std::string id = ref.camera.name + "@" + std::to_string(ref.camera.time);
-    auto it = reference_depths_.find(id);
-    if (it == reference_depths_.end())
-      it = reference_depths_.emplace(id, expected_depth(frame_at(*model_, ref.camera.time), ref.camera, 0.5)).first;
+    const std::vector<float>& reference_depth = model_depth(ref.camera, true);
     RenderOptions ro;
     ro.rgb = false;
     ro.depth = true;
-    ro.features = moving_.data();
+    ro.features = model_moving_.data();
     ro.feature_channels = 1;
     ro.background = background_;
     const RenderOutput r = render(frame_at(*model_, im.camera.time), im.camera, ro);
@@ -330,7 +353,7 @@ class WarpRefiner : public ReferenceConditioned {
       if (r.alpha[p] >= 0.5f) depth[p] = r.depth[p] / r.alpha[p];
       if (r.alpha[p] > 1e-4f) vi.moving[p] = std::clamp(r.features[p] / r.alpha[p], 0.0f, 1.0f);
     }
-    const std::vector<WarpedPixel> warp = warp_pixels(im.camera, depth, ref.camera, it->second, o_.depth_tolerance);
+    const std::vector<WarpedPixel> warp = warp_pixels(im.camera, depth, ref.camera, reference_depth, o_.depth_tolerance);
     vi.content.assign(P * 3, 0.0f);
     vi.seen.assign(P, 0.0f);
     vi.parallax.assign(P, -1.0f);
@@ -353,11 +376,6 @@ class WarpRefiner : public ReferenceConditioned {
     return vi;
   }
 
- private:
-  const GaussianCloud* model_ = nullptr;
-  Vec3f background_ = Vec3f::Zero();
-  std::vector<float> moving_;
-  std::map<std::string, std::vector<float>> reference_depths_;
 };
 
 }  // namespace

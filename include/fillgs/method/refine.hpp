@@ -177,8 +177,11 @@ struct SupportStats {
 /// pose gets the reference back. Two forms:
 ///  * `reference` (synthetic scenes): the content is the ground truth rendered at the
 ///    virtual view; "seen" where the reference camera saw the surface at that frame (exact
-///    visibility of the truth, α·T ≥ 1/255, at least half of the pixel's rendered opacity);
-///    θ from the truth's depth. No truth reaches a pixel the reference did not see.
+///    visibility of the truth, α·T ≥ 1/255, at least half of the pixel's rendered opacity)
+///    and where the render places that surface — it cannot create geometry the render
+///    lacks: "seen" is multiplied by exp(−((z_render − z_truth) / (tolerance · z_truth))²),
+///    0 where the render (the model of the round, begin_round) is empty; θ from the
+///    truth's depth. No truth reaches a pixel the reference did not see.
 ///  * `warp` (any data, real video included): the reference photograph warped into the
 ///    virtual view through the *render's* depth (the model of the round, begin_round),
 ///    occlusion-checked against the render's depth at the reference; "seen" where the warp
@@ -196,6 +199,7 @@ struct ReferenceOptions {
   double hallucination = 0.0;         ///< share of misplaced reference texture in the fill (reference_fill)
   Vec3f background = Vec3f::Zero();
   double depth_tolerance = 0.05;      ///< warp: occlusion test |z − z_reference| ≤ this × z
+  double placement_tolerance = 0.1;   ///< reference: the render places a surface where its depth is within this × the truth's (soft)
 };
 /// The synthetic form: ground truth `truth` seen by the reference.
 std::unique_ptr<Refiner> make_reference_refiner(const GaussianCloud& truth, const ReferenceOptions& options, SupportStats* stats = nullptr);
