@@ -142,7 +142,7 @@ TEST_CASE("reference refiner: behind a wall the reference never saw, the output 
   SupportStats stats;
   make_reference_refiner(truth, o, &stats)->refine(join_path(d, "in"), join_path(d, "out"), p);
   const Image expected = reference_fill(read_image(join_path(join_path(d, "in"), "f0000_v1.png")),  // the render it was given
-                                        read_image(join_path(join_path(d, "in"), "f0000_v0.png")), o.fill_strength, o.hallucination,
+                                        read_image(join_path(join_path(d, "in"), "f0000_v0.png")), o.fill_strength, o.fill_blur * 32, o.hallucination,
                                         o.artifacts.seed, string_key("p/f0000_v1.png"));
   const Image out = read_image(join_path(join_path(d, "out"), "f0000_v1.png"));
   CHECK(max_difference(out.pixels, expected.pixels) <= 0.5 / 255 + 1e-6);  // one 8-bit rounding
@@ -164,7 +164,7 @@ TEST_CASE("reference refiner: it cannot create geometry the render lacks", "[ref
   ReferenceOptions o = test_options(5);
   o.artifacts.strength = 0;
   const Image expected = reference_fill(read_image(join_path(join_path(d, "in"), "f0000_v1.png")), read_image(join_path(join_path(d, "in"), "f0000_v0.png")),
-                                        o.fill_strength, o.hallucination, o.artifacts.seed, string_key("p/f0000_v1.png"));
+                                        o.fill_strength, o.fill_blur * 48, o.hallucination, o.artifacts.seed, string_key("p/f0000_v1.png"));
   for (const GaussianCloud& model : {textured_wall(3.0), GaussianCloud()}) {
     SupportStats stats;
     const auto refiner = make_reference_refiner(truth, o, &stats);

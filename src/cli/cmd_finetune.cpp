@@ -298,7 +298,7 @@ struct BenchFlags {
   double artifact_strength = 0.5;
   Weighting baseline_weighting = Weighting::ExploreGS;
   std::vector<BenchRefiner> refiners = {BenchRefiner::Reference};
-  double reference_angle = 0, reference_hallucination = -1;
+  double reference_angle = 0, reference_hallucination = -1, reference_fill_blur = -1;
   SetupFlags setup;
 };
 
@@ -309,7 +309,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
     // Tables over finished runs only: bench folders or results.csv files, nothing run.
     if (!in.given("--out")) in.fail("--merge needs --out DIR (the folder for the merged tables)");
     for (const char* k : {"--scenes", "--seeds", "--only", "--configs", "--iterations", "--select-every", "--backbone-iterations", "--width",
-                          "--height", "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--refiner", "--reference-angle", "--reference-hallucination", "--motion-rates",
+                          "--height", "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--refiner", "--reference-angle", "--reference-hallucination", "--reference-fill-blur", "--motion-rates",
                           "--position-lr", "--key-lr-scale", "--smoke"})
       if (in.given(k)) in.fail("--merge runs nothing, so ", k, " has no meaning with it");
     const std::vector<RunResult> all = merge_results(f.merge);
@@ -328,7 +328,8 @@ int bench(const BenchFlags& f, const Invocation& in) {
     for (size_t j = 0; j < i; ++j)
       if (f.refiners[i] == f.refiners[j]) in.fail("--refiner names ", to_string(f.refiners[i]), " twice");
   std::vector<RunConfig> configs = standard_configs(f.baseline_weighting, f.artifact_strength, f.refiners);
-  for (RunConfig& c : configs) c.reference_angle_degrees = f.reference_angle, c.reference_hallucination = f.reference_hallucination;
+  for (RunConfig& c : configs)
+    c.reference_angle_degrees = f.reference_angle, c.reference_hallucination = f.reference_hallucination, c.reference_fill_blur = f.reference_fill_blur;
   const std::vector<ConfigGroup>& only = f.only;
   const std::vector<std::string>& ids = f.configs;
   std::vector<RunConfig> chosen;
@@ -492,6 +493,8 @@ Action declare_bench(CLI::App& app) {
              "the reference refiner's confidence angle in degrees (the calibration's knob; default: the calibrated value)", positive());
   add_number(app, "--reference-hallucination", f->reference_hallucination,
              "the reference refiner's share of misplaced texture in its fill (the calibration's knob; default: the calibrated value)", within(0, 1));
+  add_number(app, "--reference-fill-blur", f->reference_fill_blur,
+             "the reference refiner's fill blur, a fraction of the width (the calibration's knob; default: the calibrated value)", at_least(0));
   add_list(app, "--merge", f->merge, "tables over finished runs: bench folders or results.csv files (needs --out)");
   add_setup_flags(app, f->setup, true);
   return bind(f, bench);

@@ -31,7 +31,7 @@ static_assert(sizeof(VisibilityOptions) == 20, "VisibilityOptions changed: add t
 static_assert(sizeof(MaskOptions) == 104, "MaskOptions changed: add the new field to identity_json(MaskOptions), then update this size");
 static_assert(sizeof(ExplorationOptions) == 32, "ExplorationOptions changed: add the new field to identity_json(ExplorationOptions), then update this size");
 static_assert(sizeof(ArtifactOptions) == 24, "ArtifactOptions changed: add the new field to identity_json(ArtifactOptions), then update this size");
-static_assert(sizeof(ReferenceOptions) == 104, "ReferenceOptions changed: add the new field to identity_json(ReferenceOptions), then update this size");
+static_assert(sizeof(ReferenceOptions) == 112, "ReferenceOptions changed: add the new field to identity_json(ReferenceOptions), then update this size");
 static_assert(sizeof(FinetuneOptions) == 664, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
 #endif
 
@@ -167,6 +167,7 @@ json identity_json(const ReferenceOptions& o) {
           {"artifacts", identity_json(o.artifacts)},
           {"fill_strength", o.fill_strength},
           {"hallucination", o.hallucination},
+          {"fill_blur", o.fill_blur},
           {"background", vec3(o.background)},
           {"depth_tolerance", o.depth_tolerance},
           {"placement_tolerance", o.placement_tolerance}};

@@ -50,9 +50,10 @@ std::vector<WarpedPixel> warp_pixels(const Camera& cam, const std::vector<float>
   return out;
 }
 
-Image reference_fill(const Image& render, const Image& reference, double strength, double hallucination, uint64_t seed, uint64_t key) {
+Image reference_fill(const Image& render, const Image& reference, double strength, double blur_sigma, double hallucination, uint64_t seed,
+                     uint64_t key) {
   Image fill = render;
-  degrade_unsupported(fill, strength, seed, key);
+  degrade_unsupported(fill, strength, seed, key, std::max(0.0, blur_sigma));
   if (!(hallucination > 0)) return fill;
   if (reference.width != render.width || reference.height != render.height || reference.channels != 3 || render.channels != 3)
     throw_error("reference fill: the reference and the render differ in size");
@@ -120,7 +121,7 @@ Image compose(const ReferenceOptions& o, const ViewInputs& in, const Image& rend
   const double sigma = o.blur_per_degree * W * median;
   if (sigma > 0.05) cv::GaussianBlur(moved, moved, cv::Size(0, 0), sigma);
   const double gain = 1 + o.flicker * far * (2 * uniform(seed, frame_key, 0) - 1);
-  const Image fill = reference_fill(rendered, reference, o.fill_strength, o.hallucination, seed, key);
+  const Image fill = reference_fill(rendered, reference, o.fill_strength, o.fill_blur * W, o.hallucination, seed, key);
   Image out(W, H, 3);
   double confidence = 0, seen = 0;
   for (size_t p = 0; p < P; ++p) {
@@ -187,7 +188,7 @@ void check_options(const ReferenceOptions& o) {
   if (!(finite_at_least(o.angle_scale_degrees, 0) && o.angle_scale_degrees > 0))
     throw_error("reference refiner: the angle scale must be a positive number of degrees (got ", o.angle_scale_degrees, ")");
   if (!finite_at_least(o.shift_per_degree, 0) || !finite_at_least(o.blur_per_degree, 0) || !finite_at_least(o.flicker, 0) ||
-      !finite_at_least(o.fill_strength, 0) || !finite_at_least(o.hallucination, 0) || !(finite_at_least(o.placement_tolerance, 0) && o.placement_tolerance > 0) || !finite_at_least(o.artifacts.strength, 0) || !finite_at_least(o.depth_tolerance, 0))
+      !finite_at_least(o.fill_strength, 0) || !finite_at_least(o.hallucination, 0) || !finite_at_least(o.fill_blur, 0) || !(finite_at_least(o.placement_tolerance, 0) && o.placement_tolerance > 0) || !finite_at_least(o.artifacts.strength, 0) || !finite_at_least(o.depth_tolerance, 0))
     throw_error("reference refiner: shift, blur, flicker, fill and artifact strengths and the depth tolerance must be finite and at least 0");
 }
 

@@ -78,12 +78,13 @@ class IdentityRefiner : public Refiner {
 
 }  // namespace
 
-void degrade_unsupported(Image& image, double strength, uint64_t seed, uint64_t key) {
+void degrade_unsupported(Image& image, double strength, uint64_t seed, uint64_t key, double blur_sigma) {
   const int W = image.width, H = image.height;
   cv::Mat img(H, W, CV_32FC3, image.pixels.data());
   uint64_t draw = 1000;  // draws apart from inject_artifacts' for the same key
   auto u = [&] { return uniform(seed, key, draw++); };
-  cv::GaussianBlur(img, img, cv::Size(0, 0), 2.0 + 3.0 * strength);
+  const double sigma = blur_sigma < 0 ? 2.0 + 3.0 * strength : blur_sigma;
+  if (sigma > 0.05) cv::GaussianBlur(img, img, cv::Size(0, 0), sigma);
   cv::Vec3f gain;
   for (int c = 0; c < 3; ++c) gain[c] = float(1 + 0.2 * strength * (2 * u() - 1));
   img.forEach<cv::Vec3f>([&](cv::Vec3f& p, const int*) {

@@ -105,6 +105,7 @@ struct RunConfig {
   BenchRefiner refiner = BenchRefiner::Reference;
   double reference_angle_degrees = 0;  ///< the reference refiner's θ0; 0: the calibrated value
   double reference_hallucination = -1;  ///< its hallucination; < 0: the calibrated value
+  double reference_fill_blur = -1;      ///< its fill blur (fraction of the width); < 0: the calibrated value
 };
 
 /// The paper's comparison, for every refiner in `refiners` (ids of the second and later

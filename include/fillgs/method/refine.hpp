@@ -77,15 +77,16 @@ struct ArtifactOptions {
 /// soft rims of the regions) are below what any check of agreement could see.
 constexpr float kArtifactVisible = 0.03f;
 /// The model's render where a refiner cannot know the content, degraded as diffusion models
-/// fail there: blurred (σ 2 + 3a px), colours drifted (±20a %), one hallucinated blob, a =
-/// `strength`, every draw from (seed, key).
-void degrade_unsupported(Image& image, double strength, uint64_t seed, uint64_t key);
+/// fail there: blurred (σ 2 + 3a px, or `blur_sigma` px when it is ≥ 0), colours drifted
+/// (±20a %), one hallucinated blob, a = `strength`, every draw from (seed, key).
+void degrade_unsupported(Image& image, double strength, uint64_t seed, uint64_t key, double blur_sigma = -1);
 /// The reference-conditioned refiners' fill where they cannot know the content: the render
-/// degraded as above (`strength`), blended by `hallucination` with plausible, wrong content —
+/// degraded as above (`strength`, `blur_sigma`), blended by `hallucination` with plausible, wrong content —
 /// the reference image translated by 15–35% of the width along a seeded direction
 /// (reflected at the borders): the scene's own texture in the wrong place. Every draw from
 /// (seed, key); the images must be the same size.
-Image reference_fill(const Image& render, const Image& reference, double strength, double hallucination, uint64_t seed, uint64_t key);
+Image reference_fill(const Image& render, const Image& reference, double strength, double blur_sigma, double hallucination, uint64_t seed,
+                     uint64_t key);
 /// Applies artifacts to `image` in place; returns the artifact mask ([H][W], 1 where the
 /// image changed by more than kArtifactVisible in some channel).
 std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& options, uint64_t key);
@@ -197,6 +198,7 @@ struct ReferenceOptions {
   ArtifactOptions artifacts;          ///< injected on top (scaled as above); artifacts.seed seeds every draw
   double fill_strength = 0.5;         ///< degradation of the render where c < 1 (the oracle's fill)
   double hallucination = 0.0;         ///< share of misplaced reference texture in the fill (reference_fill)
+  double fill_blur = 0.0219;          ///< the fill's blur σ, fraction of the width (the oracle's 3.5 px at 160)
   Vec3f background = Vec3f::Zero();
   double depth_tolerance = 0.05;      ///< warp: occlusion test |z − z_reference| ≤ this × z
   double placement_tolerance = 0.1;   ///< reference: the render places a surface where its depth is within this × the truth's (soft)
