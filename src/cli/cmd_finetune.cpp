@@ -53,7 +53,7 @@ struct FinetuneFlags {
   RefinerChoice refiner = RefinerChoice::Identity;
   bool paper_schedule = false;
   uint64_t seed = 1;
-  double refiner_timeout = 600.0, refined_share = TrainOptions().refined_share, reference_angle = 0;
+  double refiner_timeout = 600.0, refined_share = TrainOptions().refined_share, reference_angle = bench_reference_options(0, 1).angle_scale_degrees;
   FinetuneOptions finetune;
   OracleOptions oracle;
   std::vector<std::string> pool_cameras;
@@ -298,7 +298,9 @@ struct BenchFlags {
   double artifact_strength = 0.5;
   Weighting baseline_weighting = Weighting::ExploreGS;
   std::vector<BenchRefiner> refiners = {BenchRefiner::Reference};
-  double reference_angle = 0, reference_hallucination = -1, reference_fill_blur = -1;
+  // The calibration's knobs (shown with the calibrated values; applied only when given).
+  double reference_angle = bench_reference_options(0, 1).angle_scale_degrees, reference_hallucination = bench_reference_options(0, 1).hallucination,
+         reference_fill_blur = bench_reference_options(0, 1).fill_blur;
   SetupFlags setup;
 };
 
@@ -328,8 +330,11 @@ int bench(const BenchFlags& f, const Invocation& in) {
     for (size_t j = 0; j < i; ++j)
       if (f.refiners[i] == f.refiners[j]) in.fail("--refiner names ", to_string(f.refiners[i]), " twice");
   std::vector<RunConfig> configs = standard_configs(f.baseline_weighting, f.artifact_strength, f.refiners);
-  for (RunConfig& c : configs)
-    c.reference_angle_degrees = f.reference_angle, c.reference_hallucination = f.reference_hallucination, c.reference_fill_blur = f.reference_fill_blur;
+  for (RunConfig& c : configs) {
+    if (in.given("--reference-angle")) c.reference_angle_degrees = f.reference_angle;
+    if (in.given("--reference-hallucination")) c.reference_hallucination = f.reference_hallucination;
+    if (in.given("--reference-fill-blur")) c.reference_fill_blur = f.reference_fill_blur;
+  }
   const std::vector<ConfigGroup>& only = f.only;
   const std::vector<std::string>& ids = f.configs;
   std::vector<RunConfig> chosen;
