@@ -300,7 +300,7 @@ struct BenchFlags {
   std::vector<BenchRefiner> refiners = {BenchRefiner::Reference};
   // The calibration's knobs (shown with the calibrated values; applied only when given).
   double reference_angle = bench_reference_options(0, 1).angle_scale_degrees, reference_hallucination = bench_reference_options(0, 1).hallucination,
-         reference_fill_blur = bench_reference_options(0, 1).fill_blur;
+         reference_fill_blur = bench_reference_options(0, 1).fill_blur, reference_fill_strength = bench_reference_options(0, 1).fill_strength;
   SetupFlags setup;
 };
 
@@ -311,7 +311,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
     // Tables over finished runs only: bench folders or results.csv files, nothing run.
     if (!in.given("--out")) in.fail("--merge needs --out DIR (the folder for the merged tables)");
     for (const char* k : {"--scenes", "--seeds", "--only", "--configs", "--iterations", "--select-every", "--backbone-iterations", "--width",
-                          "--height", "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--refiner", "--reference-angle", "--reference-hallucination", "--reference-fill-blur", "--motion-rates",
+                          "--height", "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--refiner", "--reference-angle", "--reference-hallucination", "--reference-fill-blur", "--reference-fill-strength", "--motion-rates",
                           "--position-lr", "--key-lr-scale", "--smoke"})
       if (in.given(k)) in.fail("--merge runs nothing, so ", k, " has no meaning with it");
     const std::vector<RunResult> all = merge_results(f.merge);
@@ -334,6 +334,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
     if (in.given("--reference-angle")) c.reference_angle_degrees = f.reference_angle;
     if (in.given("--reference-hallucination")) c.reference_hallucination = f.reference_hallucination;
     if (in.given("--reference-fill-blur")) c.reference_fill_blur = f.reference_fill_blur;
+    if (in.given("--reference-fill-strength")) c.reference_fill_strength = f.reference_fill_strength;
   }
   const std::vector<ConfigGroup>& only = f.only;
   const std::vector<std::string>& ids = f.configs;
@@ -500,6 +501,8 @@ Action declare_bench(CLI::App& app) {
              "the reference refiner's share of misplaced texture in its fill (the calibration's knob; default: the calibrated value)", within(0, 1));
   add_number(app, "--reference-fill-blur", f->reference_fill_blur,
              "the reference refiner's fill blur, a fraction of the width (the calibration's knob; default: the calibrated value)", at_least(0));
+  add_number(app, "--reference-fill-strength", f->reference_fill_strength,
+             "the reference refiner's fill degradation (colour drift, blob; the calibration's knob; default: the calibrated value)", at_least(0));
   add_list(app, "--merge", f->merge, "tables over finished runs: bench folders or results.csv files (needs --out)");
   add_setup_flags(app, f->setup, true);
   return bind(f, bench);

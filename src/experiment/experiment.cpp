@@ -582,6 +582,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   if (c.reference_angle_degrees > 0) ro.angle_scale_degrees = c.reference_angle_degrees;
   if (c.reference_hallucination >= 0) ro.hallucination = c.reference_hallucination;
   if (c.reference_fill_blur >= 0) ro.fill_blur = c.reference_fill_blur;
+  if (c.reference_fill_strength >= 0) ro.fill_strength = c.reference_fill_strength;
   json identity = {{"id", c.id}, {"scene", options_json(p.options)}};
   if (c.kind == RunKind::Dense) {
     identity["kind"] = "dense";

@@ -15,8 +15,8 @@ set bmargin at screen 0.12
 set tmargin at screen 0.9
 set key outside right top vertical Left reverse noautotitle
 set grid xtics ytics lc rgb '#dddddd' lt 1
-set xrange [-5.935076:151.519676]
-set yrange [4.55301636:22.9551206]
+set xrange [-5.6:145.6]
+set yrange [4.88764162:24.0575099]
 plot 'calibration.csv' skip 1 using 2:($1 == 0 ? $3 : NaN) with points pt 7 ps 1.1 lw 1.5 lc rgb '#3c78b4' title 'where the reference saw, n3v_s1', \
      'calibration.csv' skip 1 using 2:($1 == 1 ? $3 : NaN) with linespoints pt 7 ps 1.1 lw 1.5 lc rgb '#d62728' title 'where the reference saw, mean per 5 degrees', \
      'calibration.csv' skip 1 using 2:($1 == 2 ? $3 : NaN) with linespoints pt 7 ps 1.1 lw 1.5 lc rgb '#2ca02c' title 'whole image, mean per 5 degrees', \

@@ -106,6 +106,7 @@ struct RunConfig {
   double reference_angle_degrees = 0;  ///< the reference refiner's θ0; 0: the calibrated value
   double reference_hallucination = -1;  ///< its hallucination; < 0: the calibrated value
   double reference_fill_blur = -1;      ///< its fill blur (fraction of the width); < 0: the calibrated value
+  double reference_fill_strength = -1;  ///< its fill's degradation; < 0: the calibrated value
 };
 
 /// The paper's comparison, for every refiner in `refiners` (ids of the second and later
