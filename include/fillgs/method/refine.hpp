@@ -198,7 +198,7 @@ struct ReferenceOptions {
   ArtifactOptions artifacts;          ///< injected on top (scaled as above); artifacts.seed seeds every draw
   double fill_strength = 0.5;         ///< degradation of the render where c < 1 (the oracle's fill)
   double hallucination = 0.0;         ///< share of misplaced reference texture in the fill (reference_fill)
-  double fill_blur = 0.0219;          ///< the fill's blur σ, fraction of the width (the oracle's 3.5 px at 160)
+  double fill_blur = 0.0;             ///< the fill's blur σ, fraction of the width (the oracle's fill: 0.0219, 3.5 px at 160)
   Vec3f background = Vec3f::Zero();
   double depth_tolerance = 0.05;      ///< warp: occlusion test |z − z_reference| ≤ this × z
   double placement_tolerance = 0.1;   ///< reference: the render places a surface where its depth is within this × the truth's (soft)
