@@ -10,8 +10,8 @@ set title 'interpolation PSNR per strategy (n3v)'
 set xlabel ''
 set ylabel 'PSNR (dB)'
 set key off
-set xtics rotate by -45 left scale 0 ('backbone' 0, 'no-refinement' 1)
-set xrange [-0.6:1.6]
+set xtics rotate by -45 left scale 0 ('backbone' 0, 'no-refinement' 1, 'fillgs' 2, 'random' 3, 'negative' 4, 'interpolation' 5, 'fisherrf' 6, 'coverage3d' 7, 'coverage4d' 8)
+set xrange [-0.6:8.6]
 set yrange [*<0:*]
 set offsets 0, 0, graph 0.08, 0
 set boxwidth 0.7
