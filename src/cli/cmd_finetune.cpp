@@ -53,7 +53,8 @@ struct FinetuneFlags {
   RefinerChoice refiner = RefinerChoice::Identity;
   bool paper_schedule = false;
   uint64_t seed = 1;
-  double refiner_timeout = 600.0, refined_share = TrainOptions().refined_share, reference_angle = bench_reference_options(0, 1).angle_scale_degrees;
+  double refiner_timeout = 600.0, refined_share = TrainOptions().refined_share;
+  ReferenceOptions reference = bench_reference_options(0.5, 1);  ///< reference/warp: the calibrated refiner, --reference-angle sets θ0
   FinetuneOptions finetune;
   OracleOptions oracle;
   std::vector<std::string> pool_cameras;
@@ -106,8 +107,9 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     refiner = make_oracle_refiner(*truth, oo);
   } else if (kind == RefinerChoice::Reference || kind == RefinerChoice::Warp) {
     // The benchmark's calibrated refiner (bench/results/README.md, "Calibrating the refiner").
-    ReferenceOptions ro = bench_reference_options(f.oracle.artifacts.strength, o.train.seed);
-    if (in.given("--reference-angle")) ro.angle_scale_degrees = f.reference_angle;
+    ReferenceOptions ro = f.reference;
+    ro.artifacts.strength = f.oracle.artifacts.strength;
+    ro.artifacts.seed = o.train.seed;
     if (in.given("--truth")) truth = std::make_unique<GaussianCloud>(read_scene(f.truth, f.read));
     if (kind == RefinerChoice::Reference) {
       if (!truth) in.fail("--refiner reference needs --truth (the ground-truth scene; on real data use --refiner warp)");
@@ -184,7 +186,7 @@ Action declare_finetune(CLI::App& app) {
   add_choice(app, "--refiner", f->refiner,
              "reference: conditioned on the start view (synthetic, needs --truth); warp: the start photograph warped through the render's depth "
              "(any data); oracle: the ground truth; external: a command; rig: real pool cameras");
-  add_number(app, "--reference-angle", f->reference_angle, "reference/warp: the parallax angle (degrees) at which confidence falls to 1/e",
+  add_number(app, "--reference-angle", f->reference.angle_scale_degrees, "reference/warp: the parallax angle (degrees) at which confidence falls to 1/e",
              positive());
   add_text(app, "--refiner-command", f->refiner_command, "external: the command, with {in} and {out}", "CMD");
   add_number(app, "--refiner-timeout", f->refiner_timeout, "external: seconds per patch", positive());
@@ -298,9 +300,7 @@ struct BenchFlags {
   double artifact_strength = 0.5;
   Weighting baseline_weighting = Weighting::ExploreGS;
   std::vector<BenchRefiner> refiners = {BenchRefiner::Reference};
-  // The calibration's knobs (shown with the calibrated values; applied only when given).
-  double reference_angle = bench_reference_options(0, 1).angle_scale_degrees, reference_hallucination = bench_reference_options(0, 1).hallucination,
-         reference_fill_blur = bench_reference_options(0, 1).fill_blur, reference_fill_strength = bench_reference_options(0, 1).fill_strength;
+  ReferenceOptions reference = bench_reference_options(0.5, 1);  ///< the calibration's knobs set its fields
   SetupFlags setup;
 };
 
@@ -311,7 +311,8 @@ int bench(const BenchFlags& f, const Invocation& in) {
     // Tables over finished runs only: bench folders or results.csv files, nothing run.
     if (!in.given("--out")) in.fail("--merge needs --out DIR (the folder for the merged tables)");
     for (const char* k : {"--scenes", "--seeds", "--only", "--configs", "--iterations", "--select-every", "--backbone-iterations", "--width",
-                          "--height", "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--refiner", "--reference-angle", "--reference-hallucination", "--reference-fill-blur", "--reference-fill-strength", "--motion-rates",
+                          "--height", "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--refiner", "--reference-angle",
+                          "--reference-hallucination", "--reference-fill-blur", "--reference-fill-strength", "--motion-rates",
                           "--position-lr", "--key-lr-scale", "--smoke"})
       if (in.given(k)) in.fail("--merge runs nothing, so ", k, " has no meaning with it");
     const std::vector<RunResult> all = merge_results(f.merge);
@@ -330,12 +331,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
     for (size_t j = 0; j < i; ++j)
       if (f.refiners[i] == f.refiners[j]) in.fail("--refiner names ", to_string(f.refiners[i]), " twice");
   std::vector<RunConfig> configs = standard_configs(f.baseline_weighting, f.artifact_strength, f.refiners);
-  for (RunConfig& c : configs) {
-    if (in.given("--reference-angle")) c.reference_angle_degrees = f.reference_angle;
-    if (in.given("--reference-hallucination")) c.reference_hallucination = f.reference_hallucination;
-    if (in.given("--reference-fill-blur")) c.reference_fill_blur = f.reference_fill_blur;
-    if (in.given("--reference-fill-strength")) c.reference_fill_strength = f.reference_fill_strength;
-  }
+  for (RunConfig& c : configs) c.reference = f.reference;
   const std::vector<ConfigGroup>& only = f.only;
   const std::vector<std::string>& ids = f.configs;
   std::vector<RunConfig> chosen;
@@ -495,13 +491,13 @@ Action declare_bench(CLI::App& app) {
   add_choice(app, "--baseline-weighting", f->baseline_weighting, "the weights the baseline strategies fine-tune with");
   add_choice_list(app, "--refiner", f->refiners,
                   "refiners, a table each (the first's rows unsuffixed, the others' ending @NAME): reference (calibrated, the default), oracle, oracle-full");
-  add_number(app, "--reference-angle", f->reference_angle,
+  add_number(app, "--reference-angle", f->reference.angle_scale_degrees,
              "the reference refiner's confidence angle in degrees (the calibration's knob; default: the calibrated value)", positive());
-  add_number(app, "--reference-hallucination", f->reference_hallucination,
+  add_number(app, "--reference-hallucination", f->reference.hallucination,
              "the reference refiner's share of misplaced texture in its fill (the calibration's knob; default: the calibrated value)", within(0, 1));
-  add_number(app, "--reference-fill-blur", f->reference_fill_blur,
+  add_number(app, "--reference-fill-blur", f->reference.fill_blur,
              "the reference refiner's fill blur, a fraction of the width (the calibration's knob; default: the calibrated value)", at_least(0));
-  add_number(app, "--reference-fill-strength", f->reference_fill_strength,
+  add_number(app, "--reference-fill-strength", f->reference.fill_strength,
              "the reference refiner's fill degradation (colour drift, blob; the calibration's knob; default: the calibrated value)", at_least(0));
   add_list(app, "--merge", f->merge, "tables over finished runs: bench folders or results.csv files (needs --out)");
   add_setup_flags(app, f->setup, true);

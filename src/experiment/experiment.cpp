@@ -203,6 +203,20 @@ std::vector<RunResult> collect_results(const std::string& root) {
   return out;
 }
 
+namespace {
+
+/// The comma-separated cells of a CSV line (no quoting: fillgs's files have none); a
+/// trailing comma ends in an empty cell.
+std::vector<std::string> csv_cells(const std::string& line) {
+  std::vector<std::string> f;
+  std::stringstream ls(line);
+  for (std::string cell; std::getline(ls, cell, ',');) f.push_back(cell);
+  if (!line.empty() && line.back() == ',') f.emplace_back();
+  return f;
+}
+
+}  // namespace
+
 std::vector<RunResult> read_results_csv(const std::string& path) {
   const std::string text = read_file(path);
   std::istringstream in(text);
@@ -218,10 +232,7 @@ std::vector<RunResult> read_results_csv(const std::string& path) {
   std::vector<RunResult> out;
   for (size_t row = 2; std::getline(in, line); ++row) {
     if (line.empty()) continue;
-    std::vector<std::string> f;
-    std::stringstream ls(line);
-    for (std::string cell; std::getline(ls, cell, ',');) f.push_back(cell);
-    if (!line.empty() && line.back() == ',') f.emplace_back();
+    const std::vector<std::string> f = csv_cells(line);
     if (f.size() != kColumns) throw_error(path, ": line ", row, " has ", f.size(), " columns, the header ", kColumns);
     if (f[0].empty() || f[2].empty()) throw_error(path, ": line ", row, ": empty scene or id");
     const std::string where = "line " + std::to_string(row);
@@ -583,11 +594,9 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   oo.support = c.refiner == BenchRefiner::OracleFull ? OracleSupport::Full : OracleSupport::Observed;
   for (const TrainView& v : p.train->views()) oo.observers.push_back(v.camera);
   oo.frames = F;
-  ReferenceOptions ro = bench_reference_options(c.artifact_strength, p.options.seed);
-  if (c.reference_angle_degrees > 0) ro.angle_scale_degrees = c.reference_angle_degrees;
-  if (c.reference_hallucination >= 0) ro.hallucination = c.reference_hallucination;
-  if (c.reference_fill_blur >= 0) ro.fill_blur = c.reference_fill_blur;
-  if (c.reference_fill_strength >= 0) ro.fill_strength = c.reference_fill_strength;
+  ReferenceOptions ro = c.reference;
+  ro.artifacts.strength = c.artifact_strength;
+  ro.artifacts.seed = p.options.seed;
   json identity = {{"id", c.id}, {"scene", options_json(p.options)}};
   if (c.kind == RunKind::Dense) {
     identity["kind"] = "dense";
@@ -700,9 +709,7 @@ std::vector<RefinedViewRecord> read_refined_view_records(const std::string& path
   std::vector<RefinedViewRecord> out;
   for (size_t row = 2; std::getline(in, line); ++row) {
     if (line.empty()) continue;
-    std::vector<std::string> f;
-    std::stringstream ls(line);
-    for (std::string cell; std::getline(ls, cell, ',');) f.push_back(cell);
+    const std::vector<std::string> f = csv_cells(line);
     if (f.size() != 10) throw_error(path, ": line ", row, " has ", f.size(), " columns, expected 10");
     double v[9];
     for (size_t k = 1; k < 10; ++k) {

@@ -23,6 +23,30 @@ Image::Image(int w, int h, int c, std::vector<float> data) : width(w), height(h)
     throw_error("image: ", pixels.size(), " values for ", w, "x", h, "x", c);
 }
 
+double Image::bilinear(double u, double v, int c) const {
+  const int i0 = std::min(int(u), std::max(0, width - 2)), j0 = std::min(int(v), std::max(0, height - 2));
+  const int i1 = std::min(i0 + 1, width - 1), j1 = std::min(j0 + 1, height - 1);
+  const double a = std::clamp(u - i0, 0.0, 1.0), b = std::clamp(v - j0, 0.0, 1.0);
+  auto px = [&](int i, int j) { return double(pixels[(size_t(j) * width + size_t(i)) * size_t(channels) + size_t(c)]); };
+  return (1 - a) * (1 - b) * px(i0, j0) + a * (1 - b) * px(i1, j0) + (1 - a) * b * px(i0, j1) + a * b * px(i1, j1);
+}
+
+Image rgb_channels(const Image& image, const std::string& what) {
+  if (image.channels < 3) throw_error(what, " has ", image.channels, " channels, expected RGB");
+  if (image.channels == 3) return image;
+  Image rgb(image.width, image.height, 3);
+  for (size_t p = 0; p < size_t(image.width) * size_t(image.height); ++p)
+    for (int c = 0; c < 3; ++c) rgb.pixels[p * 3 + size_t(c)] = image.pixels[p * size_t(image.channels) + size_t(c)];
+  return rgb;
+}
+
+Image read_rgb_image(const std::string& path, int width, int height) {
+  const Image im = read_image(path);
+  if (im.width != width || im.height != height || im.channels < 3)
+    throw_error(path, ": not a ", width, "x", height, " RGB image (", im.width, "x", im.height, ", ", im.channels, " channels)");
+  return rgb_channels(im, path);
+}
+
 void write_image(const std::string& path, const Image& img) {
   FILLGS_CHECK_EQ(img.pixels.size(), size_t(img.width) * img.height * img.channels);
   const std::string ext = std::filesystem::path(path).extension().string();

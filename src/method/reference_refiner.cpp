@@ -29,14 +29,12 @@ std::vector<WarpedPixel> warp_pixels(const Camera& cam, const std::vector<float>
   const int W = cam.width, H = cam.height, OW = other.width, OH = other.height;
   if (depth.size() != size_t(W) * H || other_depth.size() != size_t(OW) * OH) throw_error("warp: depth maps do not match the cameras");
   std::vector<WarpedPixel> out(size_t(W) * H);
-  const Mat3d Rt = cam.R.transpose();
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
       const float z = depth[size_t(y) * W + x];
       if (!(z > 0)) continue;
       WarpedPixel& w = out[size_t(y) * W + x];
-      const Vec3d pc((x + 0.5 - cam.cx) / cam.fx * z, (y + 0.5 - cam.cy) / cam.fy * z, z);
-      w.world = Rt * (pc - cam.t);
+      w.world = cam.unproject(x + 0.5, y + 0.5, z);
       const Vec3d q = other.project(w.world);  // corner convention: pixel i spans [i, i+1)
       if (!(q.z() > kNearPlane)) continue;
       // Inside the other image's pixels (centres at 0 .. OW − 1, each half a pixel wide).
@@ -73,6 +71,7 @@ namespace {
 /// What one virtual view is composed from.
 struct ViewInputs {
   std::vector<float> content;   ///< [H][W][3]: what the reference shows there (truth, or the warped photograph)
+  std::vector<float> truth;     ///< [H][W][3]: the truth at the view, where the form rendered it already (else empty)
   std::vector<float> seen;      ///< [H][W] in {0, 1}
   std::vector<float> parallax;  ///< [H][W] degrees, < 0 where no surface
   std::vector<float> moving;    ///< [H][W] share of moving content
@@ -157,39 +156,35 @@ double axis_degrees(const Camera& a, const Camera& b) {
   return std::acos(c) * 180.0 / kPi;
 }
 
-Image read_rgb(const std::string& path, const Camera& cam) {
-  Image im = read_image(path);
-  if (im.width != cam.width || im.height != cam.height || im.channels < 3)
-    throw_error(path, ": not a ", cam.width, "x", cam.height, " RGB image");
-  if (im.channels == 3) return im;
-  Image rgb(im.width, im.height, 3);
-  for (size_t p = 0; p < size_t(im.width) * im.height; ++p)
-    for (int c = 0; c < 3; ++c) rgb.pixels[p * 3 + c] = im.pixels[p * size_t(im.channels) + size_t(c)];
-  return rgb;
-}
-
 /// Parallax per pixel from an expected-depth map (< 0 where there is none).
 std::vector<float> parallax_map(const Camera& cam, const std::vector<float>& depth, const Vec3d& reference_centre) {
   std::vector<float> out(depth.size(), -1.0f);
-  const Mat3d Rt = cam.R.transpose();
   const Vec3d c = cam.centre();
   for (int y = 0; y < cam.height; ++y)
     for (int x = 0; x < cam.width; ++x) {
       const float z = depth[size_t(y) * cam.width + x];
-      if (!(z > 0)) continue;
-      const Vec3d pc((x + 0.5 - cam.cx) / cam.fx * z, (y + 0.5 - cam.cy) / cam.fy * z, z);
-      out[size_t(y) * cam.width + x] = float(parallax_degrees(Rt * (pc - cam.t), c, reference_centre));
+      if (z > 0) out[size_t(y) * cam.width + x] = float(parallax_degrees(cam.unproject(x + 0.5, y + 0.5, z), c, reference_centre));
     }
   return out;
 }
 
+/// 1 for the moving Gaussians of `cloud`, 0 for the static ones (a feature channel).
+std::vector<float> moving_flags(const GaussianCloud& cloud) {
+  std::vector<float> m(cloud.size(), 0.0f);
+  for (uint32_t g : cloud.dynamic_ids) m[g] = 1.0f;
+  return m;
+}
+
 void check_options(const ReferenceOptions& o) {
-  auto finite_at_least = [](double v, double lo) { return std::isfinite(v) && v >= lo; };
-  if (!(finite_at_least(o.angle_scale_degrees, 0) && o.angle_scale_degrees > 0))
+  auto positive = [](double v) { return std::isfinite(v) && v > 0; };
+  if (!positive(o.angle_scale_degrees))
     throw_error("reference refiner: the angle scale must be a positive number of degrees (got ", o.angle_scale_degrees, ")");
-  if (!finite_at_least(o.shift_per_degree, 0) || !finite_at_least(o.blur_per_degree, 0) || !finite_at_least(o.flicker, 0) ||
-      !finite_at_least(o.fill_strength, 0) || !finite_at_least(o.hallucination, 0) || !finite_at_least(o.fill_blur, 0) || !(finite_at_least(o.placement_tolerance, 0) && o.placement_tolerance > 0) || !finite_at_least(o.artifacts.strength, 0) || !finite_at_least(o.depth_tolerance, 0))
-    throw_error("reference refiner: shift, blur, flicker, fill and artifact strengths and the depth tolerance must be finite and at least 0");
+  if (!positive(o.placement_tolerance))
+    throw_error("reference refiner: the placement tolerance must be a positive number (got ", o.placement_tolerance, ")");
+  for (double v : {o.shift_per_degree, o.blur_per_degree, o.flicker, o.fill_strength, o.fill_blur, o.hallucination, o.artifacts.strength,
+                   o.depth_tolerance})
+    if (!(std::isfinite(v) && v >= 0))
+      throw_error("reference refiner: shift, blur, flicker, fill and artifact strengths and the depth tolerance must be finite and at least 0");
 }
 
 /// What both forms share: the loop over a patch's virtual views, the records.
@@ -198,25 +193,27 @@ class ReferenceConditioned : public Refiner {
   ReferenceConditioned(const ReferenceOptions& o, SupportStats* stats, const GaussianCloud* truth) : o_(o), stats_(stats), truth_(truth) {
     check_options(o_);
   }
-  void begin_round(const GaussianCloud& current, const Vec3f& background) override {
+  void begin_round(const GaussianCloud& current, const Vec3f&) override {
     model_ = &current;
-    background_ = background;
-    round_cache_.clear();
-    model_moving_.assign(current.size(), 0.0f);
-    for (uint32_t g : current.dynamic_ids) model_moving_[g] = 1.0f;
+    model_depths_.clear();
+    model_moving_ = moving_flags(current);
   }
   void refine(const std::string& in, const std::string& out, const Patch& patch) override {
     make_directories(out);
+    std::map<std::string, Image> references;  // each observed image of the patch, read once
     for (const PatchImage& im : patch.images) {
       if (im.observed) continue;
       const PatchImage& ref = reference_of(patch, im.frame);
-      const Image rendered = read_rgb(join_path(in, im.file), im.camera);
-      ViewInputs vi = inputs(in, ref, im);
+      auto photo = references.find(ref.file);
+      if (photo == references.end())
+        photo = references.emplace(ref.file, read_rgb_image(join_path(in, ref.file), ref.camera.width, ref.camera.height)).first;
+      const Image rendered = read_rgb_image(join_path(in, im.file), im.camera.width, im.camera.height);
+      ViewInputs vi = inputs(photo->second, ref, im);
       vi.fallback_degrees = axis_degrees(im.camera, ref.camera);
       RefinedViewRecord rec;
       const uint64_t key = string_key((patch.name + "/" + im.file).c_str());
       const uint64_t frame_key = string_key((patch.name + "/frame" + std::to_string(im.frame)).c_str());
-      const Image refined = compose(o_, vi, rendered, read_rgb(join_path(in, ref.file), ref.camera), key, frame_key, &rec);
+      const Image refined = compose(o_, vi, rendered, photo->second, key, frame_key, &rec);
       write_image(join_path(out, im.file), refined);
       if (!stats_) continue;
       rec.file = patch.name + "/" + im.file;
@@ -225,7 +222,7 @@ class ReferenceConditioned : public Refiner {
       rec.baseline = (im.camera.centre() - ref.camera.centre()).norm();
       rec.psnr_refined = rec.psnr_render = rec.psnr_seen = std::nan("");
       if (truth_) {
-        const std::vector<float> t = render(frame_at(*truth_, im.camera.time), im.camera, truth_options()).rgb;
+        const std::vector<float> t = vi.truth.empty() ? render(frame_at(*truth_, im.camera.time), im.camera, truth_options()).rgb : vi.truth;
         rec.psnr_refined = psnr(refined.pixels.data(), t.data(), refined.width, refined.height, 3);
         rec.psnr_render = psnr(rendered.pixels.data(), t.data(), refined.width, refined.height, 3);
         std::vector<unsigned char> seen(vi.seen.size());
@@ -239,40 +236,37 @@ class ReferenceConditioned : public Refiner {
   }
 
  protected:
-  virtual ViewInputs inputs(const std::string& in_dir, const PatchImage& reference, const PatchImage& view) = 0;
+  /// The inputs of virtual view `view`, whose reference is `reference` with image `photo`.
+  virtual ViewInputs inputs(const Image& photo, const PatchImage& reference, const PatchImage& view) = 0;
   RenderOptions truth_options() const {
     RenderOptions ro;
     ro.background = o_.background;
     return ro;
   }
-  /// The model's expected depth at `camera` (its time), 0 where it renders less than half
-  /// an opacity; cached per camera and time for the round when `cache`.
-  const std::vector<float>& model_depth(const Camera& camera, bool cache) {
+  /// The round's model's expected depth at a reference camera (its time), 0 where it
+  /// renders less than half an opacity; once per camera and time in a round.
+  const std::vector<float>& reference_depth(const Camera& camera) {
     const std::string id = camera.name + "@" + std::to_string(camera.time);
-    if (!cache) round_cache_.erase(id);
-    auto it = round_cache_.find(id);
-    if (it == round_cache_.end()) it = round_cache_.emplace(id, expected_depth(frame_at(*model_, camera.time), camera, 0.5)).first;
+    auto it = model_depths_.find(id);
+    if (it == model_depths_.end()) it = model_depths_.emplace(id, expected_depth(frame_at(*model_, camera.time), camera, 0.5)).first;
     return it->second;
   }
   ReferenceOptions o_;
   SupportStats* stats_;
   const GaussianCloud* truth_;
   const GaussianCloud* model_ = nullptr;  ///< the round's model (begin_round)
-  Vec3f background_ = Vec3f::Zero();
-  std::vector<float> model_moving_;
-  std::map<std::string, std::vector<float>> round_cache_;
+  std::vector<float> model_moving_;       ///< its moving flags
+  std::map<std::string, std::vector<float>> model_depths_;
 };
 
 class ReferenceRefiner : public ReferenceConditioned {
  public:
   ReferenceRefiner(const GaussianCloud& truth, const ReferenceOptions& o, SupportStats* stats)
-      : ReferenceConditioned(o, stats, &truth), engine_(truth, exact()), moving_(truth.size(), 0.0f) {
-    for (uint32_t g : truth.dynamic_ids) moving_[g] = 1.0f;
-  }
+      : ReferenceConditioned(o, stats, &truth), engine_(truth, exact()), moving_(moving_flags(truth)) {}
   std::string name() const override { return "reference"; }
 
  protected:
-  ViewInputs inputs(const std::string&, const PatchImage& ref, const PatchImage& im) override {
+  ViewInputs inputs(const Image&, const PatchImage& ref, const PatchImage& im) override {
     // Which Gaussians the reference camera saw at its own time (cached per camera and time).
     const std::string id = ref.camera.name + "@" + std::to_string(ref.camera.time);
     auto it = seen_.find(id);
@@ -291,6 +285,7 @@ class ReferenceRefiner : public ReferenceConditioned {
     const size_t P = r.alpha.size();
     ViewInputs vi;
     vi.content = r.rgb;
+    vi.truth = r.rgb;
     vi.seen.assign(P, 0.0f);
     vi.moving.assign(P, 0.0f);
     std::vector<float> depth(P, 0.0f);
@@ -306,7 +301,7 @@ class ReferenceRefiner : public ReferenceConditioned {
     // lacks: "seen" only where the model's depth agrees with the truth's (within
     // placement_tolerance × depth, soft), nowhere the model renders nothing.
     if (model_) {
-      const std::vector<float>& placed = model_depth(im.camera, false);
+      const std::vector<float> placed = expected_depth(frame_at(*model_, im.camera.time), im.camera, 0.5);
       const double tol = o_.placement_tolerance;
       for (size_t p = 0; p < P; ++p) {
         if (vi.seen[p] <= 0) continue;
@@ -335,16 +330,13 @@ class WarpRefiner : public ReferenceConditioned {
   std::string name() const override { return "warp"; }
 
  protected:
-  ViewInputs inputs(const std::string& in_dir, const PatchImage& ref, const PatchImage& im) override {
+  ViewInputs inputs(const Image& photo, const PatchImage& ref, const PatchImage& im) override {
     if (!model_) throw_error("warp refiner: no model (begin_round was not called)");
-    const Image photo = read_rgb(join_path(in_dir, ref.file), ref.camera);
-    const std::vector<float>& reference_depth = model_depth(ref.camera, true);
     RenderOptions ro;
     ro.rgb = false;
     ro.depth = true;
     ro.features = model_moving_.data();
     ro.feature_channels = 1;
-    ro.background = background_;
     const RenderOutput r = render(frame_at(*model_, im.camera.time), im.camera, ro);
     const size_t P = r.alpha.size();
     std::vector<float> depth(P, 0.0f);
@@ -354,29 +346,18 @@ class WarpRefiner : public ReferenceConditioned {
       if (r.alpha[p] >= 0.5f) depth[p] = r.depth[p] / r.alpha[p];
       if (r.alpha[p] > 1e-4f) vi.moving[p] = std::clamp(r.features[p] / r.alpha[p], 0.0f, 1.0f);
     }
-    const std::vector<WarpedPixel> warp = warp_pixels(im.camera, depth, ref.camera, reference_depth, o_.depth_tolerance);
+    const std::vector<WarpedPixel> warp = warp_pixels(im.camera, depth, ref.camera, reference_depth(ref.camera), o_.depth_tolerance);
     vi.content.assign(P * 3, 0.0f);
     vi.seen.assign(P, 0.0f);
-    vi.parallax.assign(P, -1.0f);
-    const Vec3d rc = ref.camera.centre(), vc = im.camera.centre();
-    const int OW = photo.width, OH = photo.height;
+    vi.parallax = parallax_map(im.camera, depth, ref.camera.centre());
     for (size_t p = 0; p < P; ++p) {
       const WarpedPixel& w = warp[p];
-      if (depth[p] > 0) vi.parallax[p] = float(parallax_degrees(w.world, vc, rc));
       if (!w.valid) continue;
       vi.seen[p] = 1.0f;
-      const int i0 = std::min(int(w.u), std::max(0, OW - 2)), j0 = std::min(int(w.v), std::max(0, OH - 2));
-      const int i1 = std::min(i0 + 1, OW - 1), j1 = std::min(j0 + 1, OH - 1);
-      const double a = std::clamp(w.u - i0, 0.0, 1.0), b = std::clamp(w.v - j0, 0.0, 1.0);
-      for (int c = 0; c < 3; ++c) {
-        auto at = [&](int i, int j) { return double(photo.pixels[(size_t(j) * OW + size_t(i)) * 3 + size_t(c)]); };
-        vi.content[p * 3 + size_t(c)] =
-            float((1 - a) * (1 - b) * at(i0, j0) + a * (1 - b) * at(i1, j0) + (1 - a) * b * at(i0, j1) + a * b * at(i1, j1));
-      }
+      for (int c = 0; c < 3; ++c) vi.content[p * 3 + size_t(c)] = float(photo.bilinear(w.u, w.v, c));
     }
     return vi;
   }
-
 };
 
 }  // namespace

@@ -131,10 +131,7 @@ class OracleRefiner : public Refiner {
       const uint64_t key = string_key((patch.name + "/" + im.file).c_str());
       double sum = double(img.width) * img.height;
       if (limited) {
-        Image fill = read_image(join_path(in, im.file));
-        if (fill.width != img.width || fill.height != img.height || fill.channels < 3)
-          throw_error(join_path(in, im.file), ": the rendered view is not a ", img.width, "x", img.height, " RGB image");
-        if (fill.channels != 3) fill = Image(fill.width, fill.height, 3, rgb_of(fill));
+        Image fill = read_rgb_image(join_path(in, im.file), img.width, img.height);  // the rendered view
         degrade_unsupported(fill, o_.artifacts.strength > 0 ? o_.artifacts.strength : 0.5, o_.artifacts.seed, key);
         Image mask(img.width, img.height, 1);
         sum = 0;
@@ -160,12 +157,6 @@ class OracleRefiner : public Refiner {
   }
 
  private:
-  static std::vector<float> rgb_of(const Image& im) {
-    std::vector<float> v(size_t(im.width) * im.height * 3);
-    for (size_t p = 0; p < size_t(im.width) * im.height; ++p)
-      for (int c = 0; c < 3; ++c) v[p * 3 + c] = im.pixels[p * size_t(im.channels) + size_t(c)];
-    return v;
-  }
   const GaussianCloud& truth_;
   OracleOptions o_;
   SupportStats* stats_;
@@ -466,14 +457,7 @@ RefineReport refine_patches(Refiner& refiner, const std::vector<Patch>& patches,
         r.image = im;
         r.image.camera = cam;
         r.path = path;
-        r.rgb = read_image(path);
-        if (r.rgb.channels < 3) throw_error(im.file, " has ", r.rgb.channels, " channels, expected RGB");
-        if (r.rgb.channels > 3) {  // drop alpha
-          Image rgb(w, h, 3);
-          for (size_t q = 0; q < size_t(w) * h; ++q)
-            for (int c = 0; c < 3; ++c) rgb.pixels[q * 3 + c] = r.rgb.pixels[q * size_t(r.rgb.channels) + size_t(c)];
-          r.rgb = std::move(rgb);
-        }
+        r.rgb = rgb_channels(read_image(path), im.file);  // alpha dropped
         got.push_back(std::move(r));
       }
       for (RefinedImage& r : got) rep.images.push_back(std::move(r));

@@ -27,16 +27,10 @@ std::vector<float> max_weights(const FrameGaussians& frame, const Camera& camera
 /// Σ over RGB of (refined(x, y) − observed bilinear at (u, v))², (u, v) in pixel-index
 /// coordinates inside the observed image.
 double squared_difference(const Image& refined, int x, int y, const Image& observed, double u, double v) {
-  const int OW = observed.width, OH = observed.height, oc = observed.channels;
-  const int i0 = std::min(int(u), std::max(0, OW - 2)), j0 = std::min(int(v), std::max(0, OH - 2));
-  const int i1 = std::min(i0 + 1, OW - 1), j1 = std::min(j0 + 1, OH - 1);
-  const double a = std::clamp(u - i0, 0.0, 1.0), b = std::clamp(v - j0, 0.0, 1.0);
   double e = 0;
   for (int c = 0; c < 3; ++c) {
-    auto at = [&](int i, int j) { return double(observed.pixels[(size_t(j) * OW + i) * oc + c]); };
-    const double w = (1 - a) * (1 - b) * at(i0, j0) + a * (1 - b) * at(i1, j0) + (1 - a) * b * at(i0, j1) + a * b * at(i1, j1);
-    const double r = refined.pixels[(size_t(y) * refined.width + x) * refined.channels + c];
-    e += (r - w) * (r - w);
+    const double d = refined.at(x, y, c) - observed.bilinear(u, v, c);
+    e += d * d;
   }
   return e;
 }
@@ -118,7 +112,6 @@ std::vector<float> sweep_consistency(const Image& refined, const Camera& cam, co
     throw_error("sweep consistency: images do not match their cameras");
   const int win = std::max(1, o.window | 1);
   const int K = std::max(2, o.sweep_planes);
-  const Mat3d Rt = cam.R.transpose();
   cv::Mat best(H, W, CV_32F, cv::Scalar(1e9f));
   cv::Mat cost(H, W, CV_32F), valid(H, W, CV_32F);
   for (int k = 0; k < K; ++k) {
@@ -128,8 +121,7 @@ std::vector<float> sweep_consistency(const Image& refined, const Camera& cam, co
     valid.setTo(0);
     for (int y = 0; y < H; ++y)
       for (int x = 0; x < W; ++x) {
-        const Vec3d pc((x + 0.5 - cam.cx) / cam.fx * z, (y + 0.5 - cam.cy) / cam.fy * z, z);
-        const Vec3d q = ocam.project(Rt * (pc - cam.t));
+        const Vec3d q = ocam.project(cam.unproject(x + 0.5, y + 0.5, z));
         if (!(q.z() > kNearPlane)) continue;
         const double u = q.x() - 0.5, v = q.y() - 0.5;
         if (u < 0 || v < 0 || u > OW - 1 || v > OH - 1) continue;

@@ -103,10 +103,9 @@ struct RunConfig {
   double artifact_strength = 0.5;  ///< the refiner's injected artifacts (0: none)
   int trajectories = 5;     ///< per round; 0: fine-tune on the real views only (the control)
   BenchRefiner refiner = BenchRefiner::Reference;
-  double reference_angle_degrees = 0;  ///< the reference refiner's θ0; 0: the calibrated value
-  double reference_hallucination = -1;  ///< its hallucination; < 0: the calibrated value
-  double reference_fill_blur = -1;      ///< its fill blur (fraction of the width); < 0: the calibrated value
-  double reference_fill_strength = -1;  ///< its fill's degradation; < 0: the calibrated value
+  /// The reference refiner's parameters (the calibrated ones unless the calibration's
+  /// knobs say otherwise); its artifact strength and seed are the run's.
+  ReferenceOptions reference = bench_reference_options(0.5, 1);
 };
 
 /// The paper's comparison, for every refiner in `refiners` (ids of the second and later

@@ -15,7 +15,18 @@ struct Image {
   Image(int w, int h, int c, std::vector<float> data);
   float& at(int x, int y, int c) { return pixels[(size_t(y) * width + x) * channels + c]; }
   float at(int x, int y, int c) const { return pixels[(size_t(y) * width + x) * channels + c]; }
+  /// Channel c bilinearly interpolated at pixel-index coordinates (u, v) (pixel i's centre
+  /// at i), clamped to the image.
+  double bilinear(double u, double v, int c) const;
 };
+
+/// The first three channels of an image (alpha and the rest dropped); fewer than three is
+/// a one-line error naming `what`.
+Image rgb_channels(const Image& image, const std::string& what);
+
+/// Reads `path` as an RGB image of exactly width × height (extra channels dropped); anything
+/// else is a one-line error naming the file.
+Image read_rgb_image(const std::string& path, int width, int height);
 
 /// Writes an image atomically. `.png`/`.jpg`: 8-bit, values clamped to [0, 1], no gamma
 /// (like the original 3DGS); `.exr`: 32-bit float, values as they are.

@@ -168,8 +168,8 @@ struct SupportStats {
 /// that has one) and nothing else. Per pixel of a virtual view, with θ the parallax angle
 /// between the rays from the two camera centres to the surface point:
 ///   refined = c · (reference content, misplaced by shift·θ px and blurred by blur·θ px)
-///           + (1 − c) · (the render, degraded where the refiner cannot know: blurred,
-///             colours drifted, a hallucinated blob — the oracle's fill — blended by
+///           + (1 − c) · (the render, degraded where the refiner cannot know: colours
+///             drifted, a hallucinated blob, blurred by `fill_blur`, blended by
 ///             `hallucination` with the reference's texture in the wrong place: reference_fill),
 ///   c = seen · exp(−θ / θ0), θ0 halved on moving content, whose content also drifts twice
 ///   as far; a per-frame gain flickers by ±flicker·(1 − exp(−θ̄ / θ0)); the ArtifactOptions
@@ -187,9 +187,11 @@ struct SupportStats {
 ///    virtual view through the *render's* depth (the model of the round, begin_round),
 ///    occlusion-checked against the render's depth at the reference; "seen" where the warp
 ///    lands inside the reference and passes the check; θ from the render's depth.
-/// The parameters are the benchmark's calibration (bench/results/README.md, "Calibrating
-/// the refiner"): θ0 was set once, from the unweighted random views against the control,
-/// before any other strategy ran with it; the others are fixed a priori.
+/// The defaults are the benchmark's calibration (bench_reference_options;
+/// bench/results/README.md, "Calibrating the refiner"): θ0, the fill's blur and its
+/// hallucination were set from the unweighted random views against the control, before
+/// any other strategy ran with the refiner; shift, blur, flicker and placement were fixed
+/// before any run.
 struct ReferenceOptions {
   double angle_scale_degrees = 10.0;  ///< θ0: confidence exp(−θ/θ0)
   double shift_per_degree = 0.001;    ///< texture misplacement, fraction of the image width per degree of parallax

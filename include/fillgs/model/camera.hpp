@@ -30,6 +30,11 @@ struct Camera {
   Mat4d camera_to_world() const;
   /// Projects a world point to pixel coordinates (corner convention); z is the view depth.
   Vec3d project(const Vec3d& world) const;
+  /// The world point at depth z (along the optical axis) behind pixel coordinates (u, v)
+  /// (corner convention: the centre of pixel i is i + 0.5): project's inverse.
+  Vec3d unproject(double u, double v, double z) const {
+    return R.transpose() * (Vec3d((u - cx) / fx * z, (v - cy) / fy * z, z) - t);
+  }
   /// Sets R, t from a camera centre, a point to look at and an up vector (world).
   void look_at(const Vec3d& eye, const Vec3d& target, const Vec3d& up);
   /// Sets intrinsics from a horizontal field of view (radians), centred principal point.
