@@ -14,11 +14,12 @@ int bench_train(const std::vector<std::string>& args);
 int bench_select(const std::vector<std::string>& args);
 int bench_motion(const std::vector<std::string>& args);
 int bench_n3v_rig(const std::vector<std::string>& args);
+int bench_warp_check(const std::vector<std::string>& args);
 
 int main(int argc, char** argv) {
   fillgs::keep_freed_memory();
   if (argc < 2) {
-    std::cerr << "usage: fillgs_bench render|visibility|train|select|motion|n3v-rig [options]; 'fillgs_bench <benchmark> --help' lists its options\n";
+    std::cerr << "usage: fillgs_bench render|visibility|train|select|motion|n3v-rig|warp-check [options]; 'fillgs_bench <benchmark> --help' lists its options\n";
     return 2;
   }
   const std::string name = argv[1];
@@ -30,6 +31,7 @@ int main(int argc, char** argv) {
     if (name == "select") return bench_select(args);
     if (name == "motion") return bench_motion(args);
     if (name == "n3v-rig") return bench_n3v_rig(args);
+    if (name == "warp-check") return bench_warp_check(args);
     std::cerr << "error: unknown benchmark '" << name << "'\n";
     return 2;
   } catch (const fillgs::Error& e) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/base/random.hpp"
@@ -293,4 +294,101 @@ TEST_CASE("weights normalised by their mean: a uniformly weighted view's gradien
   std::vector<float> zero(P, 0.0f);
   normalise_by_mean(zero);
   CHECK(*std::max_element(zero.begin(), zero.end()) == 0.0f);
+}
+
+TEST_CASE("patch.json reads back as written: cameras, frames, views and the observed flags", "[refine][reference]") {
+  const std::string in = scratch("patch_read");
+  const GaussianCloud wall = textured_wall();
+  Camera reference = orbit_camera(0);
+  reference.name = "images/cam00/0000";
+  Patch p = write_test_patch(in, wall, reference, {orbit_camera(7), orbit_camera(-12.5)});
+  p.images[2].frame = 3, p.images[2].camera.time = 0.375, p.images[2].order = 2;
+  // write_patch writes the same patch through the protocol's own writer.
+  std::vector<ObservedView> views = {{reference, 0, 0}};
+  p.observed_view = 0;
+  const std::string dir = join_path(in, "written");
+  write_patch(dir, p, views, [&](size_t) { return render(frame_at(wall, 0.0), reference).rgb; },
+              [](const Camera& c) { return std::vector<float>(size_t(c.width) * c.height * 3, 0.5f); });
+  const Patch back = read_patch(dir);
+  CHECK(back.name == p.name);
+  REQUIRE(back.images.size() == p.images.size());
+  for (size_t i = 0; i < p.images.size(); ++i) {
+    const PatchImage &a = p.images[i], &b = back.images[i];
+    CHECK(b.file == a.file);
+    CHECK(b.frame == a.frame);
+    CHECK(b.view == a.view);
+    CHECK(b.order == a.order);
+    CHECK(b.observed == a.observed);
+    CHECK(b.camera.name == a.camera.name);
+    CHECK(b.camera.width == a.camera.width);
+    CHECK(b.camera.fx == a.camera.fx);
+    CHECK(b.camera.cy == a.camera.cy);
+    CHECK(b.camera.time == a.camera.time);
+    CHECK((b.camera.R - a.camera.R).norm() < 1e-12);
+    CHECK((b.camera.centre() - a.camera.centre()).norm() < 1e-12);
+  }
+  // Damaged files name the file, the image and the field.
+  auto refused = [&](const std::string& json, const std::string& what) {
+    const std::string bad = join_path(in, "bad");
+    make_directories(bad);
+    write_file_atomically(join_path(bad, "patch.json"), json);
+    try {
+      read_patch(bad);
+      FAIL("accepted: " << json);
+    } catch (const Error& e) {
+      INFO(e.what());
+      CHECK(std::string(e.what()).find(join_path(bad, "patch.json")) != std::string::npos);
+      CHECK(std::string(e.what()).find(what) != std::string::npos);
+    }
+  };
+  const std::string camera = R"({"name":"v","width":48,"height":36,"fx":40,"fy":40,"cx":24,"cy":18,"time":0,)"
+                             R"("camera_to_world_opencv":[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]})";
+  refused(R"({"images":[{"file":"a.png","order":0,"view":0,"observed":true,"camera":)" + camera + "}]}", "image 0: 'frame' is missing");
+  refused(R"({"images":[{"file":"../a.png","order":0,"frame":0,"view":0,"observed":true,"camera":)" + camera + "}]}", "plain file name");
+  std::string sheared = camera;
+  sheared.replace(sheared.find("[1,0,0,0]"), 9, "[1,0.5,0,0]");
+  refused(R"({"images":[{"file":"a.png","order":0,"frame":0,"view":0,"observed":true,"camera":)" + sheared + "}]}", "not a rigid transform");
+  refused(R"({"images":3})", "no 'images' list");
+}
+
+namespace {
+/// A colour texture with no repeating structure at the scale of a few pixels: three sums
+/// of sinusoids with incommensurate frequencies, one per channel, in [0.1, 0.9].
+double texture(double x, double y, int c) {
+  const double a = 0.31 + 0.07 * c, b = 0.23 + 0.05 * c;
+  return 0.5 + 0.13 * std::sin(a * x + 1.3 * c) + 0.13 * std::sin(b * y + 0.4) + 0.14 * std::sin(0.11 * x + 0.17 * y + c);
+}
+Image textured(int W, int H, const std::function<double(int, int, int)>& value) {
+  Image im(W, H, 3);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x)
+      for (int c = 0; c < 3; ++c) im.at(x, y, c) = float(value(x, y, c));
+  return im;
+}
+}  // namespace
+
+TEST_CASE("flow check: a shifted copy passes, content duplicated by a fold or another texture fails", "[refine][weights]") {
+  const int W = 96, H = 72;
+  const Image reference = textured(W, H, [](int x, int y, int c) { return texture(x, y, c); });
+  // Shifted by (3, 2): every pixel whose partner lies inside the reference has an exact match.
+  const Image shifted = textured(W, H, [](int x, int y, int c) { return texture(x + 3, y + 2, c); });
+  const std::vector<uint8_t> pass = flow_consistency(shifted, reference);
+  size_t inside = 0, inside_pass = 0;
+  for (int y = 8; y < H - 8; ++y)
+    for (int x = 8; x < W - 8; ++x) ++inside, inside_pass += pass[size_t(y) * W + x];
+  CHECK(double(inside_pass) / double(inside) >= 0.9);
+  // A fold: both halves of the image show the reference's middle band, so each of its
+  // pixels has two partners and the flow back returns to at most one of them.
+  const Image folded = textured(W, H, [&](int x, int y, int c) { return x < W / 2 ? texture(x + W / 4, y, c) : texture(x - W / 4, y, c); });
+  const std::vector<uint8_t> fold_pass = flow_consistency(folded, reference);
+  size_t folded_pass = 0;
+  for (uint8_t v : fold_pass) folded_pass += v;
+  CHECK(double(folded_pass) / double(W * H) <= 0.55);
+  // Unrelated content (the texture at other frequencies) mostly fails.
+  const Image other = textured(W, H, [](int x, int y, int c) { return texture(1.7 * y + 5, 1.3 * x, 2 - c); });
+  const std::vector<uint8_t> other_pass = flow_consistency(other, reference);
+  size_t n = 0;
+  for (uint8_t v : other_pass) n += v;
+  CHECK(double(n) / double(W * H) <= 0.2);
+  CHECK_THROWS_WITH(flow_consistency(Image(W, H, 3), Image(W + 1, H, 3)), Catch::Contains("one size"));
 }

@@ -367,9 +367,10 @@ TEST_CASE("selection: every strategy returns free, deterministic trajectories wh
     const SelectResult b = with_threads(2, [&] { return select_viewpoints(fx.input(), o); });
     CHECK(a.trajectories.size() == 2);
     CHECK(same_cameras(a.trajectories, b.trajectories));
-    o.seed = 99;
-    const SelectResult c = select_viewpoints(fx.input(), o);
-    if (s == Strategy::Random || s == Strategy::Interpolation) CHECK_FALSE(same_cameras(a.trajectories, c.trajectories));
+    if (s == Strategy::Random || s == Strategy::Interpolation) {  // the seeded ones: another seed, other views
+      o.seed = 99;
+      CHECK_FALSE(same_cameras(a.trajectories, select_viewpoints(fx.input(), o).trajectories));
+    }
     for (const Trajectory& t : a.trajectories) {
       CHECK(t.start_view >= 0);
       for (const Camera& p : t.poses) CHECK(fx.grid.is_free(p.centre()));

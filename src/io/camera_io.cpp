@@ -692,4 +692,40 @@ nlohmann::json camera_json(const Camera& c) {
           {"time", c.time}, {"camera_to_world_opencv", m}};
 }
 
+Camera camera_from_json(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_object()) throw_error(where, ": a camera must be a JSON object");
+  auto number = [&](const char* key) {
+    const auto it = j.find(key);
+    if (it == j.end() || !it->is_number()) throw_error(where, ": camera field '", key, "' is missing or not a number");
+    return it->get<double>();
+  };
+  Camera c;
+  if (j.contains("name") && j["name"].is_string()) c.name = j["name"].get<std::string>();
+  const double w = number("width"), h = number("height");
+  if (!(w >= 1 && h >= 1 && w <= 1 << 16 && h <= 1 << 16 && w == std::floor(w) && h == std::floor(h)))
+    throw_error(where, ": camera '", c.name, "' has size ", w, "x", h, " (must be whole numbers from 1 to 65536)");
+  c.width = int(w), c.height = int(h);
+  c.fx = number("fx"), c.fy = number("fy"), c.cx = number("cx"), c.cy = number("cy");
+  if (!(c.fx > 0 && c.fy > 0 && std::isfinite(c.fx) && std::isfinite(c.fy) && std::isfinite(c.cx) && std::isfinite(c.cy)))
+    throw_error(where, ": camera '", c.name, "' has focal lengths ", c.fx, ", ", c.fy, " (must be positive and finite)");
+  if (j.contains("time") && j["time"].is_number()) c.time = j["time"].get<double>();
+  const auto m = j.find("camera_to_world_opencv");
+  if (m == j.end() || !m->is_array() || m->size() != 4) throw_error(where, ": camera '", c.name, "' needs camera_to_world_opencv, 4 rows");
+  Mat4d c2w;
+  for (int r = 0; r < 4; ++r) {
+    const nlohmann::json& row = (*m)[size_t(r)];
+    if (!row.is_array() || row.size() != 4) throw_error(where, ": camera '", c.name, "': camera_to_world_opencv row ", r, " is not 4 numbers");
+    for (int k = 0; k < 4; ++k) {
+      if (!row[size_t(k)].is_number()) throw_error(where, ": camera '", c.name, "': camera_to_world_opencv row ", r, " is not 4 numbers");
+      c2w(r, k) = row[size_t(k)].get<double>();
+    }
+  }
+  const Mat3d rot = c2w.topLeftCorner<3, 3>();
+  if (!c2w.allFinite() || (rot.transpose() * rot - Mat3d::Identity()).norm() > 1e-6 || rot.determinant() < 0)
+    throw_error(where, ": camera '", c.name, "': camera_to_world_opencv is not a rigid transform");
+  c.R = rot.transpose();
+  c.t = -c.R * c2w.topRightCorner<3, 1>();
+  return c;
+}
+
 }  // namespace fillgs

@@ -12,6 +12,7 @@
 #include "fillgs/io/camera_json.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/fs_util.hpp"
+#include "fillgs/base/json_file.hpp"
 #include "fillgs/base/process.hpp"
 #include "fillgs/base/random.hpp"
 #include "fillgs/render/raster.hpp"
@@ -265,6 +266,41 @@ void write_patch(const std::string& dir, const Patch& patch, const std::vector<O
                             {"order", "serpentine: view k at even frame index, views-1-k at odd; frames increasing"},
                             {"images", images}};
   write_file_atomically(join_path(dir, "patch.json"), j.dump(1) + "\n");
+}
+
+Patch read_patch(const std::string& dir) {
+  const std::string path = join_path(dir, "patch.json");
+  const nlohmann::json j = read_json_file(path);
+  const auto images = j.find("images");
+  if (!j.is_object() || images == j.end() || !images->is_array()) throw_error(path, ": no 'images' list");
+  Patch p;
+  p.name = j.contains("name") && j["name"].is_string() ? j["name"].get<std::string>() : std::filesystem::path(dir).filename().string();
+  p.trajectory = j.contains("trajectory") && j["trajectory"].is_number_integer() ? j["trajectory"].get<int>() : 0;
+  for (size_t i = 0; i < images->size(); ++i) {
+    const nlohmann::json& e = (*images)[i];
+    const std::string where = path + ": image " + std::to_string(i);
+    if (!e.is_object()) throw_error(where, " is not an object");
+    PatchImage im;
+    auto integer = [&](const char* key) {
+      const auto it = e.find(key);
+      if (it == e.end() || !it->is_number_integer()) throw_error(where, ": '", key, "' is missing or not a whole number");
+      return it->get<int>();
+    };
+    const auto file = e.find("file");
+    if (file == e.end() || !file->is_string() || file->get<std::string>().empty() || file->get<std::string>().find('/') != std::string::npos ||
+        file->get<std::string>().find("..") != std::string::npos)
+      throw_error(where, ": 'file' must be a plain file name");
+    im.file = file->get<std::string>();
+    im.order = integer("order"), im.frame = integer("frame"), im.view = integer("view");
+    const auto observed = e.find("observed");
+    if (observed == e.end() || !observed->is_boolean()) throw_error(where, ": 'observed' is missing or not true/false");
+    im.observed = observed->get<bool>();
+    const auto camera = e.find("camera");
+    if (camera == e.end()) throw_error(where, ": no 'camera'");
+    im.camera = camera_from_json(*camera, where);
+    p.images.push_back(std::move(im));
+  }
+  return p;
 }
 
 std::vector<uint8_t> inject_artifacts(Image& image, const ArtifactOptions& o, uint64_t key) {

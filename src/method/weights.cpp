@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 
 #include "fillgs/model/frame_grid.hpp"
 #include "fillgs/base/error.hpp"
@@ -365,6 +366,56 @@ ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, cons
   for (float& x : w.weight)
     if (!std::isfinite(x)) x = 0;
   return w;
+}
+
+namespace {
+cv::Mat grey8(const Image& im) {
+  cv::Mat g(im.height, im.width, CV_8UC1);
+  for (int y = 0; y < im.height; ++y)
+    for (int x = 0; x < im.width; ++x) {
+      const double l = 0.299 * im.at(x, y, 0) + 0.587 * im.at(x, y, 1) + 0.114 * im.at(x, y, 2);
+      g.at<uint8_t>(y, x) = uint8_t(std::lround(std::clamp(l, 0.0, 1.0) * 255.0));
+    }
+  return g;
+}
+cv::Mat dis_flow(const cv::Mat& from, const cv::Mat& to) {
+  cv::Ptr<cv::DISOpticalFlow> dis = cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM);
+  cv::Mat flow;
+  dis->calc(from, to, flow);
+  return flow;
+}
+}  // namespace
+
+std::vector<uint8_t> flow_consistency(const Image& image, const Image& reference, const FlowCheckOptions& o) {
+  if (image.width != reference.width || image.height != reference.height || image.channels != 3 || reference.channels != 3)
+    throw_error("flow check: the image and its reference must be RGB images of one size");
+  if (!(o.round_trip_pixels > 0) || !(o.colour_rms > 0)) throw_error("flow check: the tolerances must be positive");
+  const int W = image.width, H = image.height;
+  const cv::Mat a = grey8(image), b = grey8(reference);
+  const cv::Mat forward = dis_flow(a, b), back = dis_flow(b, a);
+  std::vector<uint8_t> pass(size_t(W) * H, 0);
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const cv::Vec2f f = forward.at<cv::Vec2f>(y, x);
+      const double u = x + double(f[0]), v = y + double(f[1]);
+      if (!(u >= 0 && v >= 0 && u <= W - 1 && v <= H - 1)) continue;
+      // The backward flow at the landing point, bilinear.
+      const int x0 = std::clamp(int(u), 0, std::max(0, W - 2)), y0 = std::clamp(int(v), 0, std::max(0, H - 2));
+      const int x1 = std::min(x0 + 1, W - 1), y1 = std::min(y0 + 1, H - 1);
+      const double fx = u - x0, fy = v - y0;
+      double g[2];
+      for (int c = 0; c < 2; ++c)
+        g[c] = (1 - fy) * ((1 - fx) * back.at<cv::Vec2f>(y0, x0)[c] + fx * back.at<cv::Vec2f>(y0, x1)[c]) +
+               fy * ((1 - fx) * back.at<cv::Vec2f>(y1, x0)[c] + fx * back.at<cv::Vec2f>(y1, x1)[c]);
+      if (std::hypot(f[0] + g[0], f[1] + g[1]) > o.round_trip_pixels) continue;
+      double e = 0;
+      for (int c = 0; c < 3; ++c) {
+        const double d = image.at(x, y, c) - reference.bilinear(u, v, c);
+        e += d * d;
+      }
+      if (std::sqrt(e / 3.0) <= o.colour_rms) pass[size_t(y) * W + x] = 1;
+    }
+  return pass;
 }
 
 double roc_auc(const std::vector<float>& score, const std::vector<uint8_t>& label) {

@@ -64,6 +64,10 @@ void write_patch(const std::string& dir, const Patch& patch, const std::vector<O
                  const std::function<std::vector<float>(size_t)>& observed_image,
                  const std::function<std::vector<float>(const Camera&)>& render);
 
+/// Reads a patch folder's patch.json back (write_patch's inverse; observed_view is left −1,
+/// the observed images are the ones marked so). Throws naming the file and the image.
+Patch read_patch(const std::string& dir);
+
 /// Oracle generation artifacts (synthetic scenes only), each drawn per image from the seed:
 /// a blurred region, a colour drift over a region, hallucinated blobs and a shifted region.
 /// `strength` 0 gives the clean ground truth; 1 is strong (blur σ up to 5 px, colour ±30%,

@@ -84,6 +84,20 @@ std::vector<float> consistency_with(const Image& refined, const Camera& camera, 
 std::vector<float> sweep_consistency(const Image& refined, const Camera& camera, const Image& observed, const Camera& observed_camera,
                                      double near, double far, const MaskOptions& options);
 
+/// A check of a refined image against its reference that uses neither depth nor model:
+/// dense optical flow alone (OpenCV's DIS, medium preset, on grey levels), both ways. A pixel
+/// passes when its flow to the reference and the reference's flow back return within
+/// `round_trip_pixels`, and its colour matches the reference's where the flow lands within
+/// `colour_rms` (RMS over the channels, [0, 1] units). A warp through a wrong depth
+/// stretches, folds and duplicates the reference's content; flow cannot map such pixels one
+/// to one, so they fail the round trip.
+struct FlowCheckOptions {
+  double round_trip_pixels = 1.0;
+  double colour_rms = 0.1;
+};
+/// [H][W], 1 where `image` passes against `reference` (same size, RGB).
+std::vector<uint8_t> flow_consistency(const Image& image, const Image& reference, const FlowCheckOptions& options = {});
+
 /// Per-pixel SSIM map (11×11 Gaussian window, σ 1.5) of two RGB images, mean over channels.
 std::vector<float> ssim_map(const Image& a, const Image& b);
 
