@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <numeric>
 #include <set>
 #include <sstream>
@@ -536,4 +537,112 @@ TEST_CASE("co-visibility rules: paper D-hat, static count, motion-discounted den
   CHECK(near(field.covisibility(0, Covisibility::Paper), V{0.0f, 1.0f, 0.2f, 1.0f}));
   for (const char* name : {"paper", "static-count", "density"}) CHECK(to_string(parse_name<Covisibility>(name)) == std::string(name));
   CHECK_THROWS(parse_name<Covisibility>("zero"));
+}
+
+namespace {
+/// Ring cameras 0 and 4 (90 degrees apart) as the training rig; the other 14 at every frame
+/// as the pool.
+struct PoolFixture {
+  SelectInput in;
+  std::vector<ObservedView> pool;
+  explicit PoolFixture(const Fixture& fx) : in(fx.input()) {
+    in.views.clear();
+    for (const ObservedView& v : fx.views)
+      if (v.pose == 0 || v.pose == 4) in.views.push_back(v);
+      else pool.push_back(v);
+    in.image = nullptr;
+  }
+};
+}  // namespace
+
+TEST_CASE("pool selection: the lazy search chooses exactly what rescoring every candidate after every choice chooses", "[select][pool]") {
+  const Fixture& fx = fixture();
+  PoolFixture p(fx);
+  // Every other pool pose at frames 2..6 (35 candidates): the reference rescores them all after every choice.
+  std::vector<ObservedView> few;
+  for (const ObservedView& v : p.pool)
+    if (v.pose % 2 == 1 && v.frame >= 2 && v.frame <= 6) few.push_back(v);
+  p.pool = few;
+  for (Strategy s : {Strategy::FillGS, Strategy::Coverage3D, Strategy::Coverage4D, Strategy::FisherRF, Strategy::Negative}) {
+    INFO("strategy " << to_string(s));
+    SelectOptions o = small_options(s, 0);
+    const int count = s == Strategy::FisherRF ? 3 : 8;
+    const PoolSelectResult lazy = select_from_pool(p.in, p.pool, count, o);
+    const PoolSelectResult full = select_from_pool(p.in, p.pool, count, o, true);
+    REQUIRE(lazy.chosen.size() == size_t(count));
+    REQUIRE(full.chosen.size() == size_t(count));
+    for (int k = 0; k < count; ++k) {
+      CHECK(lazy.chosen[size_t(k)].candidate == full.chosen[size_t(k)].candidate);
+      CHECK(lazy.chosen[size_t(k)].score == full.chosen[size_t(k)].score);
+    }
+    if (s != Strategy::Negative) CHECK(lazy.scored < full.scored);
+    // No score grows as views are added: each choice scores at most the one before.
+    for (int k = 1; k < count; ++k)
+      if (s != Strategy::Negative) CHECK(full.chosen[size_t(k)].score <= full.chosen[size_t(k - 1)].score);
+    // Never the same candidate twice.
+    std::set<size_t> seen;
+    for (const PoolChoice& c : lazy.chosen) CHECK(seen.insert(c.candidate).second);
+  }
+}
+
+TEST_CASE("pool selection: fillgs's first choice is the candidate with the largest mean rendered D-hat", "[select][pool]") {
+  const Fixture& fx = fixture();
+  const PoolFixture p(fx);
+  const SelectOptions o = small_options(Strategy::FillGS, 0);
+  const PoolSelectResult r = select_from_pool(p.in, p.pool, 1, o);
+  REQUIRE(r.chosen.size() == 1);
+  // The same score from the tables directly: D = s / (1 + C) of the two training poses,
+  // D-hat = min(1, D / its 99% quantile), rendered at every pool view.
+  std::vector<Camera> cams;
+  for (const ObservedView& v : p.in.views) cams.push_back(v.camera);
+  ObservationOptions oo;
+  oo.visibility = o.visibility;
+  const ObservationTables t = observation_tables(fx.synth.scene, cams, FrameGrid(kFrames).times(), FrameGrid(kFrames).step(), oo);
+  const DeficiencyField field(t, o.deficiency_quantile);
+  double best = -1;
+  size_t arg = 0;
+  for (size_t i = 0; i < p.pool.size(); ++i) {
+    Camera c = p.pool[i].camera;
+    c.time = FrameGrid(kFrames).time(p.pool[i].frame);
+    const std::vector<float> values = field.values(p.pool[i].frame, CandidateScore::Deficiency);
+    const double m = mean_value(render_value_map(frame_at(fx.synth.scene, c.time), c, values.data()));
+    if (m > best) best = m, arg = i;
+  }
+  CHECK(r.chosen[0].candidate == arg);
+  CHECK(r.chosen[0].score == Approx(best).epsilon(1e-12));
+  CHECK(best > 0);
+}
+
+TEST_CASE("pool selection: interpolation takes the pool cameras nearest the training chord first; random is seeded", "[select][pool]") {
+  const Fixture& fx = fixture();
+  const PoolFixture p(fx);
+  // Training poses 0 and 4 lie 90 degrees apart on the ring: the chord between them passes
+  // 0.217 R from poses 1 and 3 (22.5 degrees from an end), 0.293 R from pose 2 (the middle),
+  // and every other pose is farther (0.390 R from an end for poses 5 and 15).
+  const PoolSelectResult r = select_from_pool(p.in, p.pool, 3 * kFrames, small_options(Strategy::Interpolation, 0));
+  REQUIRE(r.chosen.size() == size_t(3 * kFrames));
+  std::map<uint32_t, int> first, third;
+  for (int k = 0; k < 2 * kFrames; ++k) ++first[p.pool[r.chosen[size_t(k)].candidate].pose];
+  for (int k = 2 * kFrames; k < 3 * kFrames; ++k) ++third[p.pool[r.chosen[size_t(k)].candidate].pose];
+  CHECK(first == std::map<uint32_t, int>{{1, kFrames}, {3, kFrames}});
+  CHECK(third == std::map<uint32_t, int>{{2, kFrames}});
+  const double R = (fx.synth.train[0].centre() - fx.synth.train[8].centre()).norm() / 2;
+  CHECK(-r.chosen[0].score == Approx(R * (std::cos(kPi / 8) + std::sin(kPi / 8) - 1) / std::sqrt(2.0)).epsilon(1e-6));
+  // random: the same seed, the same choices; another seed, others.
+  SelectOptions o = small_options(Strategy::Random, 0);
+  const PoolSelectResult a = select_from_pool(p.in, p.pool, 8, o), b = select_from_pool(p.in, p.pool, 8, o);
+  o.seed = 2;
+  const PoolSelectResult c = select_from_pool(p.in, p.pool, 8, o);
+  auto ids = [](const PoolSelectResult& x) {
+    std::vector<size_t> v;
+    for (const PoolChoice& q : x.chosen) v.push_back(q.candidate);
+    return v;
+  };
+  CHECK(ids(a) == ids(b));
+  CHECK(ids(a) != ids(c));
+  // A budget beyond the pool takes the whole pool; a pool view outside the video is refused.
+  CHECK(select_from_pool(p.in, p.pool, int(p.pool.size()) + 5, o).chosen.size() == p.pool.size());
+  std::vector<ObservedView> bad = p.pool;
+  bad[0].frame = kFrames;
+  CHECK_THROWS_WITH(select_from_pool(p.in, bad, 1, o), Catch::Contains("outside 0..9"));
 }

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <numeric>
+#include <queue>
 #include <random>
 
 #include "fillgs/model/frame_grid.hpp"
@@ -348,6 +350,24 @@ struct Candidate {
 
 namespace {
 
+/// The observation tables of the observed viewpoints over every frame: where a selection starts.
+ObservationTables training_tables(const SelectInput& in, const SelectOptions& o, const std::vector<Camera>& cameras, Progress& progress) {
+  ObservationOptions oo;
+  oo.visibility = o.visibility;
+  const FrameGrid grid(in.frames);
+  return observation_tables(*in.scene, cameras, grid.times(), grid.step(), oo, nullptr, progress);
+}
+
+/// A view (with its time) becomes an observation: the counts C at its nearest frame, then
+/// the strategy's own state.
+void count_view(const Camera& v, int frames, DeficiencyField& field, VisibilityEngine& engine, SelectionStrategy& strategy) {
+  const FrameGrid grid(frames);
+  const int f = grid.nearest(v.time);
+  engine.set_time(grid.time(f));
+  field.add_view(f, engine.visible_set(v));
+  strategy.accept(v, f);
+}
+
 class Selector {
  public:
   Selector(const SelectInput& in, const SelectOptions& o, SelectResult& result, Progress& progress)
@@ -359,9 +379,7 @@ class Selector {
     const int F = in_.frames;
     // Observation tables over every frame of the training views.
     auto t0 = Clock::now();
-    ObservationOptions oo;
-    oo.visibility = o_.visibility;
-    ObservationTables tables = observation_tables(*in_.scene, cameras_, FrameGrid(F).times(), FrameGrid(F).step(), oo, nullptr, progress_);
+    ObservationTables tables = training_tables(in_, o_, cameras_, progress_);
     result_.initial_tables = tables;
     DeficiencyField field(std::move(tables), o_.deficiency_quantile);
     result_.deficiency_scale = field.scale();
@@ -440,12 +458,7 @@ class Selector {
 
   /// One virtual view (with its time) becomes an observation: the counts C, then the
   /// strategy's own state.
-  void accept(const Camera& v, DeficiencyField& field) {
-    const int f = FrameGrid(in_.frames).nearest(v.time);
-    engine_->set_time(time_of(f));
-    field.add_view(f, engine_->visible_set(v));
-    strategy_->accept(v, f);
-  }
+  void accept(const Camera& v, DeficiencyField& field) { count_view(v, in_.frames, field, *engine_, *strategy_); }
 
   /// Whether a trajectory of this call grew from a starting view of the same pose fewer
   /// than patch_frames frames from `view` (SelectOptions::spread_starts). The starting view,
@@ -661,6 +674,131 @@ class Selector {
 };
 
 }  // namespace
+
+PoolSelectResult select_from_pool(const SelectInput& in, const std::vector<ObservedView>& pool, int count, const SelectOptions& o, bool exhaustive,
+                                  Progress& progress) {
+  if (!in.scene) throw_error("select: a scene is required");
+  if (in.views.empty()) throw_error("select: no observed viewpoints");
+  if (in.scene->size() == 0) throw_error("select: the scene has no Gaussians, so no camera observes anything and there is no view to choose");
+  if (count < 0) throw_error("select: the number of pool views to choose must be at least 0");
+  const auto t_start = Clock::now();
+  const FrameGrid grid(in.frames);
+  for (const ObservedView& v : pool)
+    if (v.frame < 0 || v.frame >= in.frames) throw_error("select: pool view ", v.camera.name, " has frame ", v.frame, " outside 0..", in.frames - 1);
+  PoolSelectResult result;
+  const std::vector<Camera> cameras = cameras_of(in.views);
+  DeficiencyField field(training_tables(in, o, cameras, progress), o.deficiency_quantile);
+  result.deficiency_scale = field.scale();
+  if (in.scene->dynamic_ids.empty()) result.notes.push_back("the scene has no moving Gaussians: D = 0 everywhere");
+  VisibilityEngine engine(*in.scene, o.visibility);
+  FrameSampler sampler(*in.scene);
+  SelectionContext context{in, o, field, engine, sampler, vertical_axis(cameras)};
+  const std::unique_ptr<SelectionStrategy> strategy = make_strategy(o.strategy, context);
+  for (const Camera& v : in.earlier_views) {
+    if (!v.has_time()) throw_error("select: earlier view ", v.name, " has no time");
+    count_view(v, in.frames, field, engine, *strategy);
+  }
+  const size_t n = std::min(pool.size(), size_t(count));
+  std::mt19937_64 rng(o.seed);
+  std::vector<size_t> order(pool.size());
+  std::iota(order.begin(), order.end(), size_t(0));
+  for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[size_t(rng() % i)]);
+  progress.start(std::string("select from the pool (") + to_string(o.strategy) + ")", n);
+  auto choose = [&](size_t c, double score) {
+    result.chosen.push_back({c, score});
+    Camera v = pool[c].camera;
+    v.time = grid.time(pool[c].frame);
+    count_view(v, in.frames, field, engine, *strategy);
+    progress.advance();
+  };
+  if (o.strategy == Strategy::Random) {
+    for (size_t k = 0; k < n; ++k) choose(order[k], 0.0);
+  } else if (o.strategy == Strategy::Interpolation) {
+    // Chords: each training pose with its nearest other pose (distinct centres).
+    std::vector<Vec3d> poses;
+    for (const Camera& c : cameras)
+      if (std::none_of(poses.begin(), poses.end(), [&](const Vec3d& p) { return (p - c.centre()).norm() < 1e-9; })) poses.push_back(c.centre());
+    std::vector<std::pair<Vec3d, Vec3d>> chords;
+    for (size_t a = 0; a < poses.size(); ++a) {
+      size_t b = a;
+      for (size_t j = 0; j < poses.size(); ++j)
+        if (j != a && (b == a || (poses[j] - poses[a]).norm() < (poses[b] - poses[a]).norm())) b = j;
+      if (b != a) chords.emplace_back(poses[a], poses[b]);
+    }
+    if (chords.empty()) throw_error("select: interpolation needs two training poses at distinct centres");
+    auto distance = [&](const Vec3d& p) {
+      double best = std::numeric_limits<double>::infinity();
+      for (const auto& [a, b] : chords) {
+        const Vec3d ab = b - a;
+        const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+        best = std::min(best, (p - (a + t * ab)).norm());
+      }
+      return best;
+    };
+    std::vector<double> d(pool.size());
+    for (size_t i = 0; i < pool.size(); ++i) d[i] = distance(pool[i].camera.centre());
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return d[a] < d[b]; });
+    for (size_t k = 0; k < n; ++k) choose(order[k], -d[order[k]]);
+  } else {
+    // Scores per frame (a strategy scores candidates of one frame at a time).
+    std::vector<std::vector<size_t>> at(size_t(in.frames));
+    for (size_t i = 0; i < pool.size(); ++i) at[size_t(pool[i].frame)].push_back(i);
+    std::vector<double> score(pool.size(), 0.0);
+    std::vector<uint8_t> taken(pool.size(), 0);
+    auto rescore = [&](const std::vector<size_t>& ids, int f) {
+      std::vector<Camera> cams;
+      std::vector<size_t> live;
+      for (size_t i : ids)
+        if (!taken[i]) {
+          cams.push_back(pool[i].camera);
+          cams.back().time = grid.time(f);
+          live.push_back(i);
+        }
+      if (live.empty()) return;
+      const std::vector<double> s = strategy->score(cams, f);
+      for (size_t k = 0; k < live.size(); ++k) score[live[k]] = s[k];
+      result.scored += live.size();
+    };
+    for (int f = 0; f < in.frames; ++f) rescore(at[size_t(f)], f);
+    const bool lowest = strategy->lowest_wins();
+    auto better = [&](size_t a, size_t b) { return lowest ? score[a] < score[b] : score[a] > score[b]; };
+    if (lowest || exhaustive) {
+      for (size_t k = 0; k < n; ++k) {
+        size_t best = pool.size();
+        for (size_t i = 0; i < pool.size(); ++i)
+          if (!taken[i] && (best == pool.size() || better(i, best))) best = i;
+        taken[best] = 1;
+        choose(best, score[best]);
+        if (exhaustive) {
+          for (int f = 0; f < in.frames; ++f) rescore(at[size_t(f)], f);
+        } else {
+          rescore(at[size_t(pool[best].frame)], pool[best].frame);  // only the chosen frame's counts changed
+        }
+      }
+    } else {
+      // Lazy greedy: scores are upper bounds until rescored after the latest choice.
+      std::vector<size_t> fresh_at(pool.size(), 0);  // the choice count when last scored
+      auto before = [&](size_t a, size_t b) { return score[a] < score[b] || (score[a] == score[b] && a > b); };
+      std::priority_queue<size_t, std::vector<size_t>, decltype(before)> heap(before);
+      for (size_t i = 0; i < pool.size(); ++i) heap.push(i);
+      while (result.chosen.size() < n && !heap.empty()) {
+        const size_t top = heap.top();
+        heap.pop();
+        if (fresh_at[top] == result.chosen.size()) {
+          taken[top] = 1;
+          choose(top, score[top]);
+          continue;
+        }
+        rescore({top}, pool[top].frame);
+        fresh_at[top] = result.chosen.size();
+        heap.push(top);
+      }
+    }
+  }
+  progress.finish();
+  result.seconds = seconds_since(t_start);
+  return result;
+}
 
 SelectResult select_viewpoints(const SelectInput& in, const SelectOptions& o, Progress& progress) {
   if (!in.scene || !in.grid) throw_error("select: a scene and an exploration grid are required");

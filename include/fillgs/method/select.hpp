@@ -181,6 +181,38 @@ struct SelectResult {
 /// Runs a strategy. Deterministic for a given seed, whatever the thread count.
 SelectResult select_viewpoints(const SelectInput& input, const SelectOptions& options, Progress& progress = null_progress());
 
+/// Selection among real candidates: the (camera, frame) pairs of a captured rig's pool,
+/// neither trained on nor held out. Each strategy ranks them by its own score, `count` of
+/// them greedily, one at a time, every chosen one counted as an observation before the next
+/// (the counts C and D, and the strategy's own state: coverage cells, Fisher information):
+///  * fillgs: the mean of the rendered D̂ at the candidate's camera and frame, highest
+///    first (no start selection: a pool camera's priority E would need its photograph, and
+///    a strategy that looks at the candidates' images before choosing them has an
+///    advantage none of the others has); negative: lowest first;
+///  * coverage3d / coverage4d: newly covered (Gaussian × direction) cells; fisherrf:
+///    Σ H_cand / (H_train + λ); highest first;
+///  * random: a seeded shuffle; interpolation: the pool cameras nearest (centre to segment)
+///    to a chord between neighbouring training poses (each with its nearest other), closest
+///    first, frames in a seeded order.
+/// SelectInput::earlier_views count as observations first. Highest-first strategies search
+/// lazily (a candidate is rescored only when it comes to the top: exact, since no score
+/// grows as views are added — C only rises, coverage only fills, information only adds);
+/// `exhaustive` rescores every candidate after every choice (the reference the lazy search
+/// is tested against). Lowest-first rescores the chosen frame's candidates.
+struct PoolChoice {
+  size_t candidate = 0;  ///< index into the pool
+  double score = 0;      ///< the strategy's score when it was chosen
+};
+struct PoolSelectResult {
+  std::vector<PoolChoice> chosen;
+  size_t scored = 0;             ///< candidate scores computed
+  float deficiency_scale = 1;    ///< D_99% of the initial tables
+  double seconds = 0;
+  std::vector<std::string> notes;
+};
+PoolSelectResult select_from_pool(const SelectInput& input, const std::vector<ObservedView>& pool, int count, const SelectOptions& options,
+                                  bool exhaustive = false, Progress& progress = null_progress());
+
 /// §2 alone, for the given observed viewpoints (used by select_viewpoints and tests).
 PriorityScores exploration_priority(const SelectInput& input, const SelectOptions& options, Progress& progress = null_progress());
 
