@@ -9,6 +9,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <set>
 #include <sstream>
 
 #include "fillgs/model/frame_grid.hpp"
@@ -1050,4 +1051,62 @@ TEST_CASE("bench merge: runs from bench folders and results.csv files make one t
   const CliResult missing = run_cli({"bench", "--merge", join_path(d, "nothing.csv"), "--out", scratch("merge_e")});
   CHECK(missing.code != 0);
   CHECK(missing.err.find("nothing.csv: no such bench folder or results.csv") != std::string::npos);
+}
+
+TEST_CASE("cli: finetune --pool-budget adds the pool's own photographs at their poses, chosen over the rounds", "[refine][cli][pool]") {
+  const std::string dir = scratch("cli_pool");
+  std::ostringstream out, err;
+  REQUIRE(cli::run({"synth", "--out", join_path(dir, "scene"), "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06", "--quiet"},
+                   out, err) == 0);
+  const std::string cams = join_path(dir, "scene/transforms_train.json"), scene = join_path(dir, "scene/scene.ply");
+  const std::vector<std::string> base = {"finetune", "--model", scene, "--images", join_path(dir, "scene"), "--cameras", cams,
+                                         "--train-cameras", "cam04,cam06", "--iterations", "20", "--select-every", "10", "--quiet"};
+  auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> a = base;
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+  };
+  const std::string ft = join_path(dir, "ft");
+  REQUIRE(cli::run(with({"--out", ft, "--pool-cameras", "cam05,cam07", "--pool-budget", "4", "--strategy", "coverage4d", "--weighting", "none"}), out,
+                   err) == 0);
+  INFO(out.str() << err.str());
+  const nlohmann::json j = nlohmann::json::parse(read_file(join_path(ft, "summary.json")));
+  CHECK(j["refiner"] == "pool");
+  CHECK(j["virtual_views"] == 4);
+  REQUIRE(j["rounds"].size() == 2);
+  CHECK(j["rounds"][0]["trajectories"] == 2);  // 4 over 2 rounds
+  CHECK(j["rounds"][1]["trajectories"] == 2);
+  CHECK(j["rounds"][0]["mean_weight"].get<double>() == 1.0);
+  const nlohmann::json p = nlohmann::json::parse(read_file(join_path(ft, "pool_chosen.json")));
+  CHECK(p["cameras"] == nlohmann::json::array({"cam05", "cam07"}));
+  REQUIRE(p["chosen"].size() == 4);
+  std::set<std::pair<std::string, int>> picked;
+  for (const auto& c : p["chosen"]) {
+    CHECK((c["camera"] == "cam05" || c["camera"] == "cam07"));
+    CHECK(c["frame"].get<int>() >= 0);
+    CHECK(c["frame"].get<int>() <= 2);
+    picked.insert({c["camera"].get<std::string>(), c["frame"].get<int>()});
+  }
+  CHECK(picked.size() == 4);  // never the same photograph twice
+  CHECK(fs::exists(join_path(ft, "pool_chosen.png")));
+  // Each added view stands at its pool camera's real pose.
+  const std::vector<Camera> rig = read_cameras(cams);
+  const std::vector<Camera> added = read_cameras(join_path(ft, "virtual_views.json"));
+  REQUIRE(added.size() == 4);
+  for (size_t k = 0; k < added.size(); ++k) {
+    const std::string want = p["chosen"][k]["camera"].get<std::string>() + "/";
+    const auto c = std::find_if(rig.begin(), rig.end(), [&](const Camera& r) { return r.image_path.find(want) != std::string::npos; });
+    REQUIRE(c != rig.end());
+    CHECK((added[k].centre() - c->centre()).norm() < 1e-6);
+  }
+  auto fails = [&](std::vector<std::string> args, const std::string& what) {
+    std::ostringstream o, e;
+    CHECK(cli::run(args, o, e) == 1);
+    INFO(e.str());
+    CHECK(e.str().find(what) != std::string::npos);
+  };
+  fails(with({"--out", join_path(dir, "b1"), "--pool-budget", "2"}), "--pool-budget needs --pool-cameras");
+  fails(with({"--out", join_path(dir, "b2"), "--pool-budget", "2", "--pool-cameras", "cam05", "--refiner", "identity"}), "takes no --refiner");
+  fails(with({"--out", join_path(dir, "b3"), "--pool-budget", "2", "--pool-cameras", "cam04"}), "names cam04, a training camera");
+  CHECK_FALSE(fs::exists(join_path(dir, "b1")));
 }

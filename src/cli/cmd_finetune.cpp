@@ -120,41 +120,56 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   } else if (kind == RefinerChoice::External) {
     if (!in.given("--refiner-command")) in.fail("missing --refiner-command");
     refiner = make_external_refiner(f.refiner_command, f.refiner_timeout);
-  } else {  // RefinerChoice::Rig
-    // The pool: rig cameras neither trained on nor held out, every frame the training views have.
+  }
+  // The pool: rig cameras neither trained on nor held out, every frame the training views have.
+  RigPool pool;
+  if (kind == RefinerChoice::Rig || f.finetune.pool_budget > 0) {
+    const std::string why = kind == RefinerChoice::Rig ? "--refiner rig" : "--pool-budget";
+    if (f.finetune.pool_budget > 0 && in.given("--refiner"))
+      in.fail("--pool-budget adds the pool's own photographs: it takes no --refiner");
     DatasetOptions po = f.data;
     po.cameras = f.pool_cameras;
     po.monocular_cycle.clear();
-    if (po.cameras.empty()) in.fail("--refiner rig needs --pool-cameras a,b,.. (rig cameras neither trained on nor held out)");
+    if (po.cameras.empty()) in.fail(why, " needs --pool-cameras a,b,.. (rig cameras neither trained on nor held out)");
     for (const std::string& c : po.cameras)
       for (const std::string& t : data.rigs())
         if (c == t) in.fail("--pool-cameras names ", c, ", a training camera");
     pool_data = std::make_unique<Dataset>(Dataset::load(f.images, f.cameras, po));
     if (pool_data->frames() != data.frames())
       in.fail("the pool cameras have ", pool_data->frames(), " frames, the training cameras ", data.frames());
-    RigPool pool;
     for (const TrainView& v : pool_data->views()) pool.cameras.push_back(v.camera);
     pool.frame_count = pool_data->frames();
     pool.image = [d = pool_data.get()](size_t i) { return d->image(i); };
-    refiner = make_rig_refiner(std::move(pool), f.rig);
+    if (kind == RefinerChoice::Rig) refiner = make_rig_refiner(pool, f.rig);
+  }
+  if (f.finetune.pool_budget > 0) {
+    o.pool = &pool;
+    o.pool_budget = f.finetune.pool_budget;
   }
   if (UnfinishedMarker::present(f.out))
     throw_error(f.out, ": holds an interrupted finetune (", UnfinishedMarker::path_in(f.out),
                 "); fine-tuning does not resume, because its refined views and weights are not kept in checkpoints: remove the folder or use another --out");
   require_fresh(f.out, "finetune");
   UnfinishedMarker unfinished(f.out, "finetune");
-  in.out << "fine-tuning " << model.size() << " Gaussians on " << data.views().size() << " views for " << o.iterations << " iterations; "
-      << o.trajectories << " trajectories (" << to_string(o.select.strategy) << ") every " << o.select_every << ", refiner "
-      << refiner->name() << ", weights " << to_string(o.weighting) << "\n";
+  if (o.pool)
+    in.out << "fine-tuning " << model.size() << " Gaussians on " << data.views().size() << " views for " << o.iterations << " iterations; "
+        << o.pool_budget << " of the pool's " << pool.cameras.size() << " photographs (" << to_string(o.select.strategy) << "), chosen over "
+        << (o.iterations + o.select_every - 1) / o.select_every << " rounds, weights " << to_string(o.weighting) << "\n";
+  else
+    in.out << "fine-tuning " << model.size() << " Gaussians on " << data.views().size() << " views for " << o.iterations << " iterations; "
+        << o.trajectories << " trajectories (" << to_string(o.select.strategy) << ") every " << o.select_every << ", refiner "
+        << refiner->name() << ", weights " << to_string(o.weighting) << "\n";
   TerminalProgress progress(in.err, in.progress());
   const FinetuneResult r = finetune(data, model, *refiner, o, progress);
-  const FinetuneReport report = write_finetune_report(f.out, r, data, o, refiner->name(), seconds_since(t0));
+  const FinetuneReport report = write_finetune_report(f.out, r, data, o, o.pool ? "pool" : refiner->name(), seconds_since(t0));
+  if (o.pool) write_pool_report(f.out, r, *pool_data, to_string(o.select.strategy));
   unfinished.finish();
   for (const FinetuneRound& rd : r.rounds)
     for (const auto& [patch, why] : rd.refine_failures) in.err << "warning: refinement failed for " << why << "\n";
   const size_t dropped = report.dropped;
   const SplitMetrics& tr = report.train;
-  in.out << "fine-tuned in " << fixed(seconds_since(t0), 1) << " s: " << r.virtual_views.size() << " refined views added"
+  in.out << "fine-tuned in " << fixed(seconds_since(t0), 1) << " s: " << r.virtual_views.size() << (o.pool ? " pool photographs" : " refined views")
+      << " added"
       << (dropped ? " (" + std::to_string(dropped) + " dropped by the refiner)" : "") << ", train PSNR "
       << fixed(tr.psnr) << " dB -> " << f.out << "\n";
   return 0;
@@ -194,7 +209,11 @@ Action declare_finetune(CLI::App& app) {
   add_number(app, "--artifact-strength", f->oracle.artifacts.strength, "oracle/reference/warp: strength of the simulated refiner artifacts", at_least(0));
   add_choice(app, "--support", f->oracle.support, "oracle: truth everywhere, or only where the training cameras observed");
   add_number(app, "--support-window", f->oracle.window, "oracle: frames either side that count as observed", at_least(0));
-  add_list(app, "--pool-cameras", f->pool_cameras, "rig: cameras neither trained on nor held out");
+  add_list(app, "--pool-cameras", f->pool_cameras, "rig and --pool-budget: cameras neither trained on nor held out");
+  add_number(app, "--pool-budget", o.pool_budget,
+             "real camera-times: choose this many (camera, frame) photographs of the --pool-cameras by the strategy's own score, "
+             "spread over the rounds, instead of refined virtual views (0: off)",
+             within(0, 1000000));
   add_number(app, "--rig-max-distance", f->rig.max_distance, "rig: how far a pool camera may stand from the virtual view", at_least(0));
   add_number(app, "--rig-max-angle", f->rig.max_angle_degrees, "rig: how far it may look away (degrees)", within(0, 180));
   add_selection_flags(app, o.select);

@@ -32,7 +32,7 @@ static_assert(sizeof(MaskOptions) == 104, "MaskOptions changed: add the new fiel
 static_assert(sizeof(ExplorationOptions) == 32, "ExplorationOptions changed: add the new field to identity_json(ExplorationOptions), then update this size");
 static_assert(sizeof(ArtifactOptions) == 24, "ArtifactOptions changed: add the new field to identity_json(ArtifactOptions), then update this size");
 static_assert(sizeof(ReferenceOptions) == 112, "ReferenceOptions changed: add the new field to identity_json(ReferenceOptions), then update this size");
-static_assert(sizeof(FinetuneOptions) == 664, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
+static_assert(sizeof(FinetuneOptions) == 680, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
 #endif
 
 void differences(const json& was, const json& now, const std::string& path, std::string& first) {
@@ -174,14 +174,21 @@ json identity_json(const ReferenceOptions& o) {
 }
 
 json identity_json(const FinetuneOptions& o) {
-  return {{"iterations", o.iterations},
-          {"select_every", o.select_every},
-          {"trajectories", o.trajectories},
-          {"select", identity_json(o.select)},
-          {"weighting", to_string(o.weighting)},
-          {"mask", identity_json(o.mask)},
-          {"grid", identity_json(o.grid)},
-          {"train", identity_json(o.train)}};
+  json j = {{"iterations", o.iterations},
+            {"select_every", o.select_every},
+            {"trajectories", o.trajectories},
+            {"select", identity_json(o.select)},
+            {"weighting", to_string(o.weighting)},
+            {"mask", identity_json(o.mask)},
+            {"grid", identity_json(o.grid)},
+            {"train", identity_json(o.train)}};
+  // Only with a pool (so that the identities of runs without one stay what they were).
+  if (o.pool) {
+    json names = json::array();
+    for (const Camera& c : o.pool->cameras) names.push_back(c.name);
+    j["pool"] = {{"budget", o.pool_budget}, {"views", names}};
+  }
+  return j;
 }
 
 std::string identity_difference(const json& was, const json& now) {

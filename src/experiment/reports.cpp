@@ -261,4 +261,30 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
   return report;
 }
 
+void write_pool_report(const std::string& dir, const FinetuneResult& r, const Dataset& pool, const std::string& strategy) {
+  std::vector<std::string> rigs;  // pool cameras in first-seen order
+  auto row_of = [&](const std::string& rig) {
+    const auto it = std::find(rigs.begin(), rigs.end(), rig);
+    if (it != rigs.end()) return size_t(it - rigs.begin());
+    rigs.push_back(rig);
+    return rigs.size() - 1;
+  };
+  for (const TrainView& v : pool.views()) row_of(v.rig);
+  const int F = pool.frames();
+  std::vector<float> cells(rigs.size() * size_t(F), 0.0f);
+  std::vector<double> per_camera(rigs.size(), 0.0);
+  nlohmann::json chosen = nlohmann::json::array();
+  for (const PoolPick& p : r.pool_chosen) {
+    const TrainView& v = pool.views().at(p.view);
+    const size_t row = row_of(v.rig);
+    cells[row * size_t(F) + size_t(v.frame)] = float(p.round + 1);
+    per_camera[row] += 1;
+    chosen.push_back({{"camera", v.rig}, {"frame", v.frame}, {"score", p.score}, {"round", p.round}});
+  }
+  const nlohmann::json j = {{"strategy", strategy}, {"cameras", rigs}, {"frames", F}, {"chosen", chosen}};
+  write_file_atomically(join_path(dir, "pool_chosen.json"), j.dump(2) + "\n");
+  write_heatmap_png(join_path(dir, "pool_chosen.png"), cells, int(rigs.size()), F,
+                    {strategy + ": the pool's camera-times chosen (the round + 1)", "frame", "pool camera (pool_chosen.json: cameras)"}, &per_camera);
+}
+
 }  // namespace fillgs

@@ -59,6 +59,7 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
   if (o.iterations < 1) throw_error("finetune: iterations must be at least 1");
   if (o.select_every < 1) throw_error("finetune: select_every must be at least 1");
   if (o.trajectories < 0) throw_error("finetune: trajectories must be at least 0");
+  if (o.pool_budget < 0) throw_error("finetune: the pool budget must be at least 0");
   if (o.work_dir.empty()) throw_error("finetune: no work folder");
   const int F = data.frames();
   std::vector<Camera> cameras;
@@ -75,10 +76,118 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
   FinetuneResult result;
   if (!o.extra_views.empty()) trainer.add_refined(o.extra_views);
   double train_seconds = 0;
+  // The images a round adds, weighted by o.weighting against the round's model; each
+  // weight map written next to its image (`base`_mask.png, _covis.png, _weight.png).
+  struct NewView {
+    Camera camera;
+    Image rgb;
+    std::string base;  ///< path stem of its weight maps
+    std::string name;  ///< external confidence map name
+  };
+  auto weigh_and_add = [&](const std::vector<NewView>& items, const GaussianCloud& current, const ObservationTables& tables,
+                           float quantile, FinetuneRound& r) {
+    const auto t0 = Clock::now();
+    // The weights' D̂ is scaled per frame by the moving Gaussians visible there (their
+    // opacity at each frame of the tables), unless the global scale is asked for.
+    std::vector<float> opacity;
+    if (o.mask.scale == CovisibilityScale::Visible) {
+      const size_t M = tables.dynamic_ids.size();
+      opacity.resize(tables.times.size() * M);
+      for (size_t f = 0; f < tables.times.size(); ++f) {
+        const FrameGaussians fg = frame_at(current, tables.times[f]);
+        for (size_t j = 0; j < M; ++j) opacity[f * M + j] = fg.opacities[tables.dynamic_ids[j]];
+      }
+    }
+    const DeficiencyField field(tables, quantile, opacity.empty() ? nullptr : &opacity);
+    WeightContext ctx;
+    ctx.model = &current;
+    ctx.views = views;
+    ctx.image = image_as;
+    ctx.deficiency = &field;
+    ctx.frames = F;
+    ctx.background = to.background;
+    std::vector<RefinedView> added;
+    double weight_sum = 0;
+    size_t weight_count = 0;
+    progress.start("weights (" + std::string(to_string(o.weighting)) + ")", items.size());
+    for (const NewView& v : items) {
+      const Camera& cam = v.camera;
+      ViewWeights w = compute_weights(ctx, v.rgb, cam, o.weighting, o.mask, v.name);
+      if (!w.consistency.empty()) write_image(v.base + "_mask.png", grey(w.consistency, cam.width, cam.height));
+      if (!w.covisibility.empty()) write_image(v.base + "_covis.png", grey(w.covisibility, cam.width, cam.height));
+      write_image(v.base + "_weight.png", grey(w.weight, cam.width, cam.height));
+      for (float x : w.weight) weight_sum += x;
+      weight_count += w.weight.size();
+      if (o.mask.normalise) normalise_by_mean(w.weight);
+      added.push_back({cam, v.rgb.pixels, w.weight});
+      result.virtual_views.push_back(cam);
+      progress.advance();
+    }
+    progress.finish();
+    r.seconds_weights = seconds_since(t0);
+    r.views_added = added.size();
+    r.mean_weight = weight_count ? weight_sum / double(weight_count) : 0.0;
+    trainer.add_refined(std::move(added));
+  };
+  // Real camera-times (FinetuneOptions::pool): the pool's views and which are still free.
+  std::vector<ObservedView> pool_views;
+  std::vector<size_t> pool_free;
+  if (o.pool) {
+    if (o.pool->frame_count != F)
+      throw_error("finetune: the pool has ", o.pool->frame_count, " frames, the training views ", F);
+    for (size_t i = 0; i < o.pool->cameras.size(); ++i) {
+      const Camera& c = o.pool->cameras[i];
+      if (!c.has_time()) throw_error("finetune: pool view ", c.name, " has no time");
+      pool_views.push_back({c, FrameGrid(F).nearest(c.time), 0});
+      pool_free.push_back(i);
+    }
+  }
+  const int rounds = (o.iterations + o.select_every - 1) / o.select_every;
   for (int round = 0, it0 = 0; it0 < o.iterations; ++round, it0 += o.select_every) {
     FinetuneRound r;
     r.iteration = it0;
-    if (o.trajectories > 0) {
+    // This round's share of the pool budget (spread evenly over the rounds).
+    const int pool_count = o.pool ? o.pool_budget * (round + 1) / rounds - o.pool_budget * round / rounds : 0;
+    if (o.pool && pool_count > 0) {
+      const GaussianCloud current = round == 0 ? model : trainer.model();
+      auto t0 = Clock::now();
+      SelectInput in;
+      in.scene = &current;
+      in.views = views;
+      in.frames = F;
+      in.image = image_of;
+      in.background = to.background;
+      in.earlier_views = result.virtual_views;
+      SelectOptions so = o.select;
+      so.seed = o.select.seed + uint64_t(round) * 7919;
+      std::vector<ObservedView> candidates;
+      for (size_t i : pool_free) candidates.push_back(pool_views[i]);
+      const PoolSelectResult sel = select_from_pool(in, candidates, pool_count, so, false, progress);
+      r.seconds_select = seconds_since(t0);
+      r.notes = sel.notes;
+      r.trajectories = int(sel.chosen.size());
+      std::vector<NewView> items;
+      std::vector<size_t> chosen;
+      const std::string root = join_path(o.work_dir, "pool");
+      make_directories(root);
+      for (const PoolChoice& c : sel.chosen) {
+        const size_t i = pool_free[c.candidate];
+        chosen.push_back(i);
+        Camera cam = o.pool->cameras[i];
+        cam.time = FrameGrid(F).time(pool_views[i].frame);
+        char name[32];
+        std::snprintf(name, sizeof name, "r%d_v%03zu", round, items.size());
+        std::vector<float> photo = o.pool->image(i);
+        if (photo.size() != size_t(cam.width) * cam.height * 3)
+          throw_error("finetune: pool view ", cam.name, ": its image does not have the camera's size ", cam.width, "x", cam.height);
+        items.push_back({cam, Image(cam.width, cam.height, 3, std::move(photo)), join_path(root, name), std::string(name) + ".png"});
+        result.pool_chosen.push_back({i, c.score, round});
+      }
+      std::sort(chosen.begin(), chosen.end());
+      pool_free.erase(std::remove_if(pool_free.begin(), pool_free.end(), [&](size_t i) { return std::binary_search(chosen.begin(), chosen.end(), i); }),
+                      pool_free.end());
+      weigh_and_add(items, current, sel.initial_tables, so.deficiency_quantile, r);
+    } else if (!o.pool && o.trajectories > 0) {
       const GaussianCloud current = round == 0 ? model : trainer.model();
       auto t0 = Clock::now();
       const ExplorationGrid grid = build_exploration_grid(current, cameras, FrameGrid(F).times(), o.grid, nullptr, progress);
@@ -120,51 +229,12 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
       r.views_dropped = rep.dropped;
 
       // Weights, written next to every refined image.
-      t0 = Clock::now();
-      // The weights' D̂ is scaled per frame by the moving Gaussians visible there (their
-      // opacity at each frame of the tables), unless the global scale is asked for.
-      std::vector<float> opacity;
-      if (o.mask.scale == CovisibilityScale::Visible) {
-        const ObservationTables& t = sel.initial_tables;
-        const size_t M = t.dynamic_ids.size();
-        opacity.resize(t.times.size() * M);
-        for (size_t f = 0; f < t.times.size(); ++f) {
-          const FrameGaussians fg = frame_at(current, t.times[f]);
-          for (size_t j = 0; j < M; ++j) opacity[f * M + j] = fg.opacities[t.dynamic_ids[j]];
-        }
-      }
-      const DeficiencyField field(sel.initial_tables, so.deficiency_quantile, opacity.empty() ? nullptr : &opacity);
-      WeightContext ctx;
-      ctx.model = &current;
-      ctx.views = views;
-      ctx.image = image_as;
-      ctx.deficiency = &field;
-      ctx.frames = F;
-      ctx.background = to.background;
-      std::vector<RefinedView> added;
-      double weight_sum = 0;
-      size_t weight_count = 0;
-      progress.start("weights (" + std::string(to_string(o.weighting)) + ")", rep.images.size());
+      std::vector<NewView> items;
       for (const RefinedImage& ri : rep.images) {
-        const Camera& cam = ri.image.camera;
-        const std::string rel = patches[size_t(ri.patch)].name + "/" + ri.image.file;
-        ViewWeights w = compute_weights(ctx, ri.rgb, cam, o.weighting, o.mask, rel);
-        const std::string base = join_path(join_path(refined_root, patches[size_t(ri.patch)].name), stem(ri.image.file));
-        if (!w.consistency.empty()) write_image(base + "_mask.png", grey(w.consistency, cam.width, cam.height));
-        if (!w.covisibility.empty()) write_image(base + "_covis.png", grey(w.covisibility, cam.width, cam.height));
-        write_image(base + "_weight.png", grey(w.weight, cam.width, cam.height));
-        for (float x : w.weight) weight_sum += x;
-        weight_count += w.weight.size();
-        if (o.mask.normalise) normalise_by_mean(w.weight);
-        added.push_back({cam, ri.rgb.pixels, w.weight});
-        result.virtual_views.push_back(cam);
-        progress.advance();
+        const std::string& patch = patches[size_t(ri.patch)].name;
+        items.push_back({ri.image.camera, ri.rgb, join_path(join_path(refined_root, patch), stem(ri.image.file)), patch + "/" + ri.image.file});
       }
-      progress.finish();
-      r.seconds_weights = seconds_since(t0);
-      r.views_added = added.size();
-      r.mean_weight = weight_count ? weight_sum / double(weight_count) : 0.0;
-      trainer.add_refined(std::move(added));
+      weigh_and_add(items, current, sel.initial_tables, so.deficiency_quantile, r);
     }
     const auto t0 = Clock::now();
     trainer.run(std::min(o.iterations, it0 + o.select_every), progress);

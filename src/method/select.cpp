@@ -687,7 +687,8 @@ PoolSelectResult select_from_pool(const SelectInput& in, const std::vector<Obser
     if (v.frame < 0 || v.frame >= in.frames) throw_error("select: pool view ", v.camera.name, " has frame ", v.frame, " outside 0..", in.frames - 1);
   PoolSelectResult result;
   const std::vector<Camera> cameras = cameras_of(in.views);
-  DeficiencyField field(training_tables(in, o, cameras, progress), o.deficiency_quantile);
+  result.initial_tables = training_tables(in, o, cameras, progress);
+  DeficiencyField field(result.initial_tables, o.deficiency_quantile);
   result.deficiency_scale = field.scale();
   if (in.scene->dynamic_ids.empty()) result.notes.push_back("the scene has no moving Gaussians: D = 0 everywhere");
   VisibilityEngine engine(*in.scene, o.visibility);

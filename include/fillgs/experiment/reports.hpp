@@ -71,5 +71,10 @@ struct FinetuneReport {
 /// with their timings and refiner failures) into `dir`.
 FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResult& result, const Dataset& data, const FinetuneOptions& options,
                                      const std::string& refiner, double seconds);
+/// With a pool (FinetuneOptions::pool; `pool` the Dataset its views came from, in the same
+/// order): pool_chosen.json (every chosen photograph: camera, frame, score, round) and
+/// pool_chosen.png, the camera × frame picture of what was chosen (the round it was chosen
+/// in + 1; 0: not chosen), rows in the pool's camera order.
+void write_pool_report(const std::string& dir, const FinetuneResult& result, const Dataset& pool, const std::string& strategy);
 
 }  // namespace fillgs

@@ -32,6 +32,13 @@ struct FinetuneOptions {
   /// Views with their weights added before the first iteration, beside any selected ones
   /// (the upper bound upper.test-views: ground truth at the test cameras).
   std::vector<RefinedView> extra_views;
+  /// Real camera-times instead of refined virtual views: with a pool, every round chooses
+  /// its share of `pool_budget` (spread evenly over the rounds) among the pool's views not
+  /// chosen yet, by the strategy's own score (select_from_pool), and adds each chosen
+  /// photograph at its real pose, weighted by `weighting` (none: weight 1). The refiner is
+  /// not used. The pool's cameras carry their times; its frame count must be the video's.
+  const RigPool* pool = nullptr;
+  int pool_budget = 0;
   /// Paper: 30,000 iterations, 20 trajectories every 6,000.
   static FinetuneOptions paper();
 };
@@ -64,10 +71,18 @@ struct FinetuneRound {
   double mean_weight = 0;  ///< mean per-pixel weight of the added views
 };
 
+/// One pool view a round chose (FinetuneOptions::pool).
+struct PoolPick {
+  size_t view = 0;   ///< index into RigPool::cameras
+  double score = 0;  ///< the strategy's score when chosen
+  int round = 0;
+};
+
 struct FinetuneResult {
   GaussianCloud model;
   std::vector<FinetuneRound> rounds;
-  std::vector<Camera> virtual_views;  ///< every refined view added, in order
+  std::vector<Camera> virtual_views;  ///< every refined view (or chosen pool photograph) added, in order
+  std::vector<PoolPick> pool_chosen;  ///< the pool views chosen, in order
   double seconds_train = 0, seconds_total = 0;
   std::vector<float> loss_history;
 };

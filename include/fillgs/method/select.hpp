@@ -207,6 +207,7 @@ struct PoolSelectResult {
   std::vector<PoolChoice> chosen;
   size_t scored = 0;             ///< candidate scores computed
   float deficiency_scale = 1;    ///< D_99% of the initial tables
+  ObservationTables initial_tables;  ///< C, s, D of the observed views before any choice
   double seconds = 0;
   std::vector<std::string> notes;
 };
