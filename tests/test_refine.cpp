@@ -1110,3 +1110,62 @@ TEST_CASE("cli: finetune --pool-budget adds the pool's own photographs at their 
   fails(with({"--out", join_path(dir, "b3"), "--pool-budget", "2", "--pool-cameras", "cam04"}), "names cam04, a training camera");
   CHECK_FALSE(fs::exists(join_path(dir, "b1")));
 }
+
+TEST_CASE("held-out cameras from a file never reach training, the pool, the initial points or the selection", "[refine][cli][pool]") {
+  const std::string dir = scratch("cli_held_out");
+  std::ostringstream out, err;
+  REQUIRE(cli::run({"synth", "--out", join_path(dir, "scene"), "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06", "--quiet"},
+                   out, err) == 0);
+  const std::string cams = join_path(dir, "scene/transforms_train.json");
+  // The held-out file: camera cam05 of the same rig, written as another program would.
+  std::vector<Camera> held;
+  for (const Camera& c : read_cameras(cams))
+    if (c.image_path.find("cam05/") != std::string::npos) held.push_back(c);
+  REQUIRE(held.size() == 3);
+  const std::string held_file = join_path(dir, "held_out.json");
+  write_transforms_json(held_file, held);
+  auto run_in = [&](const std::string& out_dir, std::vector<std::string> args) {
+    std::ostringstream o, e;
+    args.insert(args.end(), {"--images", join_path(dir, "scene"), "--cameras", cams, "--held-out", held_file, "--out", out_dir, "--quiet"});
+    const int code = cli::run(args, o, e);
+    return std::make_pair(code, e.str());
+  };
+  const std::vector<std::string> train = {"train", "--train-cameras", "cam04,cam06", "--iterations", "30", "--init", "random", "--init-points",
+                                          "400", "--threads", "1"};
+  auto finetune = [&](const std::string& model) {
+    return std::vector<std::string>{"finetune", "--model", model, "--train-cameras", "cam04,cam06", "--pool-cameras", "cam07,cam03", "--pool-budget",
+                                    "2", "--iterations", "10", "--select-every", "5", "--threads", "1"};
+  };
+  REQUIRE(run_in(join_path(dir, "a_train"), train).first == 0);
+  REQUIRE(run_in(join_path(dir, "a_ft"), finetune(join_path(dir, "a_train/model.ply"))).first == 0);
+  // Every image of the held-out camera replaced by noise: nothing that was made changes.
+  size_t replaced = 0;
+  for (const auto& e : fs::recursive_directory_iterator(join_path(dir, "scene/images")))
+    if (e.path().string().find("cam05") != std::string::npos && e.path().extension() == ".png") {
+      const Image old = read_image(e.path().string());
+      Image noise(old.width, old.height, old.channels);
+      for (size_t i = 0; i < noise.pixels.size(); ++i) noise.pixels[i] = float((i * 2654435761u) % 251) / 250.0f;
+      write_image(e.path().string(), noise);
+      ++replaced;
+    }
+  REQUIRE(replaced == 3);
+  REQUIRE(run_in(join_path(dir, "b_train"), train).first == 0);
+  REQUIRE(run_in(join_path(dir, "b_ft"), finetune(join_path(dir, "b_train/model.ply"))).first == 0);
+  CHECK(read_file(join_path(dir, "a_train/model.ply")) == read_file(join_path(dir, "b_train/model.ply")));
+  CHECK(read_file(join_path(dir, "a_ft/pool_chosen.json")) == read_file(join_path(dir, "b_ft/pool_chosen.json")));
+  CHECK(read_file(join_path(dir, "a_ft/model.ply")) == read_file(join_path(dir, "b_ft/model.ply")));
+  // Naming a held-out camera for training or for the pool is refused before anything is read.
+  std::vector<std::string> bad_train = train;
+  bad_train[2] = "cam04,cam05";
+  const auto t = run_in(join_path(dir, "c_train"), bad_train);
+  CHECK(t.first == 1);
+  CHECK(t.second.find("camera 'cam05' stands where held-out camera") != std::string::npos);
+  std::vector<std::string> bad_pool = finetune(join_path(dir, "a_train/model.ply"));
+  bad_pool[6] = "cam07,cam05";
+  const auto p = run_in(join_path(dir, "c_ft"), bad_pool);
+  CHECK(p.first == 1);
+  INFO(p.second);
+  CHECK(p.second.find("camera 'cam05' stands where held-out camera") != std::string::npos);
+  CHECK_FALSE(fs::exists(join_path(dir, "c_train")));
+  CHECK_FALSE(fs::exists(join_path(dir, "c_ft")));
+}

@@ -190,6 +190,11 @@ void add_dataset_flags(CLI::App& app, DatasetOptions& o, const std::string& came
       ->group("Image options");
   add_number(app, "--downscale", o.downscale, "images averaged over k x k blocks, cameras scaled to match", within(1, 64))->group("Image options");
   add_list(app, "--monocular-cycle", o.monocular_cycle, "frame f keeps only camera [f mod n]")->group("Image options");
+  if (cameras_flag == "--train-cameras")
+    add_text(app, "--held-out", o.held_out,
+             "a camera file of held-out cameras: any training or pool camera standing where one of them stands is refused, before an image is read",
+             "PATH")
+        ->group("Image options");
   add_bytes(app, "--image-memory", o.image_memory, double(int64_t(1) << 30), "GB",
             "images beyond this wait in a temporary file in $TMPDIR, read on demand (default: a quarter of the machine's memory)")
       ->group("Image options");

@@ -224,6 +224,16 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
   if (!opt.monocular_cycle.empty()) d.keep_cycle(opt.monocular_cycle, &mask_rel, cameras_path);
   for (const TrainView& v : d.views_)
     if (std::find(d.rigs_.begin(), d.rigs_.end(), v.rig) == d.rigs_.end()) d.rigs_.push_back(v.rig);
+  if (!opt.held_out.empty()) {
+    const std::vector<Camera> held = read_cameras(opt.held_out);
+    for (const TrainView& v : d.views_)
+      for (const Camera& h : held) {
+        const Vec3d c = h.centre();
+        if ((v.camera.centre() - c).norm() <= 1e-6 * (1.0 + c.norm()) && (v.camera.R - h.R).norm() <= 1e-6)
+          throw_error(cameras_path, ": camera '", v.rig, "' stands where held-out camera '", h.name, "' of ", opt.held_out,
+                      " stands: a held-out camera is never trained on, pooled or chosen");
+      }
+  }
   // Foreground masks where a seg/ folder stands beside the camera file.
   const fs::path seg = base / "seg";
   const bool masked = fs::is_directory(seg);

@@ -46,6 +46,11 @@ struct DatasetOptions {
   /// `spill_dir` (empty: $TMPDIR or /tmp) and each image read back when it is used.
   int64_t image_memory = -1;
   std::string spill_dir;
+  /// A camera file of held-out cameras (any format read_cameras reads): a view standing
+  /// where one of them stands (the same centre and rotation, to 1e-6) is refused before
+  /// any image is read, so a held-out camera's images never reach training, a pool or a
+  /// selection. Empty: none.
+  std::string held_out;
 };
 
 /// Multi-view video. Two layouts:
