@@ -74,24 +74,7 @@ STRATEGIES=(fillgs random negative interpolation fisherrf coverage3d coverage4d)
 mkdir -p "$OUT"
 DS=(--images "$P/ims" --cameras "$P/train_meta.json" --frames "$FRAMES" --downscale "$DOWN")
 
-# step DIR DONE COMMAND...: runs COMMAND (whose output folder is DIR) unless DIR/DONE exists
-# and DIR/command.txt holds the same command line; a finished step made by another command
-# line is refused. The model a step reads is part of its identity through the step that made it.
-step() {
-  local dir=$1 done=$2
-  shift 2
-  local want
-  want=$(printf '%s\n' "$@")
-  if [ -f "$dir/$done" ]; then
-    if [ "$(cat "$dir/command.txt" 2>/dev/null)" = "$want" ]; then return 0; fi
-    echo "panoptic_rig: $dir was made by another command line (see its command.txt); use another OUT, or delete $dir" >&2
-    exit 1
-  fi
-  rm -rf "$dir"
-  "$@"
-  printf '%s\n' "$want" >"$dir/command.txt.tmp"
-  mv "$dir/command.txt.tmp" "$dir/command.txt"
-}
+source bench/lib.sh  # step (the working folder is the repository root)
 
 step "$OUT/backbone" summary.json "$FILLGS" train "${DS[@]}" "${CYCLE[@]}" --train-cameras $TRAIN "${BB[@]}" --out "$OUT/backbone" --quiet
 
