@@ -280,7 +280,7 @@ TEST_CASE("fillgs observe writes [T, N] tables that numpy reads, summary.json an
   }
 }
 
-TEST_CASE("fillgs convert --to frames: one 3DGS PLY per frame, each the model at t = f/(F-1)", "[cli][convert]") {
+TEST_CASE("fillgs convert --to frames: one 3DGS PLY per frame, each the model at t = f/(F-1)", "[cli][convert][release-only]") {
   const std::string dir = scratch("cli_frames");
   REQUIRE(run_cli({"synth", "--out", dir + "/scene", "--frames", "4", "--width", "32", "--height", "24"}).code == 0);
   const std::string scene = dir + "/scene/scene.ply";
@@ -318,7 +318,7 @@ TEST_CASE("fillgs convert --to frames: one 3DGS PLY per frame, each the model at
   CHECK(text.find("| x ") != std::string::npos);
 }
 
-TEST_CASE("fillgs observe --shard i/n, then --merge: the single process's tables byte for byte", "[cli][observe]") {
+TEST_CASE("fillgs observe --shard i/n, then --merge: the single process's tables byte for byte", "[cli][observe][release-only]") {
   const std::string dir = scratch("cli_observe_shards");
   const int F = 7;
   const SynthScene s = observe_inputs(dir, F);
