@@ -58,14 +58,6 @@ struct ViewRow {
   double axis_degrees = 0, right = 0, mask_mean = 0, mask_no_reference_mean = 0, flow_share = 0;
 };
 
-const PatchImage& reference_for(const Patch& patch, int frame) {
-  const PatchImage* best = nullptr;
-  for (const PatchImage& im : patch.images)
-    if (im.observed && (!best || std::abs(im.frame - frame) < std::abs(best->frame - frame))) best = &im;
-  if (!best) throw_error("patch ", patch.name, " has no observed image");
-  return *best;
-}
-
 double angle_between_axes(const Camera& a, const Camera& b) {
   const Vec3d za = a.R.row(2).transpose(), zb = b.R.row(2).transpose();
   return std::acos(std::clamp(za.dot(zb), -1.0, 1.0)) * 180.0 / kPi;
@@ -144,7 +136,7 @@ int bench_warp_check(const std::vector<std::string>& args) {
         for (const PatchImage& im : patch.images) {
           if (im.observed) continue;
           const Camera& cam = im.camera;
-          const PatchImage& ref = reference_for(patch, im.frame);
+          const PatchImage& ref = patch_reference(patch, im.frame);
           const Image reference = read_rgb_image(join_path(in, ref.file), ref.camera.width, ref.camera.height);
           const std::vector<float> t = render(frame_at(truth, cam.time), cam).rgb;
           // The training views other than the reference's camera.

@@ -129,6 +129,18 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
     r.mean_weight = weight_count ? weight_sum / double(weight_count) : 0.0;
     trainer.add_refined(std::move(added));
   };
+  // What a round's selection starts from: the round's model, the real views, and every view
+  // added so far counted as observed.
+  auto select_input = [&](const GaussianCloud& current) {
+    SelectInput in;
+    in.scene = &current;
+    in.views = views;
+    in.frames = F;
+    in.image = image_of;
+    in.background = to.background;
+    in.earlier_views = result.virtual_views;
+    return in;
+  };
   // Real camera-times (FinetuneOptions::pool): the pool's views and which are still free.
   std::vector<ObservedView> pool_views;
   std::vector<size_t> pool_free;
@@ -151,13 +163,7 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
     if (o.pool && pool_count > 0) {
       const GaussianCloud current = round == 0 ? model : trainer.model();
       auto t0 = Clock::now();
-      SelectInput in;
-      in.scene = &current;
-      in.views = views;
-      in.frames = F;
-      in.image = image_of;
-      in.background = to.background;
-      in.earlier_views = result.virtual_views;
+      const SelectInput in = select_input(current);
       SelectOptions so = o.select;
       so.seed = o.select.seed + uint64_t(round) * 7919;
       std::vector<ObservedView> candidates;
@@ -191,14 +197,8 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
       const GaussianCloud current = round == 0 ? model : trainer.model();
       auto t0 = Clock::now();
       const ExplorationGrid grid = build_exploration_grid(current, cameras, FrameGrid(F).times(), o.grid, nullptr, progress);
-      SelectInput in;
-      in.scene = &current;
-      in.views = views;
-      in.frames = F;
-      in.image = image_of;
-      in.background = to.background;
+      SelectInput in = select_input(current);
       in.grid = &grid;
-      in.earlier_views = result.virtual_views;
       SelectOptions so = o.select;
       so.trajectories = o.trajectories;
       so.seed = o.select.seed + uint64_t(round) * 7919;

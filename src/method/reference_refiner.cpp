@@ -24,6 +24,14 @@ double parallax_degrees(const Vec3d& p, const Vec3d& a, const Vec3d& b) {
   return std::acos(std::clamp(u.dot(v) / (nu * nv), -1.0, 1.0)) * 180.0 / kPi;
 }
 
+const PatchImage& patch_reference(const Patch& patch, int frame) {
+  const PatchImage* best = nullptr;
+  for (const PatchImage& im : patch.images)
+    if (im.observed && (!best || std::abs(im.frame - frame) < std::abs(best->frame - frame))) best = &im;
+  if (!best) throw_error("patch ", patch.name, " has no observed image: a reference-conditioned refiner needs one");
+  return *best;
+}
+
 std::vector<WarpedPixel> warp_pixels(const Camera& cam, const std::vector<float>& depth, const Camera& other,
                                      const std::vector<float>& other_depth, double tolerance) {
   const int W = cam.width, H = cam.height, OW = other.width, OH = other.height;
@@ -143,13 +151,6 @@ Image compose(const ReferenceOptions& o, const ViewInputs& in, const Image& rend
 }
 
 /// The patch's observed image at `frame`, or at its nearest frame that has one.
-const PatchImage& reference_of(const Patch& patch, int frame) {
-  const PatchImage* best = nullptr;
-  for (const PatchImage& im : patch.images)
-    if (im.observed && (!best || std::abs(im.frame - frame) < std::abs(best->frame - frame))) best = &im;
-  if (!best) throw_error("patch ", patch.name, " has no observed image: a reference-conditioned refiner needs one");
-  return *best;
-}
 
 double axis_degrees(const Camera& a, const Camera& b) {
   const double c = std::clamp(a.R.row(2).dot(b.R.row(2)), -1.0, 1.0);
@@ -203,7 +204,7 @@ class ReferenceConditioned : public Refiner {
     std::map<std::string, Image> references;  // each observed image of the patch, read once
     for (const PatchImage& im : patch.images) {
       if (im.observed) continue;
-      const PatchImage& ref = reference_of(patch, im.frame);
+      const PatchImage& ref = patch_reference(patch, im.frame);
       auto photo = references.find(ref.file);
       if (photo == references.end())
         photo = references.emplace(ref.file, read_rgb_image(join_path(in, ref.file), ref.camera.width, ref.camera.height)).first;

@@ -214,6 +214,10 @@ std::unique_ptr<Refiner> make_reference_refiner(const GaussianCloud& truth, cons
 /// The real-data form: the reference photograph warped through the render's depth. With
 /// `truth` (synthetic scenes) its records carry PSNRs against it.
 std::unique_ptr<Refiner> make_warp_refiner(const ReferenceOptions& options, SupportStats* stats = nullptr, const GaussianCloud* truth = nullptr);
+/// The observed image a reference-conditioned refiner conditions a virtual view at `frame`
+/// on: the patch's observed image at that frame, or at the nearest frame that has one.
+/// Throws when the patch has none.
+const PatchImage& patch_reference(const Patch& patch, int frame);
 /// The parallax angle (degrees) at world point `p` between the rays from the centres of `a` and `b`.
 double parallax_degrees(const Vec3d& p, const Vec3d& centre_a, const Vec3d& centre_b);
 
