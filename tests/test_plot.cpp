@@ -143,6 +143,13 @@ TEST_CASE("heatmap: the matrix and row sums in the CSV, rows in order", "[plot]"
     CHECK(std::stod(csv[size_t(r)][size_t(cols)]) == sums[size_t(r)]);
   }
   CHECK(ink(read_image(join_path(dir, "heat.png"))) > 0.2);
+  // Named rows: each name at its row in the script.
+  PlotLabels named{"chosen", "frame", "camera"};
+  named.row_names = {"cam a", "b", "c's", "d", "e", "f"};
+  write_heatmap_png(join_path(dir, "named.png"), v, rows, cols, named, &sums);
+  const std::string gp = read_file(join_path(dir, "named.gp"));
+  CHECK(gp.find("set ytics ('cam a' 0, 'b' 1, 'c''s' 2, 'd' 3, 'e' 4, 'f' 5)") != std::string::npos);
+  CHECK(ink(read_image(join_path(dir, "named.png"))) > 0.2);
 }
 
 TEST_CASE("without gnuplot a chart leaves its CSV and script, one warning and no PNG", "[plot]") {

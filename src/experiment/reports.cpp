@@ -283,8 +283,9 @@ void write_pool_report(const std::string& dir, const FinetuneResult& r, const Da
   }
   const nlohmann::json j = {{"strategy", strategy}, {"cameras", rigs}, {"frames", F}, {"chosen", chosen}};
   write_file_atomically(join_path(dir, "pool_chosen.json"), j.dump(2) + "\n");
-  write_heatmap_png(join_path(dir, "pool_chosen.png"), cells, int(rigs.size()), F,
-                    {strategy + ": the pool's camera-times chosen (the round + 1)", "frame", "pool camera (pool_chosen.json: cameras)"}, &per_camera);
+  PlotLabels labels{strategy + ": the pool's camera-times chosen (the round + 1)", "frame", "pool camera"};
+  labels.row_names = rigs;
+  write_heatmap_png(join_path(dir, "pool_chosen.png"), cells, int(rigs.size()), F, labels, &per_camera);
 }
 
 }  // namespace fillgs

@@ -290,11 +290,20 @@ void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>
 
 }
 
+/// `set ytics ("a" 0, "b" 1, ...)` for named rows; nothing without names.
+std::string ytic_names(const std::vector<std::string>& names) {
+  if (names.empty()) return "";
+  std::string t = "set ytics (";
+  for (size_t r = 0; r < names.size(); ++r) t += (r ? ", " : "") + quoted(names[r]) + " " + std::to_string(r);
+  return t + ")\n";
+}
+
 void write_heatmap_png(const std::string& path, const std::vector<float>& values, int rows, int cols, const PlotLabels& labels,
                        const std::vector<double>* row_totals) {
   FILLGS_CHECK(rows > 0 && cols > 0);
   FILLGS_CHECK_EQ(values.size(), size_t(rows) * size_t(cols));
   if (row_totals) FILLGS_CHECK_EQ(row_totals->size(), size_t(rows));
+  if (!labels.row_names.empty()) FILLGS_CHECK_EQ(labels.row_names.size(), size_t(rows));
   // CSV: one row of the matrix per line (row 0 first), then, when given, the row sums in a
   // last column.
   std::ostringstream csv;
@@ -316,6 +325,7 @@ void write_heatmap_png(const std::string& path, const std::vector<float>& values
      << "set palette defined (0 '#000004', 1 '#420a68', 2 '#932667', 3 '#dd513a', 4 '#fca50a', 5 '#fcffa4')\n"
      << "set cbrange [0:" << number(vmax) << "]\nset colorbox user origin screen " << split + (row_totals ? 0.20 : 0.02) << ", 0.12 size screen 0.02, 0.76\n"
      << "set xrange [-0.5:" << cols - 0.5 << "]\nset yrange [" << rows - 0.5 << ":-0.5]\nset border 15\nunset grid\n"
+     << ytic_names(labels.row_names)
      << "plot '" << data << "' matrix using 1:2:3 with image notitle\n";  // the xrange leaves out the row sums
 
   if (row_totals) {
@@ -324,7 +334,7 @@ void write_heatmap_png(const std::string& path, const std::vector<float>& values
       if (std::isfinite(t)) tmax = std::max(tmax, t);
     if (tmax <= 0) tmax = 1;
     gp << "unset title\nunset colorbox\nset lmargin at screen " << split + 0.01 << "\nset rmargin at screen " << split + 0.16 << "\n"
-       << "set xlabel 'row sum'\nunset ylabel\nset format y ''\nset xtics norotate (" << quoted("0") << " 0, " << quoted(compact(tmax))
+       << "set xlabel 'row sum'\nunset ylabel\nset ytics auto\nset format y ''\nset xtics norotate (" << quoted("0") << " 0, " << quoted(compact(tmax))
        << " " << number(tmax) << ")\nset xrange [0:" << number(tmax * 1.02) << "]\n"
        << "plot '" << data << "' using ($" << cols + 1 << "/2):($0):($" << cols + 1
        << "/2):(0.4) with boxxyerror lc rgb '#3c78b4' notitle\n";

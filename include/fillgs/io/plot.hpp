@@ -13,6 +13,8 @@ namespace fillgs {
 
 struct PlotLabels {
   std::string title, x, y;
+  /// Heatmaps: a name per row, drawn beside it (empty: row numbers).
+  std::vector<std::string> row_names = {};
 };
 
 /// A rows × cols heatmap (row 0 at the top), inferno colours from 0 to the maximum, with a
