@@ -1,4 +1,4 @@
-# Shared by the resumable benchmark scripts (bench/panoptic_rig.sh, bench/panoptic_pool.sh).
+# Shared by the resumable benchmark scripts (bench/panoptic_rig.sh, bench/pool_select.sh).
 #
 # step DIR DONE COMMAND...: runs COMMAND (whose output folder is DIR) unless DIR/DONE exists
 # and DIR/command.txt holds the same command line; a finished step made by another command

@@ -1,0 +1,232 @@
+#!/usr/bin/env bash
+# Which camera-times help most? Every strategy chooses among the real (camera, frame)
+# photographs of a pool of a rig's cameras (`fillgs finetune --pool-budget K`: no generative
+# model), the chosen photographs are added at their real poses, and every model is judged
+# on held-out cameras read from a camera file that training, the initial points, the pool
+# and the selection never see (`--held-out`).
+#
+#   bench/pool_select.sh [--scene panoptic|n3v-static] [--smoke] [--test-cameras FILE]
+#                        [--seeds 1,2,3] [--budgets ...] [--strategies a,b,..] [OUT]
+#       (default OUT: bench/results/video/panoptic_pool or bench/results/video/n3v_static_pool)
+#
+# Both splits were fixed from the cameras' geometry before any run (bench/results/README.md,
+# "Which camera-times help most").
+#
+# --scene panoptic (the default): CMU Panoptic "basketball", 30 frames at 160x90. Azimuth and
+# height about the dome's vertical (the mean of the cameras' up directions) from the mean
+# camera centre:
+#  * training: 3, 22, 7, 12 — four neighbouring cameras 52 degrees of azimuth wide at three
+#    heights (-52, -26, -23, 0 degrees): a forward-facing group, as the paper's rigs are;
+#  * pool: the rest of that side of the dome, 19, 23, 1, 9, 4, 5, 26, 28, 24, 21, 13
+#    (-128 to +87 degrees) at every frame: 11 cameras x 30 frames = 330 camera-times;
+#  * held out among the pool ("near"): 18 (-72), 2 (+12), 20 (+48), one inside each stretch
+#    of pool cameras and one beside the training group; beyond it ("far"): 29 (+123),
+#    11 (+149), 27 (-166), the far side;
+#  * unused: 14, 16, 25, 6, 8, 17 (the rest of the far side: neither pool nor judged).
+#  Budgets K = 10, 30, 90 camera-times. Backbone: 2,000 iterations, points carved from the
+#  training cameras' masks only. The held-out cameras go to OUT/test_meta.json (the dataset's
+#  own format, its masks linked beside it).
+# --scene n3v-static: Neural 3D Video flame_steak, frame 0 of its 21 cameras (two rows of a
+#  forward-facing arc), at 1/8 size (336x252): the static case, where the pool is the
+#  cameras themselves. Along the arc (x of the centres about their mean, lower row cam00-10,
+#  upper row cam11-20):
+#  * training: cam00, cam06 (lower, x +0.04, -1.03) and cam15, cam16 (upper, +0.52, -0.61):
+#    the four middle cameras, two of each row;
+#  * held out among the pool ("near"): cam05 (+1.14), cam17 (-1.75), cam08 (-3.19); beyond it
+#    ("far"): cam20 (-5.77) and cam11 (+5.64), the two ends of the arc;
+#  * pool: the other 12 (cam01-04, 07, 09, 10, 12-14, 18, 19): 12 camera-times.
+#  Budgets K = 2, 4, 8. Backbone: 2,000 iterations from COLMAP points triangulated from the
+#  four training cameras only (scripts/colmap-points.sh --train-cameras, images at most
+#  1,344 px). The held-out cameras go to OUT/test_cameras.json (transforms, from sparse/0).
+#
+# Both: seeds 1-3 (the backbone's initialisation, `random` and the training's draws),
+# `--sh-degree 0 --colour-correction`; the dense reference trains on the training and pool
+# cameras, 3,000 iterations, seed 1; every strategy's photographs are real, so they weigh 1
+# (`--weighting none`); FillGS's and ExploreGS's weights run once each (FillGS's selection,
+# the middle budget) to show what they do to real photographs; the control fine-tunes on the
+# training cameras alone. A --test-cameras FILE of the same rig replaces the held-out
+# cameras: every camera in it is one split, "held-out", and it guards training and the pool.
+#
+# Resumable (bench/lib.sh, step): rerun the same command and every finished step is reused;
+# a step made by another command line stops the script. Each step that runs prints its
+# seconds. Writes OUT/results.md (a table per budget, mean +- standard deviation over the
+# seeds), OUT/chosen_K<k>_s<seed>.png (what each strategy chose, camera x frame) and
+# OUT/compare.png. --smoke: small images, K = 2, seed 1, a few iterations (CI).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source bench/lib.sh
+SMOKE=0 TEST= SEEDS=1,2,3 BUDGETS= SCENE=panoptic ONLY=
+while [ $# -gt 0 ]; do
+  case $1 in
+    --scene) SCENE=$2; shift ;;
+    --smoke) SMOKE=1 ;;
+    --test-cameras) TEST=$2; shift ;;
+    --seeds) SEEDS=$2; shift ;;
+    --budgets) BUDGETS=$2; shift ;;
+    --strategies) ONLY=$2; shift ;;
+    -h|--help) sed -n '2,56p' "$0"; exit 0 ;;
+    -*) echo "pool_select: unknown option $1" >&2; exit 1 ;;
+    *) break ;;
+  esac
+  shift
+done
+FILLGS=${FILLGS:-build/bin/fillgs}
+DATA=${FILLGS_SHARED_DATA:-$(cd .. && pwd)/shared/data}
+STRATEGIES=(fillgs random negative interpolation fisherrf coverage3d coverage4d)
+[ -n "$ONLY" ] && IFS=, read -r -a STRATEGIES <<<"$ONLY"
+BB=(--iterations 2000) DENSE=(--iterations 3000) FT=() INIT=()
+case $SCENE in
+  panoptic)
+    P=$DATA/video/panoptic_basketball TITLE="Panoptic basketball"
+    OUT=${1:-bench/results/video/panoptic_pool}
+    TRAIN=3,22,7,12
+    POOL=19,23,1,9,4,5,26,28,24,21,13
+    NEAR=18,2,20 FAR=29,11,27
+    BUDGETS=${BUDGETS:-10,30,90}
+    FRAMES=0:150:5 DOWN=4
+    if [ $SMOKE = 1 ]; then
+      FRAMES=0:150:75 DOWN=8 BB=(--iterations 40) DENSE=(--iterations 40) FT=(--iterations 30 --select-every 15) SEEDS=1 BUDGETS=2
+    fi
+    DS=(--images "$P/ims" --frames "$FRAMES" --downscale "$DOWN")
+    CAMERAS=$P/train_meta.json
+    ;;
+  n3v-static)
+    P=$DATA/video/n3v_flame_steak_frame0 TITLE="Neural 3D Video flame_steak, frame 0 (static)"
+    OUT=${1:-bench/results/video/n3v_static_pool}
+    TRAIN=cam00,cam06,cam15,cam16
+    POOL=cam01,cam02,cam03,cam04,cam07,cam09,cam10,cam12,cam13,cam14,cam18,cam19
+    NEAR=cam05,cam17,cam08 FAR=cam20,cam11
+    BUDGETS=${BUDGETS:-2,4,8}
+    DOWN=8 MAXSIDE=1344
+    if [ $SMOKE = 1 ]; then
+      DOWN=32 MAXSIDE=400 BB=(--iterations 40) DENSE=(--iterations 40) FT=(--iterations 30 --select-every 15) SEEDS=1 BUDGETS=2
+    fi
+    DS=(--images "$P/images" --downscale "$DOWN")
+    CAMERAS=$P/sparse/0
+    ;;
+  *) echo "pool_select: unknown --scene $SCENE (panoptic or n3v-static)" >&2; exit 1 ;;
+esac
+mkdir -p "$OUT"
+if [ -z "$TEST" ]; then
+  # The held-out cameras in a camera file of their own.
+  if [ $SCENE = panoptic ]; then
+    TEST=$OUT/test_meta.json  # the dataset's own format, its masks linked beside it
+    if [ ! -f "$TEST" ]; then
+      python3 - "$P/train_meta.json" "$TEST.tmp" "$NEAR,$FAR" <<'PY'
+import json, sys
+meta = json.load(open(sys.argv[1]))
+keep = {int(c) for c in sys.argv[3].split(",")}
+out = {"w": meta["w"], "h": meta["h"]}
+for key in ("k", "w2c", "fn", "cam_id"):
+    out[key] = [[v for v, c in zip(row, ids) if c in keep] for row, ids in zip(meta[key], meta["cam_id"])]
+json.dump(out, open(sys.argv[2], "w"))
+PY
+      mv "$TEST.tmp" "$TEST"
+    fi
+    [ -e "$OUT/seg" ] || ln -s "$P/seg" "$OUT/seg"
+  else
+    TEST=$OUT/test_cameras.json  # transforms.json of the held-out cameras
+    if [ ! -f "$TEST" ]; then
+      "$FILLGS" cameras --cameras "$CAMERAS" --out "$OUT/all_cameras.tmp.json" >/dev/null
+      python3 - "$OUT/all_cameras.tmp.json" "$TEST.tmp" "$NEAR,$FAR" <<'PY'
+import json, os, sys
+t = json.load(open(sys.argv[1]))
+keep = set(sys.argv[3].split(","))
+t["frames"] = [f for f in t["frames"] if os.path.splitext(os.path.basename(f["file_path"]))[0] in keep]
+assert len(t["frames"]) == len(keep), "held-out cameras missing"
+json.dump(t, open(sys.argv[2], "w"), indent=1)
+PY
+      rm "$OUT/all_cameras.tmp.json"
+      mv "$TEST.tmp" "$TEST"
+    fi
+    # Initial points from the training cameras' images alone.
+    step "$OUT/points" sparse/points3D.bin bash scripts/colmap-points.sh --images "$P/images" --cameras "$CAMERAS" --train-cameras $TRAIN \
+      --max-image-size $MAXSIDE --fillgs "$FILLGS" --out "$OUT/points"
+    INIT=(--points "$OUT/points/sparse/points3D.bin")
+  fi
+  SPLITS=(near far) SPLIT_CAMS=($NEAR $FAR)
+else
+  SPLITS=(held-out) SPLIT_CAMS=(all)
+fi
+TRAIN_DS=("${DS[@]}" --cameras "$CAMERAS" --held-out "$TEST")
+OPTS=(--sh-degree 0 --colour-correction)
+
+evaluate() {  # model folder
+  for k in "${!SPLITS[@]}"; do
+    local sel=()
+    [ "${SPLIT_CAMS[$k]}" = all ] || sel=(--select-cameras "${SPLIT_CAMS[$k]}")
+    step "$1/eval_${SPLITS[$k]}" metrics.json "$FILLGS" eval --model "$1/model.ply" "${DS[@]}" --cameras "$TEST" "${sel[@]}" \
+      --splits "${SPLITS[$k]}" --no-renders --ls-gain --out "$1/eval_${SPLITS[$k]}" --quiet >/dev/null
+  done
+}
+
+step "$OUT/dense" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE[@]}" "${OPTS[@]}" --seed 1 \
+  --out "$OUT/dense" --quiet
+evaluate "$OUT/dense"
+IFS=, read -r -a seeds <<<"$SEEDS"
+IFS=, read -r -a budgets <<<"$BUDGETS"
+for s in "${seeds[@]}"; do
+  S=$OUT/s$s
+  step "$S/backbone" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "${BB[@]}" "${INIT[@]}" "${OPTS[@]}" --seed "$s" \
+    --out "$S/backbone" --quiet
+  evaluate "$S/backbone"
+  finetune() {  # id, extra finetune options
+    local id=$1
+    shift
+    step "$S/$id" summary.json "$FILLGS" finetune --model "$S/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
+      --seed "$s" --out "$S/$id" "${FT[@]}" "$@" --quiet
+    evaluate "$S/$id"
+  }
+  finetune control --trajectories 0
+  for K in "${budgets[@]}"; do
+    for st in "${STRATEGIES[@]}"; do
+      finetune "$st.K$K" --pool-cameras $POOL --pool-budget "$K" --strategy "$st" --weighting none
+    done
+  done
+  # What FillGS's and ExploreGS's weights do to real photographs (FillGS's selection).
+  K=${budgets[$(( ${#budgets[@]} / 2 ))]}
+  for w in fillgs exploregs; do
+    finetune "fillgs.K$K.w-$w" --pool-cameras $POOL --pool-budget "$K" --strategy fillgs --weighting $w
+  done
+done
+
+python3 bench/pool_select_report.py "$OUT" --title "$TITLE" --seeds "$SEEDS" --budgets "$BUDGETS" --splits "$(IFS=,; echo "${SPLITS[*]}")" >/dev/null
+# What every strategy chose, side by side (camera x frame, first seed).
+for K in "${budgets[@]}"; do
+  pics=()
+  for st in "${STRATEGIES[@]}"; do
+    [ -f "$OUT/s${seeds[0]}/$st.K$K/pool_chosen.png" ] && pics+=("$OUT/s${seeds[0]}/$st.K$K/pool_chosen.png")
+  done
+  [ ${#pics[@]} -gt 0 ] && oiiotool "${pics[@]}" --mosaic 4x2 -o "$OUT/chosen_K${K}_s${seeds[0]}.png"
+done
+cat "$OUT/results.md"
+
+# The picture: ground truth | backbone | the best strategy at the middle budget | FillGS,
+# at the first near (or held-out) camera, the clip's middle frame, seed 1 (fixed before any run).
+K=${budgets[$(( ${#budgets[@]} / 2 ))]}
+best=$(sed -n 's/^best at K='"$K"': //p' "$OUT/results.md" | head -n 1)
+S=$OUT/s${seeds[0]}
+cam=${NEAR%%,*}
+if [ $SCENE = panoptic ]; then
+  [ "${SPLIT_CAMS[0]}" = all ] && cam=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['cam_id'][0][0])" "$TEST")
+  NF=$(ls "$P/ims/$cam" | wc -l)
+  STEP=${FRAMES##*:}
+  SRC=$(( (NF / 2) / STEP * STEP ))
+  truth="$P/ims/$cam/$(printf '%06d' $SRC).jpg" render=$(printf '%s_%06d.png' "$cam" $SRC)
+else
+  [ "${SPLIT_CAMS[0]}" = all ] && cam=$(python3 -c "import json,os,sys; print(os.path.splitext(os.path.basename(json.load(open(sys.argv[1]))['frames'][0]['file_path']))[0])" "$TEST")
+  SRC=0 truth="$P/images/$cam.png" render="${cam}_${cam}.png"  # eval names a render <camera>_<image>
+fi
+tiles=("$truth")
+for id in backbone "$best" "fillgs.K$K"; do
+  if [ ! -d "$S/$id/picture" ]; then
+    "$FILLGS" eval --model "$S/$id/model.ply" "${DS[@]}" --cameras "$TEST" --select-cameras "$cam" --splits picture --out "$S/$id/picture.tmp" --quiet >/dev/null
+    mv "$S/$id/picture.tmp" "$S/$id/picture"
+  fi
+  tiles+=("$S/$id/picture/renders/picture/$render")
+done
+# The photograph at the renders' size.
+size=$(oiiotool --info "${tiles[1]}" | sed -n 's/.* \([0-9]*\) x *\([0-9]*\).*/\1x\2/p' | head -n 1)
+tiles=("${tiles[0]}" --resize "$size" "${tiles[@]:1}")
+oiiotool "${tiles[@]}" --mosaic 4x1 --resize 200% -o "$OUT/compare.png"
+echo "picture: ground truth | backbone | $best | fillgs.K$K at held-out camera $cam, source frame $SRC -> $OUT/compare.png"

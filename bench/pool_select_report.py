@@ -1,0 +1,159 @@
+#!/usr/bin/env python3
+"""The tables of bench/pool_select.sh: OUT/results.md from the runs' metrics.json and
+summary.json, a table per budget (mean +- standard deviation over the seeds), the share of
+camera-times each pair of strategies chose alike, and the spread between the strategies
+against the seeds' spread. Every number comes from a file a run wrote; a missing run is "-".
+
+    python3 bench/pool_select_report.py OUT --title "Panoptic basketball" --seeds 1,2,3 --budgets 10,30,90 --splits near,far
+"""
+import argparse
+import json
+import math
+import os
+import statistics
+import sys
+
+STRATEGIES = ["fillgs", "random", "negative", "interpolation", "fisherrf", "coverage3d", "coverage4d"]
+
+
+def load(path):
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except FileNotFoundError:
+        return None
+
+
+def fmt(values, digits=2):
+    values = [v for v in values if v is not None and not (isinstance(v, float) and math.isnan(v))]
+    if not values:
+        return "–"
+    m = statistics.mean(values)
+    if len(values) == 1:
+        return f"{m:.{digits}f}"
+    return f"{m:.{digits}f} ± {statistics.stdev(values):.{digits}f}"
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out")
+    ap.add_argument("--title", default="Panoptic basketball")
+    ap.add_argument("--seeds", default="1,2,3")
+    ap.add_argument("--budgets", default="10,30,90")
+    ap.add_argument("--splits", default="near,far")
+    a = ap.parse_args()
+    seeds = a.seeds.split(",")
+    budgets = a.budgets.split(",")
+    splits = a.splits.split(",")
+    out = a.out
+
+    def run_dir(seed, run_id):
+        return os.path.join(out, "dense") if run_id == "dense" else os.path.join(out, f"s{seed}", run_id)
+
+    def metric(seed, run_id, split, key):
+        m = load(os.path.join(run_dir(seed, run_id), f"eval_{split}", "metrics.json"))
+        if not m or split not in m:
+            return None
+        v = m[split].get(key)
+        return float(v) if v is not None else None
+
+    def summary(seed, run_id):
+        return load(os.path.join(run_dir(seed, run_id), "summary.json"))
+
+    def seconds(seed, run_id):
+        s = summary(seed, run_id)
+        if not s:
+            return None
+        if "rounds" not in s:  # a training run
+            return {"select": None, "train": s.get("seconds"), "total": s.get("seconds")}
+        return {"select": sum(r["seconds"]["select"] for r in s["rounds"]), "train": s["seconds"]["train"], "total": s["seconds"]["total"]}
+
+    lines = [f"# Which camera-times help most: {a.title}, real pool photographs", ""]
+    lines.append(f"Seeds {a.seeds}; PSNR in dB on the held-out cameras ({', '.join(splits)}), mean ± standard deviation over the seeds; "
+                 "foreground: inside the dataset's foreground masks (– without masks); gain: after a least-squares gain per image. Seconds: selection / training / total of "
+                 "the fine-tuning (training alone for the backbone and the dense reference).")
+    header = "| run |"
+    rule = "|---|"
+    for sp in splits:
+        header += f" {sp} PSNR | SSIM | foreground | gain |"
+        rule += "---|---|---|---|"
+    header += " photographs | mean weight | seconds |"
+    rule += "---|---|---|"
+
+    def row(run_id, seed_list, label=None):
+        cells = f"| {label or run_id} |"
+        for sp in splits:
+            for key, d in (("psnr", 2), ("ssim", 3), ("psnr_moving", 2), ("psnr_ls_gain", 2)):
+                cells += f" {fmt([metric(s, run_id, sp, key) for s in seed_list], d)} |"
+        sums = [summary(s, run_id) for s in seed_list]
+        views = [float(x["virtual_views"]) for x in sums if x and "virtual_views" in x]
+        weights = [statistics.mean(r["mean_weight"] for r in x["rounds"] if r["views_added"]) for x in sums
+                   if x and "rounds" in x and any(r["views_added"] for r in x["rounds"])]
+        secs = [seconds(s, run_id) for s in seed_list]
+        secs = [x for x in secs if x]
+        sel = fmt([x["select"] for x in secs], 0)
+        cells += f" {fmt(views, 0)} | {fmt(weights, 3)} | {sel} / {fmt([x['train'] for x in secs], 0)} / {fmt([x['total'] for x in secs], 0)} |"
+        return cells
+
+    findings = []
+    for K in budgets:
+        lines += ["", f"## K = {K} camera-times", "", header, rule]
+        lines.append(row("dense", ["1"], "dense (training + pool cameras)"))
+        lines.append(row("backbone", seeds))
+        lines.append(row("control", seeds, "control (no photographs added)"))
+        means = {}
+        for st in STRATEGIES:
+            rid = f"{st}.K{K}"
+            lines.append(row(rid, seeds))
+            per_seed = []
+            for s in seeds:
+                vals = [metric(s, rid, sp, "psnr") for sp in splits]
+                if all(v is not None for v in vals):
+                    per_seed.append(statistics.mean(vals))
+            if per_seed:
+                means[st] = per_seed
+        for w in ("fillgs", "exploregs"):
+            rid = f"fillgs.K{K}.w-{w}"
+            if any(summary(s, rid) for s in seeds):
+                lines.append(row(rid, seeds))
+        if means:
+            best = max(means, key=lambda k: statistics.mean(means[k]))
+            worst = min(means, key=lambda k: statistics.mean(means[k]))
+            spread = statistics.mean(means[best]) - statistics.mean(means[worst])
+            seed_sd = [statistics.stdev(v) for v in means.values() if len(v) > 1]
+            sd = statistics.mean(seed_sd) if seed_sd else float("nan")
+            lines += ["", f"best at K={K}: {best}.K{K}",
+                      f"Mean PSNR over the splits: best {best} {statistics.mean(means[best]):.2f} dB, worst {worst} "
+                      f"{statistics.mean(means[worst]):.2f} dB, spread {spread:.2f} dB against a mean seed spread of {sd:.2f} dB "
+                      f"({'separated: more than twice' if spread > 2 * sd else 'not separated: less than twice'} the seed spread)."]
+            findings.append((K, best, spread, sd))
+        # Which camera-times the strategies share.
+        chosen = {}
+        for st in STRATEGIES:
+            for s in seeds:
+                p = load(os.path.join(out, f"s{s}", f"{st}.K{K}", "pool_chosen.json"))
+                if p:
+                    chosen.setdefault(st, {})[s] = {(c["camera"], c["frame"]) for c in p["chosen"]}
+        if len(chosen) > 1:
+            names = [st for st in STRATEGIES if st in chosen]
+            lines += ["", f"Share of camera-times two strategies both chose at K = {K} (|A ∩ B| / K, mean over the seeds):", "",
+                      "| | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+            for x in names:
+                cells = []
+                for y in names:
+                    common = [len(chosen[x][s] & chosen[y][s]) / max(1, len(chosen[x][s])) for s in seeds if s in chosen[x] and s in chosen[y]]
+                    cells.append(f"{statistics.mean(common):.2f}" if common else "–")
+                lines.append(f"| {x} | " + " | ".join(cells) + " |")
+            pics = " ".join(f"[{st}](s{seeds[0]}/{st}.K{K}/pool_chosen.png)" for st in names)
+            lines += ["", f"What each strategy chose (camera × frame, seed {seeds[0]}): {pics}; all of them: ![chosen](chosen_K{K}_s{seeds[0]}.png)"]
+    lines += ["", "![ground truth | backbone | best strategy | FillGS](compare.png)", ""]
+    tmp = os.path.join(out, "results.md.tmp")
+    with open(tmp, "w") as f:
+        f.write("\n".join(lines))
+    os.replace(tmp, os.path.join(out, "results.md"))
+    sys.stdout.write("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
