@@ -1108,6 +1108,9 @@ TEST_CASE("cli: finetune --pool-budget adds the pool's own photographs at their 
   fails(with({"--out", join_path(dir, "b1"), "--pool-budget", "2"}), "--pool-budget needs --pool-cameras");
   fails(with({"--out", join_path(dir, "b2"), "--pool-budget", "2", "--pool-cameras", "cam05", "--refiner", "identity"}), "takes no --refiner");
   fails(with({"--out", join_path(dir, "b3"), "--pool-budget", "2", "--pool-cameras", "cam04"}), "names cam04, a training camera");
+  fails(with({"--out", join_path(dir, "b4"), "--pool-budget", "2", "--pool-cameras", "cam05", "--trajectories", "3"}), "takes no --trajectories");
+  CHECK(j["pool_budget"] == 4);
+  CHECK_FALSE(j.contains("trajectories_per_round"));
   CHECK_FALSE(fs::exists(join_path(dir, "b1")));
 }
 

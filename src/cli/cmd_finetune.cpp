@@ -127,6 +127,8 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     const std::string why = kind == RefinerChoice::Rig ? "--refiner rig" : "--pool-budget";
     if (f.finetune.pool_budget > 0 && in.given("--refiner"))
       in.fail("--pool-budget adds the pool's own photographs: it takes no --refiner");
+    if (f.finetune.pool_budget > 0 && in.given("--trajectories"))
+      in.fail("--pool-budget chooses photographs, not trajectories: it takes no --trajectories");
     DatasetOptions po = f.data;
     po.cameras = f.pool_cameras;
     po.monocular_cycle.clear();

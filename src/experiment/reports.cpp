@@ -251,11 +251,15 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
     report.dropped += rd.views_dropped;
   }
   report.train = evaluate_training_sample(r.model, data, Vec3f::Zero());
-  const nlohmann::json j = {{"iterations", o.iterations}, {"select_every", o.select_every}, {"trajectories_per_round", o.trajectories},
+  nlohmann::json j = {{"iterations", o.iterations}, {"select_every", o.select_every}, {"trajectories_per_round", o.trajectories},
                             {"strategy", to_string(o.select.strategy)}, {"weighting", to_string(o.weighting)}, {"refiner", refiner},
                             {"rounds", rounds}, {"virtual_views", r.virtual_views.size()}, {"virtual_views_dropped", report.dropped},
                             {"train_psnr", report.train.psnr}, {"train_ssim", report.train.ssim}, {"gaussians", r.model.size()},
                             {"moving_gaussians", r.model.dynamic_count()}, {"seconds", {{"train", r.seconds_train}, {"total", seconds}}}};
+  if (o.pool) {  // real photographs instead of trajectories
+    j.erase("trajectories_per_round");
+    j["pool_budget"] = o.pool_budget;
+  }
   write_loss_png(join_path(dir, "loss.png"), r.loss_history, "fine-tuning loss (weighted on refined views)");
   write_file_atomically(join_path(dir, "summary.json"), j.dump(2) + "\n");
   return report;
