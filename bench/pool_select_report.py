@@ -144,8 +144,8 @@ def main():
                     common = [len(chosen[x][s] & chosen[y][s]) / max(1, len(chosen[x][s])) for s in seeds if s in chosen[x] and s in chosen[y]]
                     cells.append(f"{statistics.mean(common):.2f}" if common else "–")
                 lines.append(f"| {x} | " + " | ".join(cells) + " |")
-            pics = " ".join(f"[{st}](s{seeds[0]}/{st}.K{K}/pool_chosen.png)" for st in names)
-            lines += ["", f"What each strategy chose (camera × frame, seed {seeds[0]}): {pics}; all of them: ![chosen](chosen_K{K}_s{seeds[0]}.png)"]
+            lines += ["", f"What each strategy chose (camera × frame, seed {seeds[0]}; each run's own picture and list are "
+                          f"s{seeds[0]}/<strategy>.K{K}/pool_chosen.png and .json): ![chosen](chosen_K{K}_s{seeds[0]}.png)"]
     lines += ["", "![ground truth | backbone | best strategy | FillGS](compare.png)", ""]
     tmp = os.path.join(out, "results.md.tmp")
     with open(tmp, "w") as f:
