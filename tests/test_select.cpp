@@ -613,7 +613,7 @@ TEST_CASE("pool selection: fillgs's first choice is the candidate with the large
   CHECK(best > 0);
 }
 
-TEST_CASE("pool selection: interpolation takes the pool cameras nearest the training chord first; random is seeded", "[select][pool]") {
+TEST_CASE("pool selection: interpolation takes the pool cameras nearest the training chord first, and random is seeded", "[select][pool]") {
   const Fixture& fx = fixture();
   const PoolFixture p(fx);
   // Training poses 0 and 4 lie 90 degrees apart on the ring: the chord between them passes
