@@ -173,12 +173,10 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
       r.notes = sel.notes;
       r.trajectories = int(sel.chosen.size());
       std::vector<NewView> items;
-      std::vector<size_t> chosen;
       const std::string root = join_path(o.work_dir, "pool");
       make_directories(root);
       for (const PoolChoice& c : sel.chosen) {
         const size_t i = pool_free[c.candidate];
-        chosen.push_back(i);
         Camera cam = o.pool->cameras[i];
         cam.time = FrameGrid(F).time(pool_views[i].frame);
         char name[32];
@@ -189,9 +187,12 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
         items.push_back({cam, Image(cam.width, cam.height, 3, std::move(photo)), join_path(root, name), std::string(name) + ".png"});
         result.pool_chosen.push_back({i, c.score, round});
       }
-      std::sort(chosen.begin(), chosen.end());
-      pool_free.erase(std::remove_if(pool_free.begin(), pool_free.end(), [&](size_t i) { return std::binary_search(chosen.begin(), chosen.end(), i); }),
-                      pool_free.end());
+      std::vector<size_t> still_free;  // the candidates not chosen, in pool order
+      std::vector<uint8_t> taken(candidates.size(), 0);
+      for (const PoolChoice& c : sel.chosen) taken[c.candidate] = 1;
+      for (size_t k = 0; k < candidates.size(); ++k)
+        if (!taken[k]) still_free.push_back(pool_free[k]);
+      pool_free = std::move(still_free);
       weigh_and_add(items, current, sel.initial_tables, so.deficiency_quantile, r);
     } else if (!o.pool && o.trajectories > 0) {
       const GaussianCloud current = round == 0 ? model : trainer.model();

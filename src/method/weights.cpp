@@ -392,21 +392,16 @@ std::vector<uint8_t> flow_consistency(const Image& image, const Image& reference
   if (!(o.round_trip_pixels > 0) || !(o.colour_rms > 0)) throw_error("flow check: the tolerances must be positive");
   const int W = image.width, H = image.height;
   const cv::Mat a = grey8(image), b = grey8(reference);
-  const cv::Mat forward = dis_flow(a, b), back = dis_flow(b, a);
+  const cv::Mat forward = dis_flow(a, b), backward = dis_flow(b, a);
+  Image back(W, H, 2);  // the backward flow, for Image::bilinear
+  std::copy_n(backward.ptr<float>(), back.pixels.size(), back.pixels.begin());
   std::vector<uint8_t> pass(size_t(W) * H, 0);
   for (int y = 0; y < H; ++y)
     for (int x = 0; x < W; ++x) {
       const cv::Vec2f f = forward.at<cv::Vec2f>(y, x);
       const double u = x + double(f[0]), v = y + double(f[1]);
       if (!(u >= 0 && v >= 0 && u <= W - 1 && v <= H - 1)) continue;
-      // The backward flow at the landing point, bilinear.
-      const int x0 = std::clamp(int(u), 0, std::max(0, W - 2)), y0 = std::clamp(int(v), 0, std::max(0, H - 2));
-      const int x1 = std::min(x0 + 1, W - 1), y1 = std::min(y0 + 1, H - 1);
-      const double fx = u - x0, fy = v - y0;
-      double g[2];
-      for (int c = 0; c < 2; ++c)
-        g[c] = (1 - fy) * ((1 - fx) * back.at<cv::Vec2f>(y0, x0)[c] + fx * back.at<cv::Vec2f>(y0, x1)[c]) +
-               fy * ((1 - fx) * back.at<cv::Vec2f>(y1, x0)[c] + fx * back.at<cv::Vec2f>(y1, x1)[c]);
+      const double g[2] = {back.bilinear(u, v, 0), back.bilinear(u, v, 1)};
       if (std::hypot(f[0] + g[0], f[1] + g[1]) > o.round_trip_pixels) continue;
       double e = 0;
       for (int c = 0; c < 3; ++c) {
