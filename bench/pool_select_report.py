@@ -10,7 +10,9 @@ import argparse
 import json
 import math
 import os
+import shutil
 import statistics
+import subprocess
 import sys
 
 STRATEGIES = ["fillgs", "random", "negative", "interpolation", "fisherrf", "coverage3d", "coverage4d"]
@@ -32,6 +34,49 @@ def fmt(values, digits=2):
     if len(values) == 1:
         return f"{m:.{digits}f}"
     return f"{m:.{digits}f} ± {statistics.stdev(values):.{digits}f}"
+
+
+def write_chart(out, chart, budgets, title):
+    """OUT/gain.csv and gain.gp, and gain.png where gnuplot is installed: each strategy's gain
+    over the control, one bar per budget."""
+    ks = [k for k in budgets if any(c[1] == k for c in chart)]
+    names = [st for st in STRATEGIES if any(c[0] == st for c in chart)]
+    table = {(c[0], c[1]): c for c in chart}
+    rows = ["strategy," + ",".join(f"K{k},K{k}_sd" for k in ks)]
+    for st in names:
+        cells = []
+        for k in ks:
+            c = table.get((st, k))
+            cells += [f"{c[2]:.4f}", f"{c[3]:.4f}"] if c else ["NaN", "NaN"]
+        rows.append(st + "," + ",".join(cells))
+    colours = ["#3c78b4", "#e0872c", "#4aa04a", "#b44a4a"]
+    width = 0.8 / len(ks)
+    plots = []
+    for i, k in enumerate(ks):
+        x = f"($0 - 0.4 + {width / 2 + i * width:.4f})"
+        plots.append(f"'gain.csv' skip 1 using {x}:{2 + 2 * i}:({width * 0.9:.4f}) with boxes lc rgb '{colours[i % len(colours)]}' title 'K = {k}'")
+        plots.append(f"'' skip 1 using {x}:{2 + 2 * i}:{3 + 2 * i} with yerrorbars lc rgb '#404040' pt 7 ps 0 notitle")
+    gp = [f"# gain.png from gain.csv (written by bench/pool_select_report.py); re-plot with: gnuplot gain.gp",
+          "set terminal pngcairo size 720,480 noenhanced font 'DejaVu Sans,10'",
+          "set datafile separator ','", "set datafile missing 'NaN'", "set border 3 lc rgb '#404040'", "set tics nomirror",
+          "set grid ytics lc rgb '#dddddd' lt 1", "set style fill solid 0.85 noborder", "set output 'gain.png'",
+          f"set title '{title}: gain over the control per strategy and budget'", "set ylabel 'PSNR gain over the control (dB)'",
+          "set key top right", "set xzeroaxis lt 1 lc rgb '#404040'",
+          "set xtics scale 0 (" + ", ".join(f"'{st}' {i}" for i, st in enumerate(names)) + ")",
+          f"set xrange [-0.6:{len(names) - 0.4}]", "set yrange [*<0:0<*]", "set offsets 0, 0, graph 0.08, graph 0.05",
+          "plot " + ", \\\n     ".join(plots)]
+    for name, text in (("gain.csv", "\n".join(rows) + "\n"), ("gain.gp", "\n".join(gp) + "\n")):
+        tmp = os.path.join(out, name + ".tmp")
+        with open(tmp, "w") as f:
+            f.write(text)
+        os.replace(tmp, os.path.join(out, name))
+    if not shutil.which("gnuplot"):
+        return False
+    r = subprocess.run(["gnuplot", "gain.gp"], cwd=out, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.stderr.write(f"pool_select_report: gnuplot gain.gp failed: {r.stderr.strip()}\n")
+        return False
+    return True
 
 
 def main():
@@ -96,6 +141,7 @@ def main():
         return cells
 
     findings = []
+    chart = []  # (strategy, K, mean gain over the control, its seed spread, seeds)
     for K in budgets:
         lines += ["", f"## K = {K} camera-times", "", header, rule]
         lines.append(row("dense", ["1"], "dense (training + pool cameras)"))
@@ -116,6 +162,28 @@ def main():
             rid = f"fillgs.K{K}.w-{w}"
             if any(summary(s, rid) for s in seeds):
                 lines.append(row(rid, seeds))
+        # Paired differences (each seed's backbone is shared by its runs, so a difference
+        # within a seed is free of the backbone's own variation).
+        def paired(x, y):
+            out_sp = []
+            for sp in splits:
+                d = [metric(s, x, sp, "psnr") - metric(s, y, sp, "psnr") for s in seeds
+                     if metric(s, x, sp, "psnr") is not None and metric(s, y, sp, "psnr") is not None]
+                out_sp.append(f"{sp} {fmt(d)}" if d else f"{sp} –")
+            return ", ".join(out_sp)
+        pairs = [("fillgs", "negative"), ("fillgs", "random")]
+        if any(st in means for st in ("fillgs", "negative", "random")):
+            lines += ["", f"Paired differences at K = {K} (PSNR, dB, mean ± standard deviation over the seeds): " +
+                      "; ".join(f"{x} minus {y}: {paired(f'{x}.K{K}', f'{y}.K{K}')}" for x, y in pairs) + "."]
+        for st in STRATEGIES:
+            gains = []
+            for s in seeds:
+                v = [metric(s, f"{st}.K{K}", sp, "psnr") for sp in splits]
+                c = [metric(s, "control", sp, "psnr") for sp in splits]
+                if all(x is not None for x in v + c):
+                    gains.append(statistics.mean(v) - statistics.mean(c))
+            if gains:
+                chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0, len(gains)))
         if means:
             best = max(means, key=lambda k: statistics.mean(means[k]))
             worst = min(means, key=lambda k: statistics.mean(means[k]))
@@ -146,6 +214,9 @@ def main():
                 lines.append(f"| {x} | " + " | ".join(cells) + " |")
             lines += ["", f"What each strategy chose (camera × frame, seed {seeds[0]}; each run's own picture and list are "
                           f"s{seeds[0]}/<strategy>.K{K}/pool_chosen.png and .json): ![chosen](chosen_K{K}_s{seeds[0]}.png)"]
+    if chart and write_chart(out, chart, budgets, a.title):
+        lines += ["", "Gain over the control (mean PSNR over the splits, paired within each seed; bars: mean, whiskers: ± standard "
+                      "deviation over the seeds):", "", "![gain over the control](gain.png)"]
     lines += ["", "![ground truth | backbone | best strategy | FillGS](compare.png)", ""]
     tmp = os.path.join(out, "results.md.tmp")
     with open(tmp, "w") as f:

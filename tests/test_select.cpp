@@ -585,6 +585,39 @@ TEST_CASE("pool selection: the lazy search chooses exactly what rescoring every 
   }
 }
 
+TEST_CASE("pool selection: coverage4d keeps one map per frame and coverage3d one for the whole video", "[select][pool]") {
+  // One pool pose at two frames. coverage4d: choosing it at one frame leaves its other
+  // frame's score exactly as it was (a map per frame). coverage3d: after the first, only
+  // Gaussians that moved can still add a (Gaussian x direction) cell from the same camera,
+  // since a static Gaussian's direction to it is the same at every frame. Before any
+  // choice, coverage3d's map holds the training views of every frame, so it scores at most
+  // what coverage4d scores. Where every candidate and every chosen view share one frame and
+  // no Gaussian changes direction bin over the clip, the two are therefore one strategy.
+  const Fixture& fx = fixture();
+  const PoolFixture p(fx);
+  std::vector<ObservedView> two;
+  for (const ObservedView& v : p.pool)
+    if (v.pose == 2 && (v.frame == 1 || v.frame == 6)) two.push_back(v);
+  REQUIRE(two.size() == 2);
+  auto solo = [&](Strategy s, const ObservedView& v) {
+    const PoolSelectResult r = select_from_pool(p.in, {v}, 1, small_options(s, 0));
+    REQUIRE(r.chosen.size() == 1);
+    return r.chosen[0].score;
+  };
+  for (const ObservedView& v : two) CHECK(solo(Strategy::Coverage3D, v) <= solo(Strategy::Coverage4D, v));
+  const PoolSelectResult c4 = select_from_pool(p.in, two, 2, small_options(Strategy::Coverage4D, 0), true);
+  const PoolSelectResult c3 = select_from_pool(p.in, two, 2, small_options(Strategy::Coverage3D, 0), true);
+  REQUIRE(c4.chosen.size() == 2);
+  REQUIRE(c3.chosen.size() == 2);
+  const double second4 = c4.chosen[1].score;
+  CHECK(second4 == solo(Strategy::Coverage4D, two[c4.chosen[1].candidate]));
+  CHECK(second4 > 0);
+  // coverage3d's second choice: at most the moving Gaussians (each one cell), far fewer than
+  // the Gaussians the camera sees.
+  CHECK(c3.chosen[1].score <= double(fx.synth.moving_ids.size()));
+  CHECK(c3.chosen[1].score < 0.5 * second4);
+}
+
 TEST_CASE("pool selection: fillgs's first choice is the candidate with the largest mean rendered D-hat", "[select][pool]") {
   const Fixture& fx = fixture();
   const PoolFixture p(fx);
