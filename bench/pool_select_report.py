@@ -116,14 +116,14 @@ def main():
     lines = [f"# Which camera-times help most: {a.title}, real pool photographs", ""]
     lines.append(f"Seeds {a.seeds}; PSNR in dB on the held-out cameras ({', '.join(splits)}), mean ± standard deviation over the seeds; "
                  "foreground: inside the dataset's foreground masks (– without masks); gain: after a least-squares gain per image. Seconds: selection / training / total of "
-                 "the fine-tuning (training alone for the backbone and the dense reference).")
+                 "the fine-tuning (training alone for the backbone and the dense reference). Seeds: those a row's numbers come from.")
     header = "| run |"
     rule = "|---|"
     for sp in splits:
         header += f" {sp} PSNR | SSIM | foreground | gain |"
         rule += "---|---|---|---|"
-    header += " photographs | mean weight | seconds |"
-    rule += "---|---|---|"
+    header += " photographs | mean weight | seconds | seeds |"
+    rule += "---|---|---|---|"
 
     def row(run_id, seed_list, label=None):
         cells = f"| {label or run_id} |"
@@ -138,6 +138,8 @@ def main():
         secs = [x for x in secs if x]
         sel = fmt([x["select"] for x in secs], 0)
         cells += f" {fmt(views, 0)} | {fmt(weights, 3)} | {sel} / {fmt([x['train'] for x in secs], 0)} / {fmt([x['total'] for x in secs], 0)} |"
+        done = [s for s in seed_list if all(metric(s, run_id, sp, "psnr") is not None for sp in splits)]
+        cells += f" {','.join(done) or '–'} |"
         return cells
 
     findings = []
@@ -151,11 +153,11 @@ def main():
         for st in STRATEGIES:
             rid = f"{st}.K{K}"
             lines.append(row(rid, seeds))
-            per_seed = []
+            per_seed = {}
             for s in seeds:
                 vals = [metric(s, rid, sp, "psnr") for sp in splits]
                 if all(v is not None for v in vals):
-                    per_seed.append(statistics.mean(vals))
+                    per_seed[s] = statistics.mean(vals)
             if per_seed:
                 means[st] = per_seed
         for w in ("fillgs", "exploregs"):
@@ -184,15 +186,19 @@ def main():
                     gains.append(statistics.mean(v) - statistics.mean(c))
             if gains:
                 chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0, len(gains)))
-        if means:
+        # Best and worst over the seeds every strategy has (the others' runs are left out).
+        common = [s for s in seeds if all(s in v for v in means.values())]
+        if means and common:
+            means = {k: [v[s] for s in common] for k, v in means.items()}
             best = max(means, key=lambda k: statistics.mean(means[k]))
             worst = min(means, key=lambda k: statistics.mean(means[k]))
             spread = statistics.mean(means[best]) - statistics.mean(means[worst])
             seed_sd = [statistics.stdev(v) for v in means.values() if len(v) > 1]
             sd = statistics.mean(seed_sd) if seed_sd else float("nan")
             lines += ["", f"best at K={K}: {best}.K{K}",
-                      f"Mean PSNR over the splits: best {best} {statistics.mean(means[best]):.2f} dB, worst {worst} "
-                      f"{statistics.mean(means[worst]):.2f} dB, spread {spread:.2f} dB against a mean seed spread of {sd:.2f} dB "
+                      f"Mean PSNR over the splits, seeds {','.join(common)} (those every strategy has): best {best} "
+                      f"{statistics.mean(means[best]):.2f} dB, worst {worst} {statistics.mean(means[worst]):.2f} dB, spread {spread:.2f} dB "
+                      f"against a mean seed spread of {sd:.2f} dB "
                       f"({'separated: more than twice' if spread > 2 * sd else 'not separated: less than twice'} the seed spread)."]
             findings.append((K, best, spread, sd))
         # Which camera-times the strategies share.
@@ -202,6 +208,17 @@ def main():
                 p = load(os.path.join(out, f"s{s}", f"{st}.K{K}", "pool_chosen.json"))
                 if p:
                     chosen.setdefault(st, {})[s] = {(c["camera"], c["frame"]) for c in p["chosen"]}
+        # How spread each strategy's choices are: distinct cameras and frames (mean over the seeds).
+        raw = {}
+        for st in STRATEGIES:
+            for s in seeds:
+                p = load(os.path.join(out, f"s{s}", f"{st}.K{K}", "pool_chosen.json"))
+                if p:
+                    raw.setdefault(st, []).append(p["chosen"])
+        if raw:
+            lines += ["", f"Distinct pool cameras / frames among the {K} camera-times chosen (mean over the seeds): " +
+                      "; ".join(f"{st} {statistics.mean(len({c['camera'] for c in r}) for r in raw[st]):.1f} / "
+                                f"{statistics.mean(len({c['frame'] for c in r}) for r in raw[st]):.1f}" for st in STRATEGIES if st in raw) + "."]
         if len(chosen) > 1:
             names = [st for st in STRATEGIES if st in chosen]
             lines += ["", f"Share of camera-times two strategies both chose at K = {K} (|A ∩ B| / K, mean over the seeds):", "",
