@@ -7,6 +7,7 @@ against the seeds' spread. Every number comes from a file a run wrote; a missing
     python3 bench/pool_select_report.py OUT --title "Panoptic basketball" --seeds 1,2,3 --budgets 10,30,90 --splits near,far
 """
 import argparse
+import functools
 import json
 import math
 import os
@@ -18,7 +19,9 @@ import sys
 STRATEGIES = ["fillgs", "random", "negative", "interpolation", "fisherrf", "coverage3d", "coverage4d"]
 
 
+@functools.lru_cache(maxsize=None)
 def load(path):
+    """A run's JSON file (read once; callers only read it), or None where the run has not written it."""
     try:
         with open(path) as f:
             return json.load(f)
@@ -34,6 +37,13 @@ def fmt(values, digits=2):
     if len(values) == 1:
         return f"{m:.{digits}f}"
     return f"{m:.{digits}f} ± {statistics.stdev(values):.{digits}f}"
+
+
+def write_atomic(path, text):
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
 
 
 def write_chart(out, chart, budgets, title):
@@ -65,11 +75,8 @@ def write_chart(out, chart, budgets, title):
           "set xtics scale 0 (" + ", ".join(f"'{st}' {i}" for i, st in enumerate(names)) + ")",
           f"set xrange [-0.6:{len(names) - 0.4}]", "set yrange [*<0:0<*]", "set offsets 0, 0, graph 0.08, graph 0.05",
           "plot " + ", \\\n     ".join(plots)]
-    for name, text in (("gain.csv", "\n".join(rows) + "\n"), ("gain.gp", "\n".join(gp) + "\n")):
-        tmp = os.path.join(out, name + ".tmp")
-        with open(tmp, "w") as f:
-            f.write(text)
-        os.replace(tmp, os.path.join(out, name))
+    write_atomic(os.path.join(out, "gain.csv"), "\n".join(rows) + "\n")
+    write_atomic(os.path.join(out, "gain.gp"), "\n".join(gp) + "\n")
     if not shutil.which("gnuplot"):
         return False
     r = subprocess.run(["gnuplot", "gain.gp"], cwd=out, capture_output=True, text=True)
@@ -142,8 +149,7 @@ def main():
         cells += f" {','.join(done) or '–'} |"
         return cells
 
-    findings = []
-    chart = []  # (strategy, K, mean gain over the control, its seed spread, seeds)
+    chart = []  # (strategy, K, mean gain over the control, its seed spread)
     for K in budgets:
         lines += ["", f"## K = {K} camera-times", "", header, rule]
         lines.append(row("dense", ["1"], "dense (training + pool cameras)"))
@@ -185,7 +191,7 @@ def main():
                 if all(x is not None for x in v + c):
                     gains.append(statistics.mean(v) - statistics.mean(c))
             if gains:
-                chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0, len(gains)))
+                chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0))
         # Best and worst over the seeds every strategy has (the others' runs are left out).
         common = [s for s in seeds if all(s in v for v in means.values())]
         if means and common:
@@ -200,8 +206,7 @@ def main():
                       f"{statistics.mean(means[best]):.2f} dB, worst {worst} {statistics.mean(means[worst]):.2f} dB, spread {spread:.2f} dB "
                       f"against a mean seed spread of {sd:.2f} dB "
                       f"({'separated: more than twice' if spread > 2 * sd else 'not separated: less than twice'} the seed spread)."]
-            findings.append((K, best, spread, sd))
-        # Which camera-times the strategies share.
+        # What each strategy chose, per seed: its (camera, frame) pairs.
         chosen = {}
         for st in STRATEGIES:
             for s in seeds:
@@ -209,16 +214,11 @@ def main():
                 if p:
                     chosen.setdefault(st, {})[s] = {(c["camera"], c["frame"]) for c in p["chosen"]}
         # How spread each strategy's choices are: distinct cameras and frames (mean over the seeds).
-        raw = {}
-        for st in STRATEGIES:
-            for s in seeds:
-                p = load(os.path.join(out, f"s{s}", f"{st}.K{K}", "pool_chosen.json"))
-                if p:
-                    raw.setdefault(st, []).append(p["chosen"])
-        if raw:
+        if chosen:
+            def distinct(st, part):
+                return statistics.mean(len({pair[part] for pair in picks}) for picks in chosen[st].values())
             lines += ["", f"Distinct pool cameras / frames among the {K} camera-times chosen (mean over the seeds): " +
-                      "; ".join(f"{st} {statistics.mean(len({c['camera'] for c in r}) for r in raw[st]):.1f} / "
-                                f"{statistics.mean(len({c['frame'] for c in r}) for r in raw[st]):.1f}" for st in STRATEGIES if st in raw) + "."]
+                      "; ".join(f"{st} {distinct(st, 0):.1f} / {distinct(st, 1):.1f}" for st in STRATEGIES if st in chosen) + "."]
         if len(chosen) > 1:
             names = [st for st in STRATEGIES if st in chosen]
             lines += ["", f"Share of camera-times two strategies both chose at K = {K} (|A ∩ B| / K, mean over the seeds):", "",
@@ -226,8 +226,8 @@ def main():
             for x in names:
                 cells = []
                 for y in names:
-                    common = [len(chosen[x][s] & chosen[y][s]) / max(1, len(chosen[x][s])) for s in seeds if s in chosen[x] and s in chosen[y]]
-                    cells.append(f"{statistics.mean(common):.2f}" if common else "–")
+                    share = [len(chosen[x][s] & chosen[y][s]) / max(1, len(chosen[x][s])) for s in seeds if s in chosen[x] and s in chosen[y]]
+                    cells.append(f"{statistics.mean(share):.2f}" if share else "–")
                 lines.append(f"| {x} | " + " | ".join(cells) + " |")
             lines += ["", f"What each strategy chose (camera × frame, seed {seeds[0]}; each run's own picture and list are "
                           f"s{seeds[0]}/<strategy>.K{K}/pool_chosen.png and .json): ![chosen](chosen_K{K}_s{seeds[0]}.png)"]
@@ -235,10 +235,7 @@ def main():
         lines += ["", "Gain over the control (mean PSNR over the splits, paired within each seed; bars: mean, whiskers: ± standard "
                       "deviation over the seeds):", "", "![gain over the control](gain.png)"]
     lines += ["", "![ground truth | backbone | best strategy | FillGS](compare.png)", ""]
-    tmp = os.path.join(out, "results.md.tmp")
-    with open(tmp, "w") as f:
-        f.write("\n".join(lines))
-    os.replace(tmp, os.path.join(out, "results.md"))
+    write_atomic(os.path.join(out, "results.md"), "\n".join(lines))
     sys.stdout.write("\n".join(lines))
     return 0
 
