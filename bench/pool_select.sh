@@ -203,7 +203,7 @@ for K in "${budgets[@]}"; do
 done
 cat "$OUT/results.md"
 
-# The picture: ground truth | backbone | the best strategy at the middle budget | FillGS,
+# The picture: ground truth | backbone | the best strategy at PICTURE_K (the middle default budget) | FillGS,
 # at the first near (or held-out) camera, the clip's middle frame, seed 1 (fixed before any run).
 K=$PICTURE_K
 best=$(sed -n 's/^best at K='"$K"': //p' "$OUT/results.md" | head -n 1)

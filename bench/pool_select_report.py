@@ -109,6 +109,15 @@ def main():
         v = m[split].get(key)
         return float(v) if v is not None else None
 
+    def psnr_by_seed(run_id, seed_list):
+        """{seed: mean PSNR over the splits} for the seeds whose run has every split evaluated."""
+        found = {}
+        for s in seed_list:
+            vals = [metric(s, run_id, sp, "psnr") for sp in splits]
+            if all(v is not None for v in vals):
+                found[s] = statistics.mean(vals)
+        return found
+
     def summary(seed, run_id):
         return load(os.path.join(run_dir(seed, run_id), "summary.json"))
 
@@ -145,8 +154,7 @@ def main():
         secs = [x for x in secs if x]
         sel = fmt([x["select"] for x in secs], 0)
         cells += f" {fmt(views, 0)} | {fmt(weights, 3)} | {sel} / {fmt([x['train'] for x in secs], 0)} / {fmt([x['total'] for x in secs], 0)} |"
-        done = [s for s in seed_list if all(metric(s, run_id, sp, "psnr") is not None for sp in splits)]
-        cells += f" {','.join(done) or '–'} |"
+        cells += f" {','.join(psnr_by_seed(run_id, seed_list)) or '–'} |"
         return cells
 
     chart = []  # (strategy, K, mean gain over the control, its seed spread)
@@ -159,11 +167,7 @@ def main():
         for st in STRATEGIES:
             rid = f"{st}.K{K}"
             lines.append(row(rid, seeds))
-            per_seed = {}
-            for s in seeds:
-                vals = [metric(s, rid, sp, "psnr") for sp in splits]
-                if all(v is not None for v in vals):
-                    per_seed[s] = statistics.mean(vals)
+            per_seed = psnr_by_seed(rid, seeds)
             if per_seed:
                 means[st] = per_seed
         for w in ("fillgs", "exploregs"):
