@@ -37,7 +37,8 @@
 #  * pool: the other 12 (cam01-04, 07, 09, 10, 12-14, 18, 19): 12 camera-times.
 #  Budgets K = 2, 4, 8. Backbone: 2,000 iterations from COLMAP points triangulated from the
 #  four training cameras only (scripts/colmap-points.sh --train-cameras, images at most
-#  1,344 px). The held-out cameras go to OUT/test_cameras.json (transforms, from sparse/0).
+#  1,344 px); the dense reference from points of its own 16 cameras, made the same way. The
+#  held-out cameras go to OUT/test_cameras.json (transforms, from sparse/0).
 #
 # Both: seeds 1-3 (the backbone's initialisation, `random` and the training's draws),
 # `--sh-degree 0 --colour-correction`; the dense reference trains on the training and pool
@@ -64,7 +65,7 @@ while [ $# -gt 0 ]; do
     --seeds) SEEDS=$2; shift ;;
     --budgets) BUDGETS=$2; shift ;;
     --strategies) ONLY=$2; shift ;;
-    -h|--help) sed -n '2,56p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,55p' "$0"; exit 0 ;;
     -*) echo "pool_select: unknown option $1" >&2; exit 1 ;;
     *) break ;;
   esac
@@ -139,14 +140,21 @@ PY
       rm "$OUT/all_cameras.tmp.json"
       mv "$TEST.tmp" "$TEST"
     fi
-    # Initial points from the training cameras' images alone.
-    step "$OUT/points" sparse/points3D.bin bash scripts/colmap-points.sh --images "$P/images" --cameras "$CAMERAS" --train-cameras $TRAIN \
-      --max-image-size $MAXSIDE --fillgs "$FILLGS" --out "$OUT/points"
-    INIT=(--points "$OUT/points/sparse/points3D.bin")
   fi
   SPLITS=(near far) SPLIT_CAMS=($NEAR $FAR)
 else
   SPLITS=(held-out) SPLIT_CAMS=(all)
+fi
+DENSE_INIT=()
+if [ $SCENE = n3v-static ]; then
+  # Initial points from COLMAP, each model from the images it trains on: the backbone's from
+  # the training cameras alone, the dense reference's from the training and pool cameras.
+  step "$OUT/points" sparse/points3D.bin bash scripts/colmap-points.sh --images "$P/images" --cameras "$CAMERAS" --train-cameras $TRAIN \
+    --max-image-size $MAXSIDE --fillgs "$FILLGS" --out "$OUT/points"
+  INIT=(--points "$OUT/points/sparse/points3D.bin")
+  step "$OUT/dense_points" sparse/points3D.bin bash scripts/colmap-points.sh --images "$P/images" --cameras "$CAMERAS" --train-cameras $TRAIN,$POOL \
+    --max-image-size $MAXSIDE --fillgs "$FILLGS" --out "$OUT/dense_points"
+  DENSE_INIT=(--points "$OUT/dense_points/sparse/points3D.bin")
 fi
 TRAIN_DS=("${DS[@]}" --cameras "$CAMERAS" --held-out "$TEST")
 OPTS=(--sh-degree 0 --colour-correction)
@@ -160,7 +168,7 @@ evaluate() {  # model folder
   done
 }
 
-step "$OUT/dense" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE[@]}" "${OPTS[@]}" --seed 1 \
+step "$OUT/dense" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE[@]}" "${DENSE_INIT[@]}" "${OPTS[@]}" --seed 1 \
   --out "$OUT/dense" --quiet
 evaluate "$OUT/dense"
 IFS=, read -r -a seeds <<<"$SEEDS"
