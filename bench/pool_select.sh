@@ -149,11 +149,13 @@ DENSE_INIT=()
 if [ $SCENE = n3v-static ]; then
   # Initial points from COLMAP, each model from the images it trains on: the backbone's from
   # the training cameras alone, the dense reference's from the training and pool cameras.
-  step "$OUT/points" sparse/points3D.bin bash scripts/colmap-points.sh --images "$P/images" --cameras "$CAMERAS" --train-cameras $TRAIN \
-    --max-image-size $MAXSIDE --fillgs "$FILLGS" --out "$OUT/points"
+  colmap_points() {  # folder, cameras
+    step "$OUT/$1" sparse/points3D.bin bash scripts/colmap-points.sh --images "$P/images" --cameras "$CAMERAS" --train-cameras "$2" \
+      --max-image-size $MAXSIDE --fillgs "$FILLGS" --out "$OUT/$1"
+  }
+  colmap_points points $TRAIN
   INIT=(--points "$OUT/points/sparse/points3D.bin")
-  step "$OUT/dense_points" sparse/points3D.bin bash scripts/colmap-points.sh --images "$P/images" --cameras "$CAMERAS" --train-cameras $TRAIN,$POOL \
-    --max-image-size $MAXSIDE --fillgs "$FILLGS" --out "$OUT/dense_points"
+  colmap_points dense_points $TRAIN,$POOL
   DENSE_INIT=(--points "$OUT/dense_points/sparse/points3D.bin")
 fi
 TRAIN_DS=("${DS[@]}" --cameras "$CAMERAS" --held-out "$TEST")
