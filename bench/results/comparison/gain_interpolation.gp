@@ -1,5 +1,5 @@
 # gain_interpolation.png from gain_interpolation.csv (written by fillgs); re-plot with: gnuplot gain_interpolation.gp
-set terminal pngcairo size 640,480 noenhanced font 'DejaVu Sans,10'
+set terminal pngcairo size 776,480 noenhanced font 'DejaVu Sans,10'
 set datafile separator ','
 set border 3 lc rgb '#404040'
 set tics nomirror
@@ -10,8 +10,8 @@ set title 'interpolation: gain over the control per strategy and refiner (n3v)'
 set xlabel ''
 set ylabel 'PSNR gain (dB)'
 set key off
-set xtics rotate by -45 left scale 0 ('fillgs' 0, 'random' 1, 'negative' 2, 'interpolation' 3, 'fisherrf' 4, 'coverage3d' 5, 'coverage4d' 6)
-set xrange [-0.6:6.6]
+set xtics rotate by -45 left scale 0 ('fillgs' 0, 'random' 1, 'negative' 2, 'interpolation' 3, 'fisherrf' 4, 'coverage3d' 5, 'coverage4d' 6, 'fillgs@oracle' 7, 'random@oracle' 8, 'negative@oracle' 9, 'interpolation@oracle' 10, 'fisherrf@oracle' 11, 'coverage3d@oracle' 12, 'coverage4d@oracle' 13)
+set xrange [-0.6:13.6]
 set yrange [*<0:*]
 set offsets 0, 0, graph 0.08, 0
 set boxwidth 0.7
