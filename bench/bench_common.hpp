@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <numeric>
 #include <random>
 #include <string>
@@ -15,6 +16,15 @@
 #include "fillgs/base/timing.hpp"
 
 namespace fillgs::bench {
+
+/// A path as a results file names it: under the shared data as "shared/data/...", else by
+/// its file name; never the absolute path of the machine that ran the benchmark.
+inline std::string shown_path(const std::string& path) {
+  const std::string shared = std::filesystem::weakly_canonical(shared_data_dir()).string();
+  const std::string p = std::filesystem::weakly_canonical(path).string();
+  if (p.size() > shared.size() && p.compare(0, shared.size(), shared) == 0 && p[shared.size()] == '/') return "shared/data" + p.substr(shared.size());
+  return std::filesystem::path(path).filename().string();
+}
 
 using fillgs::Clock;
 using fillgs::seconds_since;

@@ -75,7 +75,7 @@ int bench_render(const std::vector<std::string>& args) {
   const GaussianCloud cloud = read_scene(scene);
   const FrameGaussians g = frame_at(cloud, 0.0);
   const int all = std::min(2, tbb::info::default_concurrency());
-  std::printf("scene %s: %zu Gaussians, SH degree %d; vector kernel on %s\n\n", scene.c_str(), cloud.size(), cloud.sh_degree,
+  std::printf("scene %s: %zu Gaussians, SH degree %d; vector kernel on %s\n\n", bench::shown_path(scene).c_str(), cloud.size(), cloud.sh_degree,
               simd_target());
   std::printf("| size | kernel | threads | ms/frame | speed-up vs scalar | visible | Gaussian-pixel evaluations/s per core |\n"
               "|---|---|---|---|---|---|---|\n");

@@ -523,6 +523,36 @@ def make_broken(out, ed3dgs_run):
     torch.save([1, 2.5, "three"], pth)
 
 
+def make_hostile(out, prefix, ed3dgs_run, fourdg_run, fourdgs_run):
+    """Copies with values that are finite but would become indices out of range: an E-D3DGS
+    camera time offset of 3e38 (its grid coordinate 2t - 1 overflows float32 to infinity), a
+    4DGaussians aabb of extent 1e-45 (its scale 2 / extent is infinite in float32), 4DGS active
+    SH degrees of NaN and 1e300. Written as prefix + tag (the refusal tests, the fuzz seeds)."""
+    def copy(run, tag):
+        dst = os.path.join(out, prefix + tag)
+        shutil.copytree(run, dst)
+        return dst
+    def deformation(run):  # the newest iteration's, as the readers take it
+        pc = os.path.join(run, "point_cloud")
+        its = [d for d in os.listdir(pc) if os.path.exists(os.path.join(pc, d, "deformation.pth"))]
+        return os.path.join(pc, max(its, key=lambda d: int(d.split("_")[1])), "deformation.pth")
+    pth = deformation(copy(ed3dgs_run, "offsets_huge"))
+    sd = torch.load(pth)
+    sd["offsets"][1, 0] = 3e38
+    torch.save(sd, pth)
+    pth = deformation(copy(fourdg_run, "aabb"))
+    sd = torch.load(pth)
+    sd["deformation_net.grid.aabb"][0, 0] = 0.0
+    sd["deformation_net.grid.aabb"][1, 0] = 1e-45
+    torch.save(sd, pth)
+    src = [f for f in os.listdir(fourdgs_run) if f.startswith("chkpnt")][0]
+    for tag, degree in (("nan", float("nan")), ("huge", 1e300)):
+        dst = os.path.join(out, prefix + "4dgs_degree_" + tag)
+        os.makedirs(dst)
+        capture, iteration = torch.load(os.path.join(fourdgs_run, src))
+        torch.save(((degree,) + tuple(capture[1:]), iteration), os.path.join(dst, src))
+
+
 def make_bench(out, n, frames):
     """Models with the architectures of each code's N3V (dynerf) configuration and n Gaussians,
     no expected values: bench/trained_models.sh times fillgs on them."""
@@ -566,14 +596,15 @@ def main():
     os.makedirs(out)
     ed = make_ed3dgs(out, "ed3dgs", 1, 14000, dict(width=24, depth=2, min=5, max=16, tdim=16, c2f=10000, deform_from=5000, coarse_emb=True, no_do=False))
     make_ed3dgs(out, "ed3dgs_early", 2, 5600, dict(width=16, depth=1, min=4, max=20, tdim=12, c2f=10000, deform_from=5000, coarse_emb=False, no_do=True))
-    make_4dgaussians(out, "4dgaussians", 3)
-    make_4dgs(out, "4dgs", 4, rot_4d=True)
+    fourdg = make_4dgaussians(out, "4dgaussians", 3)
+    fourdgs = make_4dgs(out, "4dgs", 4, rot_4d=True)
     make_4dgs(out, "4dgs_3drot", 5, rot_4d=False)
     make_dynamic3dgs(out, "dynamic3dgs", 6)
     make_deformable3dgs(out, "deformable3dgs", 8, is_blender=False)
     make_deformable3dgs(out, "deformable3dgs_blender", 9, is_blender=True)
     make_ply_frames(out, "ply_frames", 7)
     make_broken(out, ed)
+    make_hostile(out, "broken_", ed, fourdg, fourdgs)
     make_dtypes(out)
     # Tiny copies: the fuzz harnesses' seeds (tests/fuzz, bench/fuzz).
     fz = os.path.join(out, "fuzz")
@@ -584,6 +615,7 @@ def main():
     make_dynamic3dgs(fz, "dynamic3dgs", 14, n=3, frames=2)
     make_ply_frames(fz, "ply_frames", 15, n=3, frames=2)
     make_deformable3dgs(fz, "deformable3dgs", 16, is_blender=False, n=3, frames=3, iteration=100, width=4)
+    make_hostile(fz, "hostile_", os.path.join(fz, "ed3dgs"), os.path.join(fz, "4dgaussians"), os.path.join(fz, "4dgs"))
     print("model fixtures in", out)
 
 

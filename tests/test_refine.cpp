@@ -306,6 +306,14 @@ TEST_CASE("external refiner: the example script follows the protocol, and failur
     const RefineReport rep2 = refine_patches(*r2, {patches[0]}, join_path(dir, "in"), join_path(dir, "out5"));
     REQUIRE(rep2.failures.size() == 1);
     CHECK(rep2.failures[0].second.find("missing refined image f0000_v1.png") != std::string::npos);
+    // A refined "PNG" that is a link to a text file is named as what it is, not "missing".
+    write_file_atomically(join_path(dir, "notes.txt"), "not an image");
+    auto r3 = make_external_refiner("sh -c 'mkdir -p \"$2\" && ln -s \"$3\" \"$2\"/f0000_v1.png' sh {in} {out} " + join_path(dir, "notes.txt"), 60);
+    const RefineReport rep3 = refine_patches(*r3, {patches[0]}, join_path(dir, "in"), join_path(dir, "out6"));
+    REQUIRE(rep3.failures.size() == 1);
+    INFO(rep3.failures[0].second);
+    CHECK(rep3.failures[0].second.find("missing") == std::string::npos);
+    CHECK(rep3.failures[0].second.find("f0000_v1.png") != std::string::npos);
   }
   CHECK_THROWS_WITH(make_external_refiner("denoise {in}", 1), Catch::Contains("{in} and {out}"));
   // No shell runs the template: its operators are refused before any work, with the way to
@@ -1044,6 +1052,22 @@ TEST_CASE("bench merge: runs from bench folders and results.csv files make one t
   std::string seed = row.substr(0, row.find('\n'));
   seed.replace(seed.find(",1,"), 3, ",1.5,");
   refused(header + "\n" + seed + "\n", "column 2: '1.5' is not a count");
+  // A count kept in an int: 3e9 trajectories is refused, never wrapped to -2147483648.
+  std::vector<std::string> cells;
+  {
+    std::stringstream ls(row.substr(0, row.find('\n')));
+    for (std::string cell; std::getline(ls, cell, ',');) cells.push_back(cell);
+  }
+  cells[12] = "3000000000";
+  std::string wide;
+  for (const std::string& cell : cells) wide += (wide.empty() ? "" : ",") + cell;
+  refused(header + "\n" + wide + "\n", "column 13: '3000000000' is not a count in [0, 2.14748e+09]");
+  // --merge given twice adds to the list (never only the last): the same four runs.
+  const std::string c2 = scratch("merge_twice");
+  const CliResult twice = run_cli({"bench", "--merge", a, "--merge", csv, "--out", c2});
+  INFO(twice.err);
+  REQUIRE(twice.code == 0);
+  CHECK(read_results_csv(join_path(c2, "results.csv")).size() == 4);
 
   const CliResult mixed = run_cli({"bench", "--merge", csv, "--out", c, "--seeds", "1"});
   CHECK(mixed.code != 0);

@@ -9,6 +9,8 @@
 #include <map>
 #include <sstream>
 
+#include <tbb/task_arena.h>
+
 #include "cli_run.hpp"
 #include "helpers.hpp"
 #include "fillgs/base/error.hpp"
@@ -242,6 +244,10 @@ TEST_CASE("trained models: the bare canonical PLY and broken files are refused w
       {F + "/broken_missing", "key 'scales_deform_c.1.bias' missing"},
       {F + "/broken_truncated", "truncated"},
       {F + "/broken_not_state_dict", "is a list, not a state dict"},
+      {F + "/broken_offsets_huge", "key 'offsets' element 1 (3e+38) is no time offset within +-1e+06"},
+      {F + "/broken_aabb", "key 'deformation_net.grid.aabb' has an empty or degenerate extent on axis 0"},
+      {F + "/broken_4dgs_degree_nan", "entry 0 (active SH degree) nan is not a whole number in [0, 3]"},
+      {F + "/broken_4dgs_degree_huge", "entry 0 (active SH degree) 1e+300 is not a whole number in [0, 3]"},
       {F + "/4dgaussians", "give --model-frames"},
       {F + "/4dgs", "--model-time-range"},
       {F + "/deformable3dgs/point_cloud/iteration_40000/point_cloud.ply", "Deformable 3D Gaussians model (a deform/ folder lies beside it)"},
@@ -260,8 +266,31 @@ TEST_CASE("trained models: the bare canonical PLY and broken files are refused w
       CHECK(!fs::exists(out));
     }
   }
+  // Times from the command line: finite, within +-1e6, a span of at least 1e-6.
+  for (const char* range : {"0:1e39", "0:inf", "nan:1", "0:1e-9", "1:0"}) {
+    const auto r = run_cli({"info", "--model-time-range", range, F + "/ed3dgs"});
+    INFO(range << " -> " << r.err);
+    CHECK(r.code == 1);
+    CHECK(r.err.find("--model-time-range") != std::string::npos);
+    CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+  }
+  CHECK(run_cli({"info", "--model-time-range", "-2:3", F + "/ed3dgs"}).code == 0);
   // A 3DGS PLY of a static scene stays readable: the guard looks only at deformation models.
   CHECK(run_cli({"info", F + "/ply_frames/time_00000.ply"}).code == 0);
+}
+
+TEST_CASE("a network's working memory is charged to FILLGS_MAX_ALLOC before it is taken", "[trained-models]") {
+  const std::string dir = fixtures() + "/ed3dgs";
+  const size_t threads = size_t(std::max(1, tbb::this_task_arena::max_concurrency()));
+  // The fixture's widest E-D3DGS layer is its colour head's 48 outputs: 1024 rows x 4 blocks x 4 bytes each.
+  const size_t network = threads * 1024 * 48 * 16;
+  ::setenv("FILLGS_MAX_ALLOC", std::to_string(network / 2).c_str(), 1);
+  CHECK_THROWS_WITH(open_trained_model(dir, SceneFormat::Ed3dgs, {}),
+                    Catch::Contains("E-D3DGS's network evaluation (" + std::to_string(threads) + " threads x 1024 rows x 4 blocks of its widest layer, 48 values)") &&
+                        Catch::Contains("would bring this file's memory to"));
+  ::setenv("FILLGS_MAX_ALLOC", std::to_string(network * 4).c_str(), 1);
+  CHECK(open_trained_model(dir, SceneFormat::Ed3dgs, {})->size() > 0);
+  ::unsetenv("FILLGS_MAX_ALLOC");
 }
 
 TEST_CASE(".pth tensors of every dtype and strides read as PyTorch converts them to float", "[trained-models]") {

@@ -37,8 +37,28 @@ std::string join_path(const std::string& a, const std::string& b) {
   return (fs::path(a) / b).string();
 }
 
+namespace {
+/// What a file system entry that is not a regular file is, for a message.
+const char* not_a_file(mode_t mode) {
+  return S_ISDIR(mode)    ? "is a directory"
+         : S_ISFIFO(mode) ? "is a named pipe"
+         : S_ISCHR(mode)  ? "is a character device"
+         : S_ISBLK(mode)  ? "is a block device"
+         : S_ISSOCK(mode) ? "is a socket"
+                          : "is not a regular file";
+}
+}  // namespace
+
+void require_replaceable(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return;  // nothing there (or a dangling link): a new file
+  if (S_ISREG(st.st_mode)) return;
+  throw_error(path, ": ", not_a_file(st.st_mode), "; fillgs replaces only regular files with its output");
+}
+
 void write_atomically(const std::string& path, const std::function<void(const std::string&)>& write) {
   const fs::path target(path);
+  require_replaceable(path);
   if (target.has_parent_path()) make_directories(target.parent_path().string());
   const fs::path tmp = temporary_name(path);
   // The temporary file exists and is locked (flock) while it is written, so that only a
@@ -112,6 +132,7 @@ std::string unique_token() {
 const char* const kStagingMark = ".fillgs-staging-";  ///< a staging folder's name holds this
 const char* const kTempMark = ".fillgs-tmp-";          ///< a temporary file's name holds this
 const char* const kLockName = ".fillgs-lock";          ///< held (flock) inside a live staging folder
+const char* const kIncomplete = ".fillgs-commit-incomplete";  ///< in a folder while a commit moves files into it
 
 /// True when `file` is a regular file (not followed through a link) that no process holds
 /// a lock on: its writer ended without cleaning up. A file that cannot be opened or locked
@@ -160,13 +181,15 @@ std::vector<std::string> files_under(const fs::path& root, const std::string& sk
   return out;
 }
 
-std::vector<std::string> read_manifest(const fs::path& dir) {
+std::vector<std::string> read_manifest_file(const fs::path& file) {
   std::vector<std::string> out;
-  std::ifstream in(dir / kManifest);
+  std::ifstream in(file);
   for (std::string line; std::getline(in, line);)
     if (!line.empty() && line[0] != '#') out.push_back(line);
   return out;
 }
+
+std::vector<std::string> read_manifest(const fs::path& dir) { return read_manifest_file(dir / kManifest); }
 
 std::string manifest_text(const std::vector<std::string>& files) {
   std::string t = "# The files the last fillgs command wrote into this folder; the next one removes those it does not write again.\n";
@@ -315,7 +338,16 @@ void OutputFolder::commit() {
     // An existing folder holds the user's files too, so it cannot be swapped whole: the new
     // files replace the old ones one rename each, then the previous command's files that
     // this one did not write go. A commit that stops half-way says what it left.
-    const std::vector<std::string> previous = read_manifest(dir_);
+    // The moves are many renames: while they run, a marker in the folder says so, with the
+    // files being moved. A commit killed half-way leaves it; readers refuse the folder's
+    // files (require_regular_file) and the next commit also removes the files it names.
+    std::vector<std::string> previous = read_manifest(dir_);
+    const fs::path marker = fs::path(dir_) / kIncomplete;
+    if (fs::exists(marker, ec)) {
+      std::vector<std::string> interrupted = read_manifest_file(marker);
+      previous.insert(previous.end(), interrupted.begin(), interrupted.end());
+    }
+    write_file_atomically(marker.string(), manifest_text(files));
     size_t moved = 0;
     try {
       move_into(staging_, dir_, kLockName, moved);  // also when staging inside dir_: its entries move up one level
@@ -332,6 +364,7 @@ void OutputFolder::commit() {
       for (fs::path p = stale.parent_path(); p != fs::path(dir_) && p.string().size() > dir_.size(); p = p.parent_path())
         if (!fs::remove(p, ec)) break;
     }
+    fs::remove(marker, ec);
   }
   committed_ = true;
 }
@@ -356,6 +389,21 @@ UnfinishedMarker::UnfinishedMarker(const std::string& dir, const std::string& co
                            ") is writing this folder, or stopped before it finished: its files are not a finished run.\n";
   if (::ftruncate(fd_, 0) != 0 || ::write(fd_, text.data(), text.size()) != ssize_t(text.size()))
     throw_error(path_, ": cannot write (", std::strerror(errno), ")");
+  // What a killed run left in the folder it wrote directly (a chart's temporary PNG, its
+  // gnuplot log), proved by unheld locks, goes now; this command holds the folder.
+  sweep(dir, kStagingMark, 3);
+}
+
+LockedTemporary::LockedTemporary(const std::string& beside) : path_(temporary_name(beside)) {
+  fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw_error(beside, ": cannot write (", std::strerror(errno), " creating ", path_, ")");
+  ::flock(fd_, LOCK_EX);
+}
+
+LockedTemporary::~LockedTemporary() {
+  std::error_code ec;
+  fs::remove(path_, ec);
+  ::close(fd_);
 }
 
 void UnfinishedMarker::finish() {
@@ -373,14 +421,22 @@ UnfinishedMarker::~UnfinishedMarker() {
 void require_regular_file(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) throw_error(path, ": cannot open (", std::strerror(errno), ")");
-  if (S_ISREG(st.st_mode)) return;
-  const char* what = S_ISDIR(st.st_mode)    ? "is a directory"
-                     : S_ISFIFO(st.st_mode) ? "is a named pipe"
-                     : S_ISCHR(st.st_mode)  ? "is a character device"
-                     : S_ISBLK(st.st_mode)  ? "is a block device"
-                     : S_ISSOCK(st.st_mode) ? "is a socket"
-                                            : "is not a regular file";
-  throw_error(path, ": ", what, ", expected a file");
+  if (S_ISREG(st.st_mode)) {
+    // A file of a folder whose commit was killed half-way may be the new run's or the old
+    // one's: refused, naming the marker (outputs nest at most three folders deep).
+    fs::path dir = fs::path(path).parent_path();
+    for (int level = 0; level < 4; ++level) {
+      const fs::path marker = (dir.empty() ? fs::path(".") : dir) / kIncomplete;
+      if (::stat(marker.c_str(), &st) == 0)
+        throw_error(path, ": the fillgs command that wrote ", dir.empty() ? std::string(".") : dir.string(),
+                    " was killed while moving its files into place (", marker.string(),
+                    " is there), so its files mix two runs; run that command again");
+      if (dir.empty() || dir == dir.parent_path()) break;
+      dir = dir.parent_path();
+    }
+    return;
+  }
+  throw_error(path, ": ", not_a_file(st.st_mode), ", expected a file");
 }
 
 std::string read_file(const std::string& path) {

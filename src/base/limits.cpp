@@ -65,12 +65,52 @@ size_t checked_mul(size_t a, size_t b, const std::string& source, const std::str
   return a * b;
 }
 
+size_t checked_add(size_t a, size_t b, const std::string& source, const std::string& what) {
+  if (b > std::numeric_limits<size_t>::max() - a) throw_error(source, ": ", what, " overflows (", a, " + ", b, ")");
+  return a + b;
+}
+
+void AllocationBudget::charge(size_t bytes, const std::string& what) {
+  if (cap_ == 0) cap_ = allocation_cap();
+  const size_t total = checked_add(used_, bytes, source_, what);
+  if (total > cap_) {
+    const char* limit = std::getenv("FILLGS_MAX_ALLOC") ? "FILLGS_MAX_ALLOC" : memory_limit().source;
+    throw_error(source_, ": ", what, " would bring this file's memory to ", total, " bytes, more than the ", cap_, " this process may use (",
+                limit, ")");
+  }
+  used_ = total;
+}
+
 void check_allocation(size_t bytes, const std::string& source, const std::string& what) {
   const size_t cap = allocation_cap();
   if (bytes <= cap) return;
   if (std::getenv("FILLGS_MAX_ALLOC")) throw_error(source, ": ", what, " would need ", bytes, " bytes, more than FILLGS_MAX_ALLOC's ", cap);
   const MemoryLimit m = memory_limit();
   throw_error(source, ": ", what, " would need ", bytes, " bytes, more than the ", cap, " this process may use (", m.source, ")");
+}
+
+size_t first_invalid_utf8(const std::string& text) {
+  const size_t n = text.size();
+  for (size_t i = 0; i < n;) {
+    const unsigned c = static_cast<unsigned char>(text[i]);
+    if (c < 0x80) {
+      ++i;
+      continue;
+    }
+    size_t len = 0;
+    unsigned lo = 0x80, hi = 0xBF;  // the allowed range of the second byte (RFC 3629, table 3-7)
+    if (c >= 0xC2 && c <= 0xDF) len = 2;
+    else if (c >= 0xE0 && c <= 0xEF) len = 3, lo = c == 0xE0 ? 0xA0 : 0x80, hi = c == 0xED ? 0x9F : 0xBF;
+    else if (c >= 0xF0 && c <= 0xF4) len = 4, lo = c == 0xF0 ? 0x90 : 0x80, hi = c == 0xF4 ? 0x8F : 0xBF;
+    else return i;
+    if (n - i < len) return i;
+    for (size_t k = 1; k < len; ++k) {
+      const unsigned b = static_cast<unsigned char>(text[i + k]);
+      if (k == 1 ? (b < lo || b > hi) : (b < 0x80 || b > 0xBF)) return i;
+    }
+    i += len;
+  }
+  return std::string::npos;
 }
 
 namespace {

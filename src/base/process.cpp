@@ -4,13 +4,17 @@
 #include <poll.h>
 #include <pthread.h>
 #include <signal.h>
+#include <dirent.h>
 #include <spawn.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <fstream>
+#include <set>
 #include <thread>
 
 #include "fillgs/base/error.hpp"
@@ -60,6 +64,42 @@ struct SpawnSetup {
   SpawnSetup& operator=(const SpawnSetup&) = delete;
 };
 
+/// The processes whose parent is this one (from /proc/N/stat), less those in `keep`.
+std::vector<pid_t> children_except(const std::set<pid_t>& keep) {
+  std::vector<pid_t> out;
+  const pid_t self = ::getpid();
+  DIR* d = ::opendir("/proc");
+  if (!d) return out;
+  while (const dirent* e = ::readdir(d)) {
+    char* end = nullptr;
+    const long pid = std::strtol(e->d_name, &end, 10);
+    if (pid <= 0 || *end != '\0' || keep.count(pid_t(pid))) continue;
+    std::ifstream in(std::string("/proc/") + e->d_name + "/stat");
+    std::string stat;
+    std::getline(in, stat);
+    const size_t close = stat.rfind(')');  // the name may hold spaces and parentheses
+    if (close == std::string::npos) continue;
+    char state = 0;
+    long ppid = 0;
+    if (std::sscanf(stat.c_str() + close + 1, " %c %ld", &state, &ppid) == 2 && ppid == self) out.push_back(pid_t(pid));
+  }
+  ::closedir(d);
+  return out;
+}
+
+/// Ends every process the program started: its process group at once, then, round by
+/// round, the children this process inherited as their subreaper (those that left the group
+/// with setsid, and the orphans of each round's kills), reaping each.
+void end_descendants(pid_t group, const std::set<pid_t>& keep) {
+  ::kill(-group, SIGKILL);
+  for (int round = 0; round < 10000; ++round) {
+    const std::vector<pid_t> kids = children_except(keep);
+    if (kids.empty()) return;
+    for (pid_t k : kids) ::kill(k, SIGKILL);
+    for (pid_t k : kids) ::waitpid(k, nullptr, 0);
+  }
+}
+
 double seconds_left(Clock::time_point deadline) { return std::chrono::duration<double>(deadline - Clock::now()).count(); }
 
 }  // namespace
@@ -99,6 +139,14 @@ ProcessResult run_process(const std::vector<std::string>& argv, const ProcessOpt
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   NoSigpipe no_sigpipe;
+  std::set<pid_t> earlier;  // children of this process from before: not the program's
+  if (o.end_descendants) {
+    // Orphans of the program's processes come to this process instead of init, so that a
+    // child that called setsid cannot outlive the call.
+    static const bool subreaper = ::prctl(PR_SET_CHILD_SUBREAPER, 1) == 0;
+    (void)subreaper;
+    for (pid_t c : children_except({})) earlier.insert(c);
+  }
   pid_t pid = 0;
   const int rc = posix_spawnp(&pid, argv[0].c_str(), &s.actions, &s.attr, args.data(), environ);
   ::close(in_pipe[0]);
@@ -129,14 +177,18 @@ ProcessResult run_process(const std::vector<std::string>& argv, const ProcessOpt
 
   int status = 0;
   for (;;) {
-    const pid_t w = ::waitpid(pid, &status, WNOHANG);
-    if (w == pid) break;
+    // Waited for without reaping (WNOWAIT): until it is reaped its pid, which names its
+    // process group, cannot be reused, so the group is ended before that.
+    siginfo_t info{};
+    const int w = ::waitid(P_PID, id_t(pid), &info, WEXITED | WNOHANG | WNOWAIT);
+    if (w == 0 && info.si_pid == pid) break;
     if (w < 0 && errno != EINTR) {
       r.error = std::string("lost the process (") + std::strerror(errno) + ")";
       return r;
     }
     if (out_of_time()) {
       ::kill(-pid, SIGKILL);
+      if (o.end_descendants) end_descendants(pid, earlier);
       ::waitpid(pid, &status, 0);
       r.timed_out = true;
       r.status = -1;
@@ -144,6 +196,12 @@ ProcessResult run_process(const std::vector<std::string>& argv, const ProcessOpt
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
+  if (o.end_descendants) {
+    std::set<pid_t> keep = earlier;
+    keep.insert(pid);  // reaped below, for its status
+    end_descendants(pid, keep);
+  }
+  ::waitpid(pid, &status, 0);
   if (WIFEXITED(status)) r.status = WEXITSTATUS(status);
   else r.status = 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
   return r;

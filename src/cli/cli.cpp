@@ -545,9 +545,13 @@ int train(const TrainFlags& f, const Invocation& in) {
   PointSet init_points;  // written beside the model when made from the views
   if (in.given("--resume")) {
     trainer = std::make_unique<Trainer>(Trainer::resume(data, f.resume, o));
-    if (trainer->iteration() >= iterations)
+    // A checkpoint at exactly --iterations is a run killed after its last checkpoint and
+    // before its model was written: resuming it writes the model, training nothing more.
+    if (trainer->iteration() > iterations)
       in.fail("--iterations ", iterations, ": ", f.resume, " is already at iteration ", trainer->iteration(),
-              "; give more iterations to continue it");
+              "; give at least that many iterations to continue it");
+    if (trainer->iteration() == iterations)
+      in.out << f.resume << " is at iteration " << iterations << ", the last: writing the model from it\n";
   } else {
     // Initial points: --points, else points.ply beside the cameras, else from the views
     // (init.hpp: random points the first frame's cameras see, plus the foreground's visual

@@ -84,6 +84,7 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   check_selection(in, o.select);
   o.weighting = f.finetune.weighting;
   o.mask = f.finetune.mask;
+  o.allow_failed_refinement = f.finetune.allow_failed_refinement;
   if (in.given("--confidence")) {
     o.mask.method = MaskMethod::External;
     o.mask.external_dir = f.confidence;
@@ -207,6 +208,8 @@ Action declare_finetune(CLI::App& app) {
              positive());
   add_text(app, "--refiner-command", f->refiner_command, "external: the command, with {in} and {out}", "CMD");
   add_number(app, "--refiner-timeout", f->refiner_timeout, "external: seconds per patch", positive());
+  add_flag(app, "--allow-failed-refinement", o.allow_failed_refinement,
+           "go on when the refiner fails on every patch of a round (default: that ends the run with an error, nothing written)");
   add_text(app, "--truth", f->truth, "oracle/reference: the ground-truth scene (warp: only for its records)", "PATH");
   add_number(app, "--artifact-strength", f->oracle.artifacts.strength, "oracle/reference/warp: strength of the simulated refiner artifacts", at_least(0));
   add_choice(app, "--support", f->oracle.support, "oracle: truth everywhere, or only where the training cameras observed");

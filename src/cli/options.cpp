@@ -95,10 +95,14 @@ CLI::Option* add_list(CLI::App& app, const std::string& flag, std::vector<std::s
   CLI::Option* o = app.add_option(
       flag,
       [&dest](const CLI::results_t& r) {
-        dest = split_commas(r.back());
+        // Given again, a list grows: --merge a --merge b,c is a,b,c (never only the last).
+        dest.clear();
+        for (const std::string& part : r)
+          for (std::string& item : split_commas(part)) dest.push_back(std::move(item));
         return true;
       },
       help);
+  o->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   o->type_name("A,B,..");
   std::string def;
   for (const std::string& s : dest) def += (def.empty() ? "" : ",") + s;
@@ -195,6 +199,12 @@ void add_dataset_flags(CLI::App& app, DatasetOptions& o, const std::string& came
              "a camera file of held-out cameras: any training or pool camera standing where one of them stands is refused, before an image is read",
              "PATH")
         ->group("Image options");
+  if (cameras_flag == "--train-cameras") {
+    add_number(app, "--held-out-distance", o.held_out_distance, "--held-out: centres this close (world units) count as the same camera", at_least(0))
+        ->group("Image options");
+    add_number(app, "--held-out-angle", o.held_out_degrees, "--held-out: and viewing directions this close (degrees)", within(0, 180))
+        ->group("Image options");
+  }
   add_bytes(app, "--image-memory", o.image_memory, double(int64_t(1) << 30), "GB",
             "images beyond this wait in a temporary file in $TMPDIR, read on demand (default: a quarter of the machine's memory)")
       ->group("Image options");

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <tuple>
+#include <unordered_map>
 #include <nlohmann/json.hpp>
 #include <ostream>
 #include <set>
@@ -178,7 +180,12 @@ namespace {
 void sort_by_configuration(std::vector<RunResult>::iterator first, std::vector<RunResult>::iterator last) {
   std::vector<std::string> order = {"backbone"};
   for (const RunConfig& c : standard_configs(Weighting::ExploreGS, 0.5, values_of<BenchRefiner>())) order.push_back(c.id);
-  auto rank = [&](const std::string& id) { return size_t(std::find(order.begin(), order.end(), id) - order.begin()); };
+  std::unordered_map<std::string, size_t> ranks;  // first place of each id; others after every listed one
+  for (size_t k = 0; k < order.size(); ++k) ranks.emplace(order[k], k);
+  auto rank = [&](const std::string& id) {
+    const auto it = ranks.find(id);
+    return it == ranks.end() ? order.size() : it->second;
+  };
   std::stable_sort(first, last, [&](const RunResult& a, const RunResult& b) { return rank(a.id) != rank(b.id) ? rank(a.id) < rank(b.id) : a.id < b.id; });
 }
 
@@ -243,11 +250,15 @@ std::vector<RunResult> read_results_csv(const std::string& path) {
       if (!parse_number(f[k], &x)) throw_error(path, ": ", where, " column ", k + 1, ": '", f[k], "' is not a number");
       return x;
     };
-    auto count = [&](size_t k) {
+    // A count read into an int holds at most INT_MAX: 3e9 trajectories is refused, not
+    // wrapped to a negative number.
+    auto count = [&](size_t k, double max = 9.0e15) {
       const double x = num(k);
-      if (!(x >= 0 && x == std::floor(x) && x < 9.0e15)) throw_error(path, ": ", where, " column ", k + 1, ": '", f[k], "' is not a count");
+      if (!(x >= 0 && x == std::floor(x) && x <= max))
+        throw_error(path, ": ", where, " column ", k + 1, ": '", f[k], "' is not a count in [0, ", max, "]");
       return x;
     };
+    constexpr double kIntMax = 2147483647.0;
     RunResult r;
     r.variant = f[0];
     r.seed = uint64_t(count(1));
@@ -264,10 +275,10 @@ std::vector<RunResult> read_results_csv(const std::string& path) {
     r.interpolation.psnr = num(5), r.interpolation.ssim = num(6), r.interpolation.psnr_moving = num(7);
     r.extrapolation.psnr = num(8), r.extrapolation.ssim = num(9), r.extrapolation.psnr_moving = num(10);
     r.train.psnr = num(11);
-    r.trajectories = int(count(12));
+    r.trajectories = int(count(12, kIntMax));
     r.views_added = size_t(count(13));
     r.mean_weight = num(14), r.support_share = num(15);
-    r.refine_failures = int(count(16));
+    r.refine_failures = int(count(16, kIntMax));
     r.seconds_select = num(17), r.seconds_refine = num(18), r.seconds_weights = num(19), r.seconds_train = num(20), r.seconds_eval = num(21),
     r.seconds_total = num(22);
     out.push_back(std::move(r));
@@ -291,14 +302,16 @@ std::vector<RunResult> merge_results(const std::vector<std::string>& inputs) {
   auto same = [](double a, double b) { return (std::isnan(a) && std::isnan(b)) || std::abs(a - b) <= 1e-5 * std::max(1.0, std::abs(a)); };
   std::vector<RunResult> out;
   std::vector<std::string> sources;
+  std::map<std::tuple<std::string, uint64_t, std::string>, size_t> index;  // (variant, seed, id) -> row: linear in rows, not quadratic
   for (const Found& f : all) {
     const RunResult& r = f.result;
-    auto it = std::find_if(out.begin(), out.end(), [&](const RunResult& x) { return x.variant == r.variant && x.seed == r.seed && x.id == r.id; });
-    if (it == out.end()) {
+    const auto [slot, fresh] = index.emplace(std::make_tuple(r.variant, r.seed, r.id), out.size());
+    if (fresh) {
       out.push_back(r);
       sources.push_back(f.source);
       continue;
     }
+    const auto it = out.begin() + ptrdiff_t(slot->second);
     const std::pair<double, double> metrics[] = {{it->interpolation.psnr, r.interpolation.psnr},
                                                  {it->interpolation.psnr_moving, r.interpolation.psnr_moving},
                                                  {it->extrapolation.psnr, r.extrapolation.psnr},

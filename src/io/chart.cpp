@@ -115,7 +115,10 @@ void draw(const std::string& png_path, const std::string& csv, const std::string
 
   // gnuplot runs with an argument vector, not through a shell, and reads its script on
   // stdin: every path in it is a gnuplot string literal (quoted), never shell syntax.
-  const std::string log_path = join_path(dir, "." + stem_name + ".gnuplot" + std::to_string(::getpid()) + ".log");
+  // The log is a locked temporary file: a run killed while gnuplot draws leaves it unlocked,
+  // and the next command on the folder removes it (as it does the PNG's temporary file).
+  const LockedTemporary log(join_path(dir, stem_name + ".gnuplot.log"));
+  const std::string& log_path = log.path();
   std::string why;
   try {
     if (png_path.find('\n') != std::string::npos) throw_error(png_path, ": a line break in the path");
@@ -140,8 +143,6 @@ void draw(const std::string& png_path, const std::string& csv, const std::string
     std::cerr << "warning: " << png_path << " not drawn (" << why << "); its data and script are in " << stem_name << ".csv and "
               << stem_name << ".gp\n";
   }
-  std::error_code ec;
-  fs::remove(log_path, ec);
 }
 
 std::string title_lines(const PlotLabels& labels) {

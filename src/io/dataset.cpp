@@ -228,10 +228,13 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
     const std::vector<Camera> held = read_cameras(opt.held_out);
     for (const TrainView& v : d.views_)
       for (const Camera& h : held) {
-        const Vec3d c = h.centre();
-        if ((v.camera.centre() - c).norm() <= 1e-6 * (1.0 + c.norm()) && (v.camera.R - h.R).norm() <= 1e-6)
-          throw_error(cameras_path, ": camera '", v.rig, "' stands where held-out camera '", h.name, "' of ", opt.held_out,
-                      " stands: a held-out camera is never trained on, pooled or chosen");
+        // The angle of the relative rotation R_v R_h^T: acos((trace - 1) / 2).
+        const double cos_angle = std::clamp(((v.camera.R * h.R.transpose()).trace() - 1.0) / 2.0, -1.0, 1.0);
+        const double distance = (v.camera.centre() - h.centre()).norm(), degrees = std::acos(cos_angle) * 180.0 / kPi;
+        if (distance <= opt.held_out_distance && degrees <= opt.held_out_degrees)
+          throw_error(cameras_path, ": camera '", v.rig, "' stands where held-out camera '", h.name, "' of ", opt.held_out, " stands (",
+                      distance, " units and ", degrees, " degrees apart; within --held-out-distance ", opt.held_out_distance,
+                      " and --held-out-angle ", opt.held_out_degrees, "): a held-out camera is never trained on, pooled or chosen");
       }
   }
   // Foreground masks where a seg/ folder stands beside the camera file.

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <limits>
 #include <unordered_map>
+#include <unordered_set>
 
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/fs_util.hpp"
@@ -58,6 +59,7 @@ void ZipArchive::parse() {
   }
   if (cd_offset > n || cd_size > n - cd_offset) throw_error(source_, ": central directory lies outside the file (truncated?)");
   if (count > cd_size / 46) throw_error(source_, ": central directory holds ", count, " entries in ", cd_size, " bytes");
+  std::unordered_set<std::string> seen;
   size_t at = size_t(cd_offset);
   const size_t end = size_t(cd_offset + cd_size);
   for (uint64_t e = 0; e < count; ++e) {
@@ -93,6 +95,9 @@ void ZipArchive::parse() {
       x += 4 + size_t(len);
     }
     if (flags & 1) throw_error(source_, ": entry '", name, "' is encrypted");
+    // Two entries of one name are read differently by different programs (NumPy takes the
+    // last, a first-match reader the first): refused rather than choose.
+    if (!seen.insert(name).second) throw_error(source_, ": entry '", name, "' appears twice in the central directory");
     if (en.method != 0 && en.method != 8)
       throw_error(source_, ": entry '", name, "' uses compression method ", en.method, " (fillgs reads stored and deflated entries)");
     names_.push_back(std::move(name));
@@ -114,6 +119,7 @@ std::string ZipArchive::read(const std::string& name) const {
   if (data > b.size() || en.compressed > b.size() - data)
     throw_error(source_, ": entry '", name, "' needs ", en.compressed, " bytes, the file ends ", b.size() - std::min(data, b.size()),
                 " bytes after its start (truncated?)");
+  budget_.charge(size_t(en.size), "entry '" + name + "' (" + std::to_string(en.size) + " bytes)");
   std::string out;
   if (en.method == 0) {
     if (en.size != en.compressed) throw_error(source_, ": stored entry '", name, "' has two sizes (", en.size, ", ", en.compressed, ")");
@@ -153,7 +159,12 @@ const char* PickleValues::kind_text(Kind k) {
 }
 
 double PickleValues::number(Ref r) const { return kind(r) == Kind::Float ? values_[r].f : double(values_[r].i); }
-int64_t PickleValues::integer(Ref r) const { return kind(r) == Kind::Float ? int64_t(values_[r].f) : values_[r].i; }
+int64_t PickleValues::integer(Ref r) const {
+  if (kind(r) != Kind::Float) return values_[r].i;
+  const double f = values_[r].f;
+  // NaN, infinities and floats beyond int64 have no integer value (converting them is undefined).
+  return f > -9.2e18 && f < 9.2e18 ? int64_t(f) : std::numeric_limits<int64_t>::min();
+}
 
 PickleValues::Ref PickleValues::find(Ref dict, const std::string& key) const {
   if (kind(dict) != Kind::Dict) return UINT32_MAX;
@@ -165,7 +176,8 @@ PickleValues::Ref PickleValues::find(Ref dict, const std::string& key) const {
 
 class PickleMachine {
  public:
-  PickleMachine(const std::string& bytes, const std::string& source, PickleValues& out) : b_(bytes), src_(source), v_(out.values_) {}
+  PickleMachine(const std::string& bytes, const std::string& source, PickleValues& out, AllocationBudget& budget)
+      : b_(bytes), src_(source), v_(out.values_), budget_(budget) {}
 
   PickleValues::Ref run() {
     using K = PickleValues::Kind;
@@ -270,6 +282,7 @@ class PickleMachine {
         case '2': pop_mark(); break;
         case '.': {
           if (stack_.size() != 1) fail("STOP with ", stack_.size(), " values on the stack");
+          charge(0, true);
           return stack_.back();
         }
         default: fail("unsupported pickle opcode 0x", hex(op), " at byte ", at_ - 1);
@@ -302,8 +315,18 @@ class PickleMachine {
     at_ = e + 1;
     return s;
   }
+  /// Memory the values take, charged to the budget in steps of 1 MB (and at the end).
+  void charge(size_t bytes, bool now = false) {
+    pending_ += bytes;
+    if (pending_ >= (size_t(1) << 20) || now) {
+      budget_.charge(pending_, "pickle values (" + std::to_string(v_.size()) + " so far)");
+      pending_ = 0;
+    }
+  }
   Ref make(K k) {
     if (v_.size() >= (size_t(1) << 31)) fail("holds too many values");
+    // The arena doubles as it grows: charge what the vector holds, not only this value.
+    charge(sizeof(PickleValues::Value) * (v_.size() == v_.capacity() ? std::max<size_t>(v_.size(), 1) : 0));
     v_.emplace_back();
     v_.back().kind = k;
     return Ref(v_.size() - 1);
@@ -319,6 +342,7 @@ class PickleMachine {
     return r;
   }
   Ref str(K k, std::string s) {
+    charge(s.size());
     const Ref r = make(k);
     v_[r].text = std::move(s);
     return r;
@@ -359,13 +383,15 @@ class PickleMachine {
     return out;
   }
   Ref tuple(std::vector<Ref> items) {
+    charge(items.size() * sizeof(Ref));
     const Ref r = make(K::Tuple);
     v_[r].items = std::move(items);
     return r;
   }
   void memo(size_t index) {
     if (index > 10000000) fail("memo index ", index, " out of range");
-    memo_[index] = top();
+    if (memo_.emplace(index, top()).second) charge(64);  // a hash-map node
+    else memo_[index] = top();
   }
   void recall(size_t index) {
     const auto it = memo_.find(index);
@@ -375,11 +401,13 @@ class PickleMachine {
   void append(Ref list, const std::vector<Ref>& xs) {
     if (v_[list].kind != K::List) fail("APPEND to a ", kind_name(list));
     auto& items = v_[list].items;
+    charge(xs.size() * sizeof(Ref));
     items.insert(items.end(), xs.begin(), xs.end());
   }
   void set_items(Ref dict, const std::vector<Ref>& kv) {
     if (v_[dict].kind != K::Dict) fail("SETITEM on a ", kind_name(dict));
     auto& items = v_[dict].items;
+    charge(kv.size() * sizeof(Ref));
     items.insert(items.end(), kv.begin(), kv.end());
   }
   const char* kind_name(Ref r) const { return PickleValues::kind_text(v_[r].kind); }
@@ -441,7 +469,10 @@ class PickleMachine {
     if (name == "collections.OrderedDict" || name == "builtins.dict") return make(K::Dict);
     if (name == "builtins.set" || name == "builtins.frozenset") {
       const Ref r = make(K::List);
-      if (!a.empty() && v_[a[0]].kind == K::List) v_[r].items = v_[a[0]].items;
+      if (!a.empty() && v_[a[0]].kind == K::List) {
+        charge(v_[a[0]].items.size() * sizeof(Ref));
+        v_[r].items = v_[a[0]].items;
+      }
       return r;
     }
     const Ref r = make(K::Object);
@@ -452,13 +483,15 @@ class PickleMachine {
   const std::string& b_;
   const std::string& src_;
   std::vector<PickleValues::Value>& v_;
-  size_t at_ = 0;
+  AllocationBudget& budget_;
+  size_t at_ = 0, pending_ = 0;
   std::vector<Ref> stack_;
   std::unordered_map<size_t, Ref> memo_;
 };
 
-void run_pickle(const std::string& bytes, const std::string& source, PickleValues& values) {
-  PickleMachine m(bytes, source, values);
+void run_pickle(const std::string& bytes, const std::string& source, PickleValues& values, AllocationBudget* budget) {
+  AllocationBudget own(source);
+  PickleMachine m(bytes, source, values, budget ? *budget : own);
   values.root_ = m.run();
 }
 
@@ -492,7 +525,7 @@ TorchFile::TorchFile(const std::string& path)
     const std::string order = zip_.read(prefix_ + "byteorder");
     if (order != "little") throw_error(path, ": tensors stored ", order.substr(0, 20), "-endian; fillgs reads little-endian");
   }
-  run_pickle(zip_.read(pkl), path + " (" + pkl + ")", *this);
+  run_pickle(zip_.read(pkl), path + " (" + pkl + ")", *this, &zip_.budget());
 }
 
 std::string TorchTensor::shape_text() const {
@@ -512,20 +545,29 @@ TorchTensor TorchFile::tensor(Ref r, const std::string& what) const {
                       : out.dtype == "float32" || out.dtype == "int32" ? 4
                       : out.dtype == "float16" || out.dtype == "bfloat16" || out.dtype == "int16" ? 2
                                                                                                    : 1;
+  // Every extent is computed with checked arithmetic: a stride of 2^61 must not wrap the
+  // last element's index around to a small one.
+  const std::string sz = what + " extent";
   size_t numel = 1, last = size_t(t.offset);
   for (size_t d = 0; d < t.shape.size(); ++d) {
     numel = checked_mul(numel, size_t(t.shape[d]), source_, what + " size");
-    if (t.shape[d] > 0) last += size_t(t.shape[d] - 1) * size_t(t.stride[d]);
+    if (t.shape[d] > 0) last = checked_add(last, checked_mul(size_t(t.shape[d] - 1), size_t(t.stride[d]), source_, sz), source_, sz);
   }
-  const std::string data = zip_.read(prefix_ + "data/" + st.text);
+  const std::string& data = storage(st.text, what);
   const size_t have = data.size() / item;
-  if (numel > 0 && (last >= have || size_t(st.offset) > have))
+  const size_t declared = size_t(st.offset);
+  if (declared != have || data.size() % item)
+    throw_error(source_, ": ", what, ": its storage '", st.text.substr(0, 40), "' declares ", declared, " elements of ", out.dtype, ", its entry holds ",
+                data.size(), " bytes");
+  if (numel > 0 && last >= have)
     throw_error(source_, ": ", what, " of shape ", out.shape_text(), " reaches element ", last, " of a storage of ", have);
   // Zero strides repeat elements; a saved parameter repeats none, so a tensor far larger than
   // its storage is a corrupt header, not data.
   if (numel > 64 * std::max<size_t>(have, 1) + 1024)
     throw_error(source_, ": ", what, " of shape ", out.shape_text(), " has ", numel, " elements from a storage of ", have);
-  check_allocation(checked_mul(numel, sizeof(float), source_, what + " size"), source_, what);
+  const size_t bytes = checked_mul(numel, sizeof(float), source_, what + " size");
+  check_allocation(bytes, source_, what);
+  zip_.budget().charge(bytes, what + " (" + std::to_string(numel) + " values)");
   out.values.resize(numel);
   std::vector<int64_t> idx(t.shape.size(), 0);
   for (size_t i = 0; i < numel; ++i) {
@@ -562,6 +604,14 @@ TorchTensor TorchFile::tensor(Ref r, const std::string& what) const {
     }
   }
   return out;
+}
+
+const std::string& TorchFile::storage(const std::string& key, const std::string& what) const {
+  const auto it = storages_.find(key);
+  if (it != storages_.end()) return it->second;
+  const std::string entry = prefix_ + "data/" + key;
+  if (!zip_.has(entry)) throw_error(source_, ": ", what, ": its storage '", key.substr(0, 40), "' has no entry ", entry.substr(0, 80), " in the archive");
+  return storages_.emplace(key, zip_.read(entry)).first->second;
 }
 
 std::vector<std::pair<std::string, PickleValues::Ref>> TorchFile::string_entries(Ref dict, const std::string& what) const {

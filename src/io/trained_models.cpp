@@ -1,6 +1,7 @@
 #include "fillgs/io/trained_models.hpp"
 
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -31,10 +32,23 @@ namespace {
 // ---------------------------------------------------------------------------------
 // cfg_args: the repr of an argparse Namespace
 
+std::string hex_byte(char c) {
+  const char* d = "0123456789abcdef";
+  const unsigned u = static_cast<unsigned char>(c);
+  return std::string{d[u >> 4], d[u & 15]};
+}
+
 class LiteralParser {
  public:
   LiteralParser(const std::string& s, const std::string& src) : s_(s), src_(src) {}
   nlohmann::json parse() {
+    // Python writes str() as UTF-8; any other byte would surface later, in a JSON writer,
+    // as a message that names no file.
+    const size_t bad = first_invalid_utf8(s_);
+    if (bad != std::string::npos) {
+      at_ = bad;
+      fail("invalid UTF-8 byte 0x" + hex_byte(s_[bad]));
+    }
     nlohmann::json v = value(0);
     space();
     if (at_ != s_.size()) fail("unexpected text after the value");
@@ -365,6 +379,27 @@ void add_heads(const std::vector<Linear> (&heads)[5], const RowMat& h, size_t fi
 
 constexpr size_t kBlock = 1024;  // rows per matrix product
 
+/// The widest layer side (inputs or outputs) of the networks given.
+size_t widest(std::initializer_list<const std::vector<Linear>*> nets) {
+  size_t w = 0;
+  for (const std::vector<Linear>* n : nets)
+    for (const Linear& l : *n) w = std::max({w, size_t(l.in), size_t(l.out)});
+  return w;
+}
+
+/// Charges the memory evaluating a network will take to the file that declared it, before
+/// any of it is taken: on every thread, a block of kBlock rows of the widest layer, four
+/// times (input, output, activation, head). A file that declares 200,000-wide layers with
+/// zero strides is refused here, not when the blocks are allocated.
+void charge_network(const TorchFile& tf, size_t width, const char* code) {
+  const size_t threads = size_t(std::max(1, tbb::this_task_arena::max_concurrency()));
+  const std::string what = std::string(code) + "'s network evaluation (" + std::to_string(threads) + " threads x " + std::to_string(kBlock) +
+                           " rows x 4 blocks of its widest layer, " + std::to_string(width) + " values)";
+  tf.budget().charge(checked_mul(checked_mul(checked_mul(threads, kBlock, tf.source(), what), width, tf.source(), what), 4 * sizeof(float),
+                                 tf.source(), what),
+                     what);
+}
+
 void check_head(const std::vector<Linear>& head, int in, int out, const std::string& source, const std::string& name) {
   if (head.front().in != in || head.back().out != out)
     throw_error(source, ": key '", name, "' maps ", head.front().in, " -> ", head.back().out, " values, expected ", in, " -> ", out);
@@ -407,14 +442,28 @@ ModelState read_canonical(const PlyElement& v, const std::string& path) {
   return s;
 }
 
-/// "T0:T1" -> (T0, T1).
+/// The model times fillgs evaluates a network at: |t| <= kMaxModelTime. Larger times are no
+/// time a model was trained on, and in float32 they overflow its time encodings (E-D3DGS's
+/// grid coordinate 2t - 1 reaches infinity at 1.7e38).
+constexpr double kMaxModelTime = 1e6;
+
+/// "T0:T1" -> (T0, T1): finite, within [-1e6, 1e6], T1 - T0 at least 1e-6.
 std::pair<double, double> time_range(const std::string& text, const std::string& source) {
   const size_t colon = text.find(':');
   if (colon == std::string::npos) throw_error(source, ": --model-time-range '", text.substr(0, 40), "' is not T0:T1");
   const double a = parse_number(text.substr(0, colon), source, "--model-time-range start");
   const double b = parse_number(text.substr(colon + 1), source, "--model-time-range end");
-  if (!(b > a)) throw_error(source, ": --model-time-range ", text.substr(0, 40), " must have T1 > T0");
+  if (!(std::fabs(a) <= kMaxModelTime && std::fabs(b) <= kMaxModelTime))
+    throw_error(source, ": --model-time-range ", text.substr(0, 40), " reaches beyond model times of +-", kMaxModelTime);
+  if (!(b - a >= 1e-6)) throw_error(source, ": --model-time-range ", text.substr(0, 40), " must have T1 - T0 >= 1e-6");
   return {a, b};
+}
+
+/// `t` as the float a network is evaluated at; one line naming the model when it is not
+/// finite or lies beyond kMaxModelTime (no time is turned into an index unchecked).
+float network_time(double t, const std::string& source, const char* what = "model time") {
+  if (!(std::fabs(t) <= kMaxModelTime)) throw_error(source, ": ", what, " ", t, " is not a finite time within +-", kMaxModelTime);
+  return float(t);
 }
 
 /// Frames and times: frame f at T0 + f (T1 - T0) / F, as the field's multi-view loaders
@@ -496,6 +545,9 @@ class Ed3dgs : public TrainedModel {
                   ", c2f_temporal_iter ", c2f_iter_, ")");
     weight_ = sd.get("weight", {max_emb_, tdim_}).values;
     const TorchTensor off = sd.get("offsets", {-1, 1});
+    for (size_t i = 0; i < off.values.size(); ++i)
+      if (!(std::fabs(off.values[i]) <= kMaxModelTime))
+        throw_error(pth, ": key 'offsets' element ", i, " (", off.values[i], ") is no time offset within +-", kMaxModelTime);
     // At a view that is no training camera, E-D3DGS's renderer uses the mean of the non-zero offsets.
     if (opt.model_camera >= 0) {
       if (size_t(opt.model_camera) >= off.values.size())
@@ -530,6 +582,8 @@ class Ed3dgs : public TrainedModel {
     }
     if (!no_dc_ && canonical_.sh_degree != 3)
       throw_error(ply_path, ": SH degree ", canonical_.sh_degree, "; E-D3DGS's colour head deforms 16 coefficients (degree 3)");
+    for (const Net& n : net_)
+      charge_network(tf, widest({&n.trunk, &n.heads[0], &n.heads[1], &n.heads[2], &n.heads[3], &n.heads[4]}), "E-D3DGS");
     set_times(*this, opt.model_frames > 0 ? opt.model_frames : total_frames, {0.0, 1.0});
     if (!opt.model_time_range.empty()) set_times(*this, frames, time_range(opt.model_time_range, source));
     notes.push_back("E-D3DGS at iteration " + std::to_string(iteration_) + ": temporal embeddings " +
@@ -539,7 +593,7 @@ class Ed3dgs : public TrainedModel {
   size_t size() const override { return canonical_.size(); }
 
   ModelState at(double model_time) const override {
-    const float t = float(model_time) + offset_;
+    const float t = network_time(double(network_time(model_time, source)) + double(offset_), source, "model time plus the camera's offset");
     std::vector<float> emb_c, emb_f;
     temporal_embedding(t, coarse_count(), emb_c);
     temporal_embedding(t, fine_count(), emb_f);
@@ -600,12 +654,14 @@ class Ed3dgs : public TrainedModel {
     const float gy = (t - 0.5f) * 2.0f;
     float y = ((gy + 1.0f) / 2.0f) * float(rows - 1);
     if (rows > 1) {  // reflect about 0 and rows - 1, then clip
+      // |t| <= 1e6 keeps y finite; the parity of the reflections is taken in float, so no
+      // coordinate, however large, becomes an integer before it is inside [0, rows - 1].
       const float span = float(rows - 1);
       y = std::fabs(y);
       const float extra = std::fmod(y, span);
-      const int flips = int(std::floor(y / span));
-      y = flips % 2 == 0 ? extra : span - extra;
-      y = std::clamp(y, 0.0f, span);
+      const float flips = std::floor(y / span);
+      y = std::fmod(flips, 2.0f) == 0.0f ? extra : span - extra;
+      y = y > 0.0f ? std::min(y, span) : 0.0f;  // NaN cannot reach here; if it did, row 0
     } else {
       y = 0.0f;
     }
@@ -648,8 +704,14 @@ class FourDGaussians : public TrainedModel {
     no_do_ = cfg<bool>(c, "no_do", true, cfg_path);
     no_dshs_ = cfg<bool>(c, "no_dshs", true, cfg_path);
     aabb_ = sd.get("deformation_net.grid.aabb", {2, 3}).values;
-    for (int a = 0; a < 3; ++a)
-      if (aabb_[size_t(a)] == aabb_[size_t(3 + a)]) throw_error(pth, ": key 'deformation_net.grid.aabb' has an empty extent on axis ", a);
+    // 4DGaussians stores [max, min]; either order is read, but the scale 2 / (min - max) must
+    // be a finite number, or a position becomes an infinite or NaN grid coordinate.
+    for (int a = 0; a < 3; ++a) {
+      const float k = 2.0f / (aabb_[size_t(3 + a)] - aabb_[size_t(a)]);
+      if (!std::isfinite(k) || aabb_[size_t(a)] == aabb_[size_t(3 + a)])
+        throw_error(pth, ": key 'deformation_net.grid.aabb' has an empty or degenerate extent on axis ", a, " (", aabb_[size_t(a)], " to ",
+                    aabb_[size_t(3 + a)], ")");
+    }
     // Planes: grids.<scale>.<plane>, shape [1, C, reso[b], reso[a]] for the pair (a, b).
     for (int s = 0;; ++s) {
       const std::string p0 = "deformation_net.grid.grids." + std::to_string(s) + ".0";
@@ -680,6 +742,7 @@ class FourDGaussians : public TrainedModel {
     }
     if (!no_dshs_ && canonical_.sh_degree != 3)
       throw_error(ply_path, ": SH degree ", canonical_.sh_degree, "; 4DGaussians' colour head deforms 16 coefficients (degree 3)");
+    charge_network(tf, widest({&trunk_, &heads_[0], &heads_[1], &heads_[2], &heads_[3], &heads_[4]}), "4DGaussians");
     if (opt.model_frames < 1)
       throw_error(source, ": 4DGaussians does not store its frame count; give --model-frames F (its multi-view loaders time frame f at f/F)");
     set_times(*this, opt.model_frames, opt.model_time_range.empty() ? std::pair<double, double>{0.0, 1.0} : time_range(opt.model_time_range, source));
@@ -690,7 +753,7 @@ class FourDGaussians : public TrainedModel {
   ModelState at(double model_time) const override {
     ModelState s = canonical_;
     const size_t n = size();
-    const float t = float(model_time);
+    const float t = network_time(model_time, source);
     HeadWeights w;
     const bool on[5] = {!no_dx_, !no_ds_, !no_dr_, !no_do_, !no_dshs_};
     for (int h = 0; h < 5; ++h) w.on[h] = on[h];
@@ -726,8 +789,10 @@ class FourDGaussians : public TrainedModel {
         const int H = int(g.shape[2]), W = int(g.shape[3]);
         float x = ((q[kPairs[p][0]] + 1.0f) / 2.0f) * float(W - 1);
         float y = ((q[kPairs[p][1]] + 1.0f) / 2.0f) * float(H - 1);
-        x = std::clamp(x, 0.0f, float(W - 1));
-        y = std::clamp(y, 0.0f, float(H - 1));
+        // Border padding. Written so that a NaN coordinate (an infinite one times a one-pixel
+        // side) lands on pixel 0 instead of becoming an index.
+        x = x > 0.0f ? std::min(x, float(W - 1)) : 0.0f;
+        y = y > 0.0f ? std::min(y, float(H - 1)) : 0.0f;
         const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
         const int x1 = std::min(x0 + 1, W - 1), y1 = std::min(y0 + 1, H - 1);
         const float wx = x - float(x0), wy = y - float(y0);
@@ -816,6 +881,7 @@ class Deformable3dgs : public TrainedModel {
       heads_[h].w = Eigen::Map<const RowMat>(w.values.data(), outs[h], W);
       heads_[h].b = Eigen::Map<const Eigen::RowVectorXf>(b.values.data(), outs[h]);
     }
+    charge_network(tf, size_t(W + x_in + t_out), "Deformable 3D Gaussians");
     if (opt.model_frames < 1)
       throw_error(source, ": Deformable 3D Gaussians does not store its frame count; give --model-frames F (its loaders time frame f at f/(F-1))");
     if (opt.model_time_range.empty()) {
@@ -834,7 +900,7 @@ class Deformable3dgs : public TrainedModel {
   ModelState at(double model_time) const override {
     ModelState s = canonical_;
     const size_t n = size();
-    const float t = float(model_time);
+    const float t = network_time(model_time, source);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kBlock), [&](const tbb::blocked_range<size_t>& r) {
       const Eigen::Index B = Eigen::Index(r.size());
       const int x_in = 3 * 21;
@@ -919,9 +985,15 @@ class FourDGS : public TrainedModel {
       const std::string what = "entry " + std::to_string(i) + " (" + name + ")";
       return checked(tf.tensor(m[i], what), source, what, shape);
     };
-    if (!tf.is_number(m[0]) || !tf.is_number(m[18])) throw_error(source, ": entries 0 and 18 (active SH degrees) are not numbers");
-    deg_ = int(tf.integer(m[0]));
-    deg_t_ = int(tf.integer(m[18]));
+    auto degree = [&](size_t i, int max) {
+      const char* name = i == 0 ? "active SH degree" : "active time SH degree";
+      if (!tf.is_number(m[i])) throw_error(source, ": entry ", i, " (", name, ") is a ", tf.kind_name(m[i]), ", not a number");
+      const double d = tf.number(m[i]);
+      if (!(d >= 0 && d <= max) || d != std::floor(d)) throw_error(source, ": entry ", i, " (", name, ") ", d, " is not a whole number in [0, ", max, "]");
+      return int(d);
+    };
+    deg_ = degree(0, 3);
+    deg_t_ = degree(18, 2);
     rot_4d_ = tf.kind(m[16]) == PickleValues::Kind::Bool && tf.integer(m[16]) != 0;
     const TorchTensor xyz = tensor(1, "_xyz", {-1, 3});
     const int64_t N = xyz.shape[0];
@@ -982,7 +1054,7 @@ class FourDGS : public TrainedModel {
     s.opacity_logits = opacity_;
     s.opacity_factor.resize(n);
     s.sh.assign(n * K * 3, 0.0f);
-    const double tau = model_time;
+    const double tau = network_time(model_time, source);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         const double dt = tau - double(tmean_[i]);
@@ -1061,6 +1133,7 @@ class FrameSequence : public TrainedModel {
  public:
   size_t size() const override { return frames_.empty() ? 0 : frames_[0].size(); }
   ModelState at(double model_time) const override {
+    if (!std::isfinite(model_time)) throw_error(source, ": model time ", model_time, " is not finite");
     const long f = std::lround(std::clamp(model_time, 0.0, double(frames_.size() - 1)));
     return frames_[size_t(f)];
   }
@@ -1171,7 +1244,10 @@ class PlyFrames : public FrameSequence {
         if (digits.empty() || digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
         if (!prefix.empty() && prefix != ps) throw_error(dir, ": holds both ", prefix, "*.ply and ", ps, "*.ply frames");
         prefix = ps;
-        by_index[std::stol(digits)] = e.path().string();
+        const auto [at, fresh] = by_index.emplace(std::stol(digits), e.path().string());
+        if (!fresh)
+          throw_error(dir, ": ", fs::path(at->second).filename().string(), " and ", n, " are both frame ", at->first,
+                      "; keep one (fillgs will not choose)");
       }
     }
     std::vector<std::string> out;

@@ -228,6 +228,9 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
       r.seconds_refine = seconds_since(t0);
       r.refine_failures = rep.failures;
       r.views_dropped = rep.dropped;
+      if (!patches.empty() && rep.failures.size() == patches.size() && !o.allow_failed_refinement)
+        throw_error("round ", round, ": the refiner failed on every one of its ", patches.size(), " patches (first: ", rep.failures.front().second,
+                    "); nothing was fine-tuned (--allow-failed-refinement goes on without them)");
 
       // Weights, written next to every refined image.
       std::vector<NewView> items;

@@ -178,6 +178,7 @@ class ExternalRefiner : public Refiner {
     ProcessOptions po;
     po.stdout_path = po.stderr_path = log;
     po.timeout_seconds = timeout_;
+    po.end_descendants = true;  // a refiner's background children must not write on after it returned
     const ProcessResult r = run_process(split_command(command_, {{"{in}", in}, {"{out}", out}}), po);
     if (!r.started) throw_error("the refiner did not start: ", r.error);
     if (r.timed_out) throw_error("timed out after ", timeout_, " s (", log, ")");
@@ -486,7 +487,12 @@ RefineReport refine_patches(Refiner& refiner, const std::vector<Patch>& patches,
         const Camera& cam = pose.camera ? *pose.camera : im.camera;
         const std::string path = join_path(out, im.file);
         int w = 0, h = 0;
-        if (!image_size(path, &w, &h)) throw_error("missing refined image ", im.file);
+        if (!fs::exists(fs::symlink_status(path))) throw_error("missing refined image ", im.file);
+        if (!image_size(path, &w, &h)) {
+          require_regular_file(path);  // a link to nothing, a folder, a pipe: says which
+          read_image(path);            // else the image reader's own complaint
+          throw_error(path, ": the refined image's size cannot be read");
+        }
         if (w != cam.width || h != cam.height) throw_error(im.file, " is ", w, "x", h, ", expected ", cam.width, "x", cam.height);
         RefinedImage r;
         r.patch = int(i);

@@ -126,7 +126,7 @@ KeyPosition locate_key(const KeyframedMotion& k, double t) {
   const int K = k.key_count;
   if (K == 1) return {0, 0.0f, u};
   if (k.ex4dgs_edges && K >= 4) {
-    const int i = std::clamp(int(std::floor(u)), 1, K - 3);
+    const int i = int(std::floor(u > 1.0 ? std::min(u, double(K - 3)) : 1.0));  // clamped before it becomes an integer
     return {i, float(u - i), u};
   }
   const keys::KeySpot ks = keys::key_spot(k.first_key_time, k.key_spacing, K, t);

@@ -40,7 +40,10 @@ void normalize4_backward(const Real* x, const Real* gy, Real* gx) {
 /// The key interval of time t for K keys spaced `key_spacing` from `first_key_time`.
 inline KeySpot key_spot(double first_key_time, double key_spacing, int K, double t) {
   if (K <= 1) return {};
-  const double u = std::clamp((t - first_key_time) / key_spacing, 0.0, double(K - 1));
+  // Clamped before any integer is made: a NaN or huge time is key 0 or the last key, never
+  // an out-of-range index (times are validated where they enter; this is the last guard).
+  const double r = (t - first_key_time) / key_spacing;
+  const double u = r > 0.0 ? std::min(r, double(K - 1)) : 0.0;
   const int i = std::min(int(std::floor(u)), K - 2);
   return {i, u - i};
 }

@@ -1,5 +1,9 @@
 #include "fillgs/visibility/observe_io.hpp"
 
+#include <cfloat>
+#include <cmath>
+#include <cstring>
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -265,6 +269,36 @@ std::string table_payload(const std::string& path, const std::string& descr, con
   return a.bytes;
 }
 
+/// The values of a table a shard wrote, checked as observe writes them: counts at most the
+/// cameras of a frame, speeds and deficiencies finite and at least 0, dynamic ids inside
+/// the model and increasing. One line naming the file, the element and the value otherwise.
+void check_table_values(const std::string& path, const std::string& bytes, const std::string& descr, double max, size_t row) {
+  const size_t item = descr == "|u1" ? 1 : descr == "<u2" ? 2 : 4;
+  const size_t n = bytes.size() / item;
+  auto where = [&](size_t i) { return row ? " [" + std::to_string(i / row) + ", " + std::to_string(i % row) + "]" : " " + std::to_string(i); };
+  for (size_t i = 0; i < n; ++i) {
+    double v = 0;
+    if (descr == "|u1") v = static_cast<unsigned char>(bytes[i]);
+    else if (descr == "<u2") v = double(uint16_t(uint8_t(bytes[2 * i]) | (uint16_t(uint8_t(bytes[2 * i + 1])) << 8)));
+    else if (descr == "<u4") {
+      uint32_t u;
+      std::memcpy(&u, &bytes[4 * i], 4);
+      v = u;
+    } else {
+      float f;
+      std::memcpy(&f, &bytes[4 * i], 4);
+      v = f;
+    }
+    if (!(v >= 0 && v <= max))
+      throw_error(path, ": element", where(i), " is ", v, ", outside [0, ", max, "]", descr == "<f4" ? " (not a finite speed or deficiency)" : "");
+    if (descr == "<u4" && i > 0) {
+      uint32_t prev;
+      std::memcpy(&prev, &bytes[4 * (i - 1)], 4);
+      if (!(v > double(prev))) throw_error(path, ": element ", i, " (", v, ") does not follow ", prev, ": dynamic ids increase");
+    }
+  }
+}
+
 }  // namespace
 
 ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, const std::string& dir, bool plots) {
@@ -308,8 +342,19 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
   const size_t T = first["shard"].value("frames_total", size_t(0));
   if (next != T) throw_error("merge: the shards hold frames 0 to ", next - 1, " of ", T, " (a shard is missing)");
 
-  const size_t N = first.at("gaussians").get<size_t>(), M = first.at("dynamic").get<size_t>();
-  const bool narrow = first.at("count_dtype") == "uint8", dense = first.value("motion_tables", "dense") == "dense";
+  const std::string first_path = join_path(shards.front().dir, "summary.json");
+  size_t N = 0, M = 0, max_views = 0;
+  bool narrow = false, dense = true;
+  try {
+    N = first.at("gaussians").get<size_t>();
+    M = first.at("dynamic").get<size_t>();
+    max_views = first.at("max_views_per_frame").get<size_t>();
+    narrow = first.at("count_dtype").get<std::string>() == "uint8";
+    dense = first.value("motion_tables", std::string("dense")) == "dense";
+  } catch (const nlohmann::json::exception& e) {
+    throw_error(first_path, ": malformed shard summary (", e.what(), ")");
+  }
+  if (M > N) throw_error(first_path, ": ", M, " dynamic Gaussians of ", N);
   const std::string suffix = dense ? "" : "_dynamic";
   const size_t width = dense ? N : M;
   make_directories(dir);
@@ -322,6 +367,7 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
     NpyStreamWriter out(join_path(dir, name), type.first, item, {T, type.second});
     for (const ShardInput& in : shards) {
       const std::string bytes = table_payload(join_path(in.dir, name), type.first, {in.frames.size(), type.second});
+      check_table_values(join_path(in.dir, name), bytes, type.first, type.first == "<f4" ? double(FLT_MAX) : double(max_views), type.second);
       out.write(bytes.data(), bytes.size());
     }
     out.finish();
@@ -331,9 +377,12 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
   for (const ShardInput& in : shards) {
     const std::vector<double> t = read_npy(join_path(in.dir, "times.npy")).to_doubles(join_path(in.dir, "times.npy"));
     if (t.size() != in.frames.size()) throw_error(join_path(in.dir, "times.npy"), ": ", t.size(), " times for ", in.frames.size(), " frames");
+    for (size_t k = 0; k < t.size(); ++k)
+      if (!(t[k] >= 0.0 && t[k] <= 1.0)) throw_error(join_path(in.dir, "times.npy"), ": element ", k, " is ", t[k], ", not a time in [0, 1]");
     times.insert(times.end(), t.begin(), t.end());
   }
   const std::string ids = table_payload(join_path(shards.front().dir, "dynamic_ids.npy"), "<u4", {M});
+  if (N > 0) check_table_values(join_path(shards.front().dir, "dynamic_ids.npy"), ids, "<u4", double(N - 1), 0);
   for (const ShardInput& in : shards)
     if (table_payload(join_path(in.dir, "dynamic_ids.npy"), "<u4", {M}) != ids)
       throw_error(join_path(in.dir, "dynamic_ids.npy"), ": other dynamic Gaussians than ", join_path(shards.front().dir, "dynamic_ids.npy"));
@@ -362,6 +411,8 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
       peak_mb = std::max(peak_mb, in.summary.at("peak_memory_mb").get<double>());
       const std::vector<double> d = in.summary.at("deficiency_per_frame").get<std::vector<double>>();
       if (d.size() != in.frames.size()) throw_error(where, ": deficiency_per_frame has ", d.size(), " values for ", in.frames.size(), " frames");
+      for (size_t k = 0; k < d.size(); ++k)
+        if (!(d[k] >= 0 && std::isfinite(d[k]))) throw_error(where, ": deficiency_per_frame element ", k, " is ", d[k], ", not a finite sum >= 0");
       tally.deficiency_per_frame.insert(tally.deficiency_per_frame.end(), d.begin(), d.end());
       const nlohmann::json& cams = in.summary.at("per_camera");
       if (tally.camera_names.empty()) {
@@ -387,6 +438,7 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
       throw_error(join_path(in.dir, "deficiency_heat.npy"), ": not [frames, bins] float32");
     if (tally.heat.empty()) tally.columns = int(heat.shape[1]);
     if (heat.shape[1] != size_t(tally.columns)) throw_error(join_path(in.dir, "deficiency_heat.npy"), ": other heatmap bins than the first shard");
+    check_table_values(join_path(in.dir, "deficiency_heat.npy"), heat.bytes, "<f4", double(FLT_MAX), heat.shape[1]);
     const float* h = reinterpret_cast<const float*>(heat.bytes.data());
     tally.heat.insert(tally.heat.end(), h, h + heat.size());
   }

@@ -25,6 +25,7 @@
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/io/torch_file.hpp"
 #include "fillgs/train/train.hpp"
+#include "../torch_craft.hpp"
 
 namespace fs = std::filesystem;
 using namespace fillgs;
@@ -351,19 +352,40 @@ void make_seeds(const std::string& dir) {
       const ZipArchive z(join_path(f, "4dgs/chkpnt100.pth"));
       for (const std::string& n : z.names())
         if (n.size() > 9 && n.compare(n.size() - 9, 9, "/data.pkl") == 0) seed("seed_4dgs.pkl", z.read(n));
+      // A pickle of ten thousand values (the amplification case, small).
+      test::Pickle p;
+      p.op(']');
+      for (int k = 0; k < 10000; ++k) p.op('N').op('a');
+      seed("seed_list.pkl", p.op('.').b);
     } else if (r == "pth") {
       seed("seed_ed3dgs.pth", pth_of("ed3dgs"));
       seed("seed_4dgs.pth", read_file(join_path(f, "4dgs/chkpnt100.pth")));
+      // The hostile round's crafted archives (tests/test_hostile.cpp): extents that wrap
+      // around 2^64, a storage declaring 2^40 elements, views of one deflated storage.
+      const int64_t big = int64_t(1) << 62;
+      const std::string st = test::float_storage(9);
+      seed("seed_wrap_sum.pth", test::craft_pth({{"w", "0", 9, 0, {2, 2, 2, 2}, {big, big, big, big}}}, {{"0", st}}));
+      seed("seed_wrap_offset.pth", test::craft_pth({{"w", "0", 9, 3, {3}, {INT64_MAX}}}, {{"0", st}}));
+      seed("seed_declared.pth", test::craft_pth({{"w", "0", int64_t(1) << 40, 0, {3}, {4}}}, {{"0", st}}));
+      std::vector<test::CraftTensor> views;
+      for (int k = 0; k < 64; ++k) views.push_back({"w" + std::to_string(k), "0", 4096, k, {64}, {0}});
+      seed("seed_views.pth", test::craft_pth(views, {{"0", std::string(4096 * 4, '\0')}}, true));
     } else if (r == "npz_dynamic3dgs") {
       seed("seed.npz", read_file(join_path(f, "dynamic3dgs/params.npz")));
     } else if (r == "ed3dgs" || r == "4dgaussians") {
       seed("seed", read_file(join_path(f, r + "/point_cloud/iteration_100/point_cloud.ply")) + kSplit + pth_of(r) + kSplit +
                        read_file(join_path(f, r + "/cfg_args")));
+      // The NaN-index cases: a time offset of 3e38, an aabb of extent 1e-45.
+      const std::string hostile = r == "ed3dgs" ? "hostile_offsets_huge" : "hostile_aabb";
+      seed("seed_" + hostile, read_file(join_path(f, r + "/point_cloud/iteration_100/point_cloud.ply")) + kSplit + pth_of(hostile) + kSplit +
+                                  read_file(join_path(f, r + "/cfg_args")));
     } else if (r == "deformable3dgs") {
       seed("seed", read_file(join_path(f, "deformable3dgs/point_cloud/iteration_100/point_cloud.ply")) + kSplit +
                        read_file(join_path(f, "deformable3dgs/deform/iteration_100/deform.pth")) + kSplit + read_file(join_path(f, "deformable3dgs/cfg_args")));
     } else if (r == "4dgs") {
       seed("seed.pth", read_file(join_path(f, "4dgs/chkpnt100.pth")));
+      seed("seed_degree_nan.pth", read_file(join_path(f, "hostile_4dgs_degree_nan/chkpnt100.pth")));
+      seed("seed_degree_huge.pth", read_file(join_path(f, "hostile_4dgs_degree_huge/chkpnt100.pth")));
     } else {
       seed("seed", read_file(join_path(f, "ply_frames/time_00000.ply")) + kSplit + read_file(join_path(f, "ply_frames/time_00001.ply")));
     }

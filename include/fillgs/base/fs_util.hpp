@@ -27,7 +27,14 @@ std::string read_file(const std::string& path);
 
 /// Throws one line naming `path` unless it is a regular file (links followed): a named pipe
 /// would hang the reader, /dev/zero would be read until memory runs out, a folder is not a file.
+/// Also refuses a file below a folder (up to three levels up) that holds
+/// ".fillgs-commit-incomplete": a fillgs commit into it was killed half-way (OutputFolder).
 void require_regular_file(const std::string& path);
+
+/// Throws one line naming `path` when it exists and is not a regular file (links followed):
+/// an output never replaces a device, a pipe or a folder (as root, `--out /dev/null` would
+/// otherwise replace the system's /dev/null with a file). write_atomically calls it first.
+void require_replaceable(const std::string& path);
 
 /// Creates a directory (and parents); throws naming it on failure.
 void make_directories(const std::string& path);
@@ -47,7 +54,8 @@ std::string output_paths(std::string message);
 /// can resume from its checkpoints, as unfinished while it runs: "DIR/.fillgs-unfinished"
 /// is written (and locked) first and removed by finish() last. A command killed or failed
 /// half-way leaves the marker, and the folder says it is unfinished. A second command on a
-/// folder whose marker a live run holds is refused with one line.
+/// folder whose marker a live run holds is refused with one line. Temporary files that
+/// killed runs left in the folder (unlocked) are removed when the marker is taken.
 class UnfinishedMarker {
  public:
   UnfinishedMarker(const std::string& dir, const std::string& command);
@@ -68,12 +76,29 @@ class UnfinishedMarker {
 /// same extension, so format-by-extension writers work).
 std::string temporary_name(const std::string& path);
 
+/// A temporary file beside `beside` (temporary_name), created and locked for this object's
+/// life and removed by its destructor: a helper program's log, say. A process killed while it
+/// exists leaves an unlocked file that the next command on the folder removes.
+class LockedTemporary {
+ public:
+  explicit LockedTemporary(const std::string& beside);
+  ~LockedTemporary();
+  LockedTemporary(const LockedTemporary&) = delete;
+  LockedTemporary& operator=(const LockedTemporary&) = delete;
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  int fd_ = -1;
+};
+
 /// A command's output folder, written as one transaction. Everything goes into a hidden
 /// staging folder on the output's own file system — beside a new folder
 /// (".<name>.fillgs-staging-<token>"), inside an existing one (".fillgs-staging-<token>") —
 /// and commit() moves the staged files into place: a new folder by one rename, an existing
 /// one file by file, each replacing the file of that name and leaving the folder's other
-/// files alone. A command that throws, or is killed, before commit() leaves an existing
+/// files alone, with ".fillgs-commit-incomplete" in the folder while the files move (a commit
+/// killed then leaves it: readers refuse the folder's files, the next commit removes it). A command that throws, or is killed, before commit() leaves an existing
 /// folder exactly as it was and creates nothing that stays: the destructor removes the
 /// staging folder and any parent folders it had to create. An existing folder is locked
 /// (flock) while the command runs, so a second command on it is refused with one line.

@@ -39,6 +39,25 @@ size_t allocation_cap();
 /// a · b, or an Error "SOURCE: WHAT overflows (a × b)".
 size_t checked_mul(size_t a, size_t b, const std::string& source, const std::string& what);
 
+/// a + b, or an Error "SOURCE: WHAT overflows (a + b)".
+size_t checked_add(size_t a, size_t b, const std::string& source, const std::string& what);
+
+/// The bytes one reader has taken so far, charged before each allocation: a file whose
+/// parts are each small enough but together are not (a pickle of ten million values, one
+/// storage viewed by hundreds of tensors) is refused at the part that crosses
+/// allocation_cap(), naming it: "SOURCE: WHAT would bring this file's memory to N bytes,
+/// more than ...".
+class AllocationBudget {
+ public:
+  explicit AllocationBudget(std::string source) : source_(std::move(source)) {}
+  void charge(size_t bytes, const std::string& what);
+  size_t used() const { return used_; }
+
+ private:
+  std::string source_;
+  size_t used_ = 0, cap_ = 0;
+};
+
 /// Throws "SOURCE: WHAT would need N bytes, more than the M this process may use (LIMIT)"
 /// when bytes > allocation_cap().
 void check_allocation(size_t bytes, const std::string& source, const std::string& what);
@@ -54,6 +73,10 @@ bool parse_number(const std::string& text, double* out);
 /// As above, but throws
 /// "SOURCE: WHAT 'text' is not a number" (the text is cut to 40 characters in the message).
 double parse_number(const std::string& text, const std::string& source, const std::string& what);
+
+/// The index of the first byte of `text` that does not belong to well-formed UTF-8
+/// (overlong forms, surrogates and code points past U+10FFFF included), or npos.
+size_t first_invalid_utf8(const std::string& text);
 
 /// Runs a reader. fillgs::Errors pass through; any other exception the input can provoke
 /// becomes "SOURCE: malformed (what)" or "SOURCE: a size in the file needs more memory than

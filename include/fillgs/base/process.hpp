@@ -12,6 +12,11 @@ struct ProcessOptions {
   std::string stdout_path;  ///< where its standard output goes ("": /dev/null)
   std::string stderr_path;  ///< where its standard error goes ("": /dev/null; may equal stdout_path)
   double timeout_seconds = 0;  ///< > 0: the program's process group is killed after this long
+  /// When the program exits or times out, end every process it started: its process group,
+  /// and, with this process as their subreaper (PR_SET_CHILD_SUBREAPER), those that left the
+  /// group (setsid) or were orphaned. It assumes no other thread of this process starts
+  /// children meanwhile (its children from before the call are spared).
+  bool end_descendants = false;
 };
 
 struct ProcessResult {

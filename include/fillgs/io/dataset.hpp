@@ -47,10 +47,15 @@ struct DatasetOptions {
   int64_t image_memory = -1;
   std::string spill_dir;
   /// A camera file of held-out cameras (any format read_cameras reads): a view standing
-  /// where one of them stands (the same centre and rotation, to 1e-6) is refused before
-  /// any image is read, so a held-out camera's images never reach training, a pool or a
-  /// selection. Empty: none.
+  /// where one of them stands (centres within held_out_distance world units, viewing
+  /// rotations within held_out_degrees) is refused before any image is read, so a held-out
+  /// camera's images never reach training, a pool or a selection. Empty: none. The defaults
+  /// (1e-3 units, 0.1 degrees) take a camera file rounded to five decimals for the camera it
+  /// rounds (1e-5 off), and stay far below the spacing of any capture rig (centimetres and
+  /// degrees apart).
   std::string held_out;
+  double held_out_distance = 1e-3;
+  double held_out_degrees = 0.1;
 };
 
 /// Multi-view video. Two layouts:

@@ -16,7 +16,10 @@
 // needs the same walk over the values afterwards (data/README.md, "Reading .pth files").
 #include <cstdint>
 #include <string>
+#include <map>
 #include <vector>
+
+#include "fillgs/base/limits.hpp"
 
 namespace fillgs {
 
@@ -30,8 +33,11 @@ class ZipArchive {
   const std::string& source() const { return source_; }
   const std::vector<std::string>& names() const { return names_; }
   bool has(const std::string& name) const;
-  /// The entry's bytes (CRC checked); throws naming the archive and the entry.
+  /// The entry's bytes (CRC checked); throws naming the archive and the entry. Every read
+  /// is charged to budget(), so re-reading an entry costs what reading it twice does.
   std::string read(const std::string& name) const;
+  /// What this archive's reader has taken so far (entries read, and what its caller charges).
+  AllocationBudget& budget() const { return budget_; }
 
  private:
   struct Entry {
@@ -43,6 +49,7 @@ class ZipArchive {
   std::string bytes_, source_;
   std::vector<std::string> names_;
   std::vector<Entry> entries_;
+  mutable AllocationBudget budget_{source_};
 };
 
 /// A tensor's values converted to float (bool and integer dtypes too), C order.
@@ -91,7 +98,7 @@ class PickleValues {
   std::vector<Value> values_;
   Ref root_ = 0;
   friend class PickleMachine;
-  friend void run_pickle(const std::string&, const std::string&, PickleValues&);
+  friend void run_pickle(const std::string&, const std::string&, PickleValues&, AllocationBudget*);
 };
 
 /// A torch.save archive: its pickle's values and its tensors.
@@ -102,18 +109,26 @@ class TorchFile : public PickleValues {
   explicit TorchFile(const std::string& path);
 
   const std::string& source() const { return source_; }
+  /// What reading this file has taken so far (its entries, values and tensors); a reader
+  /// charges what it will take because of the file (a network's working memory) to it too.
+  AllocationBudget& budget() const { return zip_.budget(); }
   /// The tensor value `r` as floats; `what` names it in errors ("key 'weight'").
   TorchTensor tensor(Ref r, const std::string& what) const;
   /// The string-keyed entries of a dict (an OrderedDict state dict), in file order.
   std::vector<std::pair<std::string, Ref>> string_entries(Ref dict, const std::string& what) const;
 
  private:
+  /// The bytes of storage `key`, inflated on first use and kept.
+  const std::string& storage(const std::string& key, const std::string& what) const;
   std::string source_;
   ZipArchive zip_;
   std::string prefix_;  ///< "archive/" or the saved file's stem
+  /// Storages read so far, by key: each is inflated once, however many tensors view it.
+  mutable std::map<std::string, std::string> storages_;
 };
 
-/// Runs a pickle held in `bytes` into `values` (exposed for the fuzz harness and tests).
-void run_pickle(const std::string& bytes, const std::string& source, PickleValues& values);
+/// Runs a pickle held in `bytes` into `values` (exposed for the fuzz harness and tests);
+/// the values' memory is charged to `budget` (a budget of its own when null).
+void run_pickle(const std::string& bytes, const std::string& source, PickleValues& values, AllocationBudget* budget = nullptr);
 
 }  // namespace fillgs

@@ -39,6 +39,10 @@ struct FinetuneOptions {
   /// not used. The pool's cameras carry their times; its frame count must be the video's.
   const RigPool* pool = nullptr;
   int pool_budget = 0;
+  /// A round whose every patch the refiner failed on (a missing program, one that exits 0
+  /// and writes nothing) ends the fine-tuning with an Error naming the first failure, unless
+  /// this is set: then the run goes on, each failure a warning.
+  bool allow_failed_refinement = false;
   /// Paper: 30,000 iterations, 20 trajectories every 6,000.
   static FinetuneOptions paper();
 };
