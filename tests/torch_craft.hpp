@@ -84,7 +84,8 @@ inline std::string zip_of(const std::vector<std::pair<std::string, std::string>>
   auto u16 = [](std::string& s, uint32_t v) { s += char(v & 0xff), s += char((v >> 8) & 0xff); };
   auto u32 = [&](std::string& s, uint32_t v) { u16(s, v & 0xffff), u16(s, v >> 16); };
   std::string out, cd;
-  for (const auto& [name, data] : entries) {
+  for (const auto& entry : entries) {
+    const std::string &name = entry.first, &data = entry.second;  // named: clang 14's lambdas cannot capture bindings
     const uint32_t crc = uint32_t(crc32(0L, reinterpret_cast<const Bytef*>(data.data()), uInt(data.size())));
     std::string body = data;
     if (compress) {

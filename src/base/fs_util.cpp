@@ -391,8 +391,10 @@ UnfinishedMarker::UnfinishedMarker(const std::string& dir, const std::string& co
     throw_error(path_, ": cannot write (", std::strerror(errno), ")");
   // What a killed run left in the folder it wrote directly (a chart's temporary PNG, its
   // gnuplot log), proved by unheld locks, goes now; this command holds the folder.
-  sweep(dir, kStagingMark, 3);
+  remove_stale_temporaries(dir);
 }
+
+void remove_stale_temporaries(const std::string& dir) { sweep(dir, kStagingMark, 3); }
 
 LockedTemporary::LockedTemporary(const std::string& beside) : path_(temporary_name(beside)) {
   fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);

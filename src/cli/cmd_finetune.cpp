@@ -368,6 +368,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
   }
   if (chosen.empty()) in.fail("--only/--configs select no configuration");
   make_directories(root);
+  remove_stale_temporaries(root);  // a chart's PNG or log a killed bench left
   TerminalProgress progress(in.err, in.progress());
   std::vector<RunResult> results;
   in.out << "fillgs bench: " << f.scenes.size() << " scene(s) x " << seeds.size() << " seed(s) x " << chosen.size() << " configurations -> " << root

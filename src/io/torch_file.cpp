@@ -553,7 +553,8 @@ TorchTensor TorchFile::tensor(Ref r, const std::string& what) const {
     numel = checked_mul(numel, size_t(t.shape[d]), source_, what + " size");
     if (t.shape[d] > 0) last = checked_add(last, checked_mul(size_t(t.shape[d] - 1), size_t(t.stride[d]), source_, sz), source_, sz);
   }
-  const std::string& data = storage(st.text, what);
+  const std::shared_ptr<const std::string> held = storage(st.text, what);
+  const std::string& data = *held;
   const size_t have = data.size() / item;
   const size_t declared = size_t(st.offset);
   if (declared != have || data.size() % item)
@@ -606,12 +607,21 @@ TorchTensor TorchFile::tensor(Ref r, const std::string& what) const {
   return out;
 }
 
-const std::string& TorchFile::storage(const std::string& key, const std::string& what) const {
+std::shared_ptr<const std::string> TorchFile::storage(const std::string& key, const std::string& what) const {
+  if (views_.empty()) {  // how many tensors view each storage, counted once
+    for (const Value& v : values_)
+      if (v.kind == Kind::Tensor) ++views_[values_[v.items[0]].text];
+    views_[""] += 0;  // counted, even when no tensor
+  }
   const auto it = storages_.find(key);
   if (it != storages_.end()) return it->second;
   const std::string entry = prefix_ + "data/" + key;
   if (!zip_.has(entry)) throw_error(source_, ": ", what, ": its storage '", key.substr(0, 40), "' has no entry ", entry.substr(0, 80), " in the archive");
-  return storages_.emplace(key, zip_.read(entry)).first->second;
+  auto bytes = std::make_shared<const std::string>(zip_.read(entry));
+  // Kept only when another tensor views it too: a state dict's usual one storage per tensor
+  // is not held twice (as bytes and as floats) while the model is read.
+  if (views_[key] > 1) storages_.emplace(key, bytes);
+  return bytes;
 }
 
 std::vector<std::pair<std::string, PickleValues::Ref>> TorchFile::string_entries(Ref dict, const std::string& what) const {

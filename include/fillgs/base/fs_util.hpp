@@ -76,6 +76,11 @@ class UnfinishedMarker {
 /// same extension, so format-by-extension writers work).
 std::string temporary_name(const std::string& path);
 
+/// Removes from `dir` (three levels down) the temporary files and staging folders that
+/// killed fillgs runs left there, proved by the locks nobody holds; nothing else. For
+/// folders a command writes directly (train, finetune, bench), before it writes.
+void remove_stale_temporaries(const std::string& dir);
+
 /// A temporary file beside `beside` (temporary_name), created and locked for this object's
 /// life and removed by its destructor: a helper program's log, say. A process killed while it
 /// exists leaves an unlocked file that the next command on the folder removes.

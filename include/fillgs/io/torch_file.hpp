@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <string>
 #include <map>
+#include <memory>
 #include <vector>
 
 #include "fillgs/base/limits.hpp"
@@ -118,13 +119,15 @@ class TorchFile : public PickleValues {
   std::vector<std::pair<std::string, Ref>> string_entries(Ref dict, const std::string& what) const;
 
  private:
-  /// The bytes of storage `key`, inflated on first use and kept.
-  const std::string& storage(const std::string& key, const std::string& what) const;
+  /// The bytes of storage `key`, inflated on first use; kept when more than one tensor
+  /// views it, so that each storage is inflated once.
+  std::shared_ptr<const std::string> storage(const std::string& key, const std::string& what) const;
   std::string source_;
   ZipArchive zip_;
   std::string prefix_;  ///< "archive/" or the saved file's stem
-  /// Storages read so far, by key: each is inflated once, however many tensors view it.
-  mutable std::map<std::string, std::string> storages_;
+  /// Storages viewed by more than one tensor, by key, once read; the tensors viewing each.
+  mutable std::map<std::string, std::shared_ptr<const std::string>> storages_;
+  mutable std::map<std::string, int> views_;
 };
 
 /// Runs a pickle held in `bytes` into `values` (exposed for the fuzz harness and tests);
