@@ -351,7 +351,7 @@ TEST_CASE("observe --merge refuses shards whose tables hold what observe never w
   CHECK(typed.err.find(parts[0] + "/summary.json: malformed shard summary") != std::string::npos);
 }
 
-TEST_CASE("train killed after its last checkpoint is finished by --resume; a killed chart's leftovers go", "[robust][hostile][cli]") {
+TEST_CASE("train killed after its last checkpoint is finished by --resume, and a killed chart's leftovers go", "[robust][hostile][cli]") {
   const std::string dir = scratch("hostile_resume");
   synth_scene(dir);
   const std::string out = dir + "/train";
@@ -383,7 +383,7 @@ TEST_CASE("train killed after its last checkpoint is finished by --resume; a kil
   CHECK(f.err.find("is already at iteration 20") != std::string::npos);
 }
 
-TEST_CASE("--held-out finds a camera rounded to five decimals; its tolerance is in world units and degrees", "[robust][hostile][cli]") {
+TEST_CASE("held-out cameras: --held-out finds a camera rounded to five decimals, with a tolerance in world units and degrees", "[robust][hostile][cli]") {
   const std::string dir = scratch("hostile_held_out");
   synth_scene(dir);
   const std::string cams = dir + "/scene/transforms_train.json";

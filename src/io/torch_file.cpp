@@ -436,12 +436,12 @@ class PickleMachine {
   }
   std::vector<int64_t> int_tuple(Ref r, const char* what) {
     if (v_[r].kind != K::Tuple) fail(what, " is a ", kind_name(r), ", not a tuple");
+    if (v_[r].items.size() > 16) fail(what, " has ", v_[r].items.size(), " dimensions");
     std::vector<int64_t> out;
     for (Ref x : v_[r].items) {
       if (v_[x].kind != K::Int || v_[x].i < 0) fail(what, " holds a ", kind_name(x), " that is not a count");
       out.push_back(v_[x].i);
     }
-    if (out.size() > 16) fail(what, " has ", out.size(), " dimensions");
     return out;
   }
   Ref reduce(Ref fn, Ref args) {
@@ -451,9 +451,13 @@ class PickleMachine {
       v_[r].items = {fn, args};
       return r;
     }
-    const std::vector<Ref> a = v_[args].items;
+    // The first four arguments only: copying a million-item tuple at every REDUCE that
+    // recalls it would make a small pickle run for hours.
+    const size_t count = v_[args].items.size();
+    Ref a[4] = {UINT32_MAX, UINT32_MAX, UINT32_MAX, UINT32_MAX};
+    for (size_t i = 0; i < std::min<size_t>(count, 4); ++i) a[i] = v_[args].items[i];
     if (name == "torch._utils._rebuild_tensor_v2" || name == "torch._utils._rebuild_tensor") {
-      if (a.size() < 4 || v_[a[0]].kind != K::Storage || v_[a[1]].kind != K::Int) fail(name, " with unexpected arguments");
+      if (count < 4 || v_[a[0]].kind != K::Storage || v_[a[1]].kind != K::Int) fail(name, " with unexpected arguments");
       const Ref r = make(K::Tensor);
       v_[r].items = {a[0]};
       v_[r].offset = v_[a[1]].i;
@@ -463,13 +467,13 @@ class PickleMachine {
       return r;
     }
     if (name == "torch._utils._rebuild_parameter" || name == "torch._utils._rebuild_parameter_with_state") {
-      if (a.empty() || v_[a[0]].kind != K::Tensor) fail(name, " without a tensor");
+      if (count == 0 || v_[a[0]].kind != K::Tensor) fail(name, " without a tensor");
       return a[0];
     }
     if (name == "collections.OrderedDict" || name == "builtins.dict") return make(K::Dict);
     if (name == "builtins.set" || name == "builtins.frozenset") {
       const Ref r = make(K::List);
-      if (!a.empty() && v_[a[0]].kind == K::List) {
+      if (count > 0 && v_[a[0]].kind == K::List) {
         charge(v_[a[0]].items.size() * sizeof(Ref));
         v_[r].items = v_[a[0]].items;
       }
