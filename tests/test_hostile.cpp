@@ -349,6 +349,15 @@ TEST_CASE("observe --merge refuses shards whose tables hold what observe never w
   INFO(typed.err);
   CHECK(typed.code == 1);
   CHECK(typed.err.find(parts[0] + "/summary.json: malformed shard summary") != std::string::npos);
+  for (const std::string& p : parts) {
+    nlohmann::json j = nlohmann::json::parse(read_file(p + "/summary.json"));
+    j["shard"]["frames_total"] = "three";
+    write_file_atomically(p + "/summary.json", j.dump());
+  }
+  const CliResult total = run_cli({"observe", "--merge", both, "--out", dir + "/bad"});
+  INFO(total.err);
+  CHECK(total.code == 1);
+  CHECK(total.err.find("/summary.json: malformed shard summary") != std::string::npos);
 }
 
 TEST_CASE("train killed after its last checkpoint is finished by --resume, and a killed chart's leftovers go", "[robust][hostile][cli]") {

@@ -324,8 +324,8 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
   const nlohmann::json& first = shards.front().summary;
   const char* same_keys[] = {"mode", "stride", "min_weight", "rasterizer_matching", "incremental", "gaussians", "static", "dynamic", "frame_step",
                              "cameras", "camera_poses", "max_views_per_frame", "count_dtype", "motion_tables"};
-  size_t next = 0;
-  for (const ShardInput& in : shards) {
+  size_t next = 0, T = 0;
+  for (const ShardInput& in : shards) try {
     for (const char* k : same_keys)
       if (in.summary.value(k, nlohmann::json()) != first.value(k, nlohmann::json()))
         throw_error(join_path(in.dir, "summary.json"), ": '", k, "' is ", in.summary.value(k, nlohmann::json()).dump(), " but ",
@@ -338,8 +338,10 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
                     f < next ? " was expected (two shards hold it)" : " was expected (no shard given holds it)");
       ++next;
     }
+    T = first.at("shard").value("frames_total", size_t(0));
+  } catch (const nlohmann::json::exception& e) {
+    throw_error(join_path(in.dir, "summary.json"), ": malformed shard summary (", e.what(), ")");
   }
-  const size_t T = first["shard"].value("frames_total", size_t(0));
   if (next != T) throw_error("merge: the shards hold frames 0 to ", next - 1, " of ", T, " (a shard is missing)");
 
   const std::string first_path = join_path(shards.front().dir, "summary.json");
