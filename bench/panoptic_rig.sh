@@ -163,5 +163,5 @@ for cam in "${PICTURE[@]}"; do
   rows+=("$P/ims/$cam/$(printf '%06d' $SRC).jpg" --resize ${W}x$H)
   for id in backbone fillgs "$best"; do rows+=("$OUT/$id/picture/renders/picture/$name"); done
 done
-oiiotool "${rows[@]}" --mosaic 4x2 --resize 200% -o "$OUT/compare.png"
+oiiotool --nosoftwareattrib "${rows[@]}" --mosaic 4x2 --resize 200% -o "$OUT/compare.png"
 echo "picture: ground truth | backbone | fillgs | $best at cameras ${PICTURE[0]} and ${PICTURE[1]}, source frame $SRC -> $OUT/compare.png"

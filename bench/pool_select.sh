@@ -209,7 +209,7 @@ for K in "${budgets[@]}"; do
   for st in "${STRATEGIES[@]}"; do
     [ -f "$OUT/s${seeds[0]}/$st.K$K/pool_chosen.png" ] && pics+=("$OUT/s${seeds[0]}/$st.K$K/pool_chosen.png")
   done
-  [ ${#pics[@]} -gt 0 ] && oiiotool "${pics[@]}" --mosaic 4x2 -o "$OUT/chosen_K${K}_s${seeds[0]}.png"
+  [ ${#pics[@]} -gt 0 ] && oiiotool --nosoftwareattrib "${pics[@]}" --mosaic 4x2 -o "$OUT/chosen_K${K}_s${seeds[0]}.png"
 done
 cat "$OUT/results.md"
 
@@ -244,5 +244,5 @@ done
 # The photograph at the renders' size.
 size=$(oiiotool --info "${tiles[1]}" | sed -n 's/.* \([0-9]*\) x *\([0-9]*\).*/\1x\2/p' | head -n 1)
 tiles=("${tiles[0]}" --resize "$size" "${tiles[@]:1}")
-oiiotool "${tiles[@]}" --mosaic 4x1 --resize 200% -o "$OUT/compare.png"
+oiiotool --nosoftwareattrib "${tiles[@]}" --mosaic 4x1 --resize 200% -o "$OUT/compare.png"
 echo "picture: ground truth | backbone | $best | fillgs.K$K at held-out camera $cam, source frame $SRC -> $OUT/compare.png"
