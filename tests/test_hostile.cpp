@@ -28,6 +28,7 @@
 #include "fillgs/base/limits.hpp"
 #include "fillgs/base/process.hpp"
 #include "fillgs/model/camera.hpp"
+#include "fillgs/io/image_io.hpp"
 #include "fillgs/io/npy.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/io/torch_file.hpp"
@@ -210,6 +211,7 @@ TEST_CASE("a commit into an existing folder killed half-way leaves a marker read
   write_file_atomically(out + "/count.npy", "old count");
   write_file_atomically(out + "/deficiency.npy", "old deficiency");
   write_file_atomically(out + "/mine.txt", "the user's");
+  write_image(out + "/view.png", Image(2, 2, 3));
   // Killed (by _exit in a child, before any cleanup) after the marker was written and the
   // first file moved: the folder holds a new count.npy beside the old deficiency.npy.
   const pid_t p = ::fork();
@@ -227,6 +229,7 @@ TEST_CASE("a commit into an existing folder killed half-way leaves a marker read
   CHECK_THROWS_WITH(read_file(out + "/deficiency.npy"), Catch::Contains("deficiency.npy: the fillgs command that wrote") &&
                                                             Catch::Contains(".fillgs-commit-incomplete is there"));
   CHECK_THROWS_WITH(read_file(out + "/mine.txt"), Catch::Contains("killed while moving its files into place"));
+  CHECK_THROWS_WITH(read_image(out + "/view.png"), Catch::Contains("view.png: the fillgs command that wrote"));
   // The next commit on the folder writes its own files, removes what the interrupted one
   // named and it does not write again, and clears the marker; the user's file stays.
   {

@@ -149,6 +149,7 @@ bool has_jpeg_end(const std::string& path) {
 }  // namespace
 
 Image read_image(const std::string& path) {
+  require_regular_file(path);  // a pipe would hang the decoder; a folder a killed commit left mixed is refused
   std::string why;
   auto in = open_image(path, &why);
   if (!in) throw_error(path, ": cannot read image (", why, ")");
