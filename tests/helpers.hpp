@@ -22,6 +22,8 @@
 #include <cstdlib>
 #include <unistd.h>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <utility>
 
@@ -42,6 +44,21 @@ inline std::string shared_data() {
   REQUIRE(std::filesystem::is_directory(dir));
   return dir;
 }
+
+/// A file's bytes as they are (no checks: what a reader would see without fillgs's).
+inline std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// Sets an environment variable for the scope, and unsets it after.
+struct EnvOverride {
+  std::string name;
+  EnvOverride(const char* n, const std::string& value) : name(n) { ::setenv(n, value.c_str(), 1); }
+  ~EnvOverride() { ::unsetenv(name.c_str()); }
+};
 
 /// A fresh, empty scratch folder under the system temp directory.
 inline std::string scratch(const std::string& name) {

@@ -4,7 +4,6 @@
 // silently, and choices that were made without a word. Every case is refused with one line
 // naming the file and the element, or handled as the documents say.
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <nlohmann/json.hpp>
@@ -40,26 +39,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-/// Sets an environment variable for one scope.
-struct ScopedEnv {
-  std::string name;
-  ScopedEnv(const char* n, const std::string& v) : name(n) { ::setenv(n, v.c_str(), 1); }
-  ~ScopedEnv() { ::unsetenv(name.c_str()); }
-};
-
 std::string write_pth(const std::string& dir, const std::string& name, const std::string& bytes) {
   fs::create_directories(dir);
   const std::string path = dir + "/" + name;
   write_file_atomically(path, bytes);
   return path;
-}
-
-/// A file's bytes, read past every check (what a reader would see without them).
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 /// Reads every tensor of a state dict .pth (as the model readers do).
@@ -123,7 +107,7 @@ TEST_CASE(".pth amplification: storages inflated once, pickles and tensors charg
   const std::string many = write_pth(dir, "views.pth", craft_pth(views, {{"0", std::string(n * 4, '\0')}}, true));
   CHECK(fs::file_size(many) < 200000);
   {
-    ScopedEnv cap("FILLGS_MAX_ALLOC", std::to_string(200 << 20));
+    EnvOverride cap("FILLGS_MAX_ALLOC", std::to_string(200 << 20));
     CHECK(read_all(many) == 226);
   }
   // Whole-storage views of the same storage: each is 64 MB of floats; the budget stops the
@@ -132,7 +116,7 @@ TEST_CASE(".pth amplification: storages inflated once, pickles and tensors charg
   for (int k = 0; k < 20; ++k) whole.push_back({"w" + std::to_string(k), "0", int64_t(n), 0, {int64_t(n)}, {1}});
   const std::string big = write_pth(dir, "whole.pth", craft_pth(whole, {{"0", std::string(n * 4, '\0')}}, true));
   {
-    ScopedEnv cap("FILLGS_MAX_ALLOC", std::to_string(300 << 20));
+    EnvOverride cap("FILLGS_MAX_ALLOC", std::to_string(300 << 20));
     CHECK_THROWS_WITH(read_all(big), Catch::Contains(big + ": key 'w") && Catch::Contains("would bring this file's memory to") &&
                                          Catch::Contains("FILLGS_MAX_ALLOC"));
   }
@@ -143,7 +127,7 @@ TEST_CASE(".pth amplification: storages inflated once, pickles and tensors charg
   for (int k = 0; k < 1000000; ++k) p.op('N').op('a');
   p.op('.');
   {
-    ScopedEnv cap("FILLGS_MAX_ALLOC", std::to_string(50 << 20));
+    EnvOverride cap("FILLGS_MAX_ALLOC", std::to_string(50 << 20));
     PickleValues v;
     CHECK_THROWS_WITH(run_pickle(p.b, "list.pkl", v), Catch::Contains("list.pkl: pickle values") && Catch::Contains("would bring this file's memory to"));
   }
@@ -204,7 +188,7 @@ TEST_CASE("an output never replaces what is not a regular file", "[robust][hosti
   CHECK(read_file(dir + "/old.json") != "old");
 }
 
-TEST_CASE("a commit into an existing folder killed half-way leaves a marker readers and the next run honour", "[robust][hostile]") {
+TEST_CASE("a commit into an existing folder stopped half-way leaves a marker readers and the next run honour", "[robust][hostile]") {
   const std::string dir = scratch("hostile_commit");
   const std::string out = dir + "/out";
   fs::create_directories(out);
@@ -212,19 +196,19 @@ TEST_CASE("a commit into an existing folder killed half-way leaves a marker read
   write_file_atomically(out + "/deficiency.npy", "old deficiency");
   write_file_atomically(out + "/mine.txt", "the user's");
   write_image(out + "/view.png", Image(2, 2, 3));
-  // Killed (by _exit in a child, before any cleanup) after the marker was written and the
-  // first file moved: the folder holds a new count.npy beside the old deficiency.npy.
-  const pid_t p = ::fork();
-  if (p == 0) {
+  // The real commit stopped half-way: a folder stands where the new run's blocker.npy goes,
+  // so its rename fails (as a kill between two renames would stop it) and commit() throws
+  // with the folder mixed, whichever files it had moved by then.
+  fs::create_directories(out + "/blocker.npy/inside");
+  {
     OutputFolder f(out);
-    write_file_atomically(join_path(f.path(), "count.npy"), "new count");
-    write_file_atomically(join_path(f.path(), "deficiency.npy"), "new deficiency");
-    write_file_atomically(join_path(out, ".fillgs-commit-incomplete"), "count.npy\ndeficiency.npy\n");  // as commit() writes it first
-    fs::rename(join_path(f.path(), "count.npy"), join_path(out, "count.npy"));
-    ::_exit(0);
+    for (const char* name : {"count.npy", "deficiency.npy", "blocker.npy"}) write_file_atomically(join_path(f.path(), name), std::string("new ") + name);
+    CHECK_THROWS_WITH(f.commit(), Catch::Contains("the commit stopped after"));
   }
-  ::waitpid(p, nullptr, 0);
-  REQUIRE(slurp(out + "/count.npy") == "new count");
+  REQUIRE(fs::exists(out + "/.fillgs-commit-incomplete"));
+  const std::string named = slurp(out + "/.fillgs-commit-incomplete");
+  for (const char* name : {"count.npy", "deficiency.npy", "blocker.npy"}) CHECK(named.find(std::string("\n") + name + "\n") != std::string::npos);
+  fs::remove_all(out + "/blocker.npy");
   // Readers refuse every file of the folder, naming the marker.
   CHECK_THROWS_WITH(read_file(out + "/deficiency.npy"), Catch::Contains("deficiency.npy: the fillgs command that wrote") &&
                                                             Catch::Contains(".fillgs-commit-incomplete is there"));

@@ -54,13 +54,6 @@ double ink(const Image& im) {
   return double(dark) / (double(im.width) * im.height);
 }
 
-/// Unsets an environment variable for the scope.
-struct EnvOverride {
-  std::string name;
-  EnvOverride(const char* n, const char* value) : name(n) { ::setenv(n, value, 1); }
-  ~EnvOverride() { ::unsetenv(name.c_str()); }
-};
-
 }  // namespace
 
 TEST_CASE("bar chart: the CSV holds the names and values, the script re-plots it alone", "[plot]") {

@@ -48,12 +48,6 @@ void write(const std::string& path, const std::string& bytes) {
   std::ofstream(path, std::ios::binary) << bytes;
 }
 
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
 
 /// One line, exit 1, naming every word; and no message that names nothing.
 void expect_error(const Result& r, const std::vector<std::string>& words) {

@@ -284,13 +284,14 @@ TEST_CASE("a network's working memory is charged to FILLGS_MAX_ALLOC before it i
   const size_t threads = size_t(std::max(1, tbb::this_task_arena::max_concurrency()));
   // The fixture's widest E-D3DGS layer is its colour head's 48 outputs: 1024 rows x 4 blocks x 4 bytes each.
   const size_t network = threads * 1024 * 48 * 16;
-  ::setenv("FILLGS_MAX_ALLOC", std::to_string(network / 2).c_str(), 1);
-  CHECK_THROWS_WITH(open_trained_model(dir, SceneFormat::Ed3dgs, {}),
-                    Catch::Contains("E-D3DGS's network evaluation (" + std::to_string(threads) + " threads x 1024 rows x 4 blocks of its widest layer, 48 values)") &&
-                        Catch::Contains("would bring this file's memory to"));
-  ::setenv("FILLGS_MAX_ALLOC", std::to_string(network * 4).c_str(), 1);
+  {
+    const test::EnvOverride cap("FILLGS_MAX_ALLOC", std::to_string(network / 2));
+    CHECK_THROWS_WITH(open_trained_model(dir, SceneFormat::Ed3dgs, {}),
+                      Catch::Contains("E-D3DGS's network evaluation (" + std::to_string(threads) + " threads x 1024 rows x 4 blocks of its widest layer, 48 values)") &&
+                          Catch::Contains("would bring this file's memory to"));
+  }
+  const test::EnvOverride cap("FILLGS_MAX_ALLOC", std::to_string(network * 4));
   CHECK(open_trained_model(dir, SceneFormat::Ed3dgs, {})->size() > 0);
-  ::unsetenv("FILLGS_MAX_ALLOC");
 }
 
 TEST_CASE(".pth tensors of every dtype and strides read as PyTorch converts them to float", "[trained-models]") {

@@ -60,37 +60,21 @@ void write_atomically(const std::string& path, const std::function<void(const st
   const fs::path target(path);
   require_replaceable(path);
   if (target.has_parent_path()) make_directories(target.parent_path().string());
-  const fs::path tmp = temporary_name(path);
   // The temporary file exists and is locked (flock) while it is written, so that only a
-  // killed writer's leftover is ever swept (OutputFolder), never a live one.
-  const int lock = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-  if (lock < 0) throw_error(path, ": cannot write (", std::strerror(errno), " creating ", tmp.string(), ")");
-  ::flock(lock, LOCK_EX);
-  struct Closer {
-    int fd;
-    ~Closer() { ::close(fd); }
-  } closer{lock};
-  try {
-    write(tmp.string());
-    // A file that reached the file-size limit lost what came after it (SIGXFSZ is ignored,
-    // so the write that met the limit failed with EFBIG), whether or not its writer noticed.
-    rlimit limit{};
-    struct stat st {};
-    if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY && ::stat(tmp.c_str(), &st) == 0 &&
-        rlim_t(st.st_size) >= limit.rlim_cur)
-      throw_error(path, ": cannot write (the file-size limit of ", limit.rlim_cur, " bytes was reached; see ulimit -f)");
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw;
-  }
+  // killed writer's leftover is ever swept (OutputFolder), never a live one; whatever
+  // happens, it is gone when this returns (renamed, or removed by its destructor).
+  const LockedTemporary tmp(path);
+  write(tmp.path());
+  // A file that reached the file-size limit lost what came after it (SIGXFSZ is ignored,
+  // so the write that met the limit failed with EFBIG), whether or not its writer noticed.
+  rlimit limit{};
+  struct stat st {};
+  if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY && ::stat(tmp.path().c_str(), &st) == 0 &&
+      rlim_t(st.st_size) >= limit.rlim_cur)
+    throw_error(path, ": cannot write (the file-size limit of ", limit.rlim_cur, " bytes was reached; see ulimit -f)");
   std::error_code ec;
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    const std::string why = ec.message();  // before remove() resets ec
-    fs::remove(tmp, ec);
-    throw_error(path, ": cannot write (", why, ")");
-  }
+  fs::rename(tmp.path(), target, ec);
+  if (ec) throw_error(path, ": cannot write (", ec.message(), ")");
 }
 
 void write_file_checked(const std::string& file, const std::string& shown, const void* data, size_t size) {
@@ -278,7 +262,7 @@ OutputFolder::OutputFolder(const std::string& dir) {
   // What killed runs left, proved by their unheld locks: staging folders beside a new output
   // or inside an existing one, temporary files in it.
   sweep(parent, "." + name + kStagingMark, 1);
-  if (exists) sweep(d, kStagingMark, 3);
+  if (exists) remove_stale_temporaries(dir_);
   // Staging lies on the output's own file system: inside the folder when it exists (a mount
   // point, a link to another file system), else beside it, where it will be renamed to.
   const std::string token = unique_token();

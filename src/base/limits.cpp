@@ -89,6 +89,11 @@ void check_allocation(size_t bytes, const std::string& source, const std::string
   throw_error(source, ": ", what, " would need ", bytes, " bytes, more than the ", cap, " this process may use (", m.source, ")");
 }
 
+std::string hex_byte(unsigned char byte) {
+  const char* d = "0123456789abcdef";
+  return std::string{d[byte >> 4], d[byte & 15]};
+}
+
 size_t first_invalid_utf8(const std::string& text) {
   const size_t n = text.size();
   for (size_t i = 0; i < n;) {

@@ -139,13 +139,13 @@ ProcessResult run_process(const std::vector<std::string>& argv, const ProcessOpt
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   NoSigpipe no_sigpipe;
-  std::set<pid_t> earlier;  // children of this process from before: not the program's
+  std::set<pid_t> spared;  // children of this process from before, and the program (reaped below)
   if (o.end_descendants) {
     // Orphans of the program's processes come to this process instead of init, so that a
     // child that called setsid cannot outlive the call.
     static const bool subreaper = ::prctl(PR_SET_CHILD_SUBREAPER, 1) == 0;
     (void)subreaper;
-    for (pid_t c : children_except({})) earlier.insert(c);
+    for (pid_t c : children_except({})) spared.insert(c);
   }
   pid_t pid = 0;
   const int rc = posix_spawnp(&pid, argv[0].c_str(), &s.actions, &s.attr, args.data(), environ);
@@ -156,6 +156,7 @@ ProcessResult run_process(const std::vector<std::string>& argv, const ProcessOpt
     return r;
   }
   r.started = true;
+  spared.insert(pid);
   const bool bounded = o.timeout_seconds > 0;
   const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(bounded ? o.timeout_seconds : 0));
   auto out_of_time = [&] { return bounded && seconds_left(deadline) <= 0; };
@@ -187,8 +188,8 @@ ProcessResult run_process(const std::vector<std::string>& argv, const ProcessOpt
       return r;
     }
     if (out_of_time()) {
-      ::kill(-pid, SIGKILL);
-      if (o.end_descendants) end_descendants(pid, earlier);
+      if (o.end_descendants) end_descendants(pid, spared);
+      else ::kill(-pid, SIGKILL);
       ::waitpid(pid, &status, 0);
       r.timed_out = true;
       r.status = -1;
@@ -196,11 +197,7 @@ ProcessResult run_process(const std::vector<std::string>& argv, const ProcessOpt
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  if (o.end_descendants) {
-    std::set<pid_t> keep = earlier;
-    keep.insert(pid);  // reaped below, for its status
-    end_descendants(pid, keep);
-  }
+  if (o.end_descendants) end_descendants(pid, spared);
   ::waitpid(pid, &status, 0);
   if (WIFEXITED(status)) r.status = WEXITSTATUS(status);
   else r.status = 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);

@@ -285,7 +285,7 @@ class PickleMachine {
           charge(0, true);
           return stack_.back();
         }
-        default: fail("unsupported pickle opcode 0x", hex(op), " at byte ", at_ - 1);
+        default: fail("unsupported pickle opcode 0x", hex_byte(op), " at byte ", at_ - 1);
       }
     }
   }
@@ -297,10 +297,6 @@ class PickleMachine {
   template <typename... Parts>
   [[noreturn]] void fail(const Parts&... parts) const {
     throw_error(src_, ": pickle ", parts...);
-  }
-  static std::string hex(unsigned op) {
-    const char* d = "0123456789abcdef";
-    return std::string{d[op >> 4], d[op & 15]};
   }
   std::string take(size_t n) {
     if (n > b_.size() - at_) fail("runs past its end (", n, " bytes wanted at byte ", at_, ", truncated?)");
@@ -390,8 +386,9 @@ class PickleMachine {
   }
   void memo(size_t index) {
     if (index > 10000000) fail("memo index ", index, " out of range");
-    if (memo_.emplace(index, top()).second) charge(64);  // a hash-map node
-    else memo_[index] = top();
+    const auto [slot, fresh] = memo_.emplace(index, top());
+    if (fresh) charge(64);  // a hash-map node
+    else slot->second = top();
   }
   void recall(size_t index) {
     const auto it = memo_.find(index);
@@ -530,6 +527,8 @@ TorchFile::TorchFile(const std::string& path)
     if (order != "little") throw_error(path, ": tensors stored ", order.substr(0, 20), "-endian; fillgs reads little-endian");
   }
   run_pickle(zip_.read(pkl), path + " (" + pkl + ")", *this, &zip_.budget());
+  for (const Value& v : values_)
+    if (v.kind == Kind::Tensor) ++views_[values_[v.items[0]].text];
 }
 
 std::string TorchTensor::shape_text() const {
@@ -570,9 +569,7 @@ TorchTensor TorchFile::tensor(Ref r, const std::string& what) const {
   // its storage is a corrupt header, not data.
   if (numel > 64 * std::max<size_t>(have, 1) + 1024)
     throw_error(source_, ": ", what, " of shape ", out.shape_text(), " has ", numel, " elements from a storage of ", have);
-  const size_t bytes = checked_mul(numel, sizeof(float), source_, what + " size");
-  check_allocation(bytes, source_, what);
-  zip_.budget().charge(bytes, what + " (" + std::to_string(numel) + " values)");
+  zip_.budget().charge(checked_mul(numel, sizeof(float), source_, what + " size"), what + " (" + std::to_string(numel) + " values)");
   out.values.resize(numel);
   std::vector<int64_t> idx(t.shape.size(), 0);
   for (size_t i = 0; i < numel; ++i) {
@@ -612,11 +609,6 @@ TorchTensor TorchFile::tensor(Ref r, const std::string& what) const {
 }
 
 std::shared_ptr<const std::string> TorchFile::storage(const std::string& key, const std::string& what) const {
-  if (views_.empty()) {  // how many tensors view each storage, counted once
-    for (const Value& v : values_)
-      if (v.kind == Kind::Tensor) ++views_[values_[v.items[0]].text];
-    views_[""] += 0;  // counted, even when no tensor
-  }
   const auto it = storages_.find(key);
   if (it != storages_.end()) return it->second;
   const std::string entry = prefix_ + "data/" + key;
@@ -624,7 +616,8 @@ std::shared_ptr<const std::string> TorchFile::storage(const std::string& key, co
   auto bytes = std::make_shared<const std::string>(zip_.read(entry));
   // Kept only when another tensor views it too: a state dict's usual one storage per tensor
   // is not held twice (as bytes and as floats) while the model is read.
-  if (views_[key] > 1) storages_.emplace(key, bytes);
+  const auto viewers = views_.find(key);
+  if (viewers != views_.end() && viewers->second > 1) storages_.emplace(key, bytes);
   return bytes;
 }
 

@@ -32,12 +32,6 @@ namespace {
 // ---------------------------------------------------------------------------------
 // cfg_args: the repr of an argparse Namespace
 
-std::string hex_byte(char c) {
-  const char* d = "0123456789abcdef";
-  const unsigned u = static_cast<unsigned char>(c);
-  return std::string{d[u >> 4], d[u & 15]};
-}
-
 class LiteralParser {
  public:
   LiteralParser(const std::string& s, const std::string& src) : s_(s), src_(src) {}
@@ -47,7 +41,7 @@ class LiteralParser {
     const size_t bad = first_invalid_utf8(s_);
     if (bad != std::string::npos) {
       at_ = bad;
-      fail("invalid UTF-8 byte 0x" + hex_byte(s_[bad]));
+      fail("invalid UTF-8 byte 0x" + hex_byte(static_cast<unsigned char>(s_[bad])));
     }
     nlohmann::json v = value(0);
     space();
@@ -459,11 +453,11 @@ std::pair<double, double> time_range(const std::string& text, const std::string&
   return {a, b};
 }
 
-/// `t` as the float a network is evaluated at; one line naming the model when it is not
-/// finite or lies beyond kMaxModelTime (no time is turned into an index unchecked).
-float network_time(double t, const std::string& source, const char* what = "model time") {
+/// `t` when it is a time a model can be evaluated at; one line naming the model when it is
+/// not finite or lies beyond kMaxModelTime (no time is turned into an index unchecked).
+double model_time_checked(double t, const std::string& source, const char* what = "model time") {
   if (!(std::fabs(t) <= kMaxModelTime)) throw_error(source, ": ", what, " ", t, " is not a finite time within +-", kMaxModelTime);
-  return float(t);
+  return t;
 }
 
 /// Frames and times: frame f at T0 + f (T1 - T0) / F, as the field's multi-view loaders
@@ -582,8 +576,10 @@ class Ed3dgs : public TrainedModel {
     }
     if (!no_dc_ && canonical_.sh_degree != 3)
       throw_error(ply_path, ": SH degree ", canonical_.sh_degree, "; E-D3DGS's colour head deforms 16 coefficients (degree 3)");
-    for (const Net& n : net_)
-      charge_network(tf, widest({&n.trunk, &n.heads[0], &n.heads[1], &n.heads[2], &n.heads[3], &n.heads[4]}), "E-D3DGS");
+    // The coarse and fine passes run one after the other on a block: the wider one's memory.
+    size_t width = 0;
+    for (const Net& n : net_) width = std::max(width, widest({&n.trunk, &n.heads[0], &n.heads[1], &n.heads[2], &n.heads[3], &n.heads[4]}));
+    charge_network(tf, width, "E-D3DGS");
     set_times(*this, opt.model_frames > 0 ? opt.model_frames : total_frames, {0.0, 1.0});
     if (!opt.model_time_range.empty()) set_times(*this, frames, time_range(opt.model_time_range, source));
     notes.push_back("E-D3DGS at iteration " + std::to_string(iteration_) + ": temporal embeddings " +
@@ -593,7 +589,9 @@ class Ed3dgs : public TrainedModel {
   size_t size() const override { return canonical_.size(); }
 
   ModelState at(double model_time) const override {
-    const float t = network_time(double(network_time(model_time, source)) + double(offset_), source, "model time plus the camera's offset");
+    // Added in float32, as its code adds them; both sides lie within +-1e6 (the offset
+    // checked when read), so the sum is finite and within +-2e6.
+    const float t = float(model_time_checked(model_time, source)) + offset_;
     std::vector<float> emb_c, emb_f;
     temporal_embedding(t, coarse_count(), emb_c);
     temporal_embedding(t, fine_count(), emb_f);
@@ -654,7 +652,7 @@ class Ed3dgs : public TrainedModel {
     const float gy = (t - 0.5f) * 2.0f;
     float y = ((gy + 1.0f) / 2.0f) * float(rows - 1);
     if (rows > 1) {  // reflect about 0 and rows - 1, then clip
-      // |t| <= 1e6 keeps y finite; the parity of the reflections is taken in float, so no
+      // |t| <= 2e6 keeps y finite; the parity of the reflections is taken in float, so no
       // coordinate, however large, becomes an integer before it is inside [0, rows - 1].
       const float span = float(rows - 1);
       y = std::fabs(y);
@@ -753,7 +751,7 @@ class FourDGaussians : public TrainedModel {
   ModelState at(double model_time) const override {
     ModelState s = canonical_;
     const size_t n = size();
-    const float t = network_time(model_time, source);
+    const float t = float(model_time_checked(model_time, source));
     HeadWeights w;
     const bool on[5] = {!no_dx_, !no_ds_, !no_dr_, !no_do_, !no_dshs_};
     for (int h = 0; h < 5; ++h) w.on[h] = on[h];
@@ -900,7 +898,7 @@ class Deformable3dgs : public TrainedModel {
   ModelState at(double model_time) const override {
     ModelState s = canonical_;
     const size_t n = size();
-    const float t = network_time(model_time, source);
+    const float t = float(model_time_checked(model_time, source));
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, kBlock), [&](const tbb::blocked_range<size_t>& r) {
       const Eigen::Index B = Eigen::Index(r.size());
       const int x_in = 3 * 21;
@@ -1054,7 +1052,7 @@ class FourDGS : public TrainedModel {
     s.opacity_logits = opacity_;
     s.opacity_factor.resize(n);
     s.sh.assign(n * K * 3, 0.0f);
-    const double tau = network_time(model_time, source);
+    const double tau = model_time_checked(model_time, source);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
         const double dt = tau - double(tmean_[i]);
@@ -1133,8 +1131,7 @@ class FrameSequence : public TrainedModel {
  public:
   size_t size() const override { return frames_.empty() ? 0 : frames_[0].size(); }
   ModelState at(double model_time) const override {
-    if (!std::isfinite(model_time)) throw_error(source, ": model time ", model_time, " is not finite");
-    const long f = std::lround(std::clamp(model_time, 0.0, double(frames_.size() - 1)));
+    const long f = std::lround(std::clamp(model_time_checked(model_time, source), 0.0, double(frames_.size() - 1)));
     return frames_[size_t(f)];
   }
 

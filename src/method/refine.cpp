@@ -489,8 +489,7 @@ RefineReport refine_patches(Refiner& refiner, const std::vector<Patch>& patches,
         int w = 0, h = 0;
         if (!fs::exists(fs::symlink_status(path))) throw_error("missing refined image ", im.file);
         if (!image_size(path, &w, &h)) {
-          require_regular_file(path);  // a link to nothing, a folder, a pipe: says which
-          read_image(path);            // else the image reader's own complaint
+          read_image(path);  // its complaint: a link to nothing, a folder, a pipe, not an image
           throw_error(path, ": the refined image's size cannot be read");
         }
         if (w != cam.width || h != cam.height) throw_error(im.file, " is ", w, "x", h, ", expected ", cam.width, "x", cam.height);

@@ -3,6 +3,7 @@
 #include <cfloat>
 #include <cmath>
 #include <cstring>
+#include <type_traits>
 
 #include <nlohmann/json.hpp>
 
@@ -269,33 +270,23 @@ std::string table_payload(const std::string& path, const std::string& descr, con
   return a.bytes;
 }
 
-/// The values of a table a shard wrote, checked as observe writes them: counts at most the
-/// cameras of a frame, speeds and deficiencies finite and at least 0, dynamic ids inside
-/// the model and increasing. One line naming the file, the element and the value otherwise.
-void check_table_values(const std::string& path, const std::string& bytes, const std::string& descr, double max, size_t row) {
-  const size_t item = descr == "|u1" ? 1 : descr == "<u2" ? 2 : 4;
-  const size_t n = bytes.size() / item;
+/// The values of a table a shard wrote (T: its element type), checked as observe writes
+/// them: counts at most the cameras of a frame, speeds and deficiencies finite and at least
+/// 0, dynamic ids inside the model and increasing. One line naming the file, the element
+/// (row, column for tables `row` wide) and the value otherwise.
+template <typename T>
+void check_table_values(const std::string& path, const std::string& bytes, double max, size_t row, bool increasing = false) {
+  const size_t n = bytes.size() / sizeof(T);
   auto where = [&](size_t i) { return row ? " [" + std::to_string(i / row) + ", " + std::to_string(i % row) + "]" : " " + std::to_string(i); };
+  T prev{};
   for (size_t i = 0; i < n; ++i) {
-    double v = 0;
-    if (descr == "|u1") v = static_cast<unsigned char>(bytes[i]);
-    else if (descr == "<u2") v = double(uint16_t(uint8_t(bytes[2 * i]) | (uint16_t(uint8_t(bytes[2 * i + 1])) << 8)));
-    else if (descr == "<u4") {
-      uint32_t u;
-      std::memcpy(&u, &bytes[4 * i], 4);
-      v = u;
-    } else {
-      float f;
-      std::memcpy(&f, &bytes[4 * i], 4);
-      v = f;
-    }
+    T x;
+    std::memcpy(&x, &bytes[i * sizeof(T)], sizeof(T));
+    const double v = double(x);
     if (!(v >= 0 && v <= max))
-      throw_error(path, ": element", where(i), " is ", v, ", outside [0, ", max, "]", descr == "<f4" ? " (not a finite speed or deficiency)" : "");
-    if (descr == "<u4" && i > 0) {
-      uint32_t prev;
-      std::memcpy(&prev, &bytes[4 * (i - 1)], 4);
-      if (!(v > double(prev))) throw_error(path, ": element ", i, " (", v, ") does not follow ", prev, ": dynamic ids increase");
-    }
+      throw_error(path, ": element", where(i), " is ", v, ", outside [0, ", max, "]", std::is_floating_point_v<T> ? " (not a finite speed or deficiency)" : "");
+    if (increasing && i > 0 && !(x > prev)) throw_error(path, ": element ", i, " (", v, ") does not follow ", double(prev), ": dynamic ids increase");
+    prev = x;
   }
 }
 
@@ -369,7 +360,10 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
     NpyStreamWriter out(join_path(dir, name), type.first, item, {T, type.second});
     for (const ShardInput& in : shards) {
       const std::string bytes = table_payload(join_path(in.dir, name), type.first, {in.frames.size(), type.second});
-      check_table_values(join_path(in.dir, name), bytes, type.first, type.first == "<f4" ? double(FLT_MAX) : double(max_views), type.second);
+      const std::string path = join_path(in.dir, name);
+      if (item == 1) check_table_values<uint8_t>(path, bytes, double(max_views), type.second);
+      else if (item == 2) check_table_values<uint16_t>(path, bytes, double(max_views), type.second);
+      else check_table_values<float>(path, bytes, double(FLT_MAX), type.second);
       out.write(bytes.data(), bytes.size());
     }
     out.finish();
@@ -384,7 +378,7 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
     times.insert(times.end(), t.begin(), t.end());
   }
   const std::string ids = table_payload(join_path(shards.front().dir, "dynamic_ids.npy"), "<u4", {M});
-  if (N > 0) check_table_values(join_path(shards.front().dir, "dynamic_ids.npy"), ids, "<u4", double(N - 1), 0);
+  if (N > 0) check_table_values<uint32_t>(join_path(shards.front().dir, "dynamic_ids.npy"), ids, double(N - 1), 0, true);
   for (const ShardInput& in : shards)
     if (table_payload(join_path(in.dir, "dynamic_ids.npy"), "<u4", {M}) != ids)
       throw_error(join_path(in.dir, "dynamic_ids.npy"), ": other dynamic Gaussians than ", join_path(shards.front().dir, "dynamic_ids.npy"));
@@ -440,7 +434,7 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
       throw_error(join_path(in.dir, "deficiency_heat.npy"), ": not [frames, bins] float32");
     if (tally.heat.empty()) tally.columns = int(heat.shape[1]);
     if (heat.shape[1] != size_t(tally.columns)) throw_error(join_path(in.dir, "deficiency_heat.npy"), ": other heatmap bins than the first shard");
-    check_table_values(join_path(in.dir, "deficiency_heat.npy"), heat.bytes, "<f4", double(FLT_MAX), heat.shape[1]);
+    check_table_values<float>(join_path(in.dir, "deficiency_heat.npy"), heat.bytes, double(FLT_MAX), heat.shape[1]);
     const float* h = reinterpret_cast<const float*>(heat.bytes.data());
     tally.heat.insert(tally.heat.end(), h, h + heat.size());
   }

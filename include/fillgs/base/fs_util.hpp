@@ -82,7 +82,8 @@ std::string temporary_name(const std::string& path);
 void remove_stale_temporaries(const std::string& dir);
 
 /// A temporary file beside `beside` (temporary_name), created and locked for this object's
-/// life and removed by its destructor: a helper program's log, say. A process killed while it
+/// life and removed by its destructor (unless renamed away meanwhile): what
+/// write_atomically writes into, a helper program's log. A process killed while it
 /// exists leaves an unlocked file that the next command on the folder removes.
 class LockedTemporary {
  public:

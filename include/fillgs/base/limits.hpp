@@ -51,7 +51,6 @@ class AllocationBudget {
  public:
   explicit AllocationBudget(std::string source) : source_(std::move(source)) {}
   void charge(size_t bytes, const std::string& what);
-  size_t used() const { return used_; }
 
  private:
   std::string source_;
@@ -73,6 +72,9 @@ bool parse_number(const std::string& text, double* out);
 /// As above, but throws
 /// "SOURCE: WHAT 'text' is not a number" (the text is cut to 40 characters in the message).
 double parse_number(const std::string& text, const std::string& source, const std::string& what);
+
+/// A byte as two lower-case hex digits ("ff"), for messages about bytes.
+std::string hex_byte(unsigned char byte);
 
 /// The index of the first byte of `text` that does not belong to well-formed UTF-8
 /// (overlong forms, surrogates and code points past U+10FFFF included), or npos.

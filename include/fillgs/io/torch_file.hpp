@@ -125,9 +125,9 @@ class TorchFile : public PickleValues {
   std::string source_;
   ZipArchive zip_;
   std::string prefix_;  ///< "archive/" or the saved file's stem
-  /// Storages viewed by more than one tensor, by key, once read; the tensors viewing each.
+  /// Storages viewed by more than one tensor, by key, once read.
   mutable std::map<std::string, std::shared_ptr<const std::string>> storages_;
-  mutable std::map<std::string, int> views_;
+  std::map<std::string, int> views_;  ///< how many of the pickle's tensors view each storage
 };
 
 /// Runs a pickle held in `bytes` into `values` (exposed for the fuzz harness and tests);
