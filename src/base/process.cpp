@@ -188,8 +188,15 @@ ProcessResult run_process(const std::vector<std::string>& argv, const ProcessOpt
       return r;
     }
     if (out_of_time()) {
-      if (o.end_descendants) end_descendants(pid, spared);
-      else ::kill(-pid, SIGKILL);
+      ::kill(-pid, SIGKILL);
+      if (o.end_descendants) {
+        // Its children pass to this process only once it has exited, not when the signal
+        // is sent: waited for (still unreaped) before they are looked for.
+        siginfo_t gone{};
+        while (::waitid(P_PID, id_t(pid), &gone, WEXITED | WNOWAIT) < 0 && errno == EINTR) {
+        }
+        end_descendants(pid, spared);
+      }
       ::waitpid(pid, &status, 0);
       r.timed_out = true;
       r.status = -1;
