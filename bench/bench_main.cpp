@@ -15,11 +15,13 @@ int bench_select(const std::vector<std::string>& args);
 int bench_motion(const std::vector<std::string>& args);
 int bench_n3v_rig(const std::vector<std::string>& args);
 int bench_warp_check(const std::vector<std::string>& args);
+int bench_networks(const std::vector<std::string>& args);
+int bench_city(const std::vector<std::string>& args);
 
 int main(int argc, char** argv) {
   fillgs::keep_freed_memory();
   if (argc < 2) {
-    std::cerr << "usage: fillgs_bench render|visibility|train|select|motion|n3v-rig|warp-check [options]; 'fillgs_bench <benchmark> --help' lists its options\n";
+    std::cerr << "usage: fillgs_bench render|visibility|train|select|motion|n3v-rig|warp-check|networks|city [options]; 'fillgs_bench <benchmark> --help' lists its options\n";
     return 2;
   }
   const std::string name = argv[1];
@@ -32,6 +34,8 @@ int main(int argc, char** argv) {
     if (name == "motion") return bench_motion(args);
     if (name == "n3v-rig") return bench_n3v_rig(args);
     if (name == "warp-check") return bench_warp_check(args);
+    if (name == "networks") return bench_networks(args);
+    if (name == "city") return bench_city(args);
     std::cerr << "error: unknown benchmark '" << name << "'\n";
     return 2;
   } catch (const fillgs::Error& e) {

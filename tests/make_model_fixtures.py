@@ -75,8 +75,8 @@ def random_gaussians(gen, n, sh_coeffs=16):
     return xyz, f_dc, f_rest, opacity, scale, rot
 
 
-def save_expect(path, times, means, opac, sh, scales=None, rots=None, cov=None):
-    out = dict(times=np.asarray(times, np.float64), means=np.stack(means), opacities=np.stack(opac), sh=np.stack(sh))
+def save_expect(path, times, means, opac, sh, scales=None, rots=None, cov=None, **extra):
+    out = dict(times=np.asarray(times, np.float64), means=np.stack(means), opacities=np.stack(opac), sh=np.stack(sh), **extra)
     if scales is not None:
         out["scales"] = np.stack(scales)
         out["rotations"] = np.stack(rots)
@@ -152,7 +152,39 @@ class EDeform(nn.Module):
         return pts, scales, rots, opac, sh
 
 
-def make_ed3dgs(out, name, seed, iteration, hidden, n=300, frames=12, gdim=8, expect=True):
+def still_background(net, args, emb, still, gen):
+    """A share `still` of the Gaussians made still, as a trained model's background is: half of
+    each pass's first-layer units keep the temporal embedding (the others see it only through
+    1e-2 of their weights, the network noise a trained model leaves), and a still Gaussian's
+    embedding switches those units off (ReLU), so only the noise moves it."""
+    n = emb.shape[0]
+    m = int(round(still * n))
+    d = args.temporal_embedding_dim
+    with torch.no_grad():
+        for pass_ in ("c", "f"):
+            w = getattr(net, "feature_out_" + pass_)[0].weight
+            half = w.shape[0] // 2
+            w[half:, :d] *= 1e-2
+            w[:half, d] = 1.0
+        emb[:m, 0] = -5.0
+        emb[m:, 0] = 1.0
+    return m
+
+
+def still_mask(frames_values, tol=1e-3, degrees=1.0, log_scale=0.01, opacity=1 / 255, colour=1 / 255):
+    """fillgs's still rule, in numpy: every frame within the tolerances of frame 0."""
+    p0, s0, r0, o0, c0 = frames_values[0]
+    still = np.ones(p0.shape[0], dtype=bool)
+    for p, s, r, o, c in frames_values[1:]:
+        still &= np.linalg.norm(p - p0, axis=1) <= tol
+        still &= np.abs(np.log(s) - np.log(s0)).max(axis=1) <= log_scale
+        still &= np.abs(o - o0) <= opacity
+        still &= np.abs((r * r0).sum(axis=1)) >= math.cos(math.radians(degrees) / 2)
+        still &= (np.abs(c[:, :3] - c0[:, :3]) * 0.28209479177387814).max(axis=1) <= colour
+    return still
+
+
+def make_ed3dgs(out, name, seed, iteration, hidden, n=300, frames=12, gdim=8, expect=True, still=0.0):
     gen = torch.Generator().manual_seed(seed)
     args = Namespace(net_width=hidden["width"], defor_depth=hidden["depth"], min_embeddings=hidden["min"], max_embeddings=hidden["max"],
                      no_ds=False, no_dr=False, no_do=hidden["no_do"], no_dc=False, temporal_embedding_dim=hidden["tdim"],
@@ -168,6 +200,8 @@ def make_ed3dgs(out, name, seed, iteration, hidden, n=300, frames=12, gdim=8, ex
         net.offsets[:4, 0] = torch.tensor([0.0, 0.01, -0.02, 0.015])
     xyz, f_dc, f_rest, opacity, scale, rot = random_gaussians(gen, n)
     emb = torch.randn(n, gdim, generator=gen) * 0.5
+    if still:
+        still_background(net, args, emb, still, gen)
     run = os.path.join(out, name)
     it_dir = os.path.join(run, "point_cloud", "iteration_%d" % iteration)
     os.makedirs(it_dir)
@@ -190,7 +224,19 @@ def make_ed3dgs(out, name, seed, iteration, hidden, n=300, frames=12, gdim=8, ex
             p, s, r, o, sh = net(g, t, iteration)
             M.append(p.numpy()); S.append(torch.exp(s).numpy()); R.append(F.normalize(r).numpy())
             O.append(torch.sigmoid(o)[:, 0].numpy()); SH.append(sh.reshape(n, -1).numpy())
-    save_expect(os.path.join(run, "expect.npz"), times, M, O, SH, S, R)
+    extra = {}
+    if still:
+        # The rule at every frame f / F, by PyTorch's values: which Gaussians are still, and how
+        # far the still ones' network noise moves them.
+        per_frame = []
+        with torch.no_grad():
+            for f in range(frames):
+                p, s, r, o, sh = net(g, f / frames, iteration)
+                per_frame.append((p.numpy(), torch.exp(s).numpy(), F.normalize(r).numpy(), torch.sigmoid(o)[:, 0].numpy(), sh.reshape(n, -1).numpy()))
+        mask = still_mask(per_frame)
+        drift = max(np.linalg.norm(v[0] - per_frame[0][0], axis=1)[mask].max() for v in per_frame[1:])
+        extra = dict(still=mask.astype(np.float64), still_drift=np.array([drift]))
+    save_expect(os.path.join(run, "expect.npz"), times, M, O, SH, S, R, **extra)
     return run
 
 
@@ -553,17 +599,29 @@ def make_hostile(out, prefix, ed3dgs_run, fourdg_run, fourdgs_run):
         torch.save(((degree,) + tuple(capture[1:]), iteration), os.path.join(dst, src))
 
 
-def make_bench(out, n, frames):
+BENCH_FORMATS = ("e-d3dgs", "4dgaussians", "4dgs", "dynamic3dgs", "ply-frames", "deformable3dgs", "e-d3dgs-still")
+
+
+def make_bench(out, n, frames, formats=BENCH_FORMATS[:6]):
     """Models with the architectures of each code's N3V (dynerf) configuration and n Gaussians,
-    no expected values: bench/trained_models.sh times fillgs on them."""
+    no expected values: bench/trained_models.sh times fillgs on them. e-d3dgs-still: E-D3DGS
+    whose background (80 % of the Gaussians) is still but for network noise."""
     os.makedirs(out)
-    make_ed3dgs(out, "e-d3dgs", 21, 80000, dict(width=128, depth=1, min=30, max=150, tdim=256, c2f=10000, deform_from=5000, coarse_emb=True,
-                                                 no_do=False), n=n, frames=frames, gdim=32, expect=False)
-    make_4dgaussians(out, "4dgaussians", 22, n=n, frames=frames, iteration=14000, width=128, channels=16, reso=(64, 150), depth=0, expect=False)
-    make_4dgs(out, "4dgs", 23, rot_4d=True, n=n, frames=frames, duration=(0.0, frames / 30.0), iteration=30000, expect=False)
-    make_dynamic3dgs(out, "dynamic3dgs", 24, n=n, frames=frames, expect=False)
-    make_ply_frames(out, "ply-frames", 25, n=n, frames=min(frames, 30), expect=False)
-    make_deformable3dgs(out, "deformable3dgs", 26, is_blender=False, n=n, frames=frames, width=256, expect=False)
+    ed = dict(width=128, depth=1, min=30, max=150, tdim=256, c2f=10000, deform_from=5000, coarse_emb=True, no_do=False)
+    if "e-d3dgs" in formats:
+        make_ed3dgs(out, "e-d3dgs", 21, 80000, ed, n=n, frames=frames, gdim=32, expect=False)
+    if "e-d3dgs-still" in formats:
+        make_ed3dgs(out, "e-d3dgs-still", 27, 80000, ed, n=n, frames=frames, gdim=32, expect=False, still=0.8)
+    if "4dgaussians" in formats:
+        make_4dgaussians(out, "4dgaussians", 22, n=n, frames=frames, iteration=14000, width=128, channels=16, reso=(64, 150), depth=0, expect=False)
+    if "4dgs" in formats:
+        make_4dgs(out, "4dgs", 23, rot_4d=True, n=n, frames=frames, duration=(0.0, frames / 30.0), iteration=30000, expect=False)
+    if "dynamic3dgs" in formats:
+        make_dynamic3dgs(out, "dynamic3dgs", 24, n=n, frames=frames, expect=False)
+    if "ply-frames" in formats:
+        make_ply_frames(out, "ply-frames", 25, n=n, frames=min(frames, 30), expect=False)
+    if "deformable3dgs" in formats:
+        make_deformable3dgs(out, "deformable3dgs", 26, is_blender=False, n=n, frames=frames, width=256, expect=False)
 
 
 def make_dtypes(out):
@@ -584,17 +642,24 @@ def main():
     ap.add_argument("out")
     ap.add_argument("--bench", type=int, metavar="N", help="only benchmark models of N Gaussians (see make_bench)")
     ap.add_argument("--frames", type=int, default=300, help="--bench: frames each model covers")
+    ap.add_argument("--formats", default=",".join(BENCH_FORMATS[:6]), help="--bench: the models made, of " + ",".join(BENCH_FORMATS))
     a = ap.parse_args()
     out = a.out
     if os.path.exists(out):
         shutil.rmtree(out)
     torch.manual_seed(0)
     if a.bench:
-        make_bench(out, a.bench, a.frames)
+        formats = a.formats.split(",")
+        unknown = [f for f in formats if f not in BENCH_FORMATS]
+        if unknown:
+            ap.error("--formats: unknown %s (known: %s)" % (",".join(unknown), ",".join(BENCH_FORMATS)))
+        make_bench(out, a.bench, a.frames, formats)
         print("benchmark models in", out)
         return 0
     os.makedirs(out)
     ed = make_ed3dgs(out, "ed3dgs", 1, 14000, dict(width=24, depth=2, min=5, max=16, tdim=16, c2f=10000, deform_from=5000, coarse_emb=True, no_do=False))
+    make_ed3dgs(out, "ed3dgs_still", 5, 14000, dict(width=24, depth=2, min=5, max=16, tdim=16, c2f=10000, deform_from=5000, coarse_emb=True, no_do=False),
+                still=0.6)
     make_ed3dgs(out, "ed3dgs_early", 2, 5600, dict(width=16, depth=1, min=4, max=20, tdim=12, c2f=10000, deform_from=5000, coarse_emb=False, no_do=True))
     fourdg = make_4dgaussians(out, "4dgaussians", 3)
     fourdgs = make_4dgs(out, "4dgs", 4, rot_4d=True)

@@ -19,6 +19,8 @@
 #include "fillgs/io/torch_file.hpp"
 #include "fillgs/io/trained_models.hpp"
 #include "fillgs/model/frame_grid.hpp"
+#include "fillgs/model/camera.hpp"
+#include "fillgs/visibility/visibility.hpp"
 
 namespace fs = std::filesystem;
 using namespace fillgs;
@@ -137,6 +139,7 @@ void check_model(const std::string& name) {
 TEST_CASE("E-D3DGS: positions, scales, rotations, opacities, SH equal PyTorch's at frames and between", "[trained-models]") {
   check_model("ed3dgs");        // coarse embedding at min_embeddings, fine at the full table, opacity deformed
   check_model("ed3dgs_early");  // mid coarse-to-fine (12 of 20 rows), annealing at half strength
+  check_model("ed3dgs_still");  // a still background: half the first-layer units switched off
 }
 
 TEST_CASE("4DGaussians: HexPlane sampling and MLP heads equal PyTorch's", "[trained-models]") { check_model("4dgaussians"); }
@@ -156,12 +159,16 @@ TEST_CASE("Dynamic 3D Gaussians and per-frame PLYs: every frame as saved", "[tra
   check_model("ply_frames");
 }
 
-TEST_CASE("a trained model read as a scene gives PyTorch's values at its frames, static Gaussians static", "[trained-models]") {
+TEST_CASE("a trained model read as a scene gives PyTorch's values at its frames and, streamed, exactly between them", "[trained-models]") {
   for (const std::string name : {"ed3dgs", "4dgaussians", "4dgs", "deformable3dgs", "dynamic3dgs", "ply_frames"}) {
     const std::string dir = fixtures() + "/" + name;
     const Expect e = read_expect(dir);
-    const SceneReadOptions o = options_for(name);
+    SceneReadOptions o = options_for(name);
+    // No tolerance: every Gaussian that changes at all moves (the still rule has its own test).
+    o.still = {0, 0, 0, 0, 0, 1000};
     const GaussianCloud c = read_scene(dir, o);
+    const bool streamed = c.motion == MotionModel::Evaluated;
+    CHECK(streamed == (name != "dynamic3dgs" && name != "ply_frames"));
     const auto model = open_trained_model(dir, detect_scene_format(dir), o);
     const FrameGrid grid(model->frames);
     FrameSampler sampler(c);
@@ -172,8 +179,10 @@ TEST_CASE("a trained model read as a scene gives PyTorch's values at its frames,
       int frame = -1;
       for (int f = 0; f < model->frames; ++f)
         if (std::fabs(model->frame_time(f) - t) < 1e-9) frame = f;
-      if (frame < 0) continue;
-      const FrameGaussians& g = sampler.at(grid.time(frame));
+      // Streamed: any time within the frames' span, at the model's own time.
+      const double u = (t - model->time_first) / (model->time_last - model->time_first);
+      if (frame < 0 && !(streamed && u >= 0 && u <= 1)) continue;
+      const FrameGaussians& g = sampler.at(frame >= 0 ? grid.time(frame) : u);
       std::vector<double> means, opac, dc, want_dc;
       for (size_t i = 0; i < N; ++i) {
         for (int a = 0; a < 3; ++a) {
@@ -183,7 +192,7 @@ TEST_CASE("a trained model read as a scene gives PyTorch's values at its frames,
         }
         opac.push_back(g.opacities[i]);
       }
-      const std::string at = name + " frame " + std::to_string(frame);
+      const std::string at = name + (frame >= 0 ? " frame " + std::to_string(frame) : " at t " + std::to_string(u));
       check_close(means, e["means"], k * N * 3, at + ": positions");
       check_close(dc, want_dc, 0, at + ": colour (SH DC)");
       // Opacity through a logit clamped at 1e-7: compared absolutely.
@@ -318,4 +327,125 @@ TEST_CASE("cfg_args: Python literals read as JSON, bad ones refused with a posit
         R"({"a":1,"b":"x","c":[1,2.5],"d":{"k":true},"e":null,"f":-0.0003,"g":[1]})");
   CHECK_THROWS_WITH(python_literal_to_json("Namespace(a=1", "cfg"), Catch::Contains("cfg: ") && Catch::Contains("at character"));
   CHECK_THROWS_WITH(python_literal_to_json("Namespace(a=os.system('x'))", "cfg"), Catch::Contains("is not a literal"));
+}
+
+TEST_CASE("the dense kernel's evaluation equals the reference products on every format, for any rows", "[trained-models]") {
+  for (const std::string name : {"ed3dgs", "ed3dgs_early", "4dgaussians", "4dgs", "4dgs_3drot", "deformable3dgs", "deformable3dgs_blender",
+                                 "dynamic3dgs", "ply_frames"}) {
+    const std::string dir = fixtures() + "/" + name;
+    const auto model = open_trained_model(dir, detect_scene_format(dir), options_for(name));
+    // A subset in a scrambled order, more than one block of the kernel when the model has it.
+    std::vector<uint32_t> rows;
+    for (size_t i = 0; i < model->size(); i += 2) rows.push_back(uint32_t((i * 7919) % model->size()));
+    for (const double f : {0.0, 0.5, 3.25, double(model->frames - 1)}) {
+      const double t = model->frame_time(std::min(f, double(model->frames - 1)));
+      const ModelState want = model->at(t).rows(rows);
+      ModelState got;
+      model->evaluate(t, rows, got);
+      REQUIRE(got.size() == rows.size());
+      REQUIRE(got.sh.size() == want.sh.size());
+      double worst = 0;
+      const auto cmp = [&](const float* a, const float* b, size_t n) {
+        double w = 0;
+        for (size_t i = 0; i < n; ++i) w = std::max(w, std::fabs(double(a[i]) - double(b[i])) / (1.0 + std::fabs(double(b[i]))));
+        worst = std::max(worst, w);
+      };
+      cmp(got.means[0].data(), want.means[0].data(), 3 * rows.size());
+      // Scales as the renderer takes them, exp(log-scale): a log-scale of a sum near zero
+      // (Deformable 3D Gaussians' scale + delta) turns float rounding of the sum into large
+      // relative differences of its logarithm.
+      std::vector<float> sg, sw;
+      for (size_t i = 0; i < rows.size(); ++i)
+        for (int a = 0; a < 3; ++a) {
+          sg.push_back(std::exp(got.log_scales[i][a]));
+          sw.push_back(std::exp(want.log_scales[i][a]));
+        }
+      cmp(sg.data(), sw.data(), sg.size());
+      cmp(got.rotations[0].data(), want.rotations[0].data(), 4 * rows.size());
+      cmp(got.opacity_logits.data(), want.opacity_logits.data(), rows.size());
+      cmp(got.sh.data(), want.sh.data(), want.sh.size());
+      INFO(name << " at model time " << t << ": worst difference " << worst);
+      CHECK(worst <= 1e-6);
+    }
+  }
+}
+
+TEST_CASE("the still rule: Gaussians whose network noise stays within the tolerance are static, the rest evaluated", "[trained-models]") {
+  const std::string dir = fixtures() + "/ed3dgs_still";
+  const Expect e = read_expect(dir);
+  // PyTorch's values at every frame, by the rule in numpy: which are still, and how far the
+  // still ones' noise moves them (more than nothing, less than the tolerance).
+  REQUIRE(e["still_drift"][0] > 1e-6);
+  REQUIRE(e["still_drift"][0] < 1e-3);
+  SceneReadOptions o;
+  o.still.sweep_frames = 1000;  // every frame, as the fixture's rule
+  const GaussianCloud c = read_scene(dir, o);
+  REQUIRE(c.motion == MotionModel::Evaluated);
+  std::vector<char> moving(c.size(), 0);
+  for (uint32_t g : c.dynamic_ids) moving[g] = 1;
+  size_t agree = 0, still = 0;
+  for (size_t i = 0; i < c.size(); ++i) {
+    agree += (e["still"][i] > 0.5) == !moving[i];
+    still += e["still"][i] > 0.5;
+  }
+  CHECK(still == 180);
+  CHECK(agree == c.size());
+  CHECK(c.static_count() == 180);
+  // A still Gaussian stays where frame 0 put it; a moving one follows the network at any time.
+  const auto model = open_trained_model(dir, SceneFormat::Ed3dgs, o);
+  FrameSampler s(c);
+  for (const double t : {0.0, 0.37, 1.0}) {
+    const ModelState want = model->at(model->frame_time(t * (model->frames - 1)));
+    const FrameGaussians& g = s.at(t);
+    for (size_t i = 0; i < c.size(); ++i) {
+      const float d = (g.means[i] - want.means[i]).norm();
+      if (moving[i]) REQUIRE(d <= 1e-5f * (1 + want.means[i].norm()));
+      else REQUIRE(d <= e["still_drift"][0] * 1.01 + 1e-6);
+    }
+  }
+  // Static Gaussians carry no motion: their deficiency is 0 by construction (the dynamic set
+  // is what observe's deficiency covers); a sweep of two frames keeps the still set a
+  // superset of the full sweep's.
+  o.still.sweep_frames = 2;
+  const GaussianCloud coarse = read_scene(dir, o);
+  CHECK(coarse.static_count() >= c.static_count());
+}
+
+TEST_CASE("streamed observation tables equal those of keys at every frame, byte for byte", "[trained-models]") {
+  RingPlacement ring;
+  ring.count = 6;
+  ring.radius = 4.0;
+  ring.elevation = 0.5;
+  ring.up = Vec3d(0, -1, 0);
+  Camera lens;
+  lens.set_fov_x(1.0, 64, 48);
+  const std::vector<Camera> cams = camera_ring(ring, lens);
+  // 4DGS is left out: its keys hold logit(sigmoid(o) x its temporal factor), not the
+  // opacity itself, so its keyed opacities differ in the last bits.
+  for (const std::string name : {"ed3dgs", "4dgaussians", "deformable3dgs"}) {
+    const std::string dir = fixtures() + "/" + name;
+    SceneReadOptions streamed = options_for(name);
+    streamed.still = {0, 0, 0, 0, 0, 1000};
+    SceneReadOptions keys = streamed;
+    keys.model_evaluation = ModelEvaluation::Keys;
+    keys.partition.static_speed_threshold = 0;
+    const GaussianCloud a = read_scene(dir, streamed), b = read_scene(dir, keys);
+    REQUIRE(a.motion == MotionModel::Evaluated);
+    REQUIRE(b.motion == MotionModel::Keyframed);
+    REQUIRE(a.dynamic_ids == b.dynamic_ids);
+    const FrameGrid grid(motion_frames(a));
+    for (const VisibilityMode mode : {VisibilityMode::Frustum, VisibilityMode::Raytraced}) {
+      ObservationOptions o;
+      o.visibility.mode = mode;
+      const ObservationTables ta = observation_tables(a, cams, grid.times(), grid.step(), o);
+      const ObservationTables tb = observation_tables(b, cams, grid.times(), grid.step(), o);
+      INFO(name << " " << to_string(mode));
+      size_t seen = 0;
+      for (uint16_t c : ta.counts) seen += c;
+      CHECK(seen > 0);  // the cameras see the model
+      CHECK(ta.counts == tb.counts);
+      CHECK(ta.dynamic_speed == tb.dynamic_speed);
+      CHECK(ta.dynamic_deficiency == tb.dynamic_deficiency);
+    }
+  }
 }

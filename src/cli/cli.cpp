@@ -70,6 +70,7 @@ nlohmann::json scene_summary(const GaussianCloud& c) {
     j["bbox_max"] = {hi.x(), hi.y(), hi.z()};
   }
   if (c.motion == MotionModel::Keyframed) j["keyframes"] = c.keyframed.key_count;
+  if (c.motion == MotionModel::Evaluated) j["frames"] = motion_frames(c);
   j["notes"] = c.notes;
   return j;
 }
@@ -95,7 +96,7 @@ int info(const InfoFlags& f, const Invocation& in) {
     return 0;
   }
   in.out << "scene        " << f.scene << "\n";
-  for (const char* key : {"format", "gaussians", "sh_degree", "motion_model", "static", "dynamic", "moving_share", "keyframes", "key_times",
+  for (const char* key : {"format", "gaussians", "sh_degree", "motion_model", "static", "dynamic", "moving_share", "keyframes", "frames", "key_times",
                           "model_times", "bbox_min", "bbox_max"})
     if (j.contains(key)) {
       std::string label = key;
@@ -262,7 +263,7 @@ int convert(const ConvertFlags& f, const Invocation& in) {
   const GaussianCloud c = read_scene(f.scene, f.read);
   if (f.to == SceneTarget::Frames) {
     // One standard 3DGS PLY per frame, t = f/(F−1): a sequence splat viewers can play.
-    const int frames = in.given("--frames") ? f.frames : c.motion == MotionModel::Keyframed ? c.keyframed.key_count : 0;
+    const int frames = in.given("--frames") ? f.frames : motion_frames(c);
     if (frames < 1) in.fail("--to frames needs --frames F (F >= 1)");
     OutputFolder folder(f.out);
     const std::vector<double> times = FrameGrid(frames).times();

@@ -68,7 +68,12 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   const auto t0 = Clock::now();
   TerminalProgress loading(in.err, in.progress());
   const Dataset data = Dataset::load(f.images, f.cameras, f.data, loading);
-  const GaussianCloud model = read_scene(f.model, f.read);
+  // A network's model trains as fillgs's keyed model: keys as dense as its motion needs.
+  KeyChoice keys;
+  const GaussianCloud model = keyed_for_training(read_scene(f.model, f.read), &keys);
+  if (keys.keys > 0)
+    in.out << "keys: " << keys.keys << " for its " << keys.frames << " frames (one every " << fixed(keys.interval, 2)
+           << "), positions within " << keys.worst_error << " world units of its network at every frame (" << keys.sample << " moving Gaussians measured)\n";
   if (model.size() == 0) throw_error(f.model, ": has no Gaussians; fine-tuning needs a trained model");
   check_trainable(model, f.model);
   // --paper-schedule picks the paper's counts; the flags given override them.
@@ -163,7 +168,8 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
         << o.trajectories << " trajectories (" << to_string(o.select.strategy) << ") every " << o.select_every << ", refiner "
         << refiner->name() << ", weights " << to_string(o.weighting) << "\n";
   TerminalProgress progress(in.err, in.progress());
-  const FinetuneResult r = finetune(data, model, *refiner, o, progress);
+  FinetuneResult r = finetune(data, model, *refiner, o, progress);
+  r.keys = keys;
   const FinetuneReport report = write_finetune_report(f.out, r, data, o, o.pool ? "pool" : refiner->name(), seconds_since(t0));
   if (o.pool) write_pool_report(f.out, r, *pool_data, to_string(o.select.strategy));
   unfinished.finish();

@@ -167,6 +167,19 @@ void add_scene_flags(CLI::App& app, SceneReadOptions& o) {
       ->group("Scene options");
   add_number(app, "--static-threshold", o.partition.static_speed_threshold, "speed below which a Gaussian counts as static", at_least(0))
       ->group("Scene options");
+  add_choice(app, "--model-evaluation", o.model_evaluation,
+             "trained networks and 4DGS: streamed (evaluated exactly at each time a command asks for) or keys (every frame sampled into memory first, "
+             "interpolated between frames)")
+      ->group("Scene options");
+  add_choice(app, "--network-kernel", o.network_kernel, "trained networks: simd (the dense kernel) or eigen (the reference products)")->group("Scene options");
+  add_number(app, "--still-tolerance", o.still.position,
+             "trained models, streamed: a Gaussian that stays this close (world units) to where it is at frame 0, and within 1 degree, 1 % of scale, "
+             "1/255 of opacity and colour, is still: evaluated once, static",
+             at_least(0))
+      ->group("Scene options");
+  add_number(app, "--still-sweep", o.still.sweep_frames, "trained models, streamed: frames the still rule samples, evenly, the first and last among them",
+             at_least(2))
+      ->group("Scene options");
 }
 
 void add_camera_flags(CLI::App& app, CameraReadOptions& o) {
@@ -242,6 +255,7 @@ std::vector<double> observe_times(const Invocation& in, const TimeFlags& tf, con
   if (!frames && cloud.motion == MotionModel::Keyframed && cloud.keyframed.first_key_time == 0.0 && cloud.keyframed.key_count >= 2 &&
       std::fabs(cloud.keyframed.key_spacing * (cloud.keyframed.key_count - 1) - 1.0) < 1e-6)
     frames = cloud.keyframed.key_count;  // one key per frame
+  if (!frames && cloud.motion == MotionModel::Evaluated) frames = motion_frames(cloud);
   if (!frames) {
     std::set<long long> distinct;
     for (const Camera& c : cams)

@@ -256,6 +256,9 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
                             {"rounds", rounds}, {"virtual_views", r.virtual_views.size()}, {"virtual_views_dropped", report.dropped},
                             {"train_psnr", report.train.psnr}, {"train_ssim", report.train.ssim}, {"gaussians", r.model.size()},
                             {"moving_gaussians", r.model.dynamic_count()}, {"seconds", {{"train", r.seconds_train}, {"total", seconds}}}};
+  if (r.keys.keys > 0)
+    j["keys"] = {{"count", r.keys.keys}, {"interval_frames", r.keys.interval}, {"frames", r.keys.frames},
+                 {"worst_position_error", r.keys.worst_error}, {"sample_gaussians", r.keys.sample}};
   if (o.pool) {  // real photographs instead of trajectories
     j.erase("trajectories_per_round");
     j["pool_budget"] = o.pool_budget;

@@ -31,7 +31,7 @@ double quantile(std::vector<float>& v, double q) {
 /// Times the moving Gaussians are swept over when the caller gives none.
 std::vector<double> default_sweep_times(const GaussianCloud& scene) {
   if (scene.dynamic_ids.empty()) return {0.0};
-  if (scene.motion == MotionModel::Keyframed && scene.keyframed.key_count > 1) return FrameGrid(scene.keyframed.key_count).times();
+  if (motion_frames(scene) > 1) return FrameGrid(motion_frames(scene)).times();
   return FrameGrid(33).times();
 }
 

@@ -467,9 +467,16 @@ GaussianCloud read_scene(const std::string& path, const SceneReadOptions& option
       case SceneFormat::Ed3dgs:
       case SceneFormat::FourDGaussians:
       case SceneFormat::FourDGS:
+      case SceneFormat::Deformable3DGS:
+        // Networks and closed-form slices: streamed unless keys are asked for.
+        if (options.model_evaluation == ModelEvaluation::Streamed) {
+          c = stream_trained_model(std::shared_ptr<const TrainedModel>(open_trained_model(path, f, options)), options.still,
+                                   options.network_kernel == NetworkKernel::Eigen);
+          break;
+        }
+        [[fallthrough]];
       case SceneFormat::Dynamic3DGS:
-      case SceneFormat::PlyFrames:
-      case SceneFormat::Deformable3DGS: c = sample_trained_model(*open_trained_model(path, f, options)); break;
+      case SceneFormat::PlyFrames: c = sample_trained_model(*open_trained_model(path, f, options), options.network_kernel == NetworkKernel::Eigen); break;
       case SceneFormat::Spacetime: c = read_spacetime(path, options); break;
       case SceneFormat::Fillgs4D: c = read_fillgs(path); break;
       case SceneFormat::Ex4dgs: {
@@ -574,15 +581,18 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
   out.keyframed = KeyframedMotion{};
   if (cloud.dynamic_ids.empty()) {
     out.motion = MotionModel::Static;
+    out.source.reset();
+    out.source_rows.clear();
     return out;
   }
   const size_t M = cloud.dynamic_ids.size(), K = size_t(frames);
   out.keyframed = per_frame_tracks(M, frames);
   KeyframedMotion& km = out.keyframed;
   km.opacity_logits.resize(M * K);
-  const bool keyed_scales = cloud.motion == MotionModel::Keyframed && !cloud.keyframed.log_scales.empty();
+  const bool evaluated = cloud.motion == MotionModel::Evaluated;
+  const bool keyed_scales = evaluated || (cloud.motion == MotionModel::Keyframed && !cloud.keyframed.log_scales.empty());
   if (keyed_scales) km.log_scales.resize(M * K * 3);
-  const bool keyed_colours = cloud.motion == MotionModel::Keyframed && !cloud.keyframed.colours.empty();
+  const bool keyed_colours = evaluated || (cloud.motion == MotionModel::Keyframed && !cloud.keyframed.colours.empty());
   if (keyed_colours) km.colours.resize(M * K * 3);
   const size_t sh_row = size_t(cloud.sh_count()) * 3;
   FrameSampler ev(cloud);
@@ -603,11 +613,82 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
   }
   if (!opacity_varies) km.opacity_logits.clear();
   out.motion = MotionModel::Keyframed;
+  out.source.reset();
+  out.source_rows.clear();
   canonical_from_first_key(out);
   return out;
 }
 
+KeyChoice choose_keys(const GaussianCloud& cloud, float tolerance, size_t sample) {
+  KeyChoice kc;
+  kc.frames = motion_frames(cloud);
+  if (cloud.motion != MotionModel::Evaluated || kc.frames < 2) return kc;
+  // The sample: moving Gaussians evenly spread over the set, as a cloud of their own.
+  const size_t M = cloud.dynamic_ids.size(), S = std::min(M, std::max<size_t>(sample, 1));
+  GaussianCloud sub;
+  sub.sh_degree = cloud.sh_degree;
+  sub.resize(S);
+  const size_t row = size_t(cloud.sh_count()) * 3;
+  for (size_t s = 0; s < S; ++s) {
+    const size_t j = s * M / S;
+    const uint32_t g = cloud.dynamic_ids[j];
+    sub.means[s] = cloud.means[g];
+    sub.log_scales[s] = cloud.log_scales[g];
+    sub.rotations[s] = cloud.rotations[g];
+    sub.opacity_logits[s] = cloud.opacity_logits[g];
+    std::copy_n(&cloud.sh[size_t(g) * row], row, &sub.sh[s * row]);
+    sub.dynamic_ids.push_back(uint32_t(s));
+    sub.source_rows.push_back(cloud.source_rows[j]);
+  }
+  sub.motion = MotionModel::Evaluated;
+  sub.source = cloud.source;
+  kc.sample = S;
+  const int F = kc.frames;
+  const FrameGrid grid(F);
+  std::vector<Vec3f> truth(size_t(F) * S);
+  {
+    FrameSampler exact(sub);
+    for (int f = 0; f < F; ++f) {
+      const FrameGaussians& g = exact.at(grid.time(f));
+      std::copy(g.means.begin(), g.means.end(), truth.begin() + ptrdiff_t(size_t(f) * S));
+    }
+  }
+  kc.keys = F;
+  kc.interval = 1.0;
+  kc.worst_error = 0.0;
+  for (int interval = 2; interval <= 32; interval *= 2) {
+    const int K = (F - 1 + interval - 1) / interval + 1;
+    if (K >= kc.keys || K < 2) continue;
+    const GaussianCloud keyed = bake_tracks(sub, K);
+    FrameSampler approx(keyed);
+    double worst = 0;
+    for (int f = 0; f < F; ++f) {
+      const FrameGaussians& g = approx.at(grid.time(f));
+      for (size_t s = 0; s < S; ++s) worst = std::max(worst, double((g.means[s] - truth[size_t(f) * S + s]).norm()));
+    }
+    if (worst > tolerance) break;
+    kc.keys = K;
+    kc.interval = double(F - 1) / double(K - 1);
+    kc.worst_error = worst;
+  }
+  return kc;
+}
+
+GaussianCloud keyed_for_training(const GaussianCloud& cloud, KeyChoice* choice, float tolerance) {
+  KeyChoice kc = choose_keys(cloud, tolerance);
+  if (choice) *choice = kc;
+  if (cloud.motion != MotionModel::Evaluated) return cloud;
+  GaussianCloud keyed = bake_tracks(cloud, std::max(2, kc.keys));
+  std::ostringstream os;
+  os << "keyed for training: " << kc.keys << " keys (one every " << kc.interval << " of its " << kc.frames
+     << " frames), Catmull-Rom positions within " << kc.worst_error << " world units of its network at every frame on " << kc.sample
+     << " moving Gaussians (tolerance " << tolerance << ")";
+  keyed.notes.push_back(os.str());
+  return keyed;
+}
+
 void write_fillgs_ply(const std::string& path, const GaussianCloud& cloud_in, int frames) {
+  if (frames < 2 && cloud_in.motion == MotionModel::Evaluated) frames = motion_frames(cloud_in);  // a key at each of its frames
   const bool native = cloud_in.motion == MotionModel::Static ||
                       (cloud_in.motion == MotionModel::Keyframed && !cloud_in.keyframed.ex4dgs_edges &&
                        cloud_in.keyframed.temporal_opacity.empty() && !cloud_in.keyframed.rotations.empty());

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <type_traits>
@@ -21,6 +22,7 @@
 #include "fillgs/io/npy.hpp"
 #include "fillgs/io/ply.hpp"
 #include "fillgs/io/torch_file.hpp"
+#include "fillgs/model/dense.hpp"
 #include "fillgs/model/sh.hpp"
 
 namespace fs = std::filesystem;
@@ -381,6 +383,163 @@ size_t widest(std::initializer_list<const std::vector<Linear>*> nets) {
   return w;
 }
 
+// ---------------------------------------------------------------------------------
+// The fast path: feature-major blocks of dense::kBlock Gaussians through the dense kernel
+
+constexpr size_t kRows = dense::kBlock;
+
+/// nn.Linear in the kernel's form: the weights of its per-Gaussian inputs packed row-major
+/// (`in` of them), and those of its per-frame inputs, whose product with the frame's values
+/// joins the bias once per frame instead of once per Gaussian.
+struct DenseLinear {
+  int out = 0, in = 0, in_time = 0;
+  std::vector<float> w, w_time, b;
+  /// `l` with columns `gauss` (ranges, concatenated in order) per Gaussian and `time` per frame.
+  static DenseLinear from(const Linear& l, const std::vector<std::pair<int, int>>& gauss, std::pair<int, int> time = {0, 0}) {
+    DenseLinear d;
+    d.out = l.out;
+    for (auto [c0, c1] : gauss) d.in += c1 - c0;
+    d.in_time = time.second - time.first;
+    d.w.resize(size_t(d.out) * size_t(d.in));
+    d.w_time.resize(size_t(d.out) * size_t(d.in_time));
+    d.b.assign(l.b.data(), l.b.data() + l.out);
+    for (int o = 0; o < l.out; ++o) {
+      size_t k = 0;
+      for (auto [c0, c1] : gauss)
+        for (int c = c0; c < c1; ++c) d.w[size_t(o) * size_t(d.in) + k++] = l.w(o, c);
+      for (int c = time.first; c < time.second; ++c) d.w_time[size_t(o) * size_t(d.in_time) + size_t(c - time.first)] = l.w(o, c);
+    }
+    return d;
+  }
+  static DenseLinear whole(const Linear& l) { return from(l, {{0, l.in}}); }
+  /// The bias at a frame whose per-frame inputs are `tv`.
+  std::vector<float> bias_at(const float* tv) const {
+    std::vector<float> out = b;
+    for (int o = 0; o < this->out; ++o) {
+      float sum = 0.0f;
+      for (int k = 0; k < in_time; ++k) sum += w_time[size_t(o) * size_t(in_time) + size_t(k)] * tv[k];
+      out[size_t(o)] += sum;
+    }
+    return out;
+  }
+  void run(const float* X, float* Y, bool relu, const float* bias = nullptr) const {
+    dense::layer(w.data(), size_t(in), bias ? bias : b.data(), out, in, X, Y, relu);
+  }
+  double multiply_adds() const { return double(out) * double(in); }
+};
+
+/// A network's heads on the kernel: the first layers of the heads with more than one
+/// stacked into one product (ReLU after), those of the one-layer heads into another (no
+/// ReLU); then each deep head's further layers. `emit(head, D)` gets each head's output,
+/// [out][kRows] feature-major.
+class DenseHeads {
+ public:
+  DenseHeads() = default;
+  DenseHeads(const std::vector<Linear>* heads, int count, const bool* on) {
+    std::vector<Linear> deep_first, shallow;
+    for (int h = 0; h < count; ++h) {
+      if (!on[h]) continue;
+      Head hd;
+      hd.id = h;
+      hd.deep = heads[h].size() > 1;
+      std::vector<Linear>& stack = hd.deep ? deep_first : shallow;
+      hd.offset = 0;
+      for (const Linear& l : stack) hd.offset += l.out;
+      stack.push_back(heads[h].front());
+      for (size_t i = 1; i < heads[h].size(); ++i) hd.rest.push_back(DenseLinear::whole(heads[h][i]));
+      hd.out = heads[h].back().out;
+      heads_.push_back(std::move(hd));
+    }
+    deep_ = stacked(deep_first);
+    shallow_ = stacked(shallow);
+  }
+  /// Rows of run()'s buffers: `stack` (the stacked first layers) and `a`, `b` (the rest).
+  size_t stack_rows() const { return size_t(deep_.out + shallow_.out); }
+  size_t scratch_rows() const {
+    size_t r = 1;
+    for (const Head& h : heads_)
+      for (const DenseLinear& l : h.rest) r = std::max(r, size_t(l.out));
+    return r;
+  }
+  template <typename Emit>
+  void run(const float* H, std::vector<float>& stack, std::vector<float>& a, std::vector<float>& b, Emit&& emit) const {
+    float* shallow_out = stack.data() + size_t(deep_.out) * kRows;
+    if (deep_.out) deep_.run(H, stack.data(), true);
+    if (shallow_.out) shallow_.run(H, shallow_out, false);
+    for (const Head& h : heads_) {
+      if (!h.deep) {
+        emit(h.id, shallow_out + size_t(h.offset) * kRows);
+        continue;
+      }
+      const float* x = stack.data() + size_t(h.offset) * kRows;
+      for (size_t i = 0; i < h.rest.size(); ++i) {
+        float* y = (i % 2 == 0 ? a : b).data();
+        h.rest[i].run(x, y, i + 1 < h.rest.size());
+        x = y;
+      }
+      emit(h.id, x);
+    }
+  }
+  double multiply_adds() const {
+    double m = deep_.multiply_adds() + shallow_.multiply_adds();
+    for (const Head& h : heads_)
+      for (const DenseLinear& l : h.rest) m += l.multiply_adds();
+    return m;
+  }
+
+ private:
+  struct Head {
+    int id = 0, offset = 0, out = 0;
+    bool deep = false;
+    std::vector<DenseLinear> rest;
+  };
+  static DenseLinear stacked(const std::vector<Linear>& ls) {
+    DenseLinear d;
+    if (ls.empty()) return d;
+    d.in = ls.front().in;
+    for (const Linear& l : ls) {
+      d.out += l.out;
+      d.w.insert(d.w.end(), l.w.data(), l.w.data() + size_t(l.out) * size_t(l.in));
+      d.b.insert(d.b.end(), l.b.data(), l.b.data() + l.out);
+    }
+    return d;
+  }
+  DenseLinear deep_, shallow_;
+  std::vector<Head> heads_;
+};
+
+/// Feature-major scratch for one thread's blocks: `rows` rows of kRows floats.
+inline std::vector<float> block_buffer(size_t rows) { return std::vector<float>(std::max<size_t>(rows, 1) * kRows, 0.0f); }
+
+/// Runs `body(first, count)` over blocks of kRows of [0, n), spread over the cores, with
+/// `scratch()` made once per task.
+template <typename Scratch, typename Body>
+void over_blocks(size_t n, Scratch&& scratch, Body&& body) {
+  const size_t blocks = (n + kRows - 1) / kRows;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 1), [&](const tbb::blocked_range<size_t>& r) {
+    auto s = scratch();
+    for (size_t blk = r.begin(); blk < r.end(); ++blk) {
+      const size_t first = blk * kRows;
+      body(first, std::min(kRows, n - first), s);
+    }
+  });
+}
+
+/// Adds head `head`'s output D ([out][kRows]) times k to rows [first, first + count) of `s`
+/// (the five heads of add_heads: position, scale, rotation, opacity, SH).
+void add_head_rows(int head, const float* D, size_t first, size_t count, float k, ModelState& s) {
+  for (size_t r = 0; r < count; ++r) {
+    const size_t i = first + r;
+    switch (head) {
+      case 0: for (int a = 0; a < 3; ++a) s.means[i][a] += D[size_t(a) * kRows + r] * k; break;
+      case 1: for (int a = 0; a < 3; ++a) s.log_scales[i][a] += D[size_t(a) * kRows + r] * k; break;
+      case 2: for (int a = 0; a < 4; ++a) s.rotations[i][a] += D[size_t(a) * kRows + r] * k; break;
+      case 3: s.opacity_logits[i] += D[r] * k; break;
+      default: for (size_t q = 0; q < 48; ++q) s.sh[i * 48 + q] += D[q * kRows + r] * k; break;
+    }
+  }
+}
+
 /// Charges the memory evaluating a network will take to the file that declared it, before
 /// any of it is taken: on every thread, a block of kBlock rows of the widest layer, four
 /// times (input, output, activation, head). A file that declares 200,000-wide layers with
@@ -576,6 +735,14 @@ class Ed3dgs : public TrainedModel {
     }
     if (!no_dc_ && canonical_.sh_degree != 3)
       throw_error(ply_path, ": SH degree ", canonical_.sh_degree, "; E-D3DGS's colour head deforms 16 coefficients (degree 3)");
+    const bool on[5] = {true, !no_ds_, !no_dr_, !no_do_, !no_dc_};
+    for (int pass = 0; pass < 2; ++pass) {
+      DenseNet& d = dense_[pass];
+      // The first layer's temporal-embedding columns depend on the time alone: per frame.
+      d.trunk.push_back(DenseLinear::from(net_[pass].trunk.front(), {{tdim_, tdim_ + gdim_}}, {0, tdim_}));
+      for (size_t i = 1; i < net_[pass].trunk.size(); ++i) d.trunk.push_back(DenseLinear::whole(net_[pass].trunk[i]));
+      d.heads = DenseHeads(net_[pass].heads, 5, on);
+    }
     // The coarse and fine passes run one after the other on a block: the wider one's memory.
     size_t width = 0;
     for (const Net& n : net_) width = std::max(width, widest({&n.trunk, &n.heads[0], &n.heads[1], &n.heads[2], &n.heads[3], &n.heads[4]}));
@@ -587,6 +754,59 @@ class Ed3dgs : public TrainedModel {
   }
 
   size_t size() const override { return canonical_.size(); }
+  bool has_network() const override { return true; }
+
+  double multiply_adds() const override {
+    double m = 0;
+    for (int pass = 0; pass < 2; ++pass) {
+      if (pass == 0 ? no_coarse_ : no_fine_) continue;
+      for (const DenseLinear& l : dense_[pass].trunk) m += l.multiply_adds();
+      m += dense_[pass].heads.multiply_adds();
+    }
+    return m;
+  }
+
+  void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const override {
+    const float t = float(model_time_checked(model_time, source)) + offset_;
+    std::vector<float> emb[2];
+    temporal_embedding(t, coarse_count(), emb[0]);
+    temporal_embedding(t, fine_count(), emb[1]);
+    float k[5];
+    head_coefficients(k);
+    std::vector<float> bias0[2];
+    for (int pass = 0; pass < 2; ++pass) bias0[pass] = dense_[pass].trunk.front().bias_at(emb[pass].data());
+    out = canonical_.rows(rows);
+    size_t width = 1, stack = 1, scratch = 1;
+    for (const DenseNet& d : dense_) {
+      for (const DenseLinear& l : d.trunk) width = std::max(width, size_t(l.out));
+      stack = std::max(stack, d.heads.stack_rows());
+      scratch = std::max(scratch, d.heads.scratch_rows());
+    }
+    struct Scratch {
+      std::vector<float> x, h[2], stack, a, b;
+    };
+    over_blocks(
+        rows.size(),
+        [&] { return Scratch{block_buffer(size_t(gdim_)), {block_buffer(width), block_buffer(width)}, block_buffer(stack), block_buffer(scratch), block_buffer(scratch)}; },
+        [&](size_t first, size_t count, Scratch& S) {
+          const size_t G = size_t(gdim_);
+          for (size_t r = 0; r < count; ++r) {
+            const float* e = &embedding_[size_t(rows[first + r]) * G];
+            for (size_t d = 0; d < G; ++d) S.x[d * kRows + r] = e[d];
+          }
+          for (int pass = 0; pass < 2; ++pass) {
+            if (pass == 0 ? no_coarse_ : no_fine_) continue;
+            const DenseNet& net = dense_[pass];
+            const float* x = S.x.data();
+            for (size_t i = 0; i < net.trunk.size(); ++i) {
+              float* y = S.h[i % 2].data();
+              net.trunk[i].run(x, y, true, i == 0 ? bias0[pass].data() : nullptr);
+              x = y;
+            }
+            net.heads.run(x, S.stack, S.a, S.b, [&](int h, const float* D) { add_head_rows(h, D, first, count, k[h], out); });
+          }
+        });
+  }
 
   ModelState at(double model_time) const override {
     // Added in float32, as its code adds them; both sides lie within +-1e6 (the offset
@@ -595,13 +815,11 @@ class Ed3dgs : public TrainedModel {
     std::vector<float> emb_c, emb_f;
     temporal_embedding(t, coarse_count(), emb_c);
     temporal_embedding(t, fine_count(), emb_f);
-    const float it = float(iteration_);
-    const float coef = use_anneal_ ? std::clamp(it / 1000.0f, 0.0f, 1.0f) : 1.0f;
-    const float coef_late = use_anneal_ ? std::clamp((it - float(deform_from_)) / 1000.0f, 0.0f, 1.0f) : 1.0f;
     ModelState s = canonical_;
     const size_t n = size();
     HeadWeights w;
-    const float k[5] = {coef, coef * coef_late, coef, coef * coef_late, coef_late};
+    float k[5];
+    head_coefficients(k);
     const bool on[5] = {true, !no_ds_, !no_dr_, !no_do_, !no_dc_};
     for (int h = 0; h < 5; ++h) w.k[h] = k[h], w.on[h] = on[h];
     // The hidden state depends on the time and the Gaussian's embedding only: one matrix
@@ -625,6 +843,18 @@ class Ed3dgs : public TrainedModel {
     std::vector<Linear> trunk;
     std::vector<Linear> heads[5];
   };
+  struct DenseNet {
+    std::vector<DenseLinear> trunk;
+    DenseHeads heads;
+  };
+  /// The heads' coefficients at the model's iteration: its annealing of the deformation.
+  void head_coefficients(float (&k)[5]) const {
+    const float it = float(iteration_);
+    const float coef = use_anneal_ ? std::clamp(it / 1000.0f, 0.0f, 1.0f) : 1.0f;
+    const float coef_late = use_anneal_ ? std::clamp((it - float(deform_from_)) / 1000.0f, 0.0f, 1.0f) : 1.0f;
+    const float v[5] = {coef, coef * coef_late, coef, coef * coef_late, coef_late};
+    std::copy(v, v + 5, k);
+  }
   static int lininterp(int iter, int from, int to, int until) {
     return int(double(from) + double(to - from) * double(std::min(std::max(iter, 0), until)) / double(until));
   }
@@ -678,6 +908,7 @@ class Ed3dgs : public TrainedModel {
   bool no_ds_ = false, no_dr_ = false, no_do_ = true, no_dc_ = false;
   float offset_ = 0.0f;
   Net net_[2];
+  DenseNet dense_[2];
 };
 
 // ---------------------------------------------------------------------------------
@@ -724,6 +955,14 @@ class FourDGaussians : public TrainedModel {
         sc.planes[p] = std::move(t);
       }
       feat_ += int(sc.planes[0].shape[1]);
+      // Channel-last copies for the fast path: a corner's channels in one cache line.
+      for (int p = 0; p < 6; ++p) {
+        const TorchTensor& g = sc.planes[p];
+        const size_t C = size_t(g.shape[1]), HW = size_t(g.shape[2]) * size_t(g.shape[3]);
+        sc.hwc[p].resize(C * HW);
+        for (size_t ch = 0; ch < C; ++ch)
+          for (size_t q = 0; q < HW; ++q) sc.hwc[p][q * C + ch] = g.values[ch * HW + q];
+      }
       scales_.push_back(std::move(sc));
     }
     if (scales_.empty()) throw_error(pth, ": key 'deformation_net.grid.grids.0.0' missing");
@@ -741,12 +980,50 @@ class FourDGaussians : public TrainedModel {
     if (!no_dshs_ && canonical_.sh_degree != 3)
       throw_error(ply_path, ": SH degree ", canonical_.sh_degree, "; 4DGaussians' colour head deforms 16 coefficients (degree 3)");
     charge_network(tf, widest({&trunk_, &heads_[0], &heads_[1], &heads_[2], &heads_[3], &heads_[4]}), "4DGaussians");
+    const bool on[5] = {!no_dx_, !no_ds_, !no_dr_, !no_do_, !no_dshs_};
+    for (const Linear& l : trunk_) dense_trunk_.push_back(DenseLinear::whole(l));
+    dense_heads_ = DenseHeads(heads_, 5, on);
     if (opt.model_frames < 1)
       throw_error(source, ": 4DGaussians does not store its frame count; give --model-frames F (its multi-view loaders time frame f at f/F)");
     set_times(*this, opt.model_frames, opt.model_time_range.empty() ? std::pair<double, double>{0.0, 1.0} : time_range(opt.model_time_range, source));
   }
 
   size_t size() const override { return canonical_.size(); }
+  bool has_network() const override { return true; }
+
+  double multiply_adds() const override {
+    double m = dense_heads_.multiply_adds();
+    for (const DenseLinear& l : dense_trunk_) m += l.multiply_adds();
+    return m;
+  }
+
+  void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const override {
+    const float t = float(model_time_checked(model_time, source));
+    const std::vector<std::vector<float>> lines = time_lines(t);
+    out = canonical_.rows(rows);
+    size_t width = 1;
+    for (const DenseLinear& l : dense_trunk_) width = std::max(width, size_t(l.out));
+    struct Scratch {
+      std::vector<float> x, h[2], stack, a, b;
+    };
+    const float ones[5] = {1, 1, 1, 1, 1};
+    over_blocks(
+        rows.size(),
+        [&] {
+          return Scratch{block_buffer(size_t(feat_)), {block_buffer(width), block_buffer(width)}, block_buffer(dense_heads_.stack_rows()),
+                         block_buffer(dense_heads_.scratch_rows()), block_buffer(dense_heads_.scratch_rows())};
+        },
+        [&](size_t first, size_t count, Scratch& S) {
+          for (size_t r = 0; r < count; ++r) features_at(canonical_.means[rows[first + r]], lines, &S.x[r]);
+          const float* x = S.x.data();
+          for (size_t i = 0; i < dense_trunk_.size(); ++i) {
+            float* y = S.h[i % 2].data();
+            dense_trunk_[i].run(x, y, true);
+            x = y;
+          }
+          dense_heads_.run(x, S.stack, S.a, S.b, [&](int h, const float* D) { add_head_rows(h, D, first, count, ones[h], out); });
+        });
+  }
 
   ModelState at(double model_time) const override {
     ModelState s = canonical_;
@@ -770,6 +1047,7 @@ class FourDGaussians : public TrainedModel {
  private:
   struct Scale {
     TorchTensor planes[6];
+    std::vector<float> hwc[6];  ///< the planes channel-last, [H][W][C]
   };
   /// Bilinear plane sampling (align_corners, border padding), product over the six planes,
   /// concatenation over scales.
@@ -806,7 +1084,83 @@ class FourDGaussians : public TrainedModel {
     }
   }
 
+  static constexpr int kPairs[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+
+  /// Border-padded pixel coordinate of a grid coordinate in [-1, 1] on a side of n pixels:
+  /// the lower pixel and the weight of the upper one (a NaN lands on pixel 0).
+  static void pixel(float q, int n, int& i0, int& i1, float& w) {
+    float x = ((q + 1.0f) / 2.0f) * float(n - 1);
+    x = x > 0.0f ? std::min(x, float(n - 1)) : 0.0f;
+    i0 = int(std::floor(x));
+    i1 = std::min(i0 + 1, n - 1);
+    w = x - float(i0);
+  }
+
+  /// The time planes (x-t, y-t, z-t) of every scale interpolated at time t once: a line of
+  /// [C][W] values each, indexed [scale * 3 + k] for the k-th time plane.
+  std::vector<std::vector<float>> time_lines(float t) const {
+    std::vector<std::vector<float>> lines;
+    for (const Scale& sc : scales_)
+      for (int p : {2, 4, 5}) {
+        const TorchTensor& g = sc.planes[p];
+        const size_t C = size_t(g.shape[1]), H = size_t(g.shape[2]), W = size_t(g.shape[3]);
+        int y0, y1;
+        float wy;
+        pixel(t, int(H), y0, y1, wy);
+        std::vector<float> line(C * W);  // [W][C]
+        const float* hwc = sc.hwc[p].data();
+        for (size_t x = 0; x < W; ++x)
+          for (size_t ch = 0; ch < C; ++ch)
+            line[x * C + ch] = (1 - wy) * hwc[(size_t(y0) * W + x) * C + ch] + wy * hwc[(size_t(y1) * W + x) * C + ch];
+        lines.push_back(std::move(line));
+      }
+    return lines;
+  }
+
+  /// features() with the time planes' lines of time_lines(): written feature-major (a stride
+  /// of kRows) from `out`. The same products in the same order: the same float values where
+  /// the weights' rounding agrees (the lines take the time weights first).
+  void features_at(const Vec3f& p, const std::vector<std::vector<float>>& lines, float* out) const {
+    float q[3];
+    for (int a = 0; a < 3; ++a) q[a] = (p[a] - aabb_[size_t(a)]) * (2.0f / (aabb_[size_t(3 + a)] - aabb_[size_t(a)])) - 1.0f;
+    size_t f0 = 0;
+    std::vector<float>& f = feature_scratch();
+    for (size_t s = 0; s < scales_.size(); ++s) {
+      const Scale& sc = scales_[s];
+      const size_t C = size_t(sc.planes[0].shape[1]);
+      f.assign(C, 1.0f);
+      for (int p = 0; p < 6; ++p) {
+        const TorchTensor& g = sc.planes[p];
+        const int H = int(g.shape[2]), W = int(g.shape[3]);
+        int x0, x1, y0 = 0, y1 = 0;
+        float wx, wy = 0;
+        pixel(q[kPairs[p][0]], W, x0, x1, wx);
+        if (kPairs[p][1] == 3) {
+          const float* line = lines[s * 3 + size_t(p == 2 ? 0 : p == 4 ? 1 : 2)].data();
+          const float *a = line + size_t(x0) * C, *b = line + size_t(x1) * C;
+          for (size_t ch = 0; ch < C; ++ch) f[ch] *= (1 - wx) * a[ch] + wx * b[ch];
+          continue;
+        }
+        pixel(q[kPairs[p][1]], H, y0, y1, wy);
+        const float w00 = (1 - wx) * (1 - wy), w01 = wx * (1 - wy), w10 = (1 - wx) * wy, w11 = wx * wy;
+        const float* hwc = sc.hwc[p].data();
+        const float *c00 = hwc + (size_t(y0) * size_t(W) + size_t(x0)) * C, *c01 = hwc + (size_t(y0) * size_t(W) + size_t(x1)) * C;
+        const float *c10 = hwc + (size_t(y1) * size_t(W) + size_t(x0)) * C, *c11 = hwc + (size_t(y1) * size_t(W) + size_t(x1)) * C;
+        for (size_t ch = 0; ch < C; ++ch) f[ch] *= w00 * c00[ch] + w01 * c01[ch] + w10 * c10[ch] + w11 * c11[ch];
+      }
+      for (size_t ch = 0; ch < C; ++ch) out[(f0 + ch) * kRows] = f[ch];
+      f0 += C;
+    }
+  }
+
+  static std::vector<float>& feature_scratch() {
+    thread_local std::vector<float> f;
+    return f;
+  }
+
   ModelState canonical_;
+  std::vector<DenseLinear> dense_trunk_;
+  DenseHeads dense_heads_;
   std::vector<float> aabb_;
   std::vector<Scale> scales_;
   int feat_ = 0;
@@ -853,7 +1207,8 @@ class Deformable3dgs : public TrainedModel {
       l.b = Eigen::Map<const Eigen::RowVectorXf>(b.values.data(), l.out);
       layers_.push_back(std::move(l));
     }
-    if (layers_.size() < 2) throw_error(pth, ": ", layers_.size(), " 'linear.*' layers; its network has at least 2 (the skip joins after the middle one)");
+    if (layers_.size() < 3)
+      throw_error(pth, ": ", layers_.size(), " 'linear.*' layers; fillgs reads 3 or more (the skip joins after the middle one, before the last)");
     skip_ = int(layers_.size()) / 2;
     t_freqs_ = blender_ ? 6 : 10;
     const int x_in = 3 * (1 + 2 * 10), t_in = 1 + 2 * t_freqs_;
@@ -880,6 +1235,15 @@ class Deformable3dgs : public TrainedModel {
       heads_[h].b = Eigen::Map<const Eigen::RowVectorXf>(b.values.data(), outs[h]);
     }
     charge_network(tf, size_t(W + x_in + t_out), "Deformable 3D Gaussians");
+    t_out_ = t_out;
+    for (size_t i = 0; i < layers_.size(); ++i) {
+      if (i == 0) dense_.push_back(DenseLinear::from(layers_[i], {{0, x_in}}, {x_in, x_in + t_out}));
+      else if (int(i) - 1 == skip_) dense_.push_back(DenseLinear::from(layers_[i], {{0, x_in}, {x_in + t_out, x_in + t_out + W}}, {x_in, x_in + t_out}));
+      else dense_.push_back(DenseLinear::whole(layers_[i]));
+    }
+    const std::vector<Linear> one[3] = {{heads_[0]}, {heads_[1]}, {heads_[2]}};
+    const bool on[3] = {true, true, true};
+    dense_heads_ = DenseHeads(one, 3, on);
     if (opt.model_frames < 1)
       throw_error(source, ": Deformable 3D Gaussians does not store its frame count; give --model-frames F (its loaders time frame f at f/(F-1))");
     if (opt.model_time_range.empty()) {
@@ -894,6 +1258,63 @@ class Deformable3dgs : public TrainedModel {
   }
 
   size_t size() const override { return canonical_.size(); }
+  bool has_network() const override { return true; }
+
+  double multiply_adds() const override {
+    double m = dense_heads_.multiply_adds();
+    for (const DenseLinear& l : dense_) m += l.multiply_adds();
+    return m;
+  }
+
+  void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const override {
+    const float t = float(model_time_checked(model_time, source));
+    std::vector<float> te(size_t(1 + 2 * t_freqs_));
+    encode(&t, 1, t_freqs_, te.data());
+    if (blender_) {
+      const RowMat tv = run_trunk(timenet_, Eigen::Map<const Eigen::RowVectorXf>(te.data(), Eigen::Index(te.size())));
+      te.assign(tv.data(), tv.data() + tv.size());
+    }
+    std::vector<float> bias[2] = {dense_.front().bias_at(te.data()), dense_[size_t(skip_) + 1].bias_at(te.data())};
+    out = canonical_.rows(rows);
+    const size_t x_in = 3 * 21, W = size_t(dense_.front().out);
+    struct Scratch {
+      std::vector<float> xe, h[2], stack, a, b;
+    };
+    over_blocks(
+        rows.size(),
+        [&] {
+          return Scratch{block_buffer(x_in + W), {block_buffer(W), block_buffer(W)}, block_buffer(dense_heads_.stack_rows()), block_buffer(1),
+                         block_buffer(1)};
+        },
+        [&](size_t first, size_t count, Scratch& S) {
+          float enc[3 * 21];
+          for (size_t r = 0; r < count; ++r) {
+            encode(canonical_.means[rows[first + r]].data(), 3, 10, enc);
+            for (size_t f = 0; f < x_in; ++f) S.xe[f * kRows + r] = enc[f];
+          }
+          // Layer skip writes after the encoding in `xe`, so that the next layer reads both.
+          const float* x = S.xe.data();
+          for (size_t i = 0; i < dense_.size(); ++i) {
+            float* y = int(i) == skip_ ? S.xe.data() + x_in * kRows : S.h[i % 2].data();
+            const float* b = i == 0 ? bias[0].data() : int(i) - 1 == skip_ ? bias[1].data() : nullptr;
+            dense_[i].run(int(i) - 1 == skip_ ? S.xe.data() : x, y, true, b);
+            x = y;
+          }
+          const float* D[3] = {};
+          dense_heads_.run(x, S.stack, S.a, S.b, [&](int h, const float* d) { D[h] = d; });
+          for (size_t r = 0; r < count; ++r) {
+            const size_t i = first + r;
+            const uint32_t g = rows[i];
+            const Vec4f q = normalize_quat(canonical_.rotations[g]);
+            for (int a = 0; a < 3; ++a) {
+              out.means[i][a] += D[0][size_t(a) * kRows + r];
+              const float sc = std::exp(canonical_.log_scales[g][a]) + D[2][size_t(a) * kRows + r];
+              out.log_scales[i][a] = std::log(std::max(std::fabs(sc), 1e-30f));
+            }
+            for (int a = 0; a < 4; ++a) out.rotations[i][a] = q[a] + D[1][size_t(a) * kRows + r];
+          }
+        });
+  }
 
   ModelState at(double model_time) const override {
     ModelState s = canonical_;
@@ -950,7 +1371,9 @@ class Deformable3dgs : public TrainedModel {
   ModelState canonical_;
   std::vector<Linear> layers_, timenet_;
   Linear heads_[3];
-  int skip_ = 4, t_freqs_ = 10;
+  std::vector<DenseLinear> dense_;
+  DenseHeads dense_heads_;
+  int skip_ = 4, t_freqs_ = 10, t_out_ = 21;
   bool blender_ = false;
 };
 
@@ -1277,13 +1700,22 @@ std::unique_ptr<TrainedModel> open_trained_model(const std::string& path, SceneF
   throw_error(path, ": ", to_string(format), " is not a trained-model format");
 }
 
-GaussianCloud sample_trained_model(const TrainedModel& model) {
+GaussianCloud sample_trained_model(const TrainedModel& model, bool reference) {
   const size_t N = model.size();
+  std::vector<uint32_t> all;
+  if (!reference)
+    for (size_t i = 0; i < N; ++i) all.push_back(uint32_t(i));
+  const auto state_at = [&](double mt) {
+    if (reference) return model.at(mt);
+    ModelState s;
+    model.evaluate(mt, all, s);
+    return s;
+  };
   const int F = model.frames;
   GaussianCloud c;
   if (F < 1) throw_error(model.source, ": the model covers no frames");
   const size_t K = size_t(std::max(F, 2));
-  ModelState first = model.at(model.frame_time(0));
+  ModelState first = state_at(model.frame_time(0));
   c.sh_degree = first.sh_degree;
   c.resize(N);
   const size_t row = size_t(c.sh_count()) * 3;
@@ -1297,7 +1729,7 @@ GaussianCloud sample_trained_model(const TrainedModel& model) {
   std::vector<double> sh_sum(N * row, 0.0);
   std::vector<float> sh_min(N * row, std::numeric_limits<float>::infinity()), sh_max(N * row, -std::numeric_limits<float>::infinity());
   for (size_t k = 0; k < K; ++k) {
-    const ModelState s = k == 0 ? std::move(first) : model.at(model.frame_time(double(std::min<size_t>(k, size_t(F - 1)))));
+    const ModelState s = k == 0 ? std::move(first) : state_at(model.frame_time(double(std::min<size_t>(k, size_t(F - 1)))));
     if (s.size() != N || s.sh.size() != N * row) throw_error(model.source, ": frame ", k, " has another size");
     tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 4096), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
@@ -1349,6 +1781,153 @@ GaussianCloud sample_trained_model(const TrainedModel& model) {
     std::ostringstream os;
     os << "SH bands above the DC vary in time by up to " << band_spread << "; fillgs keys the DC and keeps their mean";
     c.notes.push_back(os.str());
+  }
+  return c;
+}
+
+namespace {
+
+/// A trained model as the motion of a cloud: normalised time t -> the model's time of frame
+/// t (frames - 1); every value it returns checked finite (one line naming the model, the
+/// Gaussian and the time, not a NaN in a table).
+class TrainedMotion : public MotionSource {
+ public:
+  TrainedMotion(std::shared_ptr<const TrainedModel> m, bool reference) : m_(std::move(m)), reference_(reference) {}
+  void evaluate(double t, const std::vector<uint32_t>& rows, ModelState& out) const override {
+    // The last few evaluations are kept: a command walking frames asks for frame f, then
+    // for f - 1 and f + 1 (speeds), then for f + 1 again; each is evaluated once.
+    // Kept by frame coordinate, so that t - dt and the previous frame's t meet.
+    const double f = frame_of(t);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      for (const Kept& k : kept_)
+        if (k.t == f && k.rows == rows) {
+          out = k.state;
+          return;
+        }
+    }
+    evaluate_now(t, rows, out);
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (kept_.size() == kKept) kept_.erase(kept_.begin());
+    kept_.push_back({f, rows, out});
+  }
+  int frame_count() const override { return m_->frames; }
+  /// evaluate(), not kept (the still rule's sweep over every Gaussian).
+  void evaluate_once(double t, const std::vector<uint32_t>& rows, ModelState& out) const { evaluate_now(t, rows, out); }
+
+ private:
+  static constexpr size_t kKept = 3;
+  struct Kept {
+    double t;
+    std::vector<uint32_t> rows;
+    ModelState state;
+  };
+  /// The frame coordinate of normalised time t: t (F - 1), a whole frame when within 1e-9 of
+  /// one (f / (F - 1) times F - 1, or a time less a frame step, can miss f by an ulp).
+  double frame_of(double t) const {
+    double f = std::clamp(t, 0.0, 1.0) * double(m_->frames - 1);
+    if (std::fabs(f - std::round(f)) < 1e-9) f = std::round(f);
+    return f;
+  }
+  void evaluate_now(double t, const std::vector<uint32_t>& rows, ModelState& out) const {
+    const double mt = m_->frame_time(frame_of(t));
+    if (reference_) out = m_->at(mt).rows(rows);
+    else m_->evaluate(mt, rows, out);
+    check(out, rows, mt);
+  }
+  void check(const ModelState& s, const std::vector<uint32_t>& rows, double mt) const {
+    const size_t row = s.size() ? s.sh.size() / s.size() : 0;
+    for (size_t i = 0; i < s.size(); ++i) {
+      bool ok = s.means[i].allFinite() && s.log_scales[i].allFinite() && s.rotations[i].allFinite() && std::isfinite(s.opacity_logits[i]) &&
+                (s.opacity_factor.empty() || std::isfinite(s.opacity_factor[i]));
+      for (size_t q = 0; ok && q < row; ++q) ok = std::isfinite(s.sh[i * row + q]);
+      if (!ok) throw_error(m_->source, ": Gaussian ", rows[i], " is not finite at model time ", mt, " (its network's output overflowed)");
+    }
+  }
+  std::shared_ptr<const TrainedModel> m_;
+  bool reference_;
+  mutable std::mutex mutex_;
+  mutable std::vector<Kept> kept_;
+};
+
+float activated_opacity(const ModelState& s, size_t i) {
+  return sigmoid(s.opacity_logits[i]) * (s.opacity_factor.empty() ? 1.0f : s.opacity_factor[i]);
+}
+
+}  // namespace
+
+std::vector<int> sweep_frames(int frames, int wanted) {
+  std::vector<int> out;
+  if (frames <= 1) return {0};
+  const int n = std::max(2, std::min(wanted, frames));
+  for (int k = 0; k < n; ++k) {
+    const int f = int(std::lround(double(k) * double(frames - 1) / double(n - 1)));
+    if (out.empty() || f != out.back()) out.push_back(f);
+  }
+  return out;
+}
+
+GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, const StillRule& rule, bool reference) {
+  const size_t N = model->size();
+  const int F = model->frames;
+  if (F < 1) throw_error(model->source, ": the model covers no frames");
+  const auto motion = std::make_shared<TrainedMotion>(model, reference);
+  std::vector<uint32_t> all(N);
+  for (size_t i = 0; i < N; ++i) all[i] = uint32_t(i);
+  ModelState first;
+  motion->evaluate_once(0.0, all, first);
+  // The sweep: the still rule at each of its frames against frame 0.
+  const std::vector<int> sweep = sweep_frames(F, rule.sweep_frames);
+  std::vector<char> moving(N, 0);
+  const float cos_half = float(std::cos(double(rule.rotation_degrees) * M_PI / 360.0));
+  const size_t row = first.size() ? first.sh.size() / first.size() : 0;
+  for (size_t k = 1; k < sweep.size(); ++k) {
+    ModelState s;
+    motion->evaluate_once(F > 1 ? double(sweep[k]) / double(F - 1) : 0.0, all, s);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 4096), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) {
+        if (moving[i]) continue;
+        bool still = (s.means[i] - first.means[i]).norm() <= rule.position &&
+                     (s.log_scales[i] - first.log_scales[i]).cwiseAbs().maxCoeff() <= rule.log_scale &&
+                     std::fabs(activated_opacity(s, i) - activated_opacity(first, i)) <= rule.opacity &&
+                     std::fabs(normalize_quat(s.rotations[i]).dot(normalize_quat(first.rotations[i]))) >= cos_half;
+        for (size_t a = 0; still && a < 3 && row; ++a) still = std::fabs(s.sh[i * row + a] - first.sh[i * row + a]) * kSHC0 <= rule.colour;
+        moving[i] = !still;
+      }
+    });
+  }
+  GaussianCloud c;
+  c.sh_degree = first.sh_degree;
+  c.resize(N);
+  for (size_t i = 0; i < N; ++i) {
+    c.means[i] = first.means[i];
+    c.log_scales[i] = first.log_scales[i];
+    c.rotations[i] = first.rotations[i];
+    c.opacity_logits[i] = std::clamp(logit(activated_opacity(first, i)), -40.0f, 40.0f);
+    if (moving[i]) {
+      c.dynamic_ids.push_back(uint32_t(i));
+      c.source_rows.push_back(uint32_t(i));
+    }
+  }
+  c.sh = std::move(first.sh);
+  if (!c.dynamic_ids.empty()) {
+    c.motion = MotionModel::Evaluated;
+    c.source = motion;
+  }
+  c.notes.insert(c.notes.end(), model->notes.begin(), model->notes.end());
+  {
+    std::ostringstream os;
+    os << model->time_first << " … " << model->time_last << " (" << to_string(model->format) << " time of frames 0 … " << F - 1 << ")";
+    c.model_times = os.str();
+    std::ostringstream still;
+    still << N - c.dynamic_ids.size() << " of " << N << " Gaussians still (evaluated once, at frame 0): at each of " << sweep.size() << " of its "
+          << F << " frames within " << rule.position << " world units, " << rule.rotation_degrees << " degrees, " << rule.log_scale
+          << " in log-scale, " << rule.opacity << " in opacity and " << rule.colour << " in colour of frame 0";
+    c.notes.push_back(still.str());
+    c.notes.push_back(std::string("the ") + std::to_string(c.dynamic_ids.size()) + " moving Gaussians are evaluated by the model at each time asked, exactly" +
+                      (!model->has_network() ? std::string()
+                       : reference           ? std::string(" (its network by the Eigen reference products)")
+                                             : " (its network by the dense kernel, " + std::string(dense::target_name()) + ")"));
   }
   return c;
 }

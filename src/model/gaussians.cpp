@@ -70,6 +70,8 @@ void GaussianCloud::validate(const std::string& source) const {
     throw_error(source, ": dynamic id ", dynamic_ids.back(), " out of range (", n, " Gaussians)");
   const size_t m = dynamic_ids.size();
   if (motion == MotionModel::Static && m != 0) throw_error(source, ": static model with dynamic Gaussians");
+  if (motion == MotionModel::Evaluated && (!this->source || source_rows.size() != m))
+    throw_error(source, ": evaluated motion without its model, or with ", source_rows.size(), " rows for ", m, " moving Gaussians");
   if (motion == MotionModel::Polynomial) {
     const auto& p = polynomial;
     if (p.coeffs.size() != 9 * m || p.omega.size() != 4 * m || p.trbf_center.size() != m ||
@@ -245,6 +247,13 @@ DynamicState polynomial_at(const GaussianCloud& c, size_t j, double t) {
   return st;
 }
 
+/// The dynamic set of an evaluated cloud at time t (one call to its source).
+void evaluated_at(const GaussianCloud& c, double t, ModelState& s) {
+  c.source->evaluate(t, c.source_rows, s);
+  if (s.size() != c.dynamic_ids.size() || s.sh.size() != s.size() * size_t(c.sh_count()) * 3)
+    throw_error("evaluated motion: the model returned ", s.size(), " Gaussians for ", c.dynamic_ids.size());
+}
+
 DynamicState dynamic_at(const GaussianCloud& c, size_t j, double t) {
   return c.motion == MotionModel::Polynomial ? polynomial_at(c, j, t) : keyframed_at(c, j, t);
 }
@@ -258,11 +267,33 @@ void write_static(const GaussianCloud& c, FrameGaussians& f, size_t g) {
 
 }  // namespace
 
+ModelState ModelState::rows(const std::vector<uint32_t>& r) const {
+  ModelState o;
+  o.sh_degree = sh_degree;
+  const size_t row = size_t(sh_degree + 1) * size_t(sh_degree + 1) * 3;
+  o.means.resize(r.size());
+  o.log_scales.resize(r.size());
+  o.rotations.resize(r.size());
+  o.opacity_logits.resize(r.size());
+  if (!opacity_factor.empty()) o.opacity_factor.resize(r.size());
+  o.sh.resize(r.size() * row);
+  for (size_t i = 0; i < r.size(); ++i) {
+    const size_t g = r[i];
+    o.means[i] = means[g];
+    o.log_scales[i] = log_scales[g];
+    o.rotations[i] = rotations[g];
+    o.opacity_logits[i] = opacity_logits[g];
+    if (!opacity_factor.empty()) o.opacity_factor[i] = opacity_factor[g];
+    std::copy_n(&sh[g * row], row, &o.sh[i * row]);
+  }
+  return o;
+}
+
 FrameSampler::FrameSampler(const GaussianCloud& cloud) : cloud_(cloud) {
   const size_t n = cloud.size();
   frame_.sh_degree = cloud.sh_degree;
   frame_.sh = cloud.sh.data();
-  if (cloud.motion == MotionModel::Keyframed && !cloud.keyframed.colours.empty()) {
+  if ((cloud.motion == MotionModel::Keyframed && !cloud.keyframed.colours.empty()) || cloud.motion == MotionModel::Evaluated) {
     frame_.sh_storage = cloud.sh;
     frame_.sh = frame_.sh_storage.data();
   }
@@ -281,6 +312,22 @@ const FrameGaussians& FrameSampler::at(double t) {
   if (t == frame_.time) return frame_;
   frame_.time = t;
   const GaussianCloud& c = cloud_;
+  if (c.motion == MotionModel::Evaluated) {
+    // Exactly at t, every SH coefficient included: the model's own evaluation, not keys.
+    evaluated_at(c, t, state_);
+    const size_t row = size_t(c.sh_count()) * 3;
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, c.dynamic_ids.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t j = r.begin(); j < r.end(); ++j) {
+        const uint32_t g = c.dynamic_ids[j];
+        frame_.means[g] = state_.means[j];
+        frame_.scales[g] = state_.log_scales[j].array().exp();
+        frame_.rotations[g] = normalize_quat(state_.rotations[j]);
+        frame_.opacities[g] = sigmoid(state_.opacity_logits[j]) * (state_.opacity_factor.empty() ? 1.0f : state_.opacity_factor[j]);
+        std::copy_n(&state_.sh[j * row], row, &frame_.sh_storage[size_t(g) * row]);
+      }
+    });
+    return frame_;
+  }
   tbb::parallel_for(tbb::blocked_range<size_t>(0, c.dynamic_ids.size(), 2048),
                     [&](const tbb::blocked_range<size_t>& r) {
                       for (size_t j = r.begin(); j < r.end(); ++j) {
@@ -307,6 +354,12 @@ FrameGaussians frame_at(const GaussianCloud& cloud, double t) {
 void dynamic_means_at(const GaussianCloud& cloud, double t, std::vector<Vec3f>& out) {
   t = std::clamp(t, 0.0, 1.0);
   out.resize(cloud.dynamic_ids.size());
+  if (cloud.motion == MotionModel::Evaluated) {
+    ModelState s;
+    evaluated_at(cloud, t, s);
+    out = std::move(s.means);
+    return;
+  }
   tbb::parallel_for(tbb::blocked_range<size_t>(0, out.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t j = r.begin(); j < r.end(); ++j) out[j] = dynamic_at(cloud, j, t).mean;
   });
@@ -344,8 +397,10 @@ size_t partition_static_dynamic(GaussianCloud& c, const PartitionOptions& opt) {
   const size_t m = c.dynamic_ids.size();
   if (m == 0) {
     c.motion = MotionModel::Static;
+    c.source.reset();
     return 0;
   }
+  if (c.motion == MotionModel::Evaluated) return 0;  // its reader applied the static rule (io/trained_models.hpp)
   std::vector<char> keep(m, 1);
   std::vector<Vec3f> frozen(m);
   if (c.motion == MotionModel::Keyframed) {
@@ -520,6 +575,12 @@ void canonical_from_first_key(GaussianCloud& c) {
     c.means[g] = Eigen::Map<const Vec3f>(&k.positions[j * K * 3]);
     if (!k.rotations.empty()) c.rotations[g] = Eigen::Map<const Vec4f>(&k.rotations[j * K * 4]);
   }
+}
+
+int motion_frames(const GaussianCloud& c) {
+  if (c.motion == MotionModel::Keyframed) return c.keyframed.key_count;
+  if (c.motion == MotionModel::Evaluated && c.source) return c.source->frame_count();
+  return 0;
 }
 
 std::pair<Vec3f, Vec3f> bounding_box(const GaussianCloud& cloud) {

@@ -126,7 +126,10 @@ ModelParams<Real> params_from_cloud(const GaussianCloud& cloud_in, int bake_fram
     uncoloured.keyframed.colours.clear();
     cloud = &uncoloured;
   }
-  if (!trainable_as_is) {
+  if (cloud_in.motion == MotionModel::Evaluated) {  // a network's model: keys as dense as its motion needs
+    baked = keyed_for_training(cloud_in);
+    cloud = &baked;
+  } else if (!trainable_as_is) {
     if (bake_frames < 2)
       throw_error("model with ", to_string(cloud_in.motion),
                   " motion cannot be trained as it is; give the number of frames to bake its tracks into keys");

@@ -21,6 +21,27 @@ FILLGS_ENUM_NAMES(SceneFormat, "scene format",
     {SceneFormat::Deformable3DGS, "deformable3dgs"},
     {SceneFormat::Spacetime, "spacetime"});
 
+/// Trained models' static rule (io/trained_models.hpp): a Gaussian is still when, at every frame of the sweep, its state stays
+/// within these of its state at frame 0.
+struct StillRule {
+  float position = 1e-3f;         ///< distance, world units
+  float rotation_degrees = 1.0f;  ///< angle of the normalised rotation
+  float log_scale = 0.01f;        ///< any axis (1 %)
+  float opacity = 1.0f / 255.0f;  ///< activated opacity
+  float colour = 1.0f / 255.0f;   ///< SH DC times C0 (the view-independent colour), any channel
+  int sweep_frames = 30;          ///< frames the sweep samples, evenly, frame 0 and the last among them (>= frames: all)
+};
+
+/// How a trained model is read: streamed (its moving Gaussians evaluated by the model at each
+/// time a command asks for, exactly) or as keys at each of its frames (the whole video in
+/// memory, interpolated between frames).
+enum class ModelEvaluation { Streamed, Keys };
+FILLGS_ENUM_NAMES(ModelEvaluation, "model evaluation", {ModelEvaluation::Streamed, "streamed"}, {ModelEvaluation::Keys, "keys"});
+/// The networks' evaluation: the dense kernel on feature-major blocks, or Eigen products on
+/// row-major blocks (the reference).
+enum class NetworkKernel { Simd, Eigen };
+FILLGS_ENUM_NAMES(NetworkKernel, "network kernel", {NetworkKernel::Simd, "simd"}, {NetworkKernel::Eigen, "eigen"});
+
 struct SceneReadOptions {
   SceneFormat format = SceneFormat::Auto;
   /// Spacetime Gaussians: frames one model covers (configs use 50).
@@ -41,6 +62,9 @@ struct SceneReadOptions {
   std::string model_time_range;
   int model_camera = -1;
   int model_iteration = -1;
+  ModelEvaluation model_evaluation = ModelEvaluation::Streamed;
+  NetworkKernel network_kernel = NetworkKernel::Simd;
+  StillRule still;
   PartitionOptions partition;
 };
 
@@ -59,6 +83,24 @@ void write_3dgs_ply(const std::string& path, const GaussianCloud& cloud, double 
 /// t_f = f / (frames - 1), Catmull-Rom positions, shortest-arc slerp rotations, and
 /// per-key opacities where opacity changes in time.
 GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames);
+
+/// The keys a model evaluated by its network (MotionModel::Evaluated) needs where a command
+/// trains fillgs's own keyed model: the fewest, K keys at t = k / (K - 1), whose Catmull-Rom
+/// positions stay within `tolerance` world units of the network at every frame, measured on
+/// up to `sample` moving Gaussians (evenly spread over them); intervals tried: 1, 2, 4, ...
+/// 32 frames (at most 32: no interval is chosen on fewer than 8 keys' evidence).
+struct KeyChoice {
+  int keys = 0;             ///< K
+  double interval = 1.0;    ///< frames between keys, (frames - 1) / (K - 1)
+  double worst_error = 0;   ///< largest position error at a frame over the sample, world units
+  size_t sample = 0;        ///< Gaussians measured
+  int frames = 0;
+};
+KeyChoice choose_keys(const GaussianCloud& cloud, float tolerance = 1e-3f, size_t sample = 2000);
+
+/// The cloud with keys: evaluated motion baked to choose_keys()'s K keys (what `finetune`
+/// trains), any other cloud as it is. `choice` gets what was chosen (keys 0: nothing baked).
+GaussianCloud keyed_for_training(const GaussianCloud& cloud, KeyChoice* choice = nullptr, float tolerance = 1e-3f);
 
 /// Writes the fillgs 4D PLY. Keyframed clouds in the fillgs convention are written as they
 /// are; other motion is baked to `frames` keys first (frames >= 2 required then).

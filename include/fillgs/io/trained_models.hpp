@@ -14,10 +14,10 @@
 //  * Dynamic 3D Gaussians: params.npz (per-frame means, colours, rotations);
 //  * a folder of per-frame 3DGS PLYs (4DGaussians' export_perframe_3DGS.py, viewer sequences).
 //
-// A model is sampled at each of its frames into fillgs's keyframed tracks (one key per
-// frame: position, rotation, scale, opacity, colour), so every command takes it like any
-// other scene; between frames fillgs interpolates. data/README.md lists what each format
-// needs and what is approximated.
+// The networks and 4DGS's slice are streamed (stream_trained_model): a command evaluates
+// their moving Gaussians exactly at each time it asks for; Gaussians the still rule finds
+// still are evaluated once. The per-frame formats are sampled into keyframed tracks (one key
+// per frame). data/README.md lists what each format needs and what is approximated.
 #include <memory>
 #include <string>
 #include <vector>
@@ -28,24 +28,21 @@
 
 namespace fillgs {
 
-/// The Gaussians a trained model gives at one model time: raw values (log-scales,
-/// unnormalised quaternions, opacity logits, SH), as its renderer hands them to the rasteriser.
-struct ModelState {
-  int sh_degree = 0;
-  std::vector<Vec3f> means, log_scales;
-  std::vector<Vec4f> rotations;
-  std::vector<float> opacity_logits;
-  std::vector<float> opacity_factor;  ///< a temporal factor applied after the sigmoid (4DGS); empty: 1
-  std::vector<float> sh;              ///< [N][(degree+1)^2][3]
-  size_t size() const { return means.size(); }
-};
-
 class TrainedModel {
  public:
   virtual ~TrainedModel() = default;
   virtual size_t size() const = 0;
-  /// The Gaussians at model time `model_time` (the training code's own time value).
+  /// The Gaussians at model time `model_time` (the training code's own time value), every
+  /// one, by the reference path: for networks, Eigen products on row-major blocks.
   virtual ModelState at(double model_time) const = 0;
+  /// The Gaussians `rows` at model time `model_time`, by the fast path: networks run on
+  /// feature-major blocks with the dense kernel (model/dense.hpp), what depends on the time
+  /// alone computed once. `out` holds rows.size() Gaussians. Default: at(), those rows.
+  virtual void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const { out = at(model_time).rows(rows); }
+  /// Multiply-adds per Gaussian and frame in evaluate()'s network (0: no network).
+  virtual double multiply_adds() const { return 0.0; }
+  /// Whether evaluate() is a network's (moving Gaussians are worth telling from still ones).
+  virtual bool has_network() const { return false; }
 
   SceneFormat format = SceneFormat::Auto;
   std::string source;
@@ -64,8 +61,19 @@ class TrainedModel {
 std::unique_ptr<TrainedModel> open_trained_model(const std::string& path, SceneFormat format, const SceneReadOptions& options);
 
 /// The model sampled at each of its frames into keyframed tracks, one key per frame
-/// (t_f = f / (frames - 1)); SH bands above the DC keep their mean over the frames.
-GaussianCloud sample_trained_model(const TrainedModel& model);
+/// (t_f = f / (frames - 1)); SH bands above the DC keep their mean over the frames. What
+/// fillgs read trained models as before they were streamed (`--model-evaluation keys`).
+/// `reference`: by at() (Eigen products), else by evaluate().
+GaussianCloud sample_trained_model(const TrainedModel& model, bool reference = true);
+
+/// A trained model as a cloud whose moving Gaussians are evaluated by the model at each time
+/// asked (MotionModel::Evaluated), exactly, never stored per frame; still ones (StillRule, on
+/// a sweep of the frames) are evaluated once, at frame 0, and static. `reference`: the
+/// reference path (at()) instead of evaluate(). Notes say how many are still and by what rule.
+GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, const StillRule& rule, bool reference = false);
+
+/// The frames of the sweep (ascending, frame 0 and frames-1 among them).
+std::vector<int> sweep_frames(int frames, int wanted);
 
 /// The format of a directory or file holding one of the models above, or Auto if none.
 SceneFormat detect_trained_model(const std::string& path);

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/io/scene_io.hpp"
 #include "fillgs/explore/exploration.hpp"
 #include "fillgs/model/gaussians.hpp"
 #include "fillgs/base/progress.hpp"
@@ -89,6 +90,7 @@ struct FinetuneResult {
   std::vector<PoolPick> pool_chosen;  ///< the pool views chosen, in order
   double seconds_train = 0, seconds_total = 0;
   std::vector<float> loss_history;
+  KeyChoice keys;  ///< a model evaluated by its network: the keys it was given to train (keys 0: none)
 };
 
 /// Fine-tunes `model` (trained on `data`) with views refined by `refiner`.

@@ -9,6 +9,7 @@
 // Static Gaussians carry no motion data; motion arrays are indexed by position in
 // `dynamic_ids`, not by Gaussian id.
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -17,9 +18,36 @@
 
 namespace fillgs {
 
-enum class MotionModel { Static, Polynomial, Keyframed };
+enum class MotionModel { Static, Polynomial, Keyframed, Evaluated };
 FILLGS_ENUM_NAMES(MotionModel, "motion model",
-    {MotionModel::Static, "static"}, {MotionModel::Polynomial, "polynomial"}, {MotionModel::Keyframed, "keyframed"});
+    {MotionModel::Static, "static"}, {MotionModel::Polynomial, "polynomial"}, {MotionModel::Keyframed, "keyframed"},
+    {MotionModel::Evaluated, "evaluated"});
+
+/// Gaussians at one time as a trained model gives them: raw values (log-scales,
+/// unnormalised quaternions, opacity logits, SH), as its renderer hands them to the rasteriser.
+struct ModelState {
+  int sh_degree = 0;
+  std::vector<Vec3f> means, log_scales;
+  std::vector<Vec4f> rotations;
+  std::vector<float> opacity_logits;
+  std::vector<float> opacity_factor;  ///< a temporal factor applied after the sigmoid (4DGS); empty: 1
+  std::vector<float> sh;              ///< [N][(degree+1)^2][3]
+  size_t size() const { return means.size(); }
+  /// Rows `rows` of this state, in that order.
+  ModelState rows(const std::vector<uint32_t>& rows) const;
+};
+
+/// Motion that a trained model's own code computes at each time (its deformation network,
+/// its closed-form slice): evaluated exactly at the time asked, for the Gaussians asked,
+/// never stored per frame (io/trained_models.hpp).
+class MotionSource {
+ public:
+  virtual ~MotionSource() = default;
+  /// The source's Gaussians `rows` at normalised time t in [0, 1]; `out` holds rows.size().
+  virtual void evaluate(double t, const std::vector<uint32_t>& rows, ModelState& out) const = 0;
+  /// Frames the model covers (frame f at t = f / (frames - 1)).
+  virtual int frame_count() const = 0;
+};
 
 /// Spacetime Gaussians motion (polynomial position, linear rotation, temporal RBF opacity).
 /// Model time is t_model = t * time_scale (STG uses (frame)/D, so time_scale = (D-1)/D).
@@ -69,6 +97,10 @@ struct GaussianCloud {
   std::vector<uint32_t> dynamic_ids;  ///< ascending Gaussian ids that move
   PolynomialMotion polynomial;
   KeyframedMotion keyframed;
+  /// MotionModel::Evaluated: the model that computes the dynamic Gaussians at each time, and
+  /// the source's row of each (indexed like dynamic_ids). Copies of the cloud share it.
+  std::shared_ptr<const MotionSource> source;
+  std::vector<uint32_t> source_rows;
 
   std::vector<std::string> notes;     ///< what the reader approximated, for `info`
   std::string model_times;            ///< the model's own time at t = 0 … 1, where it has one (trained models), for `info`
@@ -127,6 +159,7 @@ class FrameSampler {
  private:
   const GaussianCloud& cloud_;
   FrameGaussians frame_;
+  ModelState state_;  ///< evaluated motion: the dynamic set at frame_.time
 };
 
 /// The Gaussians at time t, one shot (copies the static set).
@@ -170,6 +203,10 @@ KeyframedMotion per_frame_tracks(size_t gaussians, int frames);
 /// Sets every dynamic Gaussian's canonical mean and rotation to its first key, so that
 /// tools that read only the canonical values (splat viewers, bounds) see time 0.
 void canonical_from_first_key(GaussianCloud& cloud);
+
+/// The frames a cloud's motion is given at: its key count (keyframed), its model's frame
+/// count (evaluated); 0 for other motion.
+int motion_frames(const GaussianCloud& cloud);
 
 /// Axis-aligned bounds of the canonical means (min, max).
 std::pair<Vec3f, Vec3f> bounding_box(const GaussianCloud& cloud);

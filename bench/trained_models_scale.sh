@@ -1,0 +1,128 @@
+#!/usr/bin/env bash
+# Trained models at scale: models saved by PyTorch with E-D3DGS's and 4DGaussians' N3V
+# architectures (tests/make_model_fixtures.py --bench), N Gaussians x F frames, and an E-D3DGS
+# model whose background (80 %) is still but for network noise. Pieces, each skipped when its
+# result is already in OUT (the run resumes where it was stopped):
+#   networks   fillgs_bench networks: the dense kernel against the reference products;
+#   observe    `fillgs observe` (frustum and ray traced, 20 cameras, every frame) streamed
+#              (default) and as fillgs read them before (keys at every frame, reference
+#              products: --model-evaluation keys --network-kernel eigen), and on the same
+#              Gaussians written as a fillgs 4D PLY; wall time and peak memory (GNU time);
+#   few        `observe --frames 4` streamed, against all frames.
+# Writes OUT/results.md (tables with provenance) from the pieces' files.
+#
+#   bench/trained_models_scale.sh [--gaussians N] [--frames F] [--formats A,B] [--smoke] OUT
+#
+# Defaults: N = 200000, F = 300, formats e-d3dgs,4dgaussians,e-d3dgs-still. --smoke: N = 300, F = 6.
+set -euo pipefail
+root="$(cd "$(dirname "$0")/.." && pwd)"
+bin="$root/build/bin"
+gaussians=200000
+frames=300
+formats=e-d3dgs,4dgaussians,e-d3dgs-still
+out=
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --bin) bin="$2"; shift 2 ;;
+    --gaussians) gaussians="$2"; shift 2 ;;
+    --frames) frames="$2"; shift 2 ;;
+    --formats) formats="$2"; shift 2 ;;
+    --smoke) gaussians=300; frames=6; shift ;;
+    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    -*) echo "bench/trained_models_scale.sh: unknown option $1" >&2; exit 2 ;;
+    *) out="$1"; shift ;;
+  esac
+done
+[ -n "$out" ] || { echo "bench/trained_models_scale.sh: give the output folder" >&2; exit 2; }
+python="${FILLGS_TORCH_PYTHON:-/usr/bin/python3}"
+mkdir -p "$out/pieces"
+models="$out/pieces/models-$gaussians-$frames"
+if [ ! -f "$models/.complete" ]; then
+  echo "making the models ($gaussians Gaussians, $frames frames: $formats) ..."
+  "$python" "$root/tests/make_model_fixtures.py" --bench "$gaussians" --frames "$frames" --formats "$formats" "$models" >/dev/null
+  touch "$models/.complete"
+fi
+# 20 cameras, 64x48, on a circle of radius 4 around the origin, looking at it.
+"$python" - "$out/pieces/cameras.json" <<'PY'
+import json, math, sys
+frames = []
+for i in range(20):
+    a = 2 * math.pi * i / 20
+    c = [4 * math.sin(a), 0.3 * math.cos(3 * a), -4 * math.cos(a)]
+    z = [-v / math.sqrt(sum(x * x for x in c)) for v in c]
+    x = [z[2], 0.0, -z[0]]; n = math.sqrt(sum(v * v for v in x)); x = [v / n for v in x]
+    y = [z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]]
+    m = [[x[0], -y[0], -z[0], c[0]], [x[1], -y[1], -z[1], c[1]], [x[2], -y[2], -z[2], c[2]], [0, 0, 0, 1]]
+    frames.append({"file_path": "cam%02d" % i, "transform_matrix": m})
+json.dump({"camera_angle_x": 0.9, "w": 64, "h": 48, "frames": frames}, open(sys.argv[1], "w"), indent=1)
+PY
+flags_of() { case "$1" in 4dgaussians) echo "--model-frames $frames" ;; *) echo "" ;; esac; }
+# One observe run: its seconds and peak memory into a piece file, unless it is there.
+observe() {  # piece-name scene extra-flags...
+  local name="$1" piece="$out/pieces/$1.txt" scene="$2"; shift 2
+  [ -f "$piece" ] && return 0
+  echo "  $name ..."
+  local tmp="$out/pieces/$name.run"
+  rm -rf "$tmp"
+  /usr/bin/time -f "%e %M" -o "$tmp.time" "$bin/fillgs" observe --quiet --scene "$scene" --cameras "$out/pieces/cameras.json" --no-plots --out "$tmp" "$@" >/dev/null
+  read -r secs kb <"$tmp.time"
+  local moving; moving=$("$python" -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["dynamic"])' "$tmp/summary.json" 2>/dev/null || echo "")
+  echo "$secs $kb $moving" >"$piece.part" && mv "$piece.part" "$piece"
+  rm -rf "$tmp" "$tmp.time"
+}
+if [ ! -f "$out/pieces/networks.md" ]; then
+  echo "networks ..."
+  "$bin/fillgs_bench" networks --models "$models" --model-frames "$frames" >"$out/pieces/networks.md.part"
+  mv "$out/pieces/networks.md.part" "$out/pieces/networks.md"
+fi
+IFS=, read -r -a fmts <<<"$formats"
+# The pieces in order of what they tell: frustum (streamed, then as before), a few frames, ray
+# traced, the fillgs 4D PLY.
+# shellcheck disable=SC2046  # the flags are words
+for fmt in "${fmts[@]}"; do
+  observe "$fmt.frustum.streamed" "$models/$fmt" --mode frustum $(flags_of "$fmt")
+  observe "$fmt.frustum.keys-eigen" "$models/$fmt" --mode frustum $(flags_of "$fmt") --model-evaluation keys --network-kernel eigen
+done
+# shellcheck disable=SC2046
+for fmt in "${fmts[@]}"; do observe "$fmt.frustum.few" "$models/$fmt" --mode frustum --frames 4 $(flags_of "$fmt"); done
+# shellcheck disable=SC2046
+for fmt in "${fmts[@]}"; do
+  observe "$fmt.raytraced.streamed" "$models/$fmt" --mode raytraced $(flags_of "$fmt")
+  observe "$fmt.raytraced.keys-eigen" "$models/$fmt" --mode raytraced $(flags_of "$fmt") --model-evaluation keys --network-kernel eigen
+done
+for fmt in "${fmts[@]}"; do
+  ply="$out/pieces/$fmt.fillgs.ply"
+  if [ ! -f "$ply" ]; then
+    # shellcheck disable=SC2046
+    "$bin/fillgs" convert --scene "$models/$fmt" $(flags_of "$fmt") --to fillgs --out "$ply" >/dev/null
+  fi
+  for mode in frustum raytraced; do observe "$fmt.$mode.fillgs-ply" "$ply" --mode "$mode" --frames "$frames"; done
+done
+commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)
+machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1), $(awk '/MemTotal/{printf "%.0f GB", $2/1048576}' /proc/meminfo)"
+{
+  echo "Command: \`bench/trained_models_scale.sh --gaussians $gaussians --frames $frames --formats $formats OUT\` · commit $commit · $(date -u +%Y-%m-%d) · $machine."
+  echo
+  echo "Networks (\`fillgs_bench networks\`, $gaussians Gaussians):"
+  echo
+  sed -n '/^dense kernel/p;/^|/p' "$out/pieces/networks.md"
+  echo
+  echo "\`fillgs observe\`, 20 cameras of 64×48, all $frames frames unless said; wall time (reading included) and peak resident memory:"
+  echo
+  echo "| model | mode | read as | moving Gaussians | seconds | peak memory (MB) | vs keys + reference: time | memory |"
+  echo "|---|---|---|---|---|---|---|---|"
+  for fmt in "${fmts[@]}"; do
+    for mode in frustum raytraced; do
+      read -r s0 k0 _ <"$out/pieces/$fmt.$mode.keys-eigen.txt"
+      for how in keys-eigen streamed fillgs-ply; do
+        read -r s k m <"$out/pieces/$fmt.$mode.$how.txt"
+        label=$(case $how in keys-eigen) echo "keys at every frame, reference products (before)" ;; streamed) echo "streamed, dense kernel" ;; fillgs-ply) echo "the same Gaussians as a fillgs 4D PLY" ;; esac)
+        echo "| $fmt | $mode | $label | $m | $s | $(awk "BEGIN{printf \"%.0f\", $k/1024}") | $(awk "BEGIN{printf \"%.2f\", $s0/$s}") | $(awk "BEGIN{printf \"%.2f\", $k0/$k}") |"
+      done
+    done
+    read -r s k m <"$out/pieces/$fmt.frustum.few.txt"
+    echo "| $fmt | frustum | streamed, \`--frames 4\` | $m | $s | $(awk "BEGIN{printf \"%.0f\", $k/1024}") | | |"
+  done
+} >"$out/results.md.part"
+mv "$out/results.md.part" "$out/results.md"
+echo "wrote $out/results.md"
