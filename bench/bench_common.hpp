@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <numeric>
@@ -16,6 +17,18 @@
 #include "fillgs/base/timing.hpp"
 
 namespace fillgs::bench {
+
+/// The core's clock as the kernel reports it (first "cpu MHz" of /proc/cpuinfo), GHz; 0 if unknown.
+inline double clock_ghz() {
+  std::FILE* f = std::fopen("/proc/cpuinfo", "r");
+  if (!f) return 0;
+  char line[256];
+  double mhz = 0;
+  while (std::fgets(line, sizeof line, f))
+    if (std::sscanf(line, "cpu MHz : %lf", &mhz) == 1) break;
+  std::fclose(f);
+  return mhz / 1000.0;
+}
 
 /// A path as a results file names it: under the shared data as "shared/data/...", else by
 /// its file name; never the absolute path of the machine that ran the benchmark.

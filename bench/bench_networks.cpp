@@ -22,16 +22,6 @@ using namespace fillgs;
 
 namespace {
 
-double clock_ghz() {
-  std::FILE* f = std::fopen("/proc/cpuinfo", "r");
-  if (!f) return 0;
-  char line[256];
-  double mhz = 0;
-  while (std::fgets(line, sizeof line, f))
-    if (std::sscanf(line, "cpu MHz : %lf", &mhz) == 1) break;
-  std::fclose(f);
-  return mhz / 1000.0;
-}
 
 double seconds_of(const std::chrono::steady_clock::time_point& t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -54,7 +44,7 @@ int bench_networks(const std::vector<std::string>& args) {
   if (smoke) frames = 2;
   const int T = threads ? threads : tbb::info::default_concurrency();
   const int lanes = dense::lane_count();
-  const double ghz = clock_ghz();
+  const double ghz = bench::clock_ghz();
   // Two FMA units per core (Intel since Haswell, AMD since Zen), each `lanes` multiply-adds a cycle.
   const double bound = 2.0 * lanes * ghz * 1e9 * T;
   std::printf("dense kernel: %s, %d float lanes; %d threads; FMA bound: %d threads x 2 FMA units x %d lanes x %.2f GHz = %.3g multiply-adds/s\n\n",

@@ -48,17 +48,6 @@ Timing time_views(const FrameGaussians& g, const std::vector<Camera>& cams, int 
   return t;
 }
 
-/// The core's clock as the kernel reports it (first "cpu MHz" of /proc/cpuinfo), GHz; 0 if unknown.
-double clock_ghz() {
-  std::FILE* f = std::fopen("/proc/cpuinfo", "r");
-  if (!f) return 0;
-  char line[256];
-  double mhz = 0;
-  while (std::fgets(line, sizeof line, f))
-    if (std::sscanf(line, "cpu MHz : %lf", &mhz) == 1) break;
-  std::fclose(f);
-  return mhz / 1000.0;
-}
 
 }  // namespace
 
@@ -101,7 +90,7 @@ int bench_render(const std::vector<std::string>& args) {
   // α = min(0.99, o·e) 2, the three tests 3, T·(1−α) 2, w = α·T 1, three channel FMAs 3:
   // 35 operations, at one per lane per cycle.
   constexpr int kOperations = 35;
-  const double ghz = clock_ghz();
+  const double ghz = bench::clock_ghz();
   const int lanes = simd_lanes();
   if (ghz > 0) {
     const double peak = lanes * ghz * 1e9 / kOperations;

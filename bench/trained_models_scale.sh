@@ -8,10 +8,13 @@
 #              (default) and as fillgs read them before (keys at every frame, reference
 #              products: --model-evaluation keys --network-kernel eigen), and on the same
 #              Gaussians written as a fillgs 4D PLY; wall time and peak memory (GNU time);
+#   still      `fillgs info --still-sweep S` for S = 10, 30, F: still Gaussians and seconds;
 #   few        `observe --frames 4` streamed, against all frames.
 # Writes OUT/results.md (tables with provenance) from the pieces' files.
 #
-#   bench/trained_models_scale.sh [--gaussians N] [--frames F] [--formats A,B] [--smoke] OUT
+#   bench/trained_models_scale.sh [--gaussians N] [--frames F] [--formats A,B] [--smoke] [--report-only] OUT
+#
+# --report-only: results.md from the pieces there, pieces not run shown as "-".
 #
 # Defaults: N = 200000, F = 300, formats e-d3dgs,4dgaussians,e-d3dgs-still. --smoke: N = 300, F = 6.
 set -euo pipefail
@@ -20,6 +23,7 @@ bin="$root/build/bin"
 gaussians=200000
 frames=300
 formats=e-d3dgs,4dgaussians,e-d3dgs-still
+report_only=0
 out=
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -28,7 +32,8 @@ while [ $# -gt 0 ]; do
     --frames) frames="$2"; shift 2 ;;
     --formats) formats="$2"; shift 2 ;;
     --smoke) gaussians=300; frames=6; shift ;;
-    -h|--help) sed -n '2,17p' "$0"; exit 0 ;;
+    --report-only) report_only=1; shift ;;
+    -h|--help) sed -n '2,21p' "$0"; exit 0 ;;
     -*) echo "bench/trained_models_scale.sh: unknown option $1" >&2; exit 2 ;;
     *) out="$1"; shift ;;
   esac
@@ -37,30 +42,18 @@ done
 python="${FILLGS_TORCH_PYTHON:-/usr/bin/python3}"
 mkdir -p "$out/pieces"
 models="$out/pieces/models-$gaussians-$frames"
-if [ ! -f "$models/.complete" ]; then
+if [ "$report_only" = 0 ] && [ ! -f "$models/.complete" ]; then
   echo "making the models ($gaussians Gaussians, $frames frames: $formats) ..."
   "$python" "$root/tests/make_model_fixtures.py" --bench "$gaussians" --frames "$frames" --formats "$formats" "$models" >/dev/null
   touch "$models/.complete"
 fi
 # 20 cameras, 64x48, on a circle of radius 4 around the origin, looking at it.
-"$python" - "$out/pieces/cameras.json" <<'PY'
-import json, math, sys
-frames = []
-for i in range(20):
-    a = 2 * math.pi * i / 20
-    c = [4 * math.sin(a), 0.3 * math.cos(3 * a), -4 * math.cos(a)]
-    z = [-v / math.sqrt(sum(x * x for x in c)) for v in c]
-    x = [z[2], 0.0, -z[0]]; n = math.sqrt(sum(v * v for v in x)); x = [v / n for v in x]
-    y = [z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]]
-    m = [[x[0], -y[0], -z[0], c[0]], [x[1], -y[1], -z[1], c[1]], [x[2], -y[2], -z[2], c[2]], [0, 0, 0, 1]]
-    frames.append({"file_path": "cam%02d" % i, "transform_matrix": m})
-json.dump({"camera_angle_x": 0.9, "w": 64, "h": 48, "frames": frames}, open(sys.argv[1], "w"), indent=1)
-PY
+"$python" "$root/bench/ring_cameras.py" 20 "$out/pieces/cameras.json" --wave
 flags_of() { case "$1" in 4dgaussians) echo "--model-frames $frames" ;; *) echo "" ;; esac; }
 # One observe run: its seconds and peak memory into a piece file, unless it is there.
 observe() {  # piece-name scene extra-flags...
   local name="$1" piece="$out/pieces/$1.txt" scene="$2"; shift 2
-  [ -f "$piece" ] && return 0
+  { [ -f "$piece" ] || [ "$report_only" = 1 ]; } && return 0
   echo "  $name ..."
   local tmp="$out/pieces/$name.run"
   rm -rf "$tmp"
@@ -70,7 +63,7 @@ observe() {  # piece-name scene extra-flags...
   echo "$secs $kb $moving" >"$piece.part" && mv "$piece.part" "$piece"
   rm -rf "$tmp" "$tmp.time"
 }
-if [ ! -f "$out/pieces/networks.md" ]; then
+if [ "$report_only" = 0 ] && [ ! -f "$out/pieces/networks.md" ]; then
   echo "networks ..."
   "$bin/fillgs_bench" networks --models "$models" --model-frames "$frames" >"$out/pieces/networks.md.part"
   mv "$out/pieces/networks.md.part" "$out/pieces/networks.md"
@@ -83,6 +76,20 @@ for fmt in "${fmts[@]}"; do
   observe "$fmt.frustum.streamed" "$models/$fmt" --mode frustum $(flags_of "$fmt")
   observe "$fmt.frustum.keys-eigen" "$models/$fmt" --mode frustum $(flags_of "$fmt") --model-evaluation keys --network-kernel eigen
 done
+# The still rule's sweep (--still-sweep): how many Gaussians it finds still, and its time, on
+# a sweep of 10, 30 (the default) and every frame.
+for fmt in "${fmts[@]}"; do
+  for sweep in 10 30 "$frames"; do
+    piece="$out/pieces/$fmt.still-sweep-$sweep.txt"
+    { [ -f "$piece" ] || [ "$report_only" = 1 ]; } && continue
+    echo "  $fmt.still-sweep-$sweep ..."
+    # shellcheck disable=SC2046
+    /usr/bin/time -f "%e %M" -o "$piece.time" "$bin/fillgs" info --json --still-sweep "$sweep" $(flags_of "$fmt") "$models/$fmt" >"$piece.json"
+    read -r secs kb <"$piece.time"
+    echo "$secs $kb $("$python" -c 'import json,sys; print(json.load(open(sys.argv[1]))["static"])' "$piece.json")" >"$piece.part"
+    mv "$piece.part" "$piece" && rm -f "$piece.time" "$piece.json"
+  done
+done
 # shellcheck disable=SC2046
 for fmt in "${fmts[@]}"; do observe "$fmt.frustum.few" "$models/$fmt" --mode frustum --frames 4 $(flags_of "$fmt"); done
 # shellcheck disable=SC2046
@@ -92,12 +99,16 @@ for fmt in "${fmts[@]}"; do
 done
 for fmt in "${fmts[@]}"; do
   ply="$out/pieces/$fmt.fillgs.ply"
-  if [ ! -f "$ply" ]; then
+  if [ "$report_only" = 0 ] && [ ! -f "$ply" ]; then
     # shellcheck disable=SC2046
     "$bin/fillgs" convert --scene "$models/$fmt" $(flags_of "$fmt") --to fillgs --out "$ply" >/dev/null
   fi
   for mode in frustum raytraced; do observe "$fmt.$mode.fillgs-ply" "$ply" --mode "$mode" --frames "$frames"; done
 done
+# A piece's three numbers, or "-" for a piece not run (a run stopped by its time limit).
+piece() { if [ -f "$out/pieces/$1.txt" ]; then cat "$out/pieces/$1.txt"; else echo "- - -"; fi; }
+mb() { [ "$1" = - ] && echo - || awk "BEGIN{printf \"%.0f\", $1/1024}"; }
+ratio() { { [ "$1" = - ] || [ "$2" = - ]; } && echo - || awk "BEGIN{printf \"%.2f\", $1/$2}"; }
 commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)
 machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1), $(awk '/MemTotal/{printf "%.0f GB", $2/1048576}' /proc/meminfo)"
 {
@@ -105,7 +116,7 @@ machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -
   echo
   echo "Networks (\`fillgs_bench networks\`, $gaussians Gaussians):"
   echo
-  sed -n '/^dense kernel/p;/^|/p' "$out/pieces/networks.md"
+  [ -f "$out/pieces/networks.md" ] && sed -n '/^dense kernel/p;/^|/p' "$out/pieces/networks.md"
   echo
   echo "\`fillgs observe\`, 20 cameras of 64×48, all $frames frames unless said; wall time (reading included) and peak resident memory:"
   echo
@@ -113,15 +124,26 @@ machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -
   echo "|---|---|---|---|---|---|---|---|"
   for fmt in "${fmts[@]}"; do
     for mode in frustum raytraced; do
-      read -r s0 k0 _ <"$out/pieces/$fmt.$mode.keys-eigen.txt"
+      read -r s0 k0 _ < <(piece "$fmt.$mode.keys-eigen")
       for how in keys-eigen streamed fillgs-ply; do
-        read -r s k m <"$out/pieces/$fmt.$mode.$how.txt"
+        read -r s k m < <(piece "$fmt.$mode.$how")
         label=$(case $how in keys-eigen) echo "keys at every frame, reference products (before)" ;; streamed) echo "streamed, dense kernel" ;; fillgs-ply) echo "the same Gaussians as a fillgs 4D PLY" ;; esac)
-        echo "| $fmt | $mode | $label | $m | $s | $(awk "BEGIN{printf \"%.0f\", $k/1024}") | $(awk "BEGIN{printf \"%.2f\", $s0/$s}") | $(awk "BEGIN{printf \"%.2f\", $k0/$k}") |"
+        echo "| $fmt | $mode | $label | $m | $s | $(mb "$k") | $(ratio "$s0" "$s") | $(ratio "$k0" "$k") |"
       done
     done
-    read -r s k m <"$out/pieces/$fmt.frustum.few.txt"
-    echo "| $fmt | frustum | streamed, \`--frames 4\` | $m | $s | $(awk "BEGIN{printf \"%.0f\", $k/1024}") | | |"
+    read -r s k m < <(piece "$fmt.frustum.few")
+    echo "| $fmt | frustum | streamed, \`--frames 4\` | $m | $s | $(mb "$k") | | |"
+  done
+  echo
+  echo "The still rule's sweep (\`fillgs info --still-sweep S\`: reading, the sweep, the training keys' choice):"
+  echo
+  echo "| model | sweep frames | still Gaussians | seconds | peak memory (MB) |"
+  echo "|---|---|---|---|---|"
+  for fmt in "${fmts[@]}"; do
+    for sweep in 10 30 "$frames"; do
+      read -r s k st < <(piece "$fmt.still-sweep-$sweep")
+      echo "| $fmt | $sweep | $st | $s | $(mb "$k") |"
+    done
   done
 } >"$out/results.md.part"
 mv "$out/results.md.part" "$out/results.md"

@@ -9,19 +9,7 @@ set -euo pipefail
 fillgs="$1" fixtures="$2" scratch="$3"
 python="${FILLGS_TORCH_PYTHON:-/usr/bin/python3}"
 rm -rf "$scratch" && mkdir -p "$scratch"
-"$python" - "$scratch/cameras.json" <<'PY'
-import json, math, sys
-frames = []
-for i in range(4):
-    a = 2 * math.pi * i / 4
-    c = [4 * math.sin(a), 0.3, -4 * math.cos(a)]
-    z = [-v / math.sqrt(sum(x * x for x in c)) for v in c]
-    x = [z[2], 0.0, -z[0]]; n = math.sqrt(sum(v * v for v in x)); x = [v / n for v in x]
-    y = [z[1] * x[2] - z[2] * x[1], z[2] * x[0] - z[0] * x[2], z[0] * x[1] - z[1] * x[0]]
-    m = [[x[0], -y[0], -z[0], c[0]], [x[1], -y[1], -z[1], c[1]], [x[2], -y[2], -z[2], c[2]], [0, 0, 0, 1]]
-    frames.append({"file_path": "cam%d" % i, "transform_matrix": m})
-json.dump({"camera_angle_x": 0.9, "w": 64, "h": 48, "frames": frames}, open(sys.argv[1], "w"))
-PY
+"$python" "$(dirname "$0")/../bench/ring_cameras.py" 4 "$scratch/cameras.json"
 peak() {  # frames evaluation
   local out="$scratch/$1-$2"
   "$fillgs" observe --quiet --scene "$fixtures/ed3dgs" --model-frames "$1" --model-evaluation "$2" --cameras "$scratch/cameras.json" \

@@ -91,12 +91,19 @@ int info(const InfoFlags& f, const Invocation& in) {
     j["key_times"] = {k.first_key_time, k.first_key_time + k.key_spacing * (k.key_count - 1)};
   }
   if (!c.model_times.empty()) j["model_times"] = c.model_times;
+  if (c.motion == MotionModel::Evaluated) {  // what finetune would key it with
+    const KeyChoice k = choose_keys(c);
+    std::ostringstream os;
+    os << k.keys << " (one every " << k.interval << " frames; positions within " << k.worst_error << " world units of the model on " << k.sample
+       << " moving Gaussians)";
+    j["training_keys"] = os.str();
+  }
   if (f.json) {
     in.out << j.dump(2) << "\n";
     return 0;
   }
   in.out << "scene        " << f.scene << "\n";
-  for (const char* key : {"format", "gaussians", "sh_degree", "motion_model", "static", "dynamic", "moving_share", "keyframes", "frames", "key_times",
+  for (const char* key : {"format", "gaussians", "sh_degree", "motion_model", "static", "dynamic", "moving_share", "keyframes", "frames", "training_keys", "key_times",
                           "model_times", "bbox_min", "bbox_max"})
     if (j.contains(key)) {
       std::string label = key;

@@ -508,6 +508,13 @@ class DenseHeads {
   std::vector<Head> heads_;
 };
 
+/// Multiply-adds per Gaussian of a trunk and its heads on the kernel.
+double network_multiply_adds(const std::vector<DenseLinear>& trunk, const DenseHeads& heads) {
+  double m = heads.multiply_adds();
+  for (const DenseLinear& l : trunk) m += l.multiply_adds();
+  return m;
+}
+
 /// Feature-major scratch for one thread's blocks: `rows` rows of kRows floats.
 inline std::vector<float> block_buffer(size_t rows) { return std::vector<float>(std::max<size_t>(rows, 1) * kRows, 0.0f); }
 
@@ -760,8 +767,7 @@ class Ed3dgs : public TrainedModel {
     double m = 0;
     for (int pass = 0; pass < 2; ++pass) {
       if (pass == 0 ? no_coarse_ : no_fine_) continue;
-      for (const DenseLinear& l : dense_[pass].trunk) m += l.multiply_adds();
-      m += dense_[pass].heads.multiply_adds();
+      m += network_multiply_adds(dense_[pass].trunk, dense_[pass].heads);
     }
     return m;
   }
@@ -991,11 +997,7 @@ class FourDGaussians : public TrainedModel {
   size_t size() const override { return canonical_.size(); }
   bool has_network() const override { return true; }
 
-  double multiply_adds() const override {
-    double m = dense_heads_.multiply_adds();
-    for (const DenseLinear& l : dense_trunk_) m += l.multiply_adds();
-    return m;
-  }
+  double multiply_adds() const override { return network_multiply_adds(dense_trunk_, dense_heads_); }
 
   void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const override {
     const float t = float(model_time_checked(model_time, source));
@@ -1260,11 +1262,7 @@ class Deformable3dgs : public TrainedModel {
   size_t size() const override { return canonical_.size(); }
   bool has_network() const override { return true; }
 
-  double multiply_adds() const override {
-    double m = dense_heads_.multiply_adds();
-    for (const DenseLinear& l : dense_) m += l.multiply_adds();
-    return m;
-  }
+  double multiply_adds() const override { return network_multiply_adds(dense_, dense_heads_); }
 
   void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const override {
     const float t = float(model_time_checked(model_time, source));
