@@ -15,6 +15,8 @@
 #   bench/trained_models_scale.sh [--gaussians N] [--frames F] [--formats A,B] [--smoke] [--report-only] OUT
 #
 # --report-only: results.md from the pieces there, pieces not run shown as "-".
+# --streamed-frustum-only: networks, frustum streamed and --frames 4 only (sizes whose keys
+# would not fit in memory: 1,000,000 Gaussians x 300 frames of keys are 16.8 GB).
 #
 # Defaults: N = 200000, F = 300, formats e-d3dgs,4dgaussians,e-d3dgs-still. --smoke: N = 300, F = 6.
 set -euo pipefail
@@ -24,6 +26,7 @@ gaussians=200000
 frames=300
 formats=e-d3dgs,4dgaussians,e-d3dgs-still
 report_only=0
+streamed_only=0
 out=
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -33,7 +36,8 @@ while [ $# -gt 0 ]; do
     --formats) formats="$2"; shift 2 ;;
     --smoke) gaussians=300; frames=6; shift ;;
     --report-only) report_only=1; shift ;;
-    -h|--help) sed -n '2,21p' "$0"; exit 0 ;;
+    --streamed-frustum-only) streamed_only=1; shift ;;
+    -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
     -*) echo "bench/trained_models_scale.sh: unknown option $1" >&2; exit 2 ;;
     *) out="$1"; shift ;;
   esac
@@ -54,6 +58,7 @@ flags_of() { case "$1" in 4dgaussians) echo "--model-frames $frames" ;; *) echo 
 observe() {  # piece-name scene extra-flags...
   local name="$1" piece="$out/pieces/$1.txt" scene="$2"; shift 2
   { [ -f "$piece" ] || [ "$report_only" = 1 ]; } && return 0
+  if [ "$streamed_only" = 1 ]; then case "$name" in *.frustum.streamed|*.frustum.few) ;; *) return 0 ;; esac; fi
   echo "  $name ..."
   local tmp="$out/pieces/$name.run"
   rm -rf "$tmp"
@@ -81,7 +86,7 @@ done
 for fmt in "${fmts[@]}"; do
   for sweep in 10 30 "$frames"; do
     piece="$out/pieces/$fmt.still-sweep-$sweep.txt"
-    { [ -f "$piece" ] || [ "$report_only" = 1 ]; } && continue
+    { [ -f "$piece" ] || [ "$report_only" = 1 ] || [ "$streamed_only" = 1 ]; } && continue
     echo "  $fmt.still-sweep-$sweep ..."
     # shellcheck disable=SC2046
     /usr/bin/time -f "%e %M" -o "$piece.time" "$bin/fillgs" info --json --still-sweep "$sweep" $(flags_of "$fmt") "$models/$fmt" >"$piece.json"
@@ -99,7 +104,7 @@ for fmt in "${fmts[@]}"; do
 done
 for fmt in "${fmts[@]}"; do
   ply="$out/pieces/$fmt.fillgs.ply"
-  if [ "$report_only" = 0 ] && [ ! -f "$ply" ]; then
+  if [ "$report_only" = 0 ] && [ "$streamed_only" = 0 ] && [ ! -f "$ply" ]; then
     # shellcheck disable=SC2046
     "$bin/fillgs" convert --scene "$models/$fmt" $(flags_of "$fmt") --to fillgs --out "$ply" >/dev/null
   fi
@@ -112,7 +117,7 @@ ratio() { { [ "$1" = - ] || [ "$2" = - ]; } && echo - || awk "BEGIN{printf \"%.2
 commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)
 machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1), $(awk '/MemTotal/{printf "%.0f GB", $2/1048576}' /proc/meminfo)"
 {
-  echo "Command: \`bench/trained_models_scale.sh --gaussians $gaussians --frames $frames --formats $formats OUT\` · commit $commit · $(date -u +%Y-%m-%d) · $machine."
+  echo "Command: \`bench/trained_models_scale.sh --gaussians $gaussians --frames $frames --formats $formats$([ "$streamed_only" = 1 ] && echo " --streamed-frustum-only") OUT\` · commit $commit · $(date -u +%Y-%m-%d) · $machine."
   echo
   echo "Networks (\`fillgs_bench networks\`, $gaussians Gaussians):"
   echo
