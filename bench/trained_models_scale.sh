@@ -74,11 +74,20 @@ if [ "$report_only" = 0 ] && [ ! -f "$out/pieces/networks.md" ]; then
   mv "$out/pieces/networks.md.part" "$out/pieces/networks.md"
 fi
 IFS=, read -r -a fmts <<<"$formats"
-# The pieces in order of what they tell: frustum (streamed, then as before), a few frames, ray
-# traced, the fillgs 4D PLY.
+# The pieces in order of what they tell: frustum (streamed, on the fillgs 4D PLY, as before),
+# the still rule's sweep, a few frames, ray traced.
+make_ply() {  # the same Gaussians as a fillgs 4D PLY (a key at every frame)
+  local ply="$out/pieces/$1.fillgs.ply"
+  if [ "$report_only" = 0 ] && [ "$streamed_only" = 0 ] && [ ! -f "$ply" ]; then
+    # shellcheck disable=SC2046  # the flags are words
+    "$bin/fillgs" convert --scene "$models/$1" $(flags_of "$1") --to fillgs --out "$ply" >/dev/null
+  fi
+  echo "$ply"
+}
 # shellcheck disable=SC2046  # the flags are words
 for fmt in "${fmts[@]}"; do
   observe "$fmt.frustum.streamed" "$models/$fmt" --mode frustum $(flags_of "$fmt")
+  observe "$fmt.frustum.fillgs-ply" "$(make_ply "$fmt")" --mode frustum --frames "$frames"
   observe "$fmt.frustum.keys-eigen" "$models/$fmt" --mode frustum $(flags_of "$fmt") --model-evaluation keys --network-kernel eigen
 done
 # The still rule's sweep (--still-sweep): how many Gaussians it finds still, and its time, on
@@ -100,15 +109,8 @@ for fmt in "${fmts[@]}"; do observe "$fmt.frustum.few" "$models/$fmt" --mode fru
 # shellcheck disable=SC2046
 for fmt in "${fmts[@]}"; do
   observe "$fmt.raytraced.streamed" "$models/$fmt" --mode raytraced $(flags_of "$fmt")
+  observe "$fmt.raytraced.fillgs-ply" "$(make_ply "$fmt")" --mode raytraced --frames "$frames"
   observe "$fmt.raytraced.keys-eigen" "$models/$fmt" --mode raytraced $(flags_of "$fmt") --model-evaluation keys --network-kernel eigen
-done
-for fmt in "${fmts[@]}"; do
-  ply="$out/pieces/$fmt.fillgs.ply"
-  if [ "$report_only" = 0 ] && [ "$streamed_only" = 0 ] && [ ! -f "$ply" ]; then
-    # shellcheck disable=SC2046
-    "$bin/fillgs" convert --scene "$models/$fmt" $(flags_of "$fmt") --to fillgs --out "$ply" >/dev/null
-  fi
-  for mode in frustum raytraced; do observe "$fmt.$mode.fillgs-ply" "$ply" --mode "$mode" --frames "$frames"; done
 done
 # A piece's three numbers, or "-" for a piece not run (a run stopped by its time limit).
 piece() { if [ -f "$out/pieces/$1.txt" ]; then cat "$out/pieces/$1.txt"; else echo "- - -"; fi; }
