@@ -125,7 +125,7 @@ machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -
   echo
   [ -f "$out/pieces/networks.md" ] && sed -n '/^dense kernel/p;/^|/p' "$out/pieces/networks.md"
   echo
-  echo "\`fillgs observe\`, 20 cameras of 64×48, all $frames frames unless said; wall time (reading included) and peak resident memory:"
+  echo "\`fillgs observe\`, 20 cameras of 64×48, all $frames frames unless said; wall time (reading included) and peak resident memory (\"-\": a piece not run):"
   echo
   echo "| model | mode | read as | moving Gaussians | seconds | peak memory (MB) | vs keys + reference: time | memory |"
   echo "|---|---|---|---|---|---|---|---|"

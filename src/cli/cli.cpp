@@ -738,7 +738,7 @@ const std::vector<Command>& commands() {
       {"train", "train a 4D Gaussian model from multi-view video", declare_train},
       {"explore", "the exploration grid: exploration.vdb, exploration.png", declare_explore},
       {"select", "viewpoint-time selection by a strategy", declare_select},
-      {"finetune", "fine-tune with refined virtual views", declare_finetune},
+      {"finetune", "fine-tune with refined virtual views (a trained network's model is given keys first, as dense as its motion needs: it says how many)", declare_finetune},
       {"eval", "PSNR, SSIM, moving-region PSNR per split", declare_eval},
       {"bench", "the paper's comparison (resumable); --merge: its tables over finished runs", declare_bench},
       {"run", "the whole pipeline on the built-in scene, with a report", declare_run},

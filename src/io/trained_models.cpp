@@ -989,6 +989,18 @@ class FourDGaussians : public TrainedModel {
     const bool on[5] = {!no_dx_, !no_ds_, !no_dr_, !no_do_, !no_dshs_};
     for (const Linear& l : trunk_) dense_trunk_.push_back(DenseLinear::whole(l));
     dense_heads_ = DenseHeads(heads_, 5, on);
+    // The spatial planes' product per Gaussian, once: a third of the lookups per frame, and
+    // the ones that miss the cache (the planes are megabytes, the time lines kilobytes).
+    const size_t n = canonical_.size();
+    check_allocation(checked_mul(checked_mul(n, size_t(feat_), pth, "spatial features"), sizeof(float), pth, "spatial features"), pth,
+                     "the spatial planes' product of every Gaussian");
+    for (size_t k = 0; k < scales_.size(); ++k)
+      if (scales_[k].planes[0].shape[1] > 64)
+        throw_error(pth, ": key 'deformation_net.grid.grids.", k, ".0' has ", scales_[k].planes[0].shape[1], " channels; fillgs reads up to 64 per scale");
+    spatial_.resize(n * size_t(feat_));
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t i = r.begin(); i < r.end(); ++i) spatial_product(i, &spatial_[i * size_t(feat_)]);
+    });
     if (opt.model_frames < 1)
       throw_error(source, ": 4DGaussians does not store its frame count; give --model-frames F (its multi-view loaders time frame f at f/F)");
     set_times(*this, opt.model_frames, opt.model_time_range.empty() ? std::pair<double, double>{0.0, 1.0} : time_range(opt.model_time_range, source));
@@ -1016,7 +1028,7 @@ class FourDGaussians : public TrainedModel {
                          block_buffer(dense_heads_.scratch_rows()), block_buffer(dense_heads_.scratch_rows())};
         },
         [&](size_t first, size_t count, Scratch& S) {
-          for (size_t r = 0; r < count; ++r) features_at(canonical_.means[rows[first + r]], lines, &S.x[r]);
+          for (size_t r = 0; r < count; ++r) features_at(rows[first + r], lines, &S.x[r]);
           const float* x = S.x.data();
           for (size_t i = 0; i < dense_trunk_.size(); ++i) {
             float* y = S.h[i % 2].data();
@@ -1122,45 +1134,67 @@ class FourDGaussians : public TrainedModel {
   /// features() with the time planes' lines of time_lines(): written feature-major (a stride
   /// of kRows) from `out`. The same products in the same order: the same float values where
   /// the weights' rounding agrees (the lines take the time weights first).
-  void features_at(const Vec3f& p, const std::vector<std::vector<float>>& lines, float* out) const {
-    float q[3];
+  /// The grid coordinates in [-1, 1] of a mean (AABB-normalised).
+  void grid_coordinates(const Vec3f& p, float (&q)[3]) const {
     for (int a = 0; a < 3; ++a) q[a] = (p[a] - aabb_[size_t(a)]) * (2.0f / (aabb_[size_t(3 + a)] - aabb_[size_t(a)])) - 1.0f;
+  }
+
+  /// Gaussian i's product of the three spatial planes (x-y, x-z, y-z), per scale and channel:
+  /// it does not depend on the time, so the fast path computes it once (spatial_).
+  void spatial_product(size_t i, float* out) const {
+    float q[3];
+    grid_coordinates(canonical_.means[i], q);
     size_t f0 = 0;
-    std::vector<float>& f = feature_scratch();
-    for (size_t s = 0; s < scales_.size(); ++s) {
-      const Scale& sc = scales_[s];
+    for (const Scale& sc : scales_) {
       const size_t C = size_t(sc.planes[0].shape[1]);
-      f.assign(C, 1.0f);
-      for (int p = 0; p < 6; ++p) {
+      for (size_t ch = 0; ch < C; ++ch) out[f0 + ch] = 1.0f;
+      for (int p : {0, 1, 3}) {
         const TorchTensor& g = sc.planes[p];
         const int H = int(g.shape[2]), W = int(g.shape[3]);
-        int x0, x1, y0 = 0, y1 = 0;
-        float wx, wy = 0;
+        int x0, x1, y0, y1;
+        float wx, wy;
         pixel(q[kPairs[p][0]], W, x0, x1, wx);
-        if (kPairs[p][1] == 3) {
-          const float* line = lines[s * 3 + size_t(p == 2 ? 0 : p == 4 ? 1 : 2)].data();
-          const float *a = line + size_t(x0) * C, *b = line + size_t(x1) * C;
-          for (size_t ch = 0; ch < C; ++ch) f[ch] *= (1 - wx) * a[ch] + wx * b[ch];
-          continue;
-        }
         pixel(q[kPairs[p][1]], H, y0, y1, wy);
         const float w00 = (1 - wx) * (1 - wy), w01 = wx * (1 - wy), w10 = (1 - wx) * wy, w11 = wx * wy;
         const float* hwc = sc.hwc[p].data();
         const float *c00 = hwc + (size_t(y0) * size_t(W) + size_t(x0)) * C, *c01 = hwc + (size_t(y0) * size_t(W) + size_t(x1)) * C;
         const float *c10 = hwc + (size_t(y1) * size_t(W) + size_t(x0)) * C, *c11 = hwc + (size_t(y1) * size_t(W) + size_t(x1)) * C;
-        for (size_t ch = 0; ch < C; ++ch) f[ch] *= w00 * c00[ch] + w01 * c01[ch] + w10 * c10[ch] + w11 * c11[ch];
+        for (size_t ch = 0; ch < C; ++ch) out[f0 + ch] *= w00 * c00[ch] + w01 * c01[ch] + w10 * c10[ch] + w11 * c11[ch];
+      }
+      f0 += C;
+    }
+  }
+
+  /// Gaussian i's features at the frame of `lines` (time_lines()): its spatial product times
+  /// the time planes' lines, written feature-major (a stride of kRows) from `out`. The same
+  /// products as features(), the spatial ones first: equal to a few float roundings.
+  void features_at(size_t i, const std::vector<std::vector<float>>& lines, float* out) const {
+    float q[3];
+    grid_coordinates(canonical_.means[i], q);
+    const float* spatial = &spatial_[i * size_t(feat_)];
+    size_t f0 = 0;
+    for (size_t s = 0; s < scales_.size(); ++s) {
+      const Scale& sc = scales_[s];
+      const size_t C = size_t(sc.planes[0].shape[1]);
+      float f[64];
+      std::copy_n(spatial + f0, C, f);
+      for (int k = 0; k < 3; ++k) {
+        const int p = k == 0 ? 2 : k == 1 ? 4 : 5;
+        const int W = int(sc.planes[p].shape[3]);
+        int x0, x1;
+        float wx;
+        pixel(q[kPairs[p][0]], W, x0, x1, wx);
+        const float* line = lines[s * 3 + size_t(k)].data();
+        const float *a = line + size_t(x0) * C, *b = line + size_t(x1) * C;
+        for (size_t ch = 0; ch < C; ++ch) f[ch] *= (1 - wx) * a[ch] + wx * b[ch];
       }
       for (size_t ch = 0; ch < C; ++ch) out[(f0 + ch) * kRows] = f[ch];
       f0 += C;
     }
   }
 
-  static std::vector<float>& feature_scratch() {
-    thread_local std::vector<float> f;
-    return f;
-  }
-
   ModelState canonical_;
+  std::vector<float> spatial_;  ///< [N][feat_]: spatial_product() of every Gaussian
   std::vector<DenseLinear> dense_trunk_;
   DenseHeads dense_heads_;
   std::vector<float> aabb_;
@@ -1462,20 +1496,32 @@ class FourDGS : public TrainedModel {
   size_t size() const override { return xyz_.size(); }
 
   ModelState at(double model_time) const override {
-    const size_t n = size();
     ModelState s;
+    slice(model_time, nullptr, s);
+    return s;
+  }
+  /// The closed form per Gaussian: only the rows asked for.
+  void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const override { slice(model_time, &rows, out); }
+
+ private:
+  /// The 3D Gaussians at `model_time` of `rows` (every one when null), in that order.
+  void slice(double model_time, const std::vector<uint32_t>* rows, ModelState& s) const {
+    const size_t n = rows ? rows->size() : size();
+    s = ModelState();
     s.sh_degree = 3;
     if (deg_t_ == 0 && channels_ == (deg_ + 1) * (deg_ + 1)) s.sh_degree = deg_;
     const size_t K = size_t((s.sh_degree + 1) * (s.sh_degree + 1));
     s.means.resize(n);
     s.log_scales.resize(n);
     s.rotations.resize(n);
-    s.opacity_logits = opacity_;
+    s.opacity_logits.resize(n);
     s.opacity_factor.resize(n);
     s.sh.assign(n * K * 3, 0.0f);
     const double tau = model_time_checked(model_time, source);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 256), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i < r.end(); ++i) {
+      for (size_t j = r.begin(); j < r.end(); ++j) {
+        const size_t i = rows ? size_t((*rows)[j]) : j;  // the Gaussian; j: its row in `s`
+        s.opacity_logits[j] = opacity_[i];
         const double dt = tau - double(tmean_[i]);
         Eigen::Matrix3d cov;
         Eigen::Vector3d mean = xyz_[i].cast<double>();
@@ -1497,17 +1543,17 @@ class FourDGS : public TrainedModel {
           cov = R * sc.cwiseAbs2().asDiagonal() * R.transpose();
           sigma_t = std::exp(double(scale4_[i][3]));  // its code uses exp(_scaling_t) as the variance
         }
-        s.means[i] = mean.cast<float>();
-        s.opacity_factor[i] = float(std::exp(-0.5 * dt * dt / sigma_t));
+        s.means[j] = mean.cast<float>();
+        s.opacity_factor[j] = float(std::exp(-0.5 * dt * dt / sigma_t));
         // The conditional covariance as scales and a rotation (eigen-decomposition).
         Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(0.5 * (cov + cov.transpose()));
         Eigen::Matrix3d V = es.eigenvectors();
         if (V.determinant() < 0) V.col(0) = -V.col(0);
-        for (int a = 0; a < 3; ++a) s.log_scales[i][a] = float(0.5 * std::log(std::max(es.eigenvalues()[a], 1e-30)));
-        s.rotations[i] = matrix_to_quat(V).cast<float>();
+        for (int a = 0; a < 3; ++a) s.log_scales[j][a] = float(0.5 * std::log(std::max(es.eigenvalues()[a], 1e-30)));
+        s.rotations[j] = matrix_to_quat(V).cast<float>();
         // SH at this time: band b of the time terms weighted by cos(2 pi b (t_mean - t) / duration).
         const float* src = &sh_all_[i * size_t(channels_) * 3];
-        float* dst = &s.sh[i * K * 3];
+        float* dst = &s.sh[j * K * 3];
         const size_t active = size_t((deg_ + 1) * (deg_ + 1));
         for (size_t k = 0; k < std::min(K, active); ++k)
           for (int ch = 0; ch < 3; ++ch) {
@@ -1518,7 +1564,6 @@ class FourDGS : public TrainedModel {
           }
       }
     });
-    return s;
   }
 
  private:
