@@ -508,15 +508,42 @@ class DenseHeads {
   std::vector<Head> heads_;
 };
 
-/// Multiply-adds per Gaussian of a trunk and its heads on the kernel.
-double network_multiply_adds(const std::vector<DenseLinear>& trunk, const DenseHeads& heads) {
-  double m = heads.multiply_adds();
-  for (const DenseLinear& l : trunk) m += l.multiply_adds();
-  return m;
-}
-
 /// Feature-major scratch for one thread's blocks: `rows` rows of kRows floats.
 inline std::vector<float> block_buffer(size_t rows) { return std::vector<float>(std::max<size_t>(rows, 1) * kRows, 0.0f); }
+
+/// A trunk (each layer's output through ReLU, as every consumer of it takes it) and its heads
+/// on the kernel: E-D3DGS's passes and 4DGaussians' network.
+struct DenseNet {
+  std::vector<DenseLinear> trunk;
+  DenseHeads heads;
+  /// One thread's buffers for run(): the trunk's two alternating outputs and the heads'.
+  struct Scratch {
+    std::vector<float> h[2], stack, a, b;
+  };
+  Scratch scratch() const {
+    size_t width = 1;
+    for (const DenseLinear& l : trunk) width = std::max(width, size_t(l.out));
+    return Scratch{{block_buffer(width), block_buffer(width)}, block_buffer(heads.stack_rows()), block_buffer(heads.scratch_rows()),
+                   block_buffer(heads.scratch_rows())};
+  }
+  /// The trunk on a block's inputs `x` (its first layer's bias `bias0` where the frame gives
+  /// one, else its own), then the heads: emit(head, D) with D [out][kRows].
+  template <typename Emit>
+  void run(const float* x, const float* bias0, Scratch& S, Emit&& emit) const {
+    for (size_t i = 0; i < trunk.size(); ++i) {
+      float* y = S.h[i % 2].data();
+      trunk[i].run(x, y, true, i == 0 ? bias0 : nullptr);
+      x = y;
+    }
+    heads.run(x, S.stack, S.a, S.b, emit);
+  }
+  /// Multiply-adds per Gaussian.
+  double multiply_adds() const {
+    double m = heads.multiply_adds();
+    for (const DenseLinear& l : trunk) m += l.multiply_adds();
+    return m;
+  }
+};
 
 /// Runs `body(first, count)` over blocks of kRows of [0, n), spread over the cores, with
 /// `scratch()` made once per task.
@@ -767,7 +794,7 @@ class Ed3dgs : public TrainedModel {
     double m = 0;
     for (int pass = 0; pass < 2; ++pass) {
       if (pass == 0 ? no_coarse_ : no_fine_) continue;
-      m += network_multiply_adds(dense_[pass].trunk, dense_[pass].heads);
+      m += dense_[pass].multiply_adds();
     }
     return m;
   }
@@ -782,35 +809,22 @@ class Ed3dgs : public TrainedModel {
     std::vector<float> bias0[2];
     for (int pass = 0; pass < 2; ++pass) bias0[pass] = dense_[pass].trunk.front().bias_at(emb[pass].data());
     out = canonical_.rows(rows);
-    size_t width = 1, stack = 1, scratch = 1;
-    for (const DenseNet& d : dense_) {
-      for (const DenseLinear& l : d.trunk) width = std::max(width, size_t(l.out));
-      stack = std::max(stack, d.heads.stack_rows());
-      scratch = std::max(scratch, d.heads.scratch_rows());
-    }
     struct Scratch {
-      std::vector<float> x, h[2], stack, a, b;
+      std::vector<float> x;
+      DenseNet::Scratch pass[2];
     };
     over_blocks(
-        rows.size(),
-        [&] { return Scratch{block_buffer(size_t(gdim_)), {block_buffer(width), block_buffer(width)}, block_buffer(stack), block_buffer(scratch), block_buffer(scratch)}; },
+        rows.size(), [&] { return Scratch{block_buffer(size_t(gdim_)), {dense_[0].scratch(), dense_[1].scratch()}}; },
         [&](size_t first, size_t count, Scratch& S) {
           const size_t G = size_t(gdim_);
           for (size_t r = 0; r < count; ++r) {
             const float* e = &embedding_[size_t(rows[first + r]) * G];
             for (size_t d = 0; d < G; ++d) S.x[d * kRows + r] = e[d];
           }
-          for (int pass = 0; pass < 2; ++pass) {
-            if (pass == 0 ? no_coarse_ : no_fine_) continue;
-            const DenseNet& net = dense_[pass];
-            const float* x = S.x.data();
-            for (size_t i = 0; i < net.trunk.size(); ++i) {
-              float* y = S.h[i % 2].data();
-              net.trunk[i].run(x, y, true, i == 0 ? bias0[pass].data() : nullptr);
-              x = y;
-            }
-            net.heads.run(x, S.stack, S.a, S.b, [&](int h, const float* D) { add_head_rows(h, D, first, count, k[h], out); });
-          }
+          for (int pass = 0; pass < 2; ++pass)
+            if (!(pass == 0 ? no_coarse_ : no_fine_))
+              dense_[pass].run(S.x.data(), bias0[pass].data(), S.pass[pass],
+                               [&](int h, const float* D) { add_head_rows(h, D, first, count, k[h], out); });
         });
   }
 
@@ -848,10 +862,6 @@ class Ed3dgs : public TrainedModel {
   struct Net {
     std::vector<Linear> trunk;
     std::vector<Linear> heads[5];
-  };
-  struct DenseNet {
-    std::vector<DenseLinear> trunk;
-    DenseHeads heads;
   };
   /// The heads' coefficients at the model's iteration: its annealing of the deformation.
   void head_coefficients(float (&k)[5]) const {
@@ -987,8 +997,8 @@ class FourDGaussians : public TrainedModel {
       throw_error(ply_path, ": SH degree ", canonical_.sh_degree, "; 4DGaussians' colour head deforms 16 coefficients (degree 3)");
     charge_network(tf, widest({&trunk_, &heads_[0], &heads_[1], &heads_[2], &heads_[3], &heads_[4]}), "4DGaussians");
     const bool on[5] = {!no_dx_, !no_ds_, !no_dr_, !no_do_, !no_dshs_};
-    for (const Linear& l : trunk_) dense_trunk_.push_back(DenseLinear::whole(l));
-    dense_heads_ = DenseHeads(heads_, 5, on);
+    for (const Linear& l : trunk_) dense_.trunk.push_back(DenseLinear::whole(l));
+    dense_.heads = DenseHeads(heads_, 5, on);
     // The spatial planes' product per Gaussian, once: a third of the lookups per frame, and
     // the ones that miss the cache (the planes are megabytes, the time lines kilobytes).
     const size_t n = canonical_.size();
@@ -1009,33 +1019,21 @@ class FourDGaussians : public TrainedModel {
   size_t size() const override { return canonical_.size(); }
   bool has_network() const override { return true; }
 
-  double multiply_adds() const override { return network_multiply_adds(dense_trunk_, dense_heads_); }
+  double multiply_adds() const override { return dense_.multiply_adds(); }
 
   void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const override {
     const float t = float(model_time_checked(model_time, source));
     const std::vector<std::vector<float>> lines = time_lines(t);
     out = canonical_.rows(rows);
-    size_t width = 1;
-    for (const DenseLinear& l : dense_trunk_) width = std::max(width, size_t(l.out));
     struct Scratch {
-      std::vector<float> x, h[2], stack, a, b;
+      std::vector<float> x;
+      DenseNet::Scratch net;
     };
-    const float ones[5] = {1, 1, 1, 1, 1};
     over_blocks(
-        rows.size(),
-        [&] {
-          return Scratch{block_buffer(size_t(feat_)), {block_buffer(width), block_buffer(width)}, block_buffer(dense_heads_.stack_rows()),
-                         block_buffer(dense_heads_.scratch_rows()), block_buffer(dense_heads_.scratch_rows())};
-        },
+        rows.size(), [&] { return Scratch{block_buffer(size_t(feat_)), dense_.scratch()}; },
         [&](size_t first, size_t count, Scratch& S) {
           for (size_t r = 0; r < count; ++r) features_at(rows[first + r], lines, &S.x[r]);
-          const float* x = S.x.data();
-          for (size_t i = 0; i < dense_trunk_.size(); ++i) {
-            float* y = S.h[i % 2].data();
-            dense_trunk_[i].run(x, y, true);
-            x = y;
-          }
-          dense_heads_.run(x, S.stack, S.a, S.b, [&](int h, const float* D) { add_head_rows(h, D, first, count, ones[h], out); });
+          dense_.run(S.x.data(), nullptr, S.net, [&](int h, const float* D) { add_head_rows(h, D, first, count, 1.0f, out); });
         });
   }
 
@@ -1067,9 +1065,8 @@ class FourDGaussians : public TrainedModel {
   /// concatenation over scales.
   void features(const Vec3f& p, float t, std::vector<float>& out) const {
     float q[4];
-    for (int a = 0; a < 3; ++a) q[a] = (p[a] - aabb_[size_t(a)]) * (2.0f / (aabb_[size_t(3 + a)] - aabb_[size_t(a)])) - 1.0f;
+    grid_coordinates(p, q);
     q[3] = t;
-    static const int kPairs[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
     out.clear();
     for (const Scale& sc : scales_) {
       const size_t C = size_t(sc.planes[0].shape[1]);
@@ -1077,15 +1074,10 @@ class FourDGaussians : public TrainedModel {
       for (int p = 0; p < 6; ++p) {
         const TorchTensor& g = sc.planes[p];
         const int H = int(g.shape[2]), W = int(g.shape[3]);
-        float x = ((q[kPairs[p][0]] + 1.0f) / 2.0f) * float(W - 1);
-        float y = ((q[kPairs[p][1]] + 1.0f) / 2.0f) * float(H - 1);
-        // Border padding. Written so that a NaN coordinate (an infinite one times a one-pixel
-        // side) lands on pixel 0 instead of becoming an index.
-        x = x > 0.0f ? std::min(x, float(W - 1)) : 0.0f;
-        y = y > 0.0f ? std::min(y, float(H - 1)) : 0.0f;
-        const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
-        const int x1 = std::min(x0 + 1, W - 1), y1 = std::min(y0 + 1, H - 1);
-        const float wx = x - float(x0), wy = y - float(y0);
+        int x0, x1, y0, y1;
+        float wx, wy;
+        pixel(q[kPairs[p][0]], W, x0, x1, wx);
+        pixel(q[kPairs[p][1]], H, y0, y1, wy);
         const float w00 = (1 - wx) * (1 - wy), w01 = wx * (1 - wy), w10 = (1 - wx) * wy, w11 = wx * wy;
         for (size_t ch = 0; ch < C; ++ch) {
           const float* plane = &g.values[ch * size_t(H) * size_t(W)];
@@ -1131,11 +1123,8 @@ class FourDGaussians : public TrainedModel {
     return lines;
   }
 
-  /// features() with the time planes' lines of time_lines(): written feature-major (a stride
-  /// of kRows) from `out`. The same products in the same order: the same float values where
-  /// the weights' rounding agrees (the lines take the time weights first).
   /// The grid coordinates in [-1, 1] of a mean (AABB-normalised).
-  void grid_coordinates(const Vec3f& p, float (&q)[3]) const {
+  void grid_coordinates(const Vec3f& p, float* q) const {
     for (int a = 0; a < 3; ++a) q[a] = (p[a] - aabb_[size_t(a)]) * (2.0f / (aabb_[size_t(3 + a)] - aabb_[size_t(a)])) - 1.0f;
   }
 
@@ -1195,8 +1184,7 @@ class FourDGaussians : public TrainedModel {
 
   ModelState canonical_;
   std::vector<float> spatial_;  ///< [N][feat_]: spatial_product() of every Gaussian
-  std::vector<DenseLinear> dense_trunk_;
-  DenseHeads dense_heads_;
+  DenseNet dense_;
   std::vector<float> aabb_;
   std::vector<Scale> scales_;
   int feat_ = 0;
@@ -1271,15 +1259,14 @@ class Deformable3dgs : public TrainedModel {
       heads_[h].b = Eigen::Map<const Eigen::RowVectorXf>(b.values.data(), outs[h]);
     }
     charge_network(tf, size_t(W + x_in + t_out), "Deformable 3D Gaussians");
-    t_out_ = t_out;
     for (size_t i = 0; i < layers_.size(); ++i) {
-      if (i == 0) dense_.push_back(DenseLinear::from(layers_[i], {{0, x_in}}, {x_in, x_in + t_out}));
-      else if (int(i) - 1 == skip_) dense_.push_back(DenseLinear::from(layers_[i], {{0, x_in}, {x_in + t_out, x_in + t_out + W}}, {x_in, x_in + t_out}));
-      else dense_.push_back(DenseLinear::whole(layers_[i]));
+      if (i == 0) dense_.trunk.push_back(DenseLinear::from(layers_[i], {{0, x_in}}, {x_in, x_in + t_out}));
+      else if (int(i) - 1 == skip_) dense_.trunk.push_back(DenseLinear::from(layers_[i], {{0, x_in}, {x_in + t_out, x_in + t_out + W}}, {x_in, x_in + t_out}));
+      else dense_.trunk.push_back(DenseLinear::whole(layers_[i]));
     }
     const std::vector<Linear> one[3] = {{heads_[0]}, {heads_[1]}, {heads_[2]}};
     const bool on[3] = {true, true, true};
-    dense_heads_ = DenseHeads(one, 3, on);
+    dense_.heads = DenseHeads(one, 3, on);
     if (opt.model_frames < 1)
       throw_error(source, ": Deformable 3D Gaussians does not store its frame count; give --model-frames F (its loaders time frame f at f/(F-1))");
     if (opt.model_time_range.empty()) {
@@ -1296,7 +1283,7 @@ class Deformable3dgs : public TrainedModel {
   size_t size() const override { return canonical_.size(); }
   bool has_network() const override { return true; }
 
-  double multiply_adds() const override { return network_multiply_adds(dense_, dense_heads_); }
+  double multiply_adds() const override { return dense_.multiply_adds(); }
 
   void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const override {
     const float t = float(model_time_checked(model_time, source));
@@ -1306,18 +1293,15 @@ class Deformable3dgs : public TrainedModel {
       const RowMat tv = run_trunk(timenet_, Eigen::Map<const Eigen::RowVectorXf>(te.data(), Eigen::Index(te.size())));
       te.assign(tv.data(), tv.data() + tv.size());
     }
-    std::vector<float> bias[2] = {dense_.front().bias_at(te.data()), dense_[size_t(skip_) + 1].bias_at(te.data())};
+    std::vector<float> bias[2] = {dense_.trunk.front().bias_at(te.data()), dense_.trunk[size_t(skip_) + 1].bias_at(te.data())};
     out = canonical_.rows(rows);
-    const size_t x_in = 3 * 21, W = size_t(dense_.front().out);
+    const size_t x_in = 3 * 21, W = size_t(dense_.trunk.front().out);
     struct Scratch {
-      std::vector<float> xe, h[2], stack, a, b;
+      std::vector<float> xe;
+      DenseNet::Scratch net;
     };
     over_blocks(
-        rows.size(),
-        [&] {
-          return Scratch{block_buffer(x_in + W), {block_buffer(W), block_buffer(W)}, block_buffer(dense_heads_.stack_rows()), block_buffer(1),
-                         block_buffer(1)};
-        },
+        rows.size(), [&] { return Scratch{block_buffer(x_in + W), dense_.scratch()}; },
         [&](size_t first, size_t count, Scratch& S) {
           float enc[3 * 21];
           for (size_t r = 0; r < count; ++r) {
@@ -1326,14 +1310,14 @@ class Deformable3dgs : public TrainedModel {
           }
           // Layer skip writes after the encoding in `xe`, so that the next layer reads both.
           const float* x = S.xe.data();
-          for (size_t i = 0; i < dense_.size(); ++i) {
-            float* y = int(i) == skip_ ? S.xe.data() + x_in * kRows : S.h[i % 2].data();
+          for (size_t i = 0; i < dense_.trunk.size(); ++i) {
+            float* y = int(i) == skip_ ? S.xe.data() + x_in * kRows : S.net.h[i % 2].data();
             const float* b = i == 0 ? bias[0].data() : int(i) - 1 == skip_ ? bias[1].data() : nullptr;
-            dense_[i].run(int(i) - 1 == skip_ ? S.xe.data() : x, y, true, b);
+            dense_.trunk[i].run(int(i) - 1 == skip_ ? S.xe.data() : x, y, true, b);
             x = y;
           }
           const float* D[3] = {};
-          dense_heads_.run(x, S.stack, S.a, S.b, [&](int h, const float* d) { D[h] = d; });
+          dense_.heads.run(x, S.net.stack, S.net.a, S.net.b, [&](int h, const float* d) { D[h] = d; });
           for (size_t r = 0; r < count; ++r) {
             const size_t i = first + r;
             const uint32_t g = rows[i];
@@ -1403,9 +1387,8 @@ class Deformable3dgs : public TrainedModel {
   ModelState canonical_;
   std::vector<Linear> layers_, timenet_;
   Linear heads_[3];
-  std::vector<DenseLinear> dense_;
-  DenseHeads dense_heads_;
-  int skip_ = 4, t_freqs_ = 10, t_out_ = 21;
+  DenseNet dense_;  ///< its layers (the skip's inputs packed) and heads; run by evaluate()'s own loop
+  int skip_ = 4, t_freqs_ = 10;
   bool blender_ = false;
 };
 
@@ -1836,34 +1819,38 @@ namespace {
 class TrainedMotion : public MotionSource {
  public:
   TrainedMotion(std::shared_ptr<const TrainedModel> m, bool reference) : m_(std::move(m)), reference_(reference) {}
-  void evaluate(double t, const std::vector<uint32_t>& rows, ModelState& out) const override {
+  std::shared_ptr<const ModelState> evaluate(double t, const std::vector<uint32_t>& rows) const override {
     // The last few evaluations are kept: a command walking frames asks for frame f, then
-    // for f - 1 and f + 1 (speeds), then for f + 1 again; each is evaluated once.
-    // Kept by frame coordinate, so that t - dt and the previous frame's t meet.
+    // for f - 1 and f + 1 (speeds), then for f + 1 again; each is evaluated once, and handed
+    // out without a copy. Kept by frame coordinate, so that t - dt and the previous frame's t meet.
     const double f = frame_of(t);
     {
       std::lock_guard<std::mutex> lock(mutex_);
       for (const Kept& k : kept_)
-        if (k.t == f && k.rows == rows) {
-          out = k.state;
-          return;
-        }
+        if (k.t == f && k.rows == rows) return k.state;
     }
-    evaluate_now(t, rows, out);
+    auto s = std::make_shared<ModelState>();
+    evaluate_once(t, rows, *s);
     std::lock_guard<std::mutex> lock(mutex_);
     if (kept_.size() == kKept) kept_.erase(kept_.begin());
-    kept_.push_back({f, rows, out});
+    kept_.push_back({f, rows, s});
+    return s;
   }
   int frame_count() const override { return m_->frames; }
-  /// evaluate(), not kept (the still rule's sweep over every Gaussian).
-  void evaluate_once(double t, const std::vector<uint32_t>& rows, ModelState& out) const { evaluate_now(t, rows, out); }
+  /// The model at t, not kept (the still rule's sweep over every Gaussian).
+  void evaluate_once(double t, const std::vector<uint32_t>& rows, ModelState& out) const {
+    const double mt = m_->frame_time(frame_of(t));
+    if (reference_) out = m_->at(mt).rows(rows);
+    else m_->evaluate(mt, rows, out);
+    check(out, rows, mt);
+  }
 
  private:
   static constexpr size_t kKept = 3;
   struct Kept {
     double t;
     std::vector<uint32_t> rows;
-    ModelState state;
+    std::shared_ptr<const ModelState> state;
   };
   /// The frame coordinate of normalised time t: t (F - 1), a whole frame when within 1e-9 of
   /// one (f / (F - 1) times F - 1, or a time less a frame step, can miss f by an ulp).
@@ -1871,12 +1858,6 @@ class TrainedMotion : public MotionSource {
     double f = std::clamp(t, 0.0, 1.0) * double(m_->frames - 1);
     if (std::fabs(f - std::round(f)) < 1e-9) f = std::round(f);
     return f;
-  }
-  void evaluate_now(double t, const std::vector<uint32_t>& rows, ModelState& out) const {
-    const double mt = m_->frame_time(frame_of(t));
-    if (reference_) out = m_->at(mt).rows(rows);
-    else m_->evaluate(mt, rows, out);
-    check(out, rows, mt);
   }
   void check(const ModelState& s, const std::vector<uint32_t>& rows, double mt) const {
     const size_t row = s.size() ? s.sh.size() / s.size() : 0;

@@ -248,10 +248,11 @@ DynamicState polynomial_at(const GaussianCloud& c, size_t j, double t) {
 }
 
 /// The dynamic set of an evaluated cloud at time t (one call to its source).
-void evaluated_at(const GaussianCloud& c, double t, ModelState& s) {
-  c.source->evaluate(t, c.source_rows, s);
-  if (s.size() != c.dynamic_ids.size() || s.sh.size() != s.size() * size_t(c.sh_count()) * 3)
-    throw_error("evaluated motion: the model returned ", s.size(), " Gaussians for ", c.dynamic_ids.size());
+std::shared_ptr<const ModelState> evaluated_at(const GaussianCloud& c, double t) {
+  std::shared_ptr<const ModelState> s = c.source->evaluate(t, c.source_rows);
+  if (!s || s->size() != c.dynamic_ids.size() || s->sh.size() != s->size() * size_t(c.sh_count()) * 3)
+    throw_error("evaluated motion: the model returned ", s ? s->size() : 0, " Gaussians for ", c.dynamic_ids.size());
+  return s;
 }
 
 DynamicState dynamic_at(const GaussianCloud& c, size_t j, double t) {
@@ -314,16 +315,17 @@ const FrameGaussians& FrameSampler::at(double t) {
   const GaussianCloud& c = cloud_;
   if (c.motion == MotionModel::Evaluated) {
     // Exactly at t, every SH coefficient included: the model's own evaluation, not keys.
-    evaluated_at(c, t, state_);
+    state_ = evaluated_at(c, t);
+    const ModelState& st = *state_;
     const size_t row = size_t(c.sh_count()) * 3;
     tbb::parallel_for(tbb::blocked_range<size_t>(0, c.dynamic_ids.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t j = r.begin(); j < r.end(); ++j) {
         const uint32_t g = c.dynamic_ids[j];
-        frame_.means[g] = state_.means[j];
-        frame_.scales[g] = state_.log_scales[j].array().exp();
-        frame_.rotations[g] = normalize_quat(state_.rotations[j]);
-        frame_.opacities[g] = sigmoid(state_.opacity_logits[j]) * (state_.opacity_factor.empty() ? 1.0f : state_.opacity_factor[j]);
-        std::copy_n(&state_.sh[j * row], row, &frame_.sh_storage[size_t(g) * row]);
+        frame_.means[g] = st.means[j];
+        frame_.scales[g] = st.log_scales[j].array().exp();
+        frame_.rotations[g] = normalize_quat(st.rotations[j]);
+        frame_.opacities[g] = sigmoid(st.opacity_logits[j]) * (st.opacity_factor.empty() ? 1.0f : st.opacity_factor[j]);
+        std::copy_n(&st.sh[j * row], row, &frame_.sh_storage[size_t(g) * row]);
       }
     });
     return frame_;
@@ -355,9 +357,7 @@ void dynamic_means_at(const GaussianCloud& cloud, double t, std::vector<Vec3f>& 
   t = std::clamp(t, 0.0, 1.0);
   out.resize(cloud.dynamic_ids.size());
   if (cloud.motion == MotionModel::Evaluated) {
-    ModelState s;
-    evaluated_at(cloud, t, s);
-    out = std::move(s.means);
+    out = evaluated_at(cloud, t)->means;
     return;
   }
   tbb::parallel_for(tbb::blocked_range<size_t>(0, out.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {

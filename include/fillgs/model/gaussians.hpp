@@ -43,8 +43,9 @@ struct ModelState {
 class MotionSource {
  public:
   virtual ~MotionSource() = default;
-  /// The source's Gaussians `rows` at normalised time t in [0, 1]; `out` holds rows.size().
-  virtual void evaluate(double t, const std::vector<uint32_t>& rows, ModelState& out) const = 0;
+  /// The source's Gaussians `rows` at normalised time t in [0, 1] (rows.size() of them),
+  /// shared: a source may hand the same evaluation to several callers without copying it.
+  virtual std::shared_ptr<const ModelState> evaluate(double t, const std::vector<uint32_t>& rows) const = 0;
   /// Frames the model covers (frame f at t = f / (frames - 1)).
   virtual int frame_count() const = 0;
 };
@@ -159,7 +160,7 @@ class FrameSampler {
  private:
   const GaussianCloud& cloud_;
   FrameGaussians frame_;
-  ModelState state_;  ///< evaluated motion: the dynamic set at frame_.time
+  std::shared_ptr<const ModelState> state_;  ///< evaluated motion: the dynamic set at frame_.time
 };
 
 /// The Gaussians at time t, one shot (copies the static set).
