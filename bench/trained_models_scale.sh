@@ -8,7 +8,8 @@
 #              (default) and as fillgs read them before (keys at every frame, reference
 #              products: --model-evaluation keys --network-kernel eigen), and on the same
 #              Gaussians written as a fillgs 4D PLY; wall time and peak memory (GNU time);
-#   still      `fillgs info --still-sweep S` for S = 10, 30, F: still Gaussians and seconds;
+#   still      `fillgs info --still-sweep S --still-recheck R`: still Gaussians, rechecked ones
+#              and seconds, for sweeps of 10, 30 and F frames alone and 30 with rechecks;
 #   few        `observe --frames 4` streamed, against all frames.
 # Writes OUT/results.md (tables with provenance) from the pieces' files.
 #
@@ -74,8 +75,8 @@ if [ "$report_only" = 0 ] && [ ! -f "$out/pieces/networks.md" ]; then
   mv "$out/pieces/networks.md.part" "$out/pieces/networks.md"
 fi
 IFS=, read -r -a fmts <<<"$formats"
-# The pieces in order of what they tell: frustum (streamed, on the fillgs 4D PLY, as before),
-# the still rule's sweep, a few frames, ray traced.
+# The pieces in order of what they tell: frustum (streamed, on the fillgs 4D PLY), the still
+# rule, a few frames, ray traced, then as fillgs read them before (keys, reference products).
 make_ply() {  # the same Gaussians as a fillgs 4D PLY (a key at every frame)
   local ply="$out/pieces/$1.fillgs.ply"
   if [ "$report_only" = 0 ] && [ "$streamed_only" = 0 ] && [ ! -f "$ply" ]; then
@@ -88,19 +89,21 @@ make_ply() {  # the same Gaussians as a fillgs 4D PLY (a key at every frame)
 for fmt in "${fmts[@]}"; do
   observe "$fmt.frustum.streamed" "$models/$fmt" --mode frustum $(flags_of "$fmt")
   observe "$fmt.frustum.fillgs-ply" "$(make_ply "$fmt")" --mode frustum --frames "$frames"
-  observe "$fmt.frustum.keys-eigen" "$models/$fmt" --mode frustum $(flags_of "$fmt") --model-evaluation keys --network-kernel eigen
 done
-# The still rule's sweep (--still-sweep): how many Gaussians it finds still, and its time, on
-# a sweep of 10, 30 (the default) and every frame.
+# The still rule (--still-sweep S, --still-recheck R): how many Gaussians it finds still, how
+# many it rechecks at every frame, and its time: sweeps of 10, 30 and every frame alone (R = 1),
+# and the default sweep of 30 with its recheck at 0.5 (the default) and 0.25 of a tolerance.
+still_runs="10:1 30:1 $frames:1 30:0.5 30:0.25"
 for fmt in "${fmts[@]}"; do
-  for sweep in 10 30 "$frames"; do
-    piece="$out/pieces/$fmt.still-sweep-$sweep.txt"
+  for run in $still_runs; do
+    sweep=${run%%:*} recheck=${run##*:}
+    piece="$out/pieces/$fmt.still-$sweep-$recheck.txt"
     { [ -f "$piece" ] || [ "$report_only" = 1 ] || [ "$streamed_only" = 1 ]; } && continue
-    echo "  $fmt.still-sweep-$sweep ..."
+    echo "  $fmt.still-$sweep-$recheck ..."
     # shellcheck disable=SC2046
-    /usr/bin/time -f "%e %M" -o "$piece.time" "$bin/fillgs" info --json --still-sweep "$sweep" $(flags_of "$fmt") "$models/$fmt" >"$piece.json"
+    /usr/bin/time -f "%e %M" -o "$piece.time" "$bin/fillgs" info --json --still-sweep "$sweep" --still-recheck "$recheck" $(flags_of "$fmt") "$models/$fmt" >"$piece.json"
     read -r secs kb <"$piece.time"
-    echo "$secs $kb $("$python" -c 'import json,sys; print(json.load(open(sys.argv[1]))["static"])' "$piece.json")" >"$piece.part"
+    echo "$secs $kb $("$python" -c 'import json,re,sys; j=json.load(open(sys.argv[1])); m=[re.search(r"for the (\d+) whose", n) for n in j["notes"]]; m=[x.group(1) for x in m if x]; print(j["static"], m[0] if m else 0)' "$piece.json")" >"$piece.part"
     mv "$piece.part" "$piece" && rm -f "$piece.time" "$piece.json"
   done
 done
@@ -110,7 +113,11 @@ for fmt in "${fmts[@]}"; do observe "$fmt.frustum.few" "$models/$fmt" --mode fru
 for fmt in "${fmts[@]}"; do
   observe "$fmt.raytraced.streamed" "$models/$fmt" --mode raytraced $(flags_of "$fmt")
   observe "$fmt.raytraced.fillgs-ply" "$(make_ply "$fmt")" --mode raytraced --frames "$frames"
-  observe "$fmt.raytraced.keys-eigen" "$models/$fmt" --mode raytraced $(flags_of "$fmt") --model-evaluation keys --network-kernel eigen
+done
+# As fillgs read them before (the slowest pieces, last).
+# shellcheck disable=SC2046
+for mode in frustum raytraced; do
+  for fmt in "${fmts[@]}"; do observe "$fmt.$mode.keys-eigen" "$models/$fmt" --mode "$mode" $(flags_of "$fmt") --model-evaluation keys --network-kernel eigen; done
 done
 # A piece's three numbers, or "-" for a piece not run (a run stopped by its time limit).
 piece() { if [ -f "$out/pieces/$1.txt" ]; then cat "$out/pieces/$1.txt"; else echo "- - -"; fi; }
@@ -142,14 +149,15 @@ machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -
     echo "| $fmt | frustum | streamed, \`--frames 4\` | $m | $s | $(mb "$k") | | |"
   done
   echo
-  echo "The still rule's sweep (\`fillgs info --still-sweep S\`: reading, the sweep, the training keys' choice):"
+  echo "The still rule (\`fillgs info --still-sweep S --still-recheck R\`: reading, the sweep, the recheck, the training keys' choice):"
   echo
-  echo "| model | sweep frames | still Gaussians | seconds | peak memory (MB) |"
-  echo "|---|---|---|---|---|"
+  echo "| model | sweep frames | recheck above (share of a tolerance) | still Gaussians | rechecked at every frame | seconds | peak memory (MB) |"
+  echo "|---|---|---|---|---|---|---|"
   for fmt in "${fmts[@]}"; do
-    for sweep in 10 30 "$frames"; do
-      read -r s k st < <(piece "$fmt.still-sweep-$sweep")
-      echo "| $fmt | $sweep | $st | $s | $(mb "$k") |"
+    for run in $still_runs; do
+      sweep=${run%%:*} recheck=${run##*:}
+      if [ -f "$out/pieces/$fmt.still-$sweep-$recheck.txt" ]; then read -r s k st rc <"$out/pieces/$fmt.still-$sweep-$recheck.txt"; else s=- k=- st=- rc=-; fi
+      echo "| $fmt | $sweep | $([ "$recheck" = 1 ] && echo "none" || echo "$recheck") | $st | $rc | $s | $(mb "$k") |"
     done
   done
 } >"$out/results.md.part"

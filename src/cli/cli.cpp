@@ -82,7 +82,7 @@ struct InfoFlags {
 };
 
 int info(const InfoFlags& f, const Invocation& in) {
-  const GaussianCloud c = read_scene(f.scene, f.read);
+  const GaussianCloud c = read_scene_shown(f.scene, f.read, in);
   nlohmann::json j = scene_summary(c);
   j["format"] = to_string(f.read.format == SceneFormat::Auto ? detect_scene_format(f.scene) : f.read.format);
   j["moving_share"] = c.size() ? double(c.dynamic_count()) / double(c.size()) : 0.0;
@@ -149,7 +149,7 @@ int render_views(const RenderFlags& f, const Invocation& in) {
   ro.depth = f.channel == Channel::Depth;
   ro.background = f.background;
   const std::string ext = to_string(f.format);
-  const GaussianCloud cloud = read_scene(f.scene, f.read);
+  const GaussianCloud cloud = read_scene_shown(f.scene, f.read, in);
   const std::vector<Camera> cams = read_cameras(f.cameras, f.camera_read);
   const double load_s = seconds_since(t0);
 
@@ -267,7 +267,7 @@ struct ConvertFlags {
 };
 
 int convert(const ConvertFlags& f, const Invocation& in) {
-  const GaussianCloud c = read_scene(f.scene, f.read);
+  const GaussianCloud c = read_scene_shown(f.scene, f.read, in);
   if (f.to == SceneTarget::Frames) {
     // One standard 3DGS PLY per frame, t = f/(F−1): a sequence splat viewers can play.
     const int frames = in.given("--frames") ? f.frames : motion_frames(c);
@@ -362,7 +362,7 @@ ObserveJob observe_job(const ObserveFlags& f, const Invocation& in) {
   if (in.given("--hit-cache")) job.options.static_hit_cache_bytes = size_t(f.hit_cache_mb * 1048576.0);
   job.output = f.output;
   job.output.dense_motion_tables = f.tables == MotionTables::Dense;
-  job.cloud = read_scene(f.scene, f.read);
+  job.cloud = read_scene_shown(f.scene, f.read, in);
   job.cameras = read_cameras(f.cameras, f.camera_read);
   if (job.cameras.empty()) throw_error(f.cameras, ": no cameras");
   job.times = observe_times(in, f.time, job.cloud, job.cameras, &job.frame_step);

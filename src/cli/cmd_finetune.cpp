@@ -70,7 +70,7 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   const Dataset data = Dataset::load(f.images, f.cameras, f.data, loading);
   // A network's model trains as fillgs's keyed model: keys as dense as its motion needs.
   KeyChoice keys;
-  const GaussianCloud model = keyed_for_training(read_scene(f.model, f.read), &keys);
+  const GaussianCloud model = keyed_for_training(read_scene_shown(f.model, f.read, in), &keys);
   if (keys.keys > 0)
     in.out << "keys: " << keys.keys << " for its " << keys.frames << " frames (one every " << fixed(keys.interval, 2)
            << "), positions within " << keys.worst_error << " world units of its network at every frame (" << keys.sample << " moving Gaussians measured)\n";
@@ -105,7 +105,7 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     refiner = make_identity_refiner();
   } else if (kind == RefinerChoice::Oracle) {
     if (!in.given("--truth")) in.fail("missing --truth");
-    truth = std::make_unique<GaussianCloud>(read_scene(f.truth, f.read));
+    truth = std::make_unique<GaussianCloud>(read_scene_shown(f.truth, f.read, in));
     OracleOptions oo = f.oracle;
     oo.artifacts.seed = o.train.seed;
     for (const TrainView& v : data.views()) oo.observers.push_back(v.camera);
@@ -116,7 +116,7 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     ReferenceOptions ro = f.reference;
     ro.artifacts.strength = f.oracle.artifacts.strength;
     ro.artifacts.seed = o.train.seed;
-    if (in.given("--truth")) truth = std::make_unique<GaussianCloud>(read_scene(f.truth, f.read));
+    if (in.given("--truth")) truth = std::make_unique<GaussianCloud>(read_scene_shown(f.truth, f.read, in));
     if (kind == RefinerChoice::Reference) {
       if (!truth) in.fail("--refiner reference needs --truth (the ground-truth scene; on real data use --refiner warp)");
       refiner = make_reference_refiner(*truth, ro);
@@ -248,7 +248,7 @@ struct EvalFlags {
 };
 
 int eval(const EvalFlags& f, const Invocation& in) {
-  const GaussianCloud model = read_scene(f.model, f.read);
+  const GaussianCloud model = read_scene_shown(f.model, f.read, in);
   const std::vector<std::string>& files = f.cameras;
   std::vector<std::string> names = f.splits;
   if (names.empty())
@@ -258,7 +258,7 @@ int eval(const EvalFlags& f, const Invocation& in) {
   TerminalProgress loading(in.err, in.progress());
   for (const std::string& file : files) splits.push_back(Dataset::load(f.images, file, f.data, loading));
   std::unique_ptr<GaussianCloud> truth;
-  if (in.given("--truth")) truth = std::make_unique<GaussianCloud>(read_scene(f.truth, f.read));
+  if (in.given("--truth")) truth = std::make_unique<GaussianCloud>(read_scene_shown(f.truth, f.read, in));
   EvalOptions eo;
   eo.view_stride = f.view_stride;
   eo.truth = truth.get();

@@ -38,7 +38,7 @@ struct ExploreFlags {
 
 int explore(const ExploreFlags& f, const Invocation& in) {
   const auto t0 = Clock::now();
-  const GaussianCloud cloud = read_scene(f.scene, f.read);
+  const GaussianCloud cloud = read_scene_shown(f.scene, f.read, in);
   const std::vector<Camera> cams = read_cameras(f.cameras, f.camera_read);
   if (cams.empty()) throw_error(f.cameras, ": no cameras");
   std::vector<double> sweep;
@@ -113,7 +113,7 @@ int select_views(const SelectFlags& f, const Invocation& invocation) {
 
   // Inputs, all read before anything is written.
   const std::string& cameras_path = f.cameras;
-  const GaussianCloud cloud = read_scene(f.scene, f.read);
+  const GaussianCloud cloud = read_scene_shown(f.scene, f.read, invocation);
   if (cloud.size() == 0) throw_error(f.scene, ": has no Gaussians, so no camera observes anything and there is no view to choose");
   SelectInput in;
   in.scene = &cloud;

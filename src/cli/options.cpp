@@ -1,5 +1,6 @@
 #include "fillgs/base/limits.hpp"
 #include "options.hpp"
+#include "progress_bar.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -180,6 +181,10 @@ void add_scene_flags(CLI::App& app, SceneReadOptions& o) {
   add_number(app, "--still-sweep", o.still.sweep_frames, "trained models, streamed: frames the still rule samples, evenly, the first and last among them",
              at_least(2))
       ->group("Scene options");
+  add_number(app, "--still-recheck", o.still.recheck,
+             "trained models, streamed: a Gaussian the sweep finds still but past this share of a tolerance is checked at every frame (1: none)",
+             at_least(0))
+      ->group("Scene options");
 }
 
 void add_camera_flags(CLI::App& app, CameraReadOptions& o) {
@@ -322,6 +327,12 @@ MotionRates motion_rates(const Invocation& in, const MotionRateFlags& f) {
   if (in.given("--key-lr-scale")) r.key_lr_scale = f.key_lr_scale;
   if (!(r.position_lr > 0) || !(r.key_lr_scale > 0)) in.fail("--position-lr and --key-lr-scale must be positive");
   return r;
+}
+
+GaussianCloud read_scene_shown(const std::string& path, SceneReadOptions options, const Invocation& in) {
+  TerminalProgress progress(in.err, in.progress());
+  options.progress = &progress;
+  return read_scene(path, options);
 }
 
 }  // namespace fillgs::cli

@@ -67,6 +67,11 @@ struct Invocation {
   }
 };
 
+/// read_scene, the model's walk over its frames (a trained model's still rule or keys) on the
+/// command's progress bar.
+GaussianCloud read_scene_shown(const std::string& path, SceneReadOptions options, const Invocation& in);
+
+
 using Action = std::function<int(const Invocation&)>;
 
 /// A command of the front end: its name, one line for `fillgs help`, and the function that

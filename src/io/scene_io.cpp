@@ -471,12 +471,15 @@ GaussianCloud read_scene(const std::string& path, const SceneReadOptions& option
         // Networks and closed-form slices: streamed unless keys are asked for.
         if (options.model_evaluation == ModelEvaluation::Streamed) {
           c = stream_trained_model(std::shared_ptr<const TrainedModel>(open_trained_model(path, f, options)), options.still,
-                                   options.network_kernel == NetworkKernel::Eigen);
+                                   options.network_kernel == NetworkKernel::Eigen, options.progress ? *options.progress : null_progress());
           break;
         }
         [[fallthrough]];
       case SceneFormat::Dynamic3DGS:
-      case SceneFormat::PlyFrames: c = sample_trained_model(*open_trained_model(path, f, options), options.network_kernel == NetworkKernel::Eigen); break;
+      case SceneFormat::PlyFrames:
+        c = sample_trained_model(*open_trained_model(path, f, options), options.network_kernel == NetworkKernel::Eigen,
+                                 options.progress ? *options.progress : null_progress());
+        break;
       case SceneFormat::Spacetime: c = read_spacetime(path, options); break;
       case SceneFormat::Fillgs4D: c = read_fillgs(path); break;
       case SceneFormat::Ex4dgs: {

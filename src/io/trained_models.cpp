@@ -1726,7 +1726,7 @@ std::unique_ptr<TrainedModel> open_trained_model(const std::string& path, SceneF
   throw_error(path, ": ", to_string(format), " is not a trained-model format");
 }
 
-GaussianCloud sample_trained_model(const TrainedModel& model, bool reference) {
+GaussianCloud sample_trained_model(const TrainedModel& model, bool reference, Progress& progress) {
   const size_t N = model.size();
   std::vector<uint32_t> all;
   if (!reference)
@@ -1754,8 +1754,10 @@ GaussianCloud sample_trained_model(const TrainedModel& model, bool reference) {
   km.colours.resize(N * K * 3);
   std::vector<double> sh_sum(N * row, 0.0);
   std::vector<float> sh_min(N * row, std::numeric_limits<float>::infinity()), sh_max(N * row, -std::numeric_limits<float>::infinity());
+  progress.start("keys", K);
   for (size_t k = 0; k < K; ++k) {
     const ModelState s = k == 0 ? std::move(first) : state_at(model.frame_time(double(std::min<size_t>(k, size_t(F - 1)))));
+    progress.advance();
     if (s.size() != N || s.sh.size() != N * row) throw_error(model.source, ": frame ", k, " has another size");
     tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 4096), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t i = r.begin(); i < r.end(); ++i) {
@@ -1784,6 +1786,7 @@ GaussianCloud sample_trained_model(const TrainedModel& model, bool reference) {
         c.opacity_logits[i] = km.opacity_logits[i * K];
       }
   }
+  progress.finish();
   float band_spread = 0.0f;
   for (size_t i = 0; i < N; ++i)
     for (size_t q = 0; q < row; ++q) {
@@ -1891,7 +1894,7 @@ std::vector<int> sweep_frames(int frames, int wanted) {
   return out;
 }
 
-GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, const StillRule& rule, bool reference) {
+GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, const StillRule& rule, bool reference, Progress& progress) {
   const size_t N = model->size();
   const int F = model->frames;
   if (F < 1) throw_error(model->source, ": the model covers no frames");
@@ -1900,26 +1903,52 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
   for (size_t i = 0; i < N; ++i) all[i] = uint32_t(i);
   ModelState first;
   motion->evaluate_once(0.0, all, first);
-  // The sweep: the still rule at each of its frames against frame 0.
+  // The sweep: the still rule at each of its frames against frame 0, as the largest share of a
+  // tolerance any of a Gaussian's departures reaches (> 1: moving).
   const std::vector<int> sweep = sweep_frames(F, rule.sweep_frames);
-  std::vector<char> moving(N, 0);
-  const float cos_half = float(std::cos(double(rule.rotation_degrees) * M_PI / 360.0));
+  std::vector<float> departure(N, 0.0f);
   const size_t row = first.size() ? first.sh.size() / first.size() : 0;
-  for (size_t k = 1; k < sweep.size(); ++k) {
-    ModelState s;
-    motion->evaluate_once(F > 1 ? double(sweep[k]) / double(F - 1) : 0.0, all, s);
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 4096), [&](const tbb::blocked_range<size_t>& r) {
-      for (size_t i = r.begin(); i < r.end(); ++i) {
-        if (moving[i]) continue;
-        bool still = (s.means[i] - first.means[i]).norm() <= rule.position &&
-                     (s.log_scales[i] - first.log_scales[i]).cwiseAbs().maxCoeff() <= rule.log_scale &&
-                     std::fabs(activated_opacity(s, i) - activated_opacity(first, i)) <= rule.opacity &&
-                     std::fabs(normalize_quat(s.rotations[i]).dot(normalize_quat(first.rotations[i]))) >= cos_half;
-        for (size_t a = 0; still && a < 3 && row; ++a) still = std::fabs(s.sh[i * row + a] - first.sh[i * row + a]) * kSHC0 <= rule.colour;
-        moving[i] = !still;
-      }
-    });
+  // Departure of row j of s (Gaussian i) from frame 0, in shares of the tolerances; a zero
+  // tolerance counts any departure as infinitely many shares.
+  auto share = [](float d, float tolerance) { return d <= 0.0f ? 0.0f : tolerance > 0.0f ? d / tolerance : INFINITY; };
+  auto depart = [&](const ModelState& s, size_t j, size_t i) {
+    float r = share((s.means[j] - first.means[i]).norm(), rule.position);
+    r = std::max(r, share((s.log_scales[j] - first.log_scales[i]).cwiseAbs().maxCoeff(), rule.log_scale));
+    r = std::max(r, share(std::fabs(activated_opacity(s, j) - activated_opacity(first, i)), rule.opacity));
+    const double c = std::min(1.0, double(std::fabs(normalize_quat(s.rotations[j]).dot(normalize_quat(first.rotations[i])))));
+    r = std::max(r, share(float(2.0 * std::acos(c) * 180.0 / M_PI), rule.rotation_degrees));
+    for (size_t a = 0; a < 3 && row; ++a) r = std::max(r, share(std::fabs(s.sh[j * row + a] - first.sh[i * row + a]) * kSHC0, rule.colour));
+    return r;
+  };
+  auto sweep_rows = [&](const std::vector<int>& frames, const std::vector<uint32_t>& rows) {
+    for (const int f : frames) {
+      if (f == 0) continue;
+      ModelState s;
+      motion->evaluate_once(F > 1 ? double(f) / double(F - 1) : 0.0, rows, s);
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, rows.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t j = r.begin(); j < r.end(); ++j) departure[rows[j]] = std::max(departure[rows[j]], depart(s, j, rows[j]));
+      });
+      progress.advance();
+    }
+  };
+  progress.start("still rule", sweep.size() - 1);
+  sweep_rows(sweep, all);
+  progress.finish();
+  // Gaussians the sweep found still but not far from a tolerance are checked at every frame:
+  // a motion between the sweep's frames can exceed what its frames saw.
+  std::vector<uint32_t> recheck;
+  if (int(sweep.size()) < F)
+    for (size_t i = 0; i < N; ++i)
+      if (departure[i] <= 1.0f && departure[i] > rule.recheck) recheck.push_back(uint32_t(i));
+  if (!recheck.empty()) {
+    std::vector<int> every(static_cast<size_t>(F));
+    for (int f = 0; f < F; ++f) every[size_t(f)] = f;
+    progress.start("still rule, rechecked at every frame", size_t(F - 1));
+    sweep_rows(every, recheck);
+    progress.finish();
   }
+  std::vector<char> moving(N, 0);
+  for (size_t i = 0; i < N; ++i) moving[i] = departure[i] > 1.0f;
   GaussianCloud c;
   c.sh_degree = first.sh_degree;
   c.resize(N);
@@ -1945,7 +1974,9 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
     c.model_times = os.str();
     std::ostringstream still;
     still << N - c.dynamic_ids.size() << " of " << N << " Gaussians still (evaluated once, at frame 0): at each of " << sweep.size() << " of its "
-          << F << " frames within " << rule.position << " world units, " << rule.rotation_degrees << " degrees, " << rule.log_scale
+          << F << " frames";
+    if (int(sweep.size()) < F) still << " (all " << F << " for the " << recheck.size() << " whose departure there exceeded " << rule.recheck << " of a tolerance)";
+    still << " within " << rule.position << " world units, " << rule.rotation_degrees << " degrees, " << rule.log_scale
           << " in log-scale, " << rule.opacity << " in opacity and " << rule.colour << " in colour of frame 0";
     c.notes.push_back(still.str());
     c.notes.push_back(std::string("the ") + std::to_string(c.dynamic_ids.size()) + " moving Gaussians are evaluated by the model at each time asked, exactly" +

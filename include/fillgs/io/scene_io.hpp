@@ -1,4 +1,5 @@
 #pragma once
+#include "fillgs/base/progress.hpp"
 // Readers and writers for Gaussian scene files.
 //
 //  * standard 3DGS PLY (any property order; binary LE/BE or ASCII; SH degree 0..3);
@@ -21,8 +22,8 @@ FILLGS_ENUM_NAMES(SceneFormat, "scene format",
     {SceneFormat::Deformable3DGS, "deformable3dgs"},
     {SceneFormat::Spacetime, "spacetime"});
 
-/// Trained models' static rule (io/trained_models.hpp): a Gaussian is still when, at every frame of the sweep, its state stays
-/// within these of its state at frame 0.
+/// Trained models' static rule (io/trained_models.hpp): a Gaussian is still when, at every frame of the sweep (and at every
+/// frame of the model where the sweep saw it near a tolerance), its state stays within these of its state at frame 0.
 struct StillRule {
   float position = 1e-3f;         ///< distance, world units
   float rotation_degrees = 1.0f;  ///< angle of the normalised rotation
@@ -30,6 +31,11 @@ struct StillRule {
   float opacity = 1.0f / 255.0f;  ///< activated opacity
   float colour = 1.0f / 255.0f;   ///< SH DC times C0 (the view-independent colour), any channel
   int sweep_frames = 30;          ///< frames the sweep samples, evenly, frame 0 and the last among them (>= frames: all)
+  /// A Gaussian the sweep finds still whose largest departure there exceeds this share of a
+  /// tolerance is checked at every frame (motion between the sweep's frames); 1: none are.
+  /// 0.5: a motion up to twice what the sweep's frames saw is caught (bench/results/README.md,
+  /// "Trained models at scale", measures the trade).
+  float recheck = 0.5f;
 };
 
 /// How a trained model is read: streamed (its moving Gaussians evaluated by the model at each
@@ -66,6 +72,9 @@ struct SceneReadOptions {
   NetworkKernel network_kernel = NetworkKernel::Simd;
   StillRule still;
   PartitionOptions partition;
+  /// Where a trained model's walk over its frames (the still rule's sweep, or its keys) is
+  /// reported; not owned (null: nowhere).
+  Progress* progress = nullptr;
 };
 
 /// Reads a scene, detecting the format from the path and header unless told.

@@ -64,13 +64,14 @@ std::unique_ptr<TrainedModel> open_trained_model(const std::string& path, SceneF
 /// (t_f = f / (frames - 1)); SH bands above the DC keep their mean over the frames. What
 /// fillgs read trained models as before they were streamed (`--model-evaluation keys`).
 /// `reference`: by at() (Eigen products), else by evaluate().
-GaussianCloud sample_trained_model(const TrainedModel& model, bool reference = true);
+GaussianCloud sample_trained_model(const TrainedModel& model, bool reference = true, Progress& progress = null_progress());
 
 /// A trained model as a cloud whose moving Gaussians are evaluated by the model at each time
 /// asked (MotionModel::Evaluated), exactly, never stored per frame; still ones (StillRule, on
 /// a sweep of the frames) are evaluated once, at frame 0, and static. `reference`: the
 /// reference path (at()) instead of evaluate(). Notes say how many are still and by what rule.
-GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, const StillRule& rule, bool reference = false);
+GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, const StillRule& rule, bool reference = false,
+                                   Progress& progress = null_progress());
 
 /// The frames of the sweep (ascending, frame 0 and frames-1 among them).
 std::vector<int> sweep_frames(int frames, int wanted);
