@@ -54,6 +54,8 @@ if [ "$report_only" = 0 ] && [ ! -f "$models/.complete" ]; then
 fi
 # 20 cameras, 64x48, on a circle of radius 4 around the origin, looking at it.
 "$python" "$root/bench/ring_cameras.py" 20 "$out/pieces/cameras.json" --wave
+# Each piece's commit and date, for the report's provenance.
+ran() { echo "$1 $(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown) $(date -u +%Y-%m-%d)" >>"$out/pieces/commits.txt"; }
 flags_of() { case "$1" in 4dgaussians) echo "--model-frames $frames" ;; *) echo "" ;; esac; }
 # One observe run: its seconds and peak memory into a piece file, unless it is there.
 observe() {  # piece-name scene extra-flags...
@@ -66,13 +68,13 @@ observe() {  # piece-name scene extra-flags...
   /usr/bin/time -f "%e %M" -o "$tmp.time" "$bin/fillgs" observe --quiet --scene "$scene" --cameras "$out/pieces/cameras.json" --no-plots --out "$tmp" "$@" >/dev/null
   read -r secs kb <"$tmp.time"
   local moving; moving=$("$python" -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["dynamic"])' "$tmp/summary.json" 2>/dev/null || echo "")
-  echo "$secs $kb $moving" >"$piece.part" && mv "$piece.part" "$piece"
+  echo "$secs $kb $moving" >"$piece.part" && mv "$piece.part" "$piece" && ran "$name"
   rm -rf "$tmp" "$tmp.time"
 }
 if [ "$report_only" = 0 ] && [ ! -f "$out/pieces/networks.md" ]; then
   echo "networks ..."
   "$bin/fillgs_bench" networks --models "$models" --model-frames "$frames" >"$out/pieces/networks.md.part"
-  mv "$out/pieces/networks.md.part" "$out/pieces/networks.md"
+  mv "$out/pieces/networks.md.part" "$out/pieces/networks.md" && ran networks
 fi
 IFS=, read -r -a fmts <<<"$formats"
 # The pieces in order of what they tell: frustum (streamed, on the fillgs 4D PLY), the still
@@ -104,7 +106,7 @@ for fmt in "${fmts[@]}"; do
     /usr/bin/time -f "%e %M" -o "$piece.time" "$bin/fillgs" info --json --still-sweep "$sweep" --still-recheck "$recheck" $(flags_of "$fmt") "$models/$fmt" >"$piece.json"
     read -r secs kb <"$piece.time"
     echo "$secs $kb $("$python" -c 'import json,re,sys; j=json.load(open(sys.argv[1])); m=[re.search(r"for the (\d+) whose", n) for n in j["notes"]]; m=[x.group(1) for x in m if x]; print(j["static"], m[0] if m else 0)' "$piece.json")" >"$piece.part"
-    mv "$piece.part" "$piece" && rm -f "$piece.time" "$piece.json"
+    mv "$piece.part" "$piece" && rm -f "$piece.time" "$piece.json" && ran "$fmt.still-$sweep-$recheck"
   done
 done
 # shellcheck disable=SC2046
@@ -123,10 +125,12 @@ done
 piece() { if [ -f "$out/pieces/$1.txt" ]; then cat "$out/pieces/$1.txt"; else echo "- - -"; fi; }
 mb() { [ "$1" = - ] && echo - || awk "BEGIN{printf \"%.0f\", $1/1024}"; }
 ratio() { { [ "$1" = - ] || [ "$2" = - ]; } && echo - || awk "BEGIN{printf \"%.2f\", $1/$2}"; }
-commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)
+# The commits and dates the pieces ran at (HEAD today when none is recorded).
+commit=$( { [ -f "$out/pieces/commits.txt" ] && awk '{print $2}' "$out/pieces/commits.txt" | sort -u | paste -sd, - ; } || git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)
+dates=$( { [ -f "$out/pieces/commits.txt" ] && awk '{print $3}' "$out/pieces/commits.txt" | sort -u | paste -sd, - ; } || date -u +%Y-%m-%d)
 machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1), $(awk '/MemTotal/{printf "%.0f GB", $2/1048576}' /proc/meminfo)"
 {
-  echo "Command: \`bench/trained_models_scale.sh --gaussians $gaussians --frames $frames --formats $formats$([ "$streamed_only" = 1 ] && echo " --streamed-frustum-only") OUT\` · commit $commit · $(date -u +%Y-%m-%d) · $machine."
+  echo "Command: \`bench/trained_models_scale.sh --gaussians $gaussians --frames $frames --formats $formats$([ "$streamed_only" = 1 ] && echo " --streamed-frustum-only") OUT\` · commit $commit · $dates · $machine."
   echo
   echo "Networks (\`fillgs_bench networks\`, $gaussians Gaussians):"
   echo
