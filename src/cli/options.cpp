@@ -256,18 +256,7 @@ void add_time_flags(CLI::App& app, TimeFlags& f, bool times) {
 
 std::vector<double> observe_times(const Invocation& in, const TimeFlags& tf, const GaussianCloud& cloud, const std::vector<Camera>& cams,
                                   double* frame_step, bool tables_in_memory) {
-  int frames = tf.frames;
-  if (!frames && cloud.motion == MotionModel::Keyframed && cloud.keyframed.first_key_time == 0.0 && cloud.keyframed.key_count >= 2 &&
-      std::fabs(cloud.keyframed.key_spacing * (cloud.keyframed.key_count - 1) - 1.0) < 1e-6)
-    frames = cloud.keyframed.key_count;  // one key per frame
-  if (!frames && cloud.motion == MotionModel::Evaluated) frames = motion_frames(cloud);
-  if (!frames) {
-    std::set<long long> distinct;
-    for (const Camera& c : cams)
-      if (c.has_time()) distinct.insert(std::llround(c.time * 1e6));
-    if (distinct.size() >= 2) frames = int(distinct.size());
-  }
-  if (!frames && cloud.dynamic_count() == 0) frames = 1;  // a static scene has one time
+  const int frames = tf.frames ? tf.frames : observation_frames(cloud, cams);
   if (!frames) in.fail("cannot tell the frame count from the scene or the cameras; give --frames F");
   // The work asked for, before any of it is done: a view per camera and time, and, where the
   // command keeps them, the observation tables of every Gaussian at every time.

@@ -520,11 +520,16 @@ struct DenseNet {
   struct Scratch {
     std::vector<float> h[2], stack, a, b;
   };
-  Scratch scratch() const {
-    size_t width = 1;
-    for (const DenseLinear& l : trunk) width = std::max(width, size_t(l.out));
-    return Scratch{{block_buffer(width), block_buffer(width)}, block_buffer(heads.stack_rows()), block_buffer(heads.scratch_rows()),
-                   block_buffer(heads.scratch_rows())};
+  Scratch scratch() const { return scratch_for({this}); }
+  /// Buffers any of `nets` can run in, one after the other (one set in cache, not one each).
+  static Scratch scratch_for(std::initializer_list<const DenseNet*> nets) {
+    size_t width = 1, stack = 1, rows = 1;
+    for (const DenseNet* n : nets) {
+      for (const DenseLinear& l : n->trunk) width = std::max(width, size_t(l.out));
+      stack = std::max(stack, n->heads.stack_rows());
+      rows = std::max(rows, n->heads.scratch_rows());
+    }
+    return Scratch{{block_buffer(width), block_buffer(width)}, block_buffer(stack), block_buffer(rows), block_buffer(rows)};
   }
   /// The trunk on a block's inputs `x` (its first layer's bias `bias0` where the frame gives
   /// one, else its own), then the heads: emit(head, D) with D [out][kRows].
@@ -811,10 +816,10 @@ class Ed3dgs : public TrainedModel {
     out = canonical_.rows(rows);
     struct Scratch {
       std::vector<float> x;
-      DenseNet::Scratch pass[2];
+      DenseNet::Scratch net;  // both passes', in turn
     };
     over_blocks(
-        rows.size(), [&] { return Scratch{block_buffer(size_t(gdim_)), {dense_[0].scratch(), dense_[1].scratch()}}; },
+        rows.size(), [&] { return Scratch{block_buffer(size_t(gdim_)), DenseNet::scratch_for({&dense_[0], &dense_[1]})}; },
         [&](size_t first, size_t count, Scratch& S) {
           const size_t G = size_t(gdim_);
           for (size_t r = 0; r < count; ++r) {
@@ -823,7 +828,7 @@ class Ed3dgs : public TrainedModel {
           }
           for (int pass = 0; pass < 2; ++pass)
             if (!(pass == 0 ? no_coarse_ : no_fine_))
-              dense_[pass].run(S.x.data(), bias0[pass].data(), S.pass[pass],
+              dense_[pass].run(S.x.data(), bias0[pass].data(), S.net,
                                [&](int h, const float* D) { add_head_rows(h, D, first, count, k[h], out); });
         });
   }

@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <set>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -486,6 +487,18 @@ ViewMaps VisibilityEngine::render_maps(const Camera& camera, const float* defici
 
 // ---------------------------------------------------------------------------------
 // Views, speeds
+
+int observation_frames(const GaussianCloud& cloud, const std::vector<Camera>& cameras) {
+  if (cloud.motion == MotionModel::Keyframed && cloud.keyframed.first_key_time == 0.0 && cloud.keyframed.key_count >= 2 &&
+      std::fabs(cloud.keyframed.key_spacing * (cloud.keyframed.key_count - 1) - 1.0) < 1e-6)
+    return cloud.keyframed.key_count;  // one key per frame
+  if (cloud.motion == MotionModel::Evaluated && motion_frames(cloud) > 0) return motion_frames(cloud);
+  std::set<long long> distinct;
+  for (const Camera& c : cameras)
+    if (c.has_time()) distinct.insert(std::llround(c.time * 1e6));
+  if (distinct.size() >= 2) return int(distinct.size());
+  return cloud.dynamic_count() == 0 ? 1 : 0;  // a static scene has one time
+}
 
 std::vector<std::vector<uint32_t>> views_per_frame(const std::vector<Camera>& cameras, const std::vector<double>& times,
                                                    double frame_step) {

@@ -92,6 +92,11 @@ class VisibilityEngine {
   std::unique_ptr<Impl> impl_;
 };
 
+/// The frame count a job over `cloud` and `cameras` has when none is given: the cloud's key
+/// count (a key per frame from 0 to 1) or its model's frames, else the cameras' distinct
+/// times (two or more), else 1 for a static scene; 0 when none of these tells.
+int observation_frames(const GaussianCloud& cloud, const std::vector<Camera>& cameras);
+
 /// Which training views see each frame: a camera with a time observes the frame nearest to
 /// it (within half a frame; farther ones are dropped); a camera without a time is part of
 /// a fixed rig and observes every frame. Returns, per time in `times`, camera indices.

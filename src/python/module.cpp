@@ -1,0 +1,625 @@
+// The Python module `fillgs`: models, cameras, observation tables and renders as NumPy
+// arrays, over the same library calls the command line makes (pybind11).
+//
+// Arrays in: C-contiguous float32 is taken without a copy, anything else numeric is copied
+// once; shapes, dtypes and finiteness are checked with a message naming the argument.
+// Errors: fillgs.Error (a ValueError) carries the CLI's one-line message; a missing file is
+// FileNotFoundError; a caller's frame function's own exception passes through unchanged.
+// Long calls release the GIL and report progress to a callback (label, done, total), or to a
+// tqdm bar with progress=True where tqdm is installed.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/math.hpp"
+#include "fillgs/base/progress.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/model/camera.hpp"
+#include "fillgs/model/frame_grid.hpp"
+#include "fillgs/model/gaussians.hpp"
+#include "fillgs/render/raster.hpp"
+#include "fillgs/visibility/visibility.hpp"
+
+namespace py = pybind11;
+
+namespace fillgs::python {
+namespace {
+
+// ------------------------------------------------------------------ arrays in and out
+
+using FloatArray = py::array_t<float, py::array::c_style>;
+
+/// `value` as a C-contiguous float32 array of `shape` (-1: any size), without a copy when it
+/// is one already; a numeric array of another dtype or layout is copied once. Anything else
+/// (strings, objects, complex, wrong shape, a non-finite value) raises naming `name`.
+FloatArray float_array(const py::handle& value, const char* name, std::vector<py::ssize_t> shape) {
+  py::array a = py::isinstance<py::array>(value) ? py::reinterpret_borrow<py::array>(value) : py::array(py::module_::import("numpy").attr("asarray")(value));
+  const char kind = a.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u')
+    throw py::type_error(std::string(name) + ": expected real numbers, got dtype " + std::string(py::str(a.dtype())));
+  if (a.ndim() != py::ssize_t(shape.size())) {
+    std::string want = "[";
+    for (size_t k = 0; k < shape.size(); ++k) want += (k ? ", " : "") + (shape[k] < 0 ? std::string("n") : std::to_string(shape[k]));
+    throw py::value_error(std::string(name) + ": expected shape " + want + "], got " + std::to_string(a.ndim()) + " dimension(s)");
+  }
+  for (size_t k = 0; k < shape.size(); ++k)
+    if (shape[k] >= 0 && a.shape(py::ssize_t(k)) != shape[k])
+      throw py::value_error(std::string(name) + ": dimension " + std::to_string(k) + " is " + std::to_string(a.shape(py::ssize_t(k))) + ", expected " +
+                            std::to_string(shape[k]));
+  // No copy for C-contiguous float32; otherwise one, converting the dtype.
+  FloatArray f = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
+  if (!f) throw py::type_error(std::string(name) + ": cannot be read as float32");
+  const float* p = f.data();
+  const size_t n = size_t(f.size());
+  for (size_t i = 0; i < n; ++i)
+    if (!std::isfinite(p[i])) {
+      const size_t row = f.ndim() > 1 ? size_t(f.size() / f.shape(0)) : 1;
+      throw py::value_error(std::string(name) + ": element " + std::to_string(i / row) + " is not finite (" + std::to_string(p[i]) + ")");
+    }
+  return f;
+}
+
+/// A NumPy array owning `v` (moved, no copy), of `shape`.
+template <typename T>
+py::array_t<T> to_array(std::vector<T>&& v, std::vector<py::ssize_t> shape) {
+  auto* owned = new std::vector<T>(std::move(v));
+  py::capsule free(owned, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+  return py::array_t<T>(shape, owned->data(), free);
+}
+
+/// Eigen fixed vectors packed back to back, as a float array [n, D].
+template <int D>
+py::array_t<float> rows_of(const std::vector<Eigen::Matrix<float, D, 1>>& v) {
+  std::vector<float> out(v.size() * D);
+  if (!v.empty()) std::memcpy(out.data(), v.data(), out.size() * sizeof(float));
+  return to_array(std::move(out), {py::ssize_t(v.size()), D});
+}
+
+void require_file(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) {
+    PyErr_SetString(PyExc_FileNotFoundError, (path + ": no such file or folder").c_str());
+    throw py::error_already_set();
+  }
+}
+
+// ------------------------------------------------------------------ progress
+
+/// Progress reported to a Python callable (label, done, total), at most ten times a second
+/// and at the end; with `true`, to a tqdm bar where tqdm is installed (else nowhere).
+class PyProgress : public Progress {
+ public:
+  explicit PyProgress(const py::object& how) {
+    if (how.is_none() || (py::isinstance<py::bool_>(how) && !how.cast<bool>())) return;
+    if (py::isinstance<py::bool_>(how)) {
+      try {
+        tqdm_ = py::module_::import("tqdm").attr("tqdm");
+      } catch (const py::error_already_set&) {
+        PyErr_Clear();
+      }
+      return;
+    }
+    if (!PyCallable_Check(how.ptr())) throw py::type_error("progress: expected a callable (label, done, total), True or None");
+    callback_ = how;
+  }
+  ~PyProgress() override {
+    py::gil_scoped_acquire gil;
+    close_bar();
+    callback_ = py::object();
+    tqdm_ = py::object();
+  }
+  void start(const std::string& label, size_t total) override {
+    label_ = label;
+    total_ = total;
+    done_ = 0;
+    report(true);
+  }
+  void advance(size_t steps) override {
+    done_ += steps;
+    report(false);
+  }
+  void finish() override { report(true); }
+
+ private:
+  void report(bool always) {
+    if (!callback_ && !tqdm_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (!always && now - last_ < std::chrono::milliseconds(100) && done_ < total_) return;
+    last_ = now;
+    py::gil_scoped_acquire gil;
+    if (callback_) {
+      callback_(label_, done_, total_);
+      return;
+    }
+    if (!bar_ || bar_label_ != label_) {
+      close_bar();
+      bar_ = tqdm_(py::arg("total") = total_, py::arg("desc") = label_, py::arg("leave") = false);
+      bar_label_ = label_;
+      shown_ = 0;
+    }
+    if (done_ > shown_) bar_.attr("update")(done_ - shown_);
+    shown_ = done_;
+  }
+  void close_bar() {
+    if (bar_) bar_.attr("close")();
+    bar_ = py::object();
+  }
+  py::object callback_, tqdm_, bar_;
+  std::string label_, bar_label_;
+  size_t total_ = 0, done_ = 0, shown_ = 0;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+// ------------------------------------------------------------------ models
+
+/// A model: any scene the command line reads, or Gaussians from arrays.
+struct Model {
+  std::shared_ptr<const GaussianCloud> cloud;
+  std::string source;
+};
+
+int frames_of(const GaussianCloud& c) { return motion_frames(c); }
+
+/// The Gaussians at normalised time t as arrays, in the files' parametrisation.
+py::dict state_at(const Model& m, double t) {
+  if (!std::isfinite(t)) throw py::value_error("t: " + std::to_string(t) + " is not a time in [0, 1]");
+  FrameGaussians g;
+  {
+    py::gil_scoped_release release;
+    g = frame_at(*m.cloud, t);
+  }
+  const size_t N = g.size();
+  std::vector<float> log_scales(N * 3), logits(N);
+  for (size_t i = 0; i < N; ++i) {
+    for (int a = 0; a < 3; ++a) log_scales[i * 3 + size_t(a)] = std::log(g.scales[i][a]);
+    logits[i] = logit(g.opacities[i]);
+  }
+  const size_t K = size_t((g.sh_degree + 1) * (g.sh_degree + 1));
+  std::vector<float> sh(g.sh, g.sh + N * K * 3);
+  py::dict d;
+  d["means"] = rows_of<3>(g.means);
+  d["log_scales"] = to_array(std::move(log_scales), {py::ssize_t(N), 3});
+  d["quaternions"] = rows_of<4>(g.rotations);
+  d["opacity_logits"] = to_array(std::move(logits), {py::ssize_t(N)});
+  d["sh"] = to_array(std::move(sh), {py::ssize_t(N), py::ssize_t(K), 3});
+  return d;
+}
+
+/// Gaussians of one frame from a dict of arrays (means [N,3], log_scales [N,3], quaternions
+/// [N,4] (w, x, y, z), opacity_logits [N], sh [N,K,3] optional), checked.
+ModelState state_from(const py::handle& frame, const char* what, py::ssize_t n) {
+  if (!py::isinstance<py::dict>(frame)) throw py::type_error(std::string(what) + ": expected a dict of arrays (means, log_scales, quaternions, opacity_logits[, sh])");
+  const py::dict d = py::reinterpret_borrow<py::dict>(frame);
+  for (const char* key : {"means", "log_scales", "quaternions", "opacity_logits"})
+    if (!d.contains(key)) throw py::key_error(std::string(what) + ": no '" + key + "'");
+  const std::string w(what);
+  const FloatArray means = float_array(d["means"], (w + " means").c_str(), {n, 3});
+  const py::ssize_t N = means.shape(0);
+  const FloatArray scales = float_array(d["log_scales"], (w + " log_scales").c_str(), {N, 3});
+  const FloatArray quats = float_array(d["quaternions"], (w + " quaternions").c_str(), {N, 4});
+  const FloatArray logits = float_array(d["opacity_logits"], (w + " opacity_logits").c_str(), {N});
+  ModelState s;
+  s.means.resize(size_t(N));
+  s.log_scales.resize(size_t(N));
+  s.rotations.resize(size_t(N));
+  s.opacity_logits.assign(logits.data(), logits.data() + N);
+  if (N) {
+    std::memcpy(static_cast<void*>(s.means.data()), means.data(), size_t(N) * 12);
+    std::memcpy(static_cast<void*>(s.log_scales.data()), scales.data(), size_t(N) * 12);
+    std::memcpy(static_cast<void*>(s.rotations.data()), quats.data(), size_t(N) * 16);
+  }
+  for (py::ssize_t i = 0; i < N; ++i)
+    if (s.rotations[size_t(i)].squaredNorm() == 0.0f) throw py::value_error(w + " quaternions: element " + std::to_string(i) + " is zero");
+  if (d.contains("sh") && !d["sh"].is_none()) {
+    const FloatArray sh = float_array(d["sh"], (w + " sh").c_str(), {N, -1, 3});
+    const py::ssize_t K = sh.shape(1);
+    const int degree = int(std::lround(std::sqrt(double(K)))) - 1;
+    if ((degree + 1) * (degree + 1) != K || degree > 3)
+      throw py::value_error(w + " sh: " + std::to_string(K) + " coefficients per Gaussian, expected 1, 4, 9 or 16");
+    s.sh_degree = degree;
+    s.sh.assign(sh.data(), sh.data() + sh.size());
+  } else {
+    s.sh.assign(size_t(N) * 3, 0.0f);  // grey: SH DC 0 is colour 0.5
+  }
+  return s;
+}
+
+GaussianCloud cloud_from(const ModelState& s) {
+  GaussianCloud c;
+  c.sh_degree = s.sh_degree;
+  c.means = s.means;
+  c.log_scales = s.log_scales;
+  c.rotations = s.rotations;
+  c.opacity_logits = s.opacity_logits;
+  c.sh = s.sh;
+  return c;
+}
+
+/// A caller's Gaussians frame by frame: `frame(f)` returns frame f's arrays (f = 0 … F-1),
+/// called with the GIL held, at most once per frame while the frames near the current one
+/// are kept (three).
+class CallerFrames : public MotionSource {
+ public:
+  CallerFrames(py::object fn, int frames, py::ssize_t n, int sh_degree) : fn_(std::move(fn)), frames_(frames), n_(n), sh_degree_(sh_degree) {}
+  ~CallerFrames() override {
+    py::gil_scoped_acquire gil;
+    fn_ = py::object();
+    failure_ = {};
+  }
+  std::shared_ptr<const ModelState> evaluate(double t, const std::vector<uint32_t>& rows) const override {
+    const int f = int(std::lround(std::clamp(t, 0.0, 1.0) * double(frames_ - 1)));
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::shared_ptr<const ModelState> all;
+    for (const auto& k : kept_)
+      if (k.first == f) all = k.second;
+    if (!all) {
+      if (failed_) throw Error("the frame function failed before");
+      py::gil_scoped_acquire gil;
+      try {
+        auto s = std::make_shared<ModelState>(state_from(fn_(f), ("frame " + std::to_string(f)).c_str(), n_));
+        if (s->sh_degree != sh_degree_) throw py::value_error("frame " + std::to_string(f) + " sh: degree " + std::to_string(s->sh_degree) + ", frame 0 had " + std::to_string(sh_degree_));
+        all = s;
+      } catch (py::error_already_set& e) {
+        failed_ = true;
+        failure_ = {e.type(), e.value(), e.trace()};
+        throw Error("the frame function raised at frame " + std::to_string(f));
+      } catch (const std::exception& e) {
+        failed_ = true;
+        message_ = e.what();
+        throw Error(message_);
+      }
+      if (kept_.size() == 3) kept_.erase(kept_.begin());
+      kept_.emplace_back(f, all);
+    }
+    bool identity = rows.size() == all->size();
+    for (size_t i = 0; identity && i < rows.size(); ++i) identity = rows[i] == i;
+    if (identity) return all;
+    return std::make_shared<ModelState>(all->rows(rows));
+  }
+  int frame_count() const override { return frames_; }
+  /// After the engine returns (GIL held): the frame function's own exception, raised again,
+  /// or a check's ValueError.
+  void raise_failure() const {
+    if (!failed_) return;
+    if (failure_[0]) {
+      PyErr_Restore(failure_[0].inc_ref().ptr(), failure_[1].inc_ref().ptr(), failure_[2].inc_ref().ptr());
+      throw py::error_already_set();
+    }
+    throw py::value_error(message_);
+  }
+
+ private:
+  py::object fn_;
+  int frames_;
+  py::ssize_t n_;
+  int sh_degree_;
+  mutable std::mutex mutex_;
+  mutable std::vector<std::pair<int, std::shared_ptr<const ModelState>>> kept_;
+  mutable bool failed_ = false;
+  mutable std::array<py::object, 3> failure_;
+  mutable std::string message_;
+};
+
+/// A model from a caller's frame function: frame 0 read now; every Gaussian moves.
+std::pair<Model, std::shared_ptr<const CallerFrames>> model_from_frames(const py::object& fn, int frames) {
+  if (!PyCallable_Check(fn.ptr())) throw py::type_error("frames: expected a callable f -> dict of arrays");
+  if (frames < 1) throw py::value_error("frame_count: " + std::to_string(frames) + ", expected at least 1");
+  const ModelState first = state_from(fn(0), "frame 0", -1);
+  auto c = std::make_shared<GaussianCloud>(cloud_from(first));
+  auto source = std::make_shared<CallerFrames>(fn, frames, py::ssize_t(first.size()), first.sh_degree);
+  if (frames > 1) {
+    c->motion = MotionModel::Evaluated;
+    c->dynamic_ids.resize(c->size());
+    for (size_t i = 0; i < c->size(); ++i) c->dynamic_ids[i] = uint32_t(i);
+    c->source_rows = c->dynamic_ids;
+    c->source = source;
+  }
+  return {Model{c, "frames"}, source};
+}
+
+Model load_model(const std::string& path, const std::string& format, int frames, const std::string& time_range, const std::string& evaluation,
+                 float still_tolerance, const py::object& progress) {
+  require_file(path);
+  SceneReadOptions o;
+  o.format = parse_name<SceneFormat>(format);
+  o.model_frames = frames;
+  o.model_time_range = time_range;
+  o.model_evaluation = parse_name<ModelEvaluation>(evaluation);
+  if (still_tolerance >= 0) o.still.position = still_tolerance;
+  PyProgress shown(progress);
+  o.progress = &shown;
+  std::shared_ptr<GaussianCloud> c;
+  {
+    py::gil_scoped_release release;
+    c = std::make_shared<GaussianCloud>(read_scene(path, o));
+  }
+  return Model{c, path};
+}
+
+// ------------------------------------------------------------------ cameras
+
+struct Cameras {
+  std::vector<Camera> list;
+};
+
+Cameras read_cameras_py(const std::string& path, const std::string& format, int width, int height) {
+  require_file(path);
+  CameraReadOptions o;
+  o.format = parse_name<CameraFormat>(format);
+  o.width = width;
+  o.height = height;
+  Cameras c;
+  c.list = read_cameras(path, o);
+  return c;
+}
+
+/// Cameras from arrays: K [C,3,3], world_to_camera [C,4,4], width and height [C] (or one
+/// value), time [C] (NaN: a fixed rig's camera, at every frame) and names.
+Cameras cameras_from(const py::handle& K, const py::handle& w2c, const py::handle& width, const py::handle& height, const py::handle& time,
+                     const py::object& names) {
+  const FloatArray k = float_array(K, "K", {-1, 3, 3});
+  const py::ssize_t C = k.shape(0);
+  const FloatArray m = float_array(w2c, "world_to_camera", {C, 4, 4});
+  auto sizes = [&](const py::handle& v, const char* name) {
+    py::array a = py::array(py::module_::import("numpy").attr("asarray")(v));
+    if (a.ndim() == 0) a = py::array(py::module_::import("numpy").attr("full")(C, v));
+    const FloatArray f = float_array(a, name, {C});
+    std::vector<int> out(static_cast<size_t>(C));
+    for (py::ssize_t i = 0; i < C; ++i) {
+      const float x = f.data()[i];
+      if (x < 1 || x > 65536 || x != std::floor(x)) throw py::value_error(std::string(name) + ": element " + std::to_string(i) + " is not a pixel count (" + std::to_string(x) + ")");
+      out[size_t(i)] = int(x);
+    }
+    return out;
+  };
+  const std::vector<int> W = sizes(width, "width"), H = sizes(height, "height");
+  std::vector<double> T(static_cast<size_t>(C), std::numeric_limits<double>::quiet_NaN());
+  if (!time.is_none()) {
+    const py::array_t<double, py::array::c_style | py::array::forcecast> t = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(time);
+    if (!t || t.ndim() != 1 || t.shape(0) != C) throw py::value_error("time: expected shape [" + std::to_string(C) + "]");
+    for (py::ssize_t i = 0; i < C; ++i) {
+      const double x = t.data()[i];
+      if (!std::isnan(x) && (x < 0.0 || x > 1.0 || !std::isfinite(x)))
+        throw py::value_error("time: element " + std::to_string(i) + " is " + std::to_string(x) + ", expected a time in [0, 1] or NaN");
+      T[size_t(i)] = x;
+    }
+  }
+  Cameras out;
+  for (py::ssize_t i = 0; i < C; ++i) {
+    Camera c;
+    const float* ki = k.data() + i * 9;
+    const float* mi = m.data() + i * 16;
+    c.fx = ki[0], c.fy = ki[4], c.cx = ki[2], c.cy = ki[5];
+    if (!(c.fx > 0 && c.fy > 0)) throw py::value_error("K: element " + std::to_string(i) + " has a focal length that is not positive");
+    for (int r = 0; r < 3; ++r) {
+      for (int q = 0; q < 3; ++q) c.R(r, q) = mi[r * 4 + q];
+      c.t[r] = mi[r * 4 + 3];
+    }
+    if (std::fabs(c.R.determinant() - 1.0) > 1e-3 || (c.R * c.R.transpose() - Mat3d::Identity()).cwiseAbs().maxCoeff() > 1e-3)
+      throw py::value_error("world_to_camera: element " + std::to_string(i) + " is not a rotation and a translation");
+    c.width = W[size_t(i)];
+    c.height = H[size_t(i)];
+    c.time = T[size_t(i)];
+    c.name = names.is_none() ? "cam" + std::to_string(i) : py::str(names[py::int_(i)]).cast<std::string>();
+    out.list.push_back(c);
+  }
+  return out;
+}
+
+py::dict cameras_arrays(const Cameras& c) {
+  const size_t C = c.list.size();
+  std::vector<double> K(C * 9, 0.0), M(C * 16, 0.0), T(C);
+  std::vector<int32_t> W(C), H(C);
+  for (size_t i = 0; i < C; ++i) {
+    const Camera& x = c.list[i];
+    K[i * 9 + 0] = x.fx, K[i * 9 + 4] = x.fy, K[i * 9 + 2] = x.cx, K[i * 9 + 5] = x.cy, K[i * 9 + 8] = 1.0;
+    for (int r = 0; r < 3; ++r) {
+      for (int q = 0; q < 3; ++q) M[i * 16 + size_t(r * 4 + q)] = x.R(r, q);
+      M[i * 16 + size_t(r * 4 + 3)] = x.t[r];
+    }
+    M[i * 16 + 15] = 1.0;
+    W[i] = x.width, H[i] = x.height, T[i] = x.time;
+  }
+  py::dict d;
+  d["K"] = to_array(std::move(K), {py::ssize_t(C), 3, 3});
+  d["world_to_camera"] = to_array(std::move(M), {py::ssize_t(C), 4, 4});
+  d["width"] = to_array(std::move(W), {py::ssize_t(C)});
+  d["height"] = to_array(std::move(H), {py::ssize_t(C)});
+  d["time"] = to_array(std::move(T), {py::ssize_t(C)});
+  return d;
+}
+
+// ------------------------------------------------------------------ observe
+
+/// The observation tables of a model (or of a caller's frames) under `cameras`, as the CLI's
+/// `observe` computes and writes them: counts [T, N] (uint8 where at most 255 views share a
+/// time, else uint16), speed and deficiency [T, N] float32 (0 for static Gaussians), times
+/// [T], dynamic_ids [M]. Written straight into the arrays returned (no second copy).
+py::dict observe_py(const Model& model, const std::shared_ptr<const CallerFrames>& caller, const Cameras& cameras, int frames,
+                    const py::object& times_arg, const std::string& mode, int stride, double tau, double hit_cache_mb, const py::object& progress) {
+  const GaussianCloud& cloud = *model.cloud;
+  if (cameras.list.empty()) throw py::value_error("cameras: none");
+  if (frames < 0) throw py::value_error("frames: " + std::to_string(frames) + ", expected at least 1");
+  if (!frames) frames = observation_frames(cloud, cameras.list);
+  if (!frames) throw py::value_error("cannot tell the frame count from the model or the cameras; give frames=F");
+  std::vector<double> times = FrameGrid(frames).times();
+  const double frame_step = FrameGrid(frames).step();
+  if (!times_arg.is_none()) {
+    if (caller) throw py::value_error("times: a frame function gives whole frames only; leave times out");
+    if (frames < 2) throw py::value_error("times: give frames=F >= 2 with times (the speed's step is one frame, 1/(F-1))");
+    const auto t = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(times_arg);
+    if (!t || t.ndim() != 1 || t.size() == 0) throw py::value_error("times: expected a non-empty 1-D array of times in [0, 1]");
+    times.assign(t.data(), t.data() + t.size());
+    for (size_t i = 0; i < times.size(); ++i)
+      if (!(times[i] >= 0.0 && times[i] <= 1.0) || (i && !(times[i] > times[i - 1])))
+        throw py::value_error("times: element " + std::to_string(i) + " is " + std::to_string(times[i]) + ", expected ascending times in [0, 1]");
+  }
+  ObservationOptions o;
+  o.visibility.mode = parse_name<VisibilityMode>(mode);
+  if (stride < 1) throw py::value_error("stride: " + std::to_string(stride) + ", expected at least 1");
+  o.visibility.stride = stride;
+  if (tau >= 0) {
+    if (!(tau > 0 && tau < 1)) throw py::value_error("tau: " + std::to_string(tau) + ", expected in (0, 1)");
+    o.visibility.min_weight = float(tau);
+  }
+  if (hit_cache_mb >= 0) o.static_hit_cache_bytes = size_t(hit_cache_mb * 1048576.0);
+  const size_t T = times.size(), N = cloud.size();
+  const auto views = views_per_frame(cameras.list, times, frame_step);
+  size_t max_views = 0;
+  for (const auto& v : views) max_views = std::max(max_views, v.size());
+  const bool narrow = max_views <= 255;
+  py::array counts = narrow ? py::array(py::array_t<uint8_t>({py::ssize_t(T), py::ssize_t(N)})) : py::array(py::array_t<uint16_t>({py::ssize_t(T), py::ssize_t(N)}));
+  py::array_t<float> speed({py::ssize_t(T), py::ssize_t(N)}), deficiency({py::ssize_t(T), py::ssize_t(N)});
+  void* cp = counts.mutable_data();
+  float* sp = speed.mutable_data();
+  float* dp = deficiency.mutable_data();
+  PyProgress shown(progress);
+  ObservationSummary summary;
+  {
+    py::gil_scoped_release release;
+    std::fill(sp, sp + T * N, 0.0f);
+    std::fill(dp, dp + T * N, 0.0f);
+    const auto sink = [&](const FrameObservation& fo) {
+      const size_t f = size_t(fo.frame);
+      if (narrow) {
+        uint8_t* row = static_cast<uint8_t*>(cp) + f * N;
+        for (size_t g = 0; g < N; ++g) row[g] = uint8_t(fo.counts[g]);
+      } else {
+        std::memcpy(static_cast<uint16_t*>(cp) + f * N, fo.counts, N * sizeof(uint16_t));
+      }
+      const size_t M = cloud.dynamic_count();
+      for (size_t j = 0; j < M; ++j) {
+        sp[f * N + cloud.dynamic_ids[j]] = fo.dynamic_speed[j];
+        dp[f * N + cloud.dynamic_ids[j]] = fo.dynamic_deficiency[j];
+      }
+    };
+    try {
+      summary = observe(cloud, cameras.list, times, frame_step, o, sink, shown);
+    } catch (const Error&) {
+      if (caller) {
+        py::gil_scoped_acquire gil;
+        caller->raise_failure();
+      }
+      throw;
+    }
+  }
+  py::dict d;
+  d["counts"] = counts;
+  d["speed"] = speed;
+  d["deficiency"] = deficiency;
+  d["times"] = py::array_t<double>(py::ssize_t(T), times.data());
+  std::vector<uint32_t> ids = cloud.dynamic_ids;
+  d["dynamic_ids"] = to_array(std::move(ids), {py::ssize_t(cloud.dynamic_count())});
+  d["views"] = py::int_(summary.views);
+  d["seconds"] = py::float_(summary.seconds_total);
+  return d;
+}
+
+// ------------------------------------------------------------------ render
+
+py::dict render_py(const Model& model, const Cameras& cameras, size_t index, double t, const std::vector<float>& background) {
+  if (index >= cameras.list.size()) throw py::index_error("camera " + std::to_string(index) + ": there are " + std::to_string(cameras.list.size()));
+  if (!std::isfinite(t) || t < 0.0 || t > 1.0) throw py::value_error("t: " + std::to_string(t) + ", expected a time in [0, 1]");
+  if (background.size() != 3) throw py::value_error("background: expected three values");
+  RenderOptions o;
+  o.depth = true;
+  o.background = Vec3f(background[0], background[1], background[2]);
+  RenderOutput r;
+  {
+    py::gil_scoped_release release;
+    const FrameGaussians g = frame_at(*model.cloud, t);
+    r = render(g, cameras.list[index], o);
+  }
+  const py::ssize_t H = r.height, W = r.width;
+  py::dict d;
+  d["colour"] = to_array(std::move(r.rgb), {H, W, 3});
+  d["depth"] = to_array(std::move(r.depth), {H, W});
+  d["alpha"] = to_array(std::move(r.alpha), {H, W});
+  return d;
+}
+
+}  // namespace
+}  // namespace fillgs::python
+
+PYBIND11_MODULE(fillgs, m) {
+  using namespace fillgs;
+  using namespace fillgs::python;
+  m.doc() = "fillgs: observation counts, motion-aware deficiency and renders of 4D Gaussian models, as NumPy arrays";
+  py::register_exception<Error>(m, "Error", PyExc_ValueError);
+
+  py::class_<Model>(m, "Model", "A 4D Gaussian model: any the command line reads (load_model), or Gaussians from arrays (model_from_arrays)")
+      .def_property_readonly("size", [](const Model& x) { return x.cloud->size(); }, "Gaussians")
+      .def("__len__", [](const Model& x) { return x.cloud->size(); })
+      .def_property_readonly("frames", [](const Model& x) { return frames_of(*x.cloud); }, "frames its motion is given at (0: none)")
+      .def_property_readonly("sh_degree", [](const Model& x) { return x.cloud->sh_degree; })
+      .def_property_readonly("dynamic_ids", [](const Model& x) { std::vector<uint32_t> v = x.cloud->dynamic_ids; return to_array(std::move(v), {py::ssize_t(x.cloud->dynamic_count())}); },
+                             "ascending ids of the moving Gaussians (uint32)")
+      .def_property_readonly("static_count", [](const Model& x) { return x.cloud->static_count(); })
+      .def_property_readonly("notes", [](const Model& x) { return x.cloud->notes; }, "what the reader decided, as `fillgs info` prints it")
+      .def("at", &state_at, py::arg("t"),
+           "The Gaussians at normalised time t in [0, 1]: a dict of float32 arrays means [N,3], log_scales [N,3], quaternions [N,4] (w, x, y, z, unit), "
+           "opacity_logits [N], sh [N,K,3]")
+      .def("__repr__", [](const Model& x) {
+        return "<fillgs.Model " + std::to_string(x.cloud->size()) + " Gaussians (" + std::to_string(x.cloud->dynamic_count()) + " moving) from " + x.source + ">";
+      });
+
+  m.def("load_model", &load_model, py::arg("path"), py::arg("format") = "auto", py::arg("frames") = 0, py::arg("time_range") = "",
+        py::arg("evaluation") = "streamed", py::arg("still_tolerance") = -1.0f, py::arg("progress") = py::none(),
+        "Reads a model as the command line does (`--scene-format`, `--model-frames`, `--model-time-range`, `--model-evaluation`, `--still-tolerance`).");
+  m.def(
+      "model_from_arrays",
+      [](const py::dict& arrays) {
+        auto c = std::make_shared<GaussianCloud>(cloud_from(state_from(arrays, "arrays", -1)));
+        return Model{c, "arrays"};
+      },
+      py::arg("arrays"), "Static Gaussians from a dict of arrays (means, log_scales, quaternions, opacity_logits[, sh]) as Model.at returns them.");
+
+  py::class_<Cameras>(m, "Cameras", "Cameras: read from a rig's files (read_cameras) or from arrays")
+      .def(py::init(&cameras_from), py::arg("K"), py::arg("world_to_camera"), py::arg("width"), py::arg("height"), py::arg("time") = py::none(),
+           py::arg("names") = py::none(),
+           "K [C,3,3], world_to_camera [C,4,4] (OpenCV axes: x right, y down, z forward), width and height [C] or one value, time [C] in [0, 1] "
+           "(NaN or None: a fixed rig's camera, at every frame)")
+      .def("__len__", [](const Cameras& c) { return c.list.size(); })
+      .def_property_readonly("names", [](const Cameras& c) {
+        std::vector<std::string> n;
+        for (const Camera& x : c.list) n.push_back(x.name);
+        return n;
+      })
+      .def("arrays", &cameras_arrays, "A dict: K [C,3,3], world_to_camera [C,4,4] float64, width, height [C] int32, time [C] float64 (NaN: none)");
+  m.def("read_cameras", &read_cameras_py, py::arg("path"), py::arg("format") = "auto", py::arg("width") = 0, py::arg("height") = 0,
+        "Reads cameras as the command line does (`--camera-format`, `--width`, `--height`).");
+
+  m.def(
+      "observe",
+      [](const py::object& model, const Cameras& cameras, int frames, const py::object& times, const std::string& mode, int stride, double tau,
+         double hit_cache_mb, const py::object& progress) {
+        if (py::isinstance<Model>(model)) return observe_py(model.cast<const Model&>(), nullptr, cameras, frames, times, mode, stride, tau, hit_cache_mb, progress);
+        if (!PyCallable_Check(model.ptr())) throw py::type_error("model: expected a fillgs.Model or a frame function f -> dict of arrays");
+        if (frames < 1) throw py::value_error("frames: give the frame count with a frame function");
+        const auto made = model_from_frames(model, frames);
+        return observe_py(made.first, made.second, cameras, frames, times, mode, stride, tau, hit_cache_mb, progress);
+      },
+      py::arg("model"), py::arg("cameras"), py::arg("frames") = 0, py::arg("times") = py::none(), py::arg("mode") = "frustum", py::arg("stride") = 4,
+      py::arg("tau") = -1.0, py::arg("hit_cache_mb") = -1.0, py::arg("progress") = py::none(),
+      "Observation counts, speeds and the motion-aware deficiency for every Gaussian and frame, as `fillgs observe` writes them. `model`: a "
+      "fillgs.Model, or a frame function f -> dict of arrays (means, log_scales, quaternions, opacity_logits[, sh]) for f = 0 … frames-1, "
+      "called with the GIL held (e.g. your own deformation network). Returns a dict: counts [T,N] uint8 (uint16 above 255 views a frame), "
+      "speed and deficiency [T,N] float32, times [T], dynamic_ids [M], views, seconds.");
+
+  m.def("render", &render_py, py::arg("model"), py::arg("cameras"), py::arg("index") = 0, py::arg("t") = 0.0,
+        py::arg("background") = std::vector<float>{0, 0, 0},
+        "Renders camera `index` at normalised time t: a dict of float32 arrays colour [H,W,3], depth [H,W] (the blended z; divide by alpha for "
+        "the expected depth) and alpha [H,W].");
+}

@@ -1,0 +1,290 @@
+"""The Python module against independent numbers: PyTorch's values of the models saved by
+tests/make_model_fixtures.py, the command line's own output files on the same inputs (byte for
+byte), analytic renders; and its behaviour as a Python library (errors, arrays, GIL, leaks).
+
+Run by CTest (tests/CMakeLists.txt) with PYTHONPATH holding the built module and
+FILLGS_MODEL_FIXTURES, FILLGS_BIN, FILLGS_SOURCE set."""
+import gc
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import fillgs
+
+FIXTURES = os.environ["FILLGS_MODEL_FIXTURES"]
+CLI = os.environ["FILLGS_BIN"]
+SOURCE = os.environ["FILLGS_SOURCE"]
+# The fixtures' frame counts where their files do not say (tests/test_trained_models.cpp).
+FRAMES = {"ed3dgs": 0, "4dgaussians": 10, "deformable3dgs": 9}
+# Their last frame's model time (E-D3DGS and 4DGaussians: frame f at f / F; Deformable 3D
+# Gaussians: f / (F - 1)), `fillgs info`'s "model times".
+TIME_LAST = {"ed3dgs": 11 / 12, "4dgaussians": 0.9, "deformable3dgs": 1.0}
+
+
+def fixture(name):
+    return os.path.join(FIXTURES, name)
+
+
+@pytest.fixture(scope="module")
+def cameras_file(tmp_path_factory):
+    path = str(tmp_path_factory.mktemp("cams") / "cameras.json")
+    subprocess.run([sys.executable, os.path.join(SOURCE, "bench", "ring_cameras.py"), "6", path, "--wave"], check=True)
+    return path
+
+
+def cli(*args):
+    r = subprocess.run([CLI, *args], capture_output=True, text=True)
+    return r
+
+
+def activated(state):
+    q = state["quaternions"].astype(np.float64)
+    return dict(means=state["means"], scales=np.exp(state["log_scales"].astype(np.float64)),
+                rotations=q / np.linalg.norm(q, axis=1, keepdims=True),
+                opacities=1 / (1 + np.exp(-state["opacity_logits"].astype(np.float64))),
+                sh=state["sh"].reshape(state["sh"].shape[0], -1))
+
+
+@pytest.mark.parametrize("name", ["ed3dgs", "4dgaussians", "deformable3dgs"])
+def test_model_at_equals_pytorch(name):
+    """Model.at(t) gives PyTorch's values (the fixture's expect.npz) at its times."""
+    e = np.load(os.path.join(fixture(name), "expect.npz"))
+    m = fillgs.load_model(fixture(name), frames=FRAMES[name], still_tolerance=0.0)
+    assert m.size == e["means"].shape[1]
+    for k, tau in enumerate(e["times"]):
+        t = tau / TIME_LAST[name]  # at frames and between them: moving Gaussians are evaluated exactly
+        a = activated(m.at(t))
+        for key in ("means", "scales", "rotations", "opacities", "sh"):
+            want = e[key][k]
+            got = a[key]
+            if key == "rotations":  # q and -q are one rotation
+                got = got * np.sign((got * want).sum(axis=1, keepdims=True))
+            np.testing.assert_allclose(got, want, rtol=1e-4, atol=2e-5, err_msg=f"{name} {key} at model time {tau}")
+
+
+def test_model_arrays_layout():
+    m = fillgs.load_model(fixture("ed3dgs"))
+    s = m.at(0.5)
+    n = m.size
+    assert s["means"].shape == (n, 3) and s["means"].dtype == np.float32 and s["means"].flags.c_contiguous
+    assert s["quaternions"].shape == (n, 4)
+    assert s["sh"].shape == (n, (m.sh_degree + 1) ** 2, 3)
+    assert m.dynamic_ids.dtype == np.uint32 and len(m.dynamic_ids) + m.static_count == n
+    # The notes are what `fillgs info` prints.
+    info = json.loads(cli("info", "--json", fixture("ed3dgs")).stdout)
+    assert m.notes == info["notes"]
+    assert m.frames == info["frames"]
+
+
+@pytest.mark.parametrize("mode", ["frustum", "raytraced", "exact"])
+def test_observe_equals_cli_files(tmp_path, cameras_file, mode):
+    """observe() returns the tables `fillgs observe` writes, byte for byte."""
+    name = "4dgaussians"
+    out = str(tmp_path / "obs")
+    r = cli("observe", "--scene", fixture(name), "--model-frames", "10", "--cameras", cameras_file, "--mode", mode, "--out", out, "--no-plots", "--quiet")
+    assert r.returncode == 0, r.stderr
+    m = fillgs.load_model(fixture(name), frames=10)
+    cams = fillgs.read_cameras(cameras_file)
+    got = fillgs.observe(m, cams, mode=mode)
+    for key, file in (("counts", "count.npy"), ("speed", "speed.npy"), ("deficiency", "deficiency.npy"), ("times", "times.npy"), ("dynamic_ids", "dynamic_ids.npy")):
+        want = np.load(os.path.join(out, file))
+        assert got[key].dtype == want.dtype, key
+        assert got[key].shape == want.shape, key
+        assert got[key].tobytes() == want.tobytes(), key
+
+
+def test_observe_some_frames_equals_cli(tmp_path, cameras_file):
+    out = str(tmp_path / "obs")
+    r = cli("observe", "--scene", fixture("ed3dgs"), "--cameras", cameras_file, "--frames", "4", "--out", out, "--no-plots", "--quiet")
+    assert r.returncode == 0, r.stderr
+    got = fillgs.observe(fillgs.load_model(fixture("ed3dgs")), fillgs.read_cameras(cameras_file), frames=4)
+    assert got["counts"].tobytes() == np.load(os.path.join(out, "count.npy")).tobytes()
+    assert got["deficiency"].tobytes() == np.load(os.path.join(out, "deficiency.npy")).tobytes()
+
+
+def test_observe_frame_function_equals_model(cameras_file):
+    """The caller's Gaussians frame by frame (here the model's own, through Model.at) give the
+    model's tables: positions are handed over exactly, so frustum counts, speeds and deficiency
+    are equal to the bit."""
+    m = fillgs.load_model(fixture("4dgaussians"), frames=10, still_tolerance=0.0)
+    assert m.static_count == 0
+    cams = fillgs.read_cameras(cameras_file)
+    calls = []
+
+    def frame(f):
+        calls.append(f)
+        return m.at(f / 9)
+
+    want = fillgs.observe(m, cams)
+    got = fillgs.observe(frame, cams, frames=10)
+    for key in ("counts", "speed", "deficiency", "times"):
+        assert got[key].tobytes() == want[key].tobytes(), key
+    assert sorted(set(calls)) == list(range(10))
+    assert len(calls) <= 12  # each frame once, give or take the kept three
+
+
+def test_observe_frame_function_errors(cameras_file):
+    m = fillgs.load_model(fixture("4dgaussians"), frames=10)
+    cams = fillgs.read_cameras(cameras_file)
+
+    def failing(f):
+        if f == 3:
+            raise KeyError("the caller's own error")
+        return m.at(f / 9)
+
+    with pytest.raises(KeyError, match="the caller's own error"):
+        fillgs.observe(failing, cams, frames=10)
+
+    def shrinking(f):
+        s = m.at(f / 9)
+        return {k: v[:-1] for k, v in s.items()} if f == 2 else s
+
+    with pytest.raises(ValueError, match="frame 2 means: dimension 0 is 299, expected 300"):
+        fillgs.observe(shrinking, cams, frames=10)
+
+
+def test_cameras_read_and_from_arrays(cameras_file):
+    cams = fillgs.read_cameras(cameras_file)
+    a = cams.arrays()
+    assert len(cams) == 6 and a["K"].shape == (6, 3, 3)
+    # The file's camera-to-world (OpenGL axes) against the world-to-camera (OpenCV axes) given.
+    doc = json.load(open(cameras_file))
+    for i, fr in enumerate(doc["frames"]):
+        c2w = np.array(fr["transform_matrix"], dtype=np.float64) @ np.diag([1, -1, -1, 1])
+        np.testing.assert_allclose(np.linalg.inv(a["world_to_camera"][i]), c2w, atol=1e-9)
+    assert np.all(np.isnan(a["time"]))
+    again = fillgs.Cameras(a["K"], a["world_to_camera"], a["width"], a["height"], a["time"], cams.names)
+    b = again.arrays()
+    for k in a:
+        np.testing.assert_allclose(b[k], a[k], rtol=1e-6, atol=1e-6, err_msg=k)
+    assert again.names == cams.names
+
+
+def single_gaussian(opacity_logit=0.0, dc=(1.0, 0.0, -1.0)):
+    return dict(means=np.array([[0, 0, 5]], np.float32), log_scales=np.full((1, 3), np.log(0.5), np.float32),
+                quaternions=np.array([[1, 0, 0, 0]], np.float32), opacity_logits=np.array([opacity_logit], np.float32),
+                sh=np.array([[dc]], np.float32))
+
+
+def test_render_one_gaussian_analytic():
+    """A Gaussian on the optical axis: the centre pixel's alpha is its opacity, its colour
+    0.5 + C0 SH_DC (clamped at 0) times that alpha, its blended depth z times alpha."""
+    m = fillgs.model_from_arrays(single_gaussian(opacity_logit=0.4))
+    cams = fillgs.Cameras(np.array([[[100, 0, 32], [0, 100, 24], [0, 0, 1]]], np.float64), np.eye(4)[None], 64, 48)
+    r = fillgs.render(m, cams, 0)
+    a = 1 / (1 + np.exp(-0.4))
+    assert r["colour"].shape == (48, 64, 3) and r["alpha"].shape == (48, 64)
+    # The pixel centre (32.5, 24.5) is half a pixel off the projected centre (32, 24): the
+    # screen-space Gaussian's weight there, with its 0.3 px^2 dilation.
+    var = (100 * 0.5 / 5) ** 2 + 0.3
+    w = np.exp(-0.5 * (0.25 + 0.25) / var)
+    assert r["alpha"][24, 32] == pytest.approx(a * w, rel=1e-3)
+    c0 = 0.28209479177387814
+    want = np.maximum(0.0, 0.5 + c0 * np.array([1.0, 0.0, -1.0])) * a * w
+    np.testing.assert_allclose(r["colour"][24, 32], want, rtol=1e-3, atol=1e-5)
+    assert r["depth"][24, 32] == pytest.approx(5 * a * w, rel=1e-3)
+    assert r["alpha"][0, 0] < 1e-6
+
+
+def test_errors_carry_the_cli_message(tmp_path):
+    bad = fixture("broken_shape")
+    r = cli("info", bad)
+    assert r.returncode != 0
+    line = r.stderr.strip().splitlines()[-1]
+    with pytest.raises(fillgs.Error) as e:
+        fillgs.load_model(bad)
+    assert isinstance(e.value, ValueError)
+    assert str(e.value) in line
+    with pytest.raises(FileNotFoundError, match="nowhere"):
+        fillgs.load_model(str(tmp_path / "nowhere"))
+    with pytest.raises(fillgs.Error, match="unknown scene format 'nope'"):
+        fillgs.load_model(fixture("ed3dgs"), format="nope")
+
+
+def test_bad_arrays_raise():
+    good = single_gaussian()
+    fillgs.model_from_arrays(good)
+    with pytest.raises(ValueError, match="means: dimension 1 is 2, expected 3"):
+        fillgs.model_from_arrays(dict(good, means=np.zeros((1, 2), np.float32)))
+    with pytest.raises(ValueError, match="log_scales: dimension 0 is 2, expected 1"):
+        fillgs.model_from_arrays(dict(good, log_scales=np.zeros((2, 3), np.float32)))
+    with pytest.raises(TypeError, match="opacity_logits: expected real numbers"):
+        fillgs.model_from_arrays(dict(good, opacity_logits=np.array(["a"])))
+    with pytest.raises(ValueError, match="means: element 0 is not finite"):
+        fillgs.model_from_arrays(dict(good, means=np.array([[0, np.nan, 5]], np.float32)))
+    with pytest.raises(ValueError, match="quaternions: element 0 is zero"):
+        fillgs.model_from_arrays(dict(good, quaternions=np.zeros((1, 4), np.float32)))
+    with pytest.raises(KeyError):
+        fillgs.model_from_arrays({"means": good["means"]})
+    with pytest.raises(ValueError, match="sh: 2 coefficients"):
+        fillgs.model_from_arrays(dict(good, sh=np.zeros((1, 2, 3), np.float32)))
+    with pytest.raises(ValueError, match="world_to_camera: element 0 is not a rotation"):
+        fillgs.Cameras(np.eye(3)[None] * 100, np.diag([2.0, 1, 1, 1])[None], 64, 48)
+    with pytest.raises(ValueError, match="width: element 0 is not a pixel count"):
+        fillgs.Cameras(np.eye(3)[None] * 100, np.eye(4)[None], 0, 48)
+    # Non-contiguous and float64 arrays are copied once and give the same model.
+    wide = np.zeros((1, 6), np.float64)
+    wide[:, ::2] = good["means"]
+    m = fillgs.model_from_arrays(dict(good, means=wide[:, ::2]))
+    assert m.at(0)["means"].tobytes() == good["means"].tobytes()
+
+
+def test_the_gil_is_released_during_observe(cameras_file):
+    """Another Python thread advances while one observe call runs: held, the GIL would let it
+    run only at the call's start (one switch interval, 5 ms)."""
+    m = fillgs.load_model(fixture("ed3dgs"))
+    cams = fillgs.read_cameras(cameras_file)
+    ticks = [0]
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            ticks[0] += 1
+
+    t = threading.Thread(target=spin)
+    t.start()
+    try:
+        time.sleep(0.2)
+        start, before = time.perf_counter(), ticks[0]
+        time.sleep(0.2)
+        rate = (ticks[0] - before) / (time.perf_counter() - start)  # ticks a second, the thread alone
+        start, before = time.perf_counter(), ticks[0]
+        fillgs.observe(m, cams, frames=600, mode="raytraced")
+        seconds = time.perf_counter() - start
+        during = ticks[0] - before
+    finally:
+        stop.set()
+        t.join()
+    assert seconds > 0.2, seconds  # long enough to tell
+    assert during > 0.05 * rate * seconds, (during, rate, seconds)
+
+
+def test_no_reference_leaks():
+    good = single_gaussian()
+    means = good["means"]
+    m = fillgs.model_from_arrays(good)
+    cams = fillgs.Cameras(np.eye(3)[None] * 100, np.eye(4)[None], 64, 48)
+    for _ in range(20):
+        fillgs.model_from_arrays(good), m.at(0), fillgs.render(m, cams, 0)
+    gc.collect()
+    refs, objects = sys.getrefcount(means), len(gc.get_objects())
+    for _ in range(1000):
+        fillgs.model_from_arrays(good)
+        m.at(0.0)
+        cams.arrays()
+        fillgs.render(m, cams, 0)
+    gc.collect()
+    assert sys.getrefcount(means) == refs
+    assert len(gc.get_objects()) <= objects + 10
+
+
+def test_progress_callback(cameras_file):
+    seen = []
+    fillgs.observe(fillgs.load_model(fixture("ed3dgs")), fillgs.read_cameras(cameras_file), progress=lambda label, done, total: seen.append((label, done, total)))
+    assert seen and seen[-1][0] == "observe" and seen[-1][1] == seen[-1][2] == 12
