@@ -4,10 +4,11 @@
 # cameras at 1352x1014; then, one after the other on the same scene, each alone:
 #   cli       `fillgs observe --mode frustum` (reading, every frame, the .npy files written);
 #   python    fillgs.observe(fillgs.load_model(...), ...) from Python: the same tables returned
-#             as arrays (written straight into them, no second copy);
+#             as arrays (written straight into them, no second copy); timed from the
+#             interpreter's start to the tables in hand, peak memory then;
 #   frames    fillgs.observe(frame_function, ...): the caller hands every frame's arrays (here
 #             Model.at(t) of the same model), every Gaussian then moving;
-# wall time and peak resident memory (GNU time) each, and the tables compared.
+# wall time and peak resident memory (the command line's by GNU time), the tables compared.
 # Writes OUT/results.md; the scene lives in OUT/scratch, removed at the end.
 #
 #   bench/python_observe.sh [--gaussians N] [--moving S] [--frames F] [--smoke] OUT
@@ -45,17 +46,24 @@ echo "writing the scene ($gaussians Gaussians, $moving moving, $frames frames) .
 echo "cli ..."
 /usr/bin/time -f "%e %M" -o "$out/cli.time" "$build/bin/fillgs" observe --quiet --scene "$work/city.ply" --cameras "$work/cameras.json" \
   --mode frustum --frames "$frames" --no-plots --out "$work/observe" >/dev/null
-# One Python run per path, its tables' digests and shapes printed for the comparison.
+# One Python run per path: its seconds from the interpreter's start to the tables in hand and
+# its peak resident memory then (the digests after, of the arrays' own buffers, uncounted),
+# then the tables' digests and shapes for the comparison.
 run_python() {  # name code
   echo "$1 ..."
-  /usr/bin/time -f "%e %M" -o "$out/$1.time" "$python" - "$work" "$frames" >"$out/$1.txt" <<PY
-import hashlib, sys, numpy as np, fillgs
+  /usr/bin/time -f "%e %M" -o "$out/$1.gnutime" "$python" - "$work" "$frames" "$out/$1.time" >"$out/$1.txt" <<PY
+import time
+start = time.perf_counter()
+import hashlib, resource, sys, numpy as np, fillgs
 work, F = sys.argv[1], int(sys.argv[2])
 model = fillgs.load_model(work + "/city.ply")
 cams = fillgs.read_cameras(work + "/cameras.json")
 $2
+seconds = time.perf_counter() - start
+with open(sys.argv[3], "w") as f:
+    print("%.2f %d" % (seconds, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss), file=f)
 for k in ("counts", "speed", "deficiency"):
-    print(k, t[k].dtype, t[k].shape, hashlib.sha256(t[k].tobytes()).hexdigest())
+    print(k, t[k].dtype, t[k].shape, hashlib.sha256(t[k].data).hexdigest())
 PY
 }
 run_python python 't = fillgs.observe(model, cams, frames=F)'
@@ -87,5 +95,5 @@ row() {  # name label tables
   row frames "\`fillgs.observe(frame_function, cams)\`: every frame's arrays handed over by Python (every Gaussian moving)" "counts $(cmp -s <(head -1 "$out/frames.txt") <(head -1 "$out/cli.txt") && echo identical || echo different)"
 } >"$out/results.md.part"
 mv "$out/results.md.part" "$out/results.md"
-rm -f "$out"/*.time "$out"/cli.txt "$out"/python.txt "$out"/frames.txt
+rm -f "$out"/*.time "$out"/*.gnutime "$out"/cli.txt "$out"/python.txt "$out"/frames.txt
 echo "wrote $out/results.md"
