@@ -1946,10 +1946,11 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
     for (size_t i = 0; i < N; ++i)
       if (departure[i] <= 1.0f && departure[i] > rule.recheck) recheck.push_back(uint32_t(i));
   if (!recheck.empty()) {
-    std::vector<int> every(static_cast<size_t>(F));
-    for (int f = 0; f < F; ++f) every[size_t(f)] = f;
-    progress.start("still rule, rechecked at every frame", size_t(F - 1));
-    sweep_rows(every, recheck);
+    std::vector<int> rest;  // the frames the sweep did not evaluate
+    for (int f = 0; f < F; ++f)
+      if (!std::binary_search(sweep.begin(), sweep.end(), f)) rest.push_back(f);
+    progress.start("still rule, rechecked at every frame", rest.size());
+    sweep_rows(rest, recheck);
     progress.finish();
   }
   std::vector<char> moving(N, 0);

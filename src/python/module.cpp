@@ -170,8 +170,6 @@ struct Model {
   std::string source;
 };
 
-int frames_of(const GaussianCloud& c) { return motion_frames(c); }
-
 /// The Gaussians at normalised time t as arrays, in the files' parametrisation.
 py::dict state_at(const Model& m, double t) {
   if (!std::isfinite(t)) throw py::value_error("t: " + std::to_string(t) + " is not a time in [0, 1]");
@@ -562,7 +560,7 @@ PYBIND11_MODULE(fillgs, m) {
   py::class_<Model>(m, "Model", "A 4D Gaussian model: any the command line reads (load_model), or Gaussians from arrays (model_from_arrays)")
       .def_property_readonly("size", [](const Model& x) { return x.cloud->size(); }, "Gaussians")
       .def("__len__", [](const Model& x) { return x.cloud->size(); })
-      .def_property_readonly("frames", [](const Model& x) { return frames_of(*x.cloud); }, "frames its motion is given at (0: none)")
+      .def_property_readonly("frames", [](const Model& x) { return motion_frames(*x.cloud); }, "frames its motion is given at (0: none)")
       .def_property_readonly("sh_degree", [](const Model& x) { return x.cloud->sh_degree; })
       .def_property_readonly("dynamic_ids", [](const Model& x) { std::vector<uint32_t> v = x.cloud->dynamic_ids; return to_array(std::move(v), {py::ssize_t(x.cloud->dynamic_count())}); },
                              "ascending ids of the moving Gaussians (uint32)")
