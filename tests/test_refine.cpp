@@ -951,6 +951,52 @@ TEST_CASE("bench report: FillGS paired against each method by seed (hand-made re
   CHECK(d[2].id == "coverage4d.clean");
   CHECK(d[2].mean[0] == Approx(-2.5));
   CHECK(d[2].mean[2] == Approx(-0.25));
+  // 95 % interval: t(0.975, 1) = 12.706 (two seeds), half-width t * sd / sqrt(2); 0.25 ± 13.5 includes 0.
+  CHECK(d[0].half_width[0] == Approx(12.7062047 * 0.75 * std::sqrt(2.0) / std::sqrt(2.0)).epsilon(1e-6));
+  CHECK_FALSE(d[0].separated(0));
+  CHECK(std::isnan(d[1].half_width[0]));  // one seed: no interval
+  CHECK_FALSE(d[1].separated(0));
+}
+
+TEST_CASE("Student's t quantile matches the printed table", "[refine][bench]") {
+  // t(0.975, df) from any statistics table (e.g. NIST/SEMATECH e-Handbook, table 1.3.6.7.2).
+  const std::pair<int, double> table[] = {{1, 12.706}, {2, 4.303}, {3, 3.182}, {4, 2.776}, {5, 2.571},
+                                          {9, 2.262}, {10, 2.228}, {29, 2.045}, {100, 1.984}};
+  for (const auto& [df, t] : table) CHECK(student_t_975(df) == Approx(t).margin(5e-4));
+  CHECK_THROWS(student_t_975(0));
+}
+
+TEST_CASE("bench report: an unweighted strategy pairs with FillGS's unweighted run; intervals over five seeds", "[refine][bench]") {
+  auto result = [](const std::string& id, uint64_t seed, double interp) {
+    RunResult r;
+    r.id = id;
+    r.variant = "n3v";
+    r.seed = seed;
+    r.interpolation.psnr = r.extrapolation.psnr = interp;
+    return r;
+  };
+  std::vector<RunResult> results;
+  // FillGS unweighted 20 + seed; random unweighted 19 + seed + (+0.2, -0.2, +0.1, -0.1, 0): differences 1 - e.
+  const double e[] = {0.2, -0.2, 0.1, -0.1, 0.0};
+  for (uint64_t s = 1; s <= 5; ++s) {
+    results.push_back(result("fillgs@oracle", s, 10.0));
+    results.push_back(result("fillgs.w-none@oracle", s, 20.0 + double(s)));
+    results.push_back(result("random.w-none@oracle", s, 19.0 + double(s) + e[s - 1]));
+    results.push_back(result("negative@oracle", s, 12.0));
+  }
+  const std::vector<PairedDifference> d = paired_differences(results);
+  const auto row = [&](const std::string& id) { return *std::find_if(d.begin(), d.end(), [&](const PairedDifference& x) { return x.id == id; }); };
+  // Differences 0.8, 1.2, 0.9, 1.1, 1.0: mean 1, sd sqrt(0.1 / 4) = 0.1581; half-width 2.776 * 0.1581 / sqrt(5).
+  const PairedDifference r = row("random.w-none@oracle");
+  CHECK(r.seeds == 5);
+  CHECK(r.mean[0] == Approx(1.0));
+  CHECK(r.sd[0] == Approx(std::sqrt(0.1 / 4.0)));
+  CHECK(r.half_width[0] == Approx(2.776445 * std::sqrt(0.1 / 4.0) / std::sqrt(5.0)).epsilon(1e-5));
+  CHECK(r.separated(0));
+  // The weighted protocol row pairs with FillGS's own weighted run: 10 - 12.
+  CHECK(row("negative@oracle").mean[0] == Approx(-2.0));
+  // FillGS's unweighted row is Table 4's "w/o weight" against FillGS's weighted run.
+  CHECK(row("fillgs.w-none@oracle").mean[0] == Approx(-13.0));
 }
 
 TEST_CASE("bench merge: runs from bench folders and results.csv files make one table, conflicts and bad rows are refused", "[refine][bench]") {

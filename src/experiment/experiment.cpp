@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <tuple>
 #include <unordered_map>
@@ -535,6 +536,10 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
       c->select.no_start_selection = true;
       add("coverage4d.w-none", ConfigGroup::Ablation, Strategy::Coverage4D, Weighting::None, strength, 5);
     }
+    // Table 1 with one weighting: every strategy's views unweighted, so that only the selection
+    // differs (random's, FillGS's and coverage4d's unweighted rows are above).
+    for (Strategy s : {Strategy::Negative, Strategy::Interpolation, Strategy::FisherRF, Strategy::Coverage3D})
+      add(std::string(to_string(s)) + ".w-none", ConfigGroup::Unweighted, s, Weighting::None, strength, 5);
     // The exploration space as the paper masks it: occupied voxels only, no "unexplored" label.
     add("fillgs.occupied-only", ConfigGroup::Ablation, Strategy::FillGS, Weighting::FillGS, strength, 5)->grid.label_unexplored = false;
     for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), ConfigGroup::Budget, Strategy::FillGS, Weighting::FillGS, strength, k);
@@ -780,6 +785,28 @@ void write_refiner_calibration(const std::string& path, const std::vector<std::p
   write_file_atomically(path + ".md", md.str());
 }
 
+double student_t_975(int df) {
+  if (df < 1) throw_error("Student's t needs at least 1 degree of freedom, not ", df);
+  // P(|T| <= t) for integer df (Abramowitz and Stegun 26.7.3-4), with theta = atan(t / sqrt(df)).
+  auto central = [df](double t) {
+    const double theta = std::atan(t / std::sqrt(double(df))), s = std::sin(theta), c2 = std::cos(theta) * std::cos(theta);
+    double term = 1.0, sum = 1.0;
+    if (df % 2 == 0) {
+      for (int k = 2; k <= df - 2; k += 2) term *= c2 * double(k - 1) / double(k), sum += term;
+      return s * sum;
+    }
+    if (df == 1) return 2.0 * theta / kPi;
+    for (int k = 3; k <= df - 2; k += 2) term *= c2 * double(k - 1) / double(k), sum += term;
+    return 2.0 / kPi * (theta + s * std::cos(theta) * sum);
+  };
+  double lo = 0.0, hi = 1000.0;  // t(0.975, 1) = 12.7
+  for (int i = 0; i < 200 && hi - lo > 1e-12; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (central(mid) < 0.95 ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
 std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& results, const std::string& reference) {
   auto values = [](const RunResult& r) {
     return std::array<double, 4>{r.interpolation.psnr, r.interpolation.psnr_moving, r.extrapolation.psnr, r.extrapolation.psnr_moving};
@@ -794,10 +821,17 @@ std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& r
     const std::string support = at == std::string::npos ? "" : r.id.substr(at);
     const std::string base = r.id.substr(0, at);
     const bool clean = base.size() > 6 && base.compare(base.size() - 6, 6, ".clean") == 0;
-    const std::string ref_id = reference + (clean ? ".clean" : "") + support;
+    auto find = [&](const std::string& id) {
+      return std::find_if(results.begin(), results.end(), [&](const RunResult& x) { return x.id == id && x.variant == r.variant && x.seed == r.seed; });
+    };
+    // "random.w-none" against "fillgs.w-none" where it ran: one weighting, only the selection differs.
+    const size_t w = base.find(".w-");
+    const std::string same_weighting = w == std::string::npos || base.substr(0, w) == reference ? "" : reference + base.substr(w) + support;
+    std::string ref_id = reference + (clean ? ".clean" : "") + support;
+    if (!same_weighting.empty() && std::any_of(results.begin(), results.end(), [&](const RunResult& x) { return x.id == same_weighting && x.variant == r.variant; }))
+      ref_id = same_weighting;
     if (r.id == ref_id) continue;
-    const auto ref = std::find_if(results.begin(), results.end(),
-                                  [&](const RunResult& x) { return x.id == ref_id && x.variant == r.variant && x.seed == r.seed; });
+    const auto ref = find(ref_id);
     if (ref == results.end()) continue;
     auto it = std::find_if(out.begin(), out.end(), [&](const PairedDifference& d) { return d.id == r.id && d.variant == r.variant; });
     if (it == out.end()) {
@@ -811,10 +845,22 @@ std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& r
   }
   for (size_t k = 0; k < out.size(); ++k) {
     out[k].seeds = moments[k][0].n;
-    for (size_t j = 0; j < 4; ++j) out[k].mean[j] = moments[k][j].mean(), out[k].sd[j] = moments[k][j].sd();
+    const int n = out[k].seeds;
+    const double t = n > 1 ? student_t_975(n - 1) / std::sqrt(double(n)) : std::numeric_limits<double>::quiet_NaN();
+    for (size_t j = 0; j < 4; ++j) out[k].mean[j] = moments[k][j].mean(), out[k].sd[j] = moments[k][j].sd(), out[k].half_width[j] = t * out[k].sd[j];
   }
   return out;
 }
+
+namespace {
+/// "negative.w-none", "fillgs.w-none@oracle": a strategy's views with no weights.
+bool unweighted_strategy_row(const std::string& id) {
+  const std::string base = id.substr(0, id.find('@'));
+  for (Strategy s : values_of<Strategy>())
+    if (base == std::string(to_string(s)) + ".w-none") return true;
+  return false;
+}
+}  // namespace
 
 void write_bench_report(const std::string& root, const std::vector<RunResult>& results) {
   // CSV: every run.
@@ -879,8 +925,11 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
                                                       {ConfigGroup::Selection, "Other strategies with FillGS's fine-tuning and weights (Table 3 of the paper)"},
                                                       {ConfigGroup::Weighting, "Fine-tuning weights (Table 4 of the paper)"},
                                                       {ConfigGroup::Budget, "Trajectory budget per round"},
-                                                      {ConfigGroup::Refiner, "Clean refiner (no injected artifacts)"}};
-  auto in_group = [](const Mean& m, ConfigGroup g) { return m.group == g || (g == ConfigGroup::Control && m.id == "backbone"); };
+                                                      {ConfigGroup::Refiner, "Clean refiner (no injected artifacts)"},
+                                                      {ConfigGroup::Unweighted, "Table 1 with one weighting: every strategy's views unweighted (only the selection differs)"}};
+  auto in_group = [](const Mean& m, ConfigGroup g) {
+    return m.group == g || (g == ConfigGroup::Control && m.id == "backbone") || (g == ConfigGroup::Unweighted && unweighted_strategy_row(m.id));
+  };
   for (const auto& g : groups) {
     if (std::none_of(means.begin(), means.end(), [&](const Mean& m) { return in_group(m, g.first); })) continue;
     md << "## " << g.second << "\n\n| Scene | Method | refiner | Interp PSNR | SSIM | moving PSNR | Extrap PSNR | SSIM | moving PSNR | Train PSNR | weight | supported | runs |\n"
@@ -895,13 +944,21 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   }
   const std::vector<PairedDifference> paired = paired_differences(results);
   if (!paired.empty()) {
-    md << "## FillGS − each method, paired by seed\n\nPer seed, FillGS's PSNR minus the method's (dB; positive: FillGS ahead), mean ± "
-          "standard deviation over the seeds both ran. Ablation and weighting rows read as the paper's Tables 3 and 4: what the component "
-          "is worth.\n\n| Scene | Method | group | Interp ΔPSNR | moving Δ | Extrap ΔPSNR | moving Δ | seeds |\n|---|---|---|---|---|---|---|---|\n";
+    md << "## FillGS − each method, paired by seed\n\nPer seed, FillGS's PSNR minus the method's (dB; positive: FillGS ahead): the mean "
+          "over the seeds both ran, ± the standard deviation, and the 95 % confidence interval of the mean (t over the paired seeds); "
+          "**separated** only where the interval excludes 0. A strategy's unweighted row (`x.w-none`) is paired with FillGS's unweighted "
+          "row, every other row with `fillgs`. Ablation and weighting rows read as the paper's Tables 3 and 4: what the component "
+          "is worth.\n\n| Scene | Method | group | Interp ΔPSNR | 95 % CI | Extrap ΔPSNR | 95 % CI | moving Δ interp / extrap | seeds |\n"
+          "|---|---|---|---|---|---|---|---|---|\n";
+    auto interval = [](const PairedDifference& d, int j) {
+      if (d.seeds < 2) return std::string("–");
+      const std::string iv = "[" + fmt(d.mean[j] - d.half_width[j], 2) + ", " + fmt(d.mean[j] + d.half_width[j], 2) + "]";
+      return d.separated(j) ? "**" + iv + "**" : iv;
+    };
     for (const PairedDifference& d : paired) {
       md << "| " << d.variant << " | " << d.id << " | " << to_string(d.group);
-      for (int j = 0; j < 4; ++j) md << " | " << fmt(d.mean[j], 2) << (d.seeds > 1 ? " ± " + fmt(d.sd[j], 2) : "");
-      md << " | " << d.seeds << " |\n";
+      for (int j : {0, 2}) md << " | " << fmt(d.mean[j], 2) << (d.seeds > 1 ? " ± " + fmt(d.sd[j], 2) : "") << " | " << interval(d, j);
+      md << " | " << fmt(d.mean[1], 2) << " / " << fmt(d.mean[3], 2) << " | " << d.seeds << " |\n";
     }
     md << "\n";
   }

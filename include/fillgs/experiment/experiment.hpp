@@ -11,6 +11,7 @@
 // result.json), dense/ (the upper.dense backbone), runs/<config id>/ (work folders,
 // model.ply, result.json). <scene> is the rig ("n3v", "technicolor") or the ring's variant
 // ("chair", "orbit", "lift").
+#include <cmath>
 #include <iosfwd>
 #include <memory>
 #include <string>
@@ -28,11 +29,11 @@ namespace fillgs {
 /// The part of the comparison a configuration belongs to (a section of the report).
 /// Calibration: the unweighted random views the refiner is calibrated with; Selection: the
 /// other strategies with FillGS's fine-tuning and weights (the paper's Table 3 protocol).
-enum class ConfigGroup { Control, Upper, Calibration, Strategy, Ablation, Selection, Weighting, Budget, Refiner };
+enum class ConfigGroup { Control, Upper, Calibration, Strategy, Ablation, Selection, Weighting, Budget, Refiner, Unweighted };
 FILLGS_ENUM_NAMES(ConfigGroup, "configuration group", {ConfigGroup::Control, "control"}, {ConfigGroup::Upper, "upper"},
                   {ConfigGroup::Calibration, "calibration"}, {ConfigGroup::Strategy, "strategy"}, {ConfigGroup::Ablation, "ablation"},
                   {ConfigGroup::Selection, "selection"}, {ConfigGroup::Weighting, "weighting"}, {ConfigGroup::Budget, "budget"},
-                  {ConfigGroup::Refiner, "refiner"});
+                  {ConfigGroup::Refiner, "refiner"}, {ConfigGroup::Unweighted, "unweighted"});
 
 /// The refiner a configuration's generated views come from: the reference-conditioned one
 /// (the benchmark's default, calibrated: refine.hpp, ReferenceOptions), or the oracle with
@@ -175,11 +176,24 @@ struct PairedDifference {
   int seeds = 0;  ///< seeds where both ran
   /// interpolation PSNR, its moving region, extrapolation PSNR, its moving region (dB)
   double mean[4] = {}, sd[4] = {};
+  /// Half-width of the 95 % confidence interval of the mean difference, t over the paired
+  /// seeds: t(0.975, seeds − 1) · sd / √seeds (NaN with fewer than 2 seeds).
+  double half_width[4] = {};
+  /// The interval excludes 0: the only case a report calls the two "separated".
+  bool separated(int k) const { return std::isfinite(half_width[k]) && std::abs(mean[k]) > half_width[k]; }
 };
+
+/// The 0.975 quantile of Student's t with `df` ≥ 1 degrees of freedom (12.706 at 1, 2.776 at
+/// 4, → 1.960), from its distribution function's closed form for integer df (Abramowitz and
+/// Stegun 26.7.3–4) inverted by bisection.
+double student_t_975(int df);
 
 /// For every configuration but the reference (and the backbone): `reference` − it, over
 /// the seeds both have in the same scene. A configuration run with the second oracle
 /// support ("random@full") is paired with the reference of that support ("fillgs@full").
+/// A strategy run under a named weighting ("random.w-none") is paired with the reference
+/// under the same weighting ("fillgs.w-none") where that run exists, so that only the
+/// selection differs; otherwise with the reference itself.
 std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& results, const std::string& reference = "fillgs");
 
 /// results.csv (every run), results.md (mean ± standard deviation over seeds per scene,
