@@ -1,12 +1,20 @@
 #!/usr/bin/env bash
 # Which camera-times help most? Every strategy chooses among the real (camera, frame)
 # photographs of a pool of a rig's cameras (`fillgs finetune --pool-budget K`: no generative
-# model), the chosen photographs are added at their real poses, and every model is judged
-# on held-out cameras read from a camera file that training, the initial points, the pool
-# and the selection never see (`--held-out`).
+# model), and every model is judged on held-out cameras read from a camera file that
+# training, the initial points, the pool and the selection never see (`--held-out`).
+# Two protocols, each its own table:
+#  * trained from scratch (the main one): a model trained on the training cameras plus the
+#    K chosen photographs (`fillgs train --camera-times`) with exactly the dense reference's
+#    settings — its iterations, SH degree, colour correction — from the same initial points
+#    (the seed's backbone's) and the run's seed. Its window is the backbone-to-dense gap, and
+#    K = every pool photograph is the dense reference. The control: the training cameras alone.
+#  * warm start (labelled as such): the backbone fine-tuned with the chosen photographs added
+#    at their real poses, the way the selection itself runs; the same selection feeds the
+#    first protocol.
 #
 #   bench/pool_select.sh [--scene panoptic|n3v-static] [--smoke] [--test-cameras FILE]
-#                        [--seeds 1,2,3] [--budgets ...] [--strategies a,b,..] [OUT]
+#                        [--seeds 1,2,3,4,5] [--budgets ...] [--strategies a,b,..] [--no-scratch] [OUT]
 #       (default OUT: bench/results/video/panoptic_pool or bench/results/video/n3v_static_pool)
 #
 # Both splits were fixed from the cameras' geometry before any run (bench/results/README.md,
@@ -37,12 +45,13 @@
 #  * pool: the other 12 (cam01-04, 07, 09, 10, 12-14, 18, 19): 12 camera-times.
 #  Budgets K = 2, 4, 8. Backbone: 2,000 iterations from COLMAP points triangulated from the
 #  four training cameras only (scripts/colmap-points.sh --train-cameras, images at most
-#  1,344 px); the dense reference from points of its own 16 cameras, made the same way. The
+#  1,344 px), as is every model trained from scratch, the dense reference's included. The
 #  held-out cameras go to OUT/test_cameras.json (transforms, from sparse/0).
 #
-# Both: seeds 1-3 (the backbone's initialisation, `random` and the training's draws),
-# `--sh-degree 0 --colour-correction`; the dense reference trains on the training and pool
-# cameras, 3,000 iterations, seed 1; every strategy's photographs are real, so they weigh 1
+# Both: seeds 1-5 (the backbone's initialisation, `random` and the training's draws),
+# `--sh-degree 0 --colour-correction` (fine-tuning keeps both); the dense reference trains on
+# the training and pool cameras, 3,000 iterations, seed 1, from seed 1's backbone's initial
+# points; every strategy's photographs are real, so they weigh 1
 # (`--weighting none`); FillGS's and ExploreGS's weights run once each (FillGS's selection,
 # seed 1, the smallest budget) to show what they do to real photographs; the control fine-tunes on the
 # training cameras alone. A --test-cameras FILE of the same rig replaces the held-out
@@ -56,7 +65,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source bench/lib.sh
-SMOKE=0 TEST= SEEDS=1,2,3 BUDGETS= SCENE=panoptic ONLY=
+SMOKE=0 TEST= SEEDS=1,2,3,4,5 BUDGETS= SCENE=panoptic ONLY= NO_SCRATCH=0
 while [ $# -gt 0 ]; do
   case $1 in
     --scene) SCENE=$2; shift ;;
@@ -65,7 +74,8 @@ while [ $# -gt 0 ]; do
     --seeds) SEEDS=$2; shift ;;
     --budgets) BUDGETS=$2; shift ;;
     --strategies) ONLY=$2; shift ;;
-    -h|--help) sed -n '2,55p' "$0"; exit 0 ;;
+    --no-scratch) NO_SCRATCH=1 ;;
+    -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
     -*) echo "pool_select: unknown option $1" >&2; exit 1 ;;
     *) break ;;
   esac
@@ -145,7 +155,6 @@ PY
 else
   SPLITS=(held-out) SPLIT_CAMS=(all)
 fi
-DENSE_INIT=()
 if [ $SCENE = n3v-static ]; then
   # Initial points from COLMAP, each model from the images it trains on: the backbone's from
   # the training cameras alone, the dense reference's from the training and pool cameras.
@@ -155,8 +164,6 @@ if [ $SCENE = n3v-static ]; then
   }
   colmap_points points $TRAIN
   INIT=(--points "$OUT/points/sparse/points3D.bin")
-  colmap_points dense_points $TRAIN,$POOL
-  DENSE_INIT=(--points "$OUT/dense_points/sparse/points3D.bin")
 fi
 TRAIN_DS=("${DS[@]}" --cameras "$CAMERAS" --held-out "$TEST")
 OPTS=(--sh-degree 0 --colour-correction)
@@ -170,16 +177,37 @@ evaluate() {  # model folder
   done
 }
 
-step "$OUT/dense" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE[@]}" "${DENSE_INIT[@]}" "${OPTS[@]}" --seed 1 \
-  --out "$OUT/dense" --quiet
-evaluate "$OUT/dense"
 IFS=, read -r -a seeds <<<"$SEEDS"
 IFS=, read -r -a budgets <<<"$BUDGETS"
-for s in "${seeds[@]}"; do
-  S=$OUT/s$s
-  step "$S/backbone" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "${BB[@]}" "${INIT[@]}" "${OPTS[@]}" --seed "$s" \
+backbone() {  # seed: the backbone, from the training cameras alone
+  local S=$OUT/s$1
+  step "$S/backbone" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "${BB[@]}" "${INIT[@]}" "${OPTS[@]}" --seed "$1" \
     --out "$S/backbone" --quiet
   evaluate "$S/backbone"
+}
+# Initial points of every model trained from scratch, the dense reference's included: the
+# backbone's (COLMAP points of the training cameras, or the points its views gave, saved
+# beside it), so that the rows differ only in their photographs.
+scratch_points() {  # seed
+  if [ ${#INIT[@]} -gt 0 ]; then echo "${INIT[1]}"; else echo "$OUT/s$1/backbone/init_points.ply"; fi
+}
+backbone 1
+step "$OUT/dense" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE[@]}" --points "$(scratch_points 1)" "${OPTS[@]}" \
+  --seed 1 --out "$OUT/dense" --quiet
+evaluate "$OUT/dense"
+for s in "${seeds[@]}"; do
+  S=$OUT/s$s
+  backbone "$s"
+  # Trained from scratch with the dense reference's settings on the training cameras and the
+  # photographs a selection chose (none: the training cameras alone).
+  scratch() {  # id, extra train options
+    local id=scratch.$1
+    shift
+    step "$S/$id" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "$@" "${DENSE[@]}" --points "$(scratch_points "$s")" "${OPTS[@]}" \
+      --seed "$s" --out "$S/$id" --quiet
+    evaluate "$S/$id"
+  }
+  scratch control
   finetune() {  # id, extra finetune options
     local id=$1
     shift
@@ -191,6 +219,7 @@ for s in "${seeds[@]}"; do
   for K in "${budgets[@]}"; do
     for st in "${STRATEGIES[@]}"; do
       finetune "$st.K$K" --pool-cameras $POOL --pool-budget "$K" --strategy "$st" --weighting none
+      [ $NO_SCRATCH = 1 ] || scratch "$st.K$K" --camera-times "$S/$st.K$K/pool_chosen.json"
     done
   done
   # What FillGS's and ExploreGS's weights do to real photographs (FillGS's selection), once:
@@ -213,7 +242,8 @@ for K in "${budgets[@]}"; do
 done
 cat "$OUT/results.md"
 
-# The picture: ground truth | backbone | the best strategy at PICTURE_K (the middle default budget) | FillGS,
+# The picture: ground truth | backbone | the best strategy at PICTURE_K (the middle default budget) | FillGS
+# (trained from scratch where those runs exist),
 # at the first near (or held-out) camera, the clip's middle frame, seed 1 (fixed before any run).
 K=$PICTURE_K
 best=$(sed -n 's/^best at K='"$K"': //p' "$OUT/results.md" | head -n 1)
@@ -234,7 +264,9 @@ else
   SRC=0 truth="$P/images/$cam.png" render="${cam}_${cam}.png"  # eval names a render <camera>_<image>
 fi
 tiles=("$truth")
-for id in backbone "$best" "fillgs.K$K"; do
+fill=fillgs.K$K
+[ -f "$S/scratch.fillgs.K$K/model.ply" ] && fill=scratch.fillgs.K$K  # the main protocol's model where it ran
+for id in backbone "$best" "$fill"; do
   if [ ! -d "$S/$id/picture" ]; then
     "$FILLGS" eval --model "$S/$id/model.ply" "${DS[@]}" --cameras "$TEST" --select-cameras "$cam" --splits picture --out "$S/$id/picture.tmp" --quiet >/dev/null
     mv "$S/$id/picture.tmp" "$S/$id/picture"
@@ -245,4 +277,4 @@ done
 size=$(oiiotool --info "${tiles[1]}" | sed -n 's/.* \([0-9]*\) x *\([0-9]*\).*/\1x\2/p' | head -n 1)
 tiles=("${tiles[0]}" --resize "$size" "${tiles[@]:1}")
 oiiotool --nosoftwareattrib "${tiles[@]}" --mosaic 4x1 --resize 200% -o "$OUT/compare.png"
-echo "picture: ground truth | backbone | $best | fillgs.K$K at held-out camera $cam, source frame $SRC -> $OUT/compare.png"
+echo "picture: ground truth | backbone | $best | $fill at held-out camera $cam, source frame $SRC -> $OUT/compare.png"

@@ -39,6 +39,42 @@ def fmt(values, digits=2):
     return f"{m:.{digits}f} ± {statistics.stdev(values):.{digits}f}"
 
 
+def t975(df):
+    """The 0.975 quantile of Student's t with df >= 1 degrees of freedom: its distribution
+    function's closed form for integer df (Abramowitz and Stegun 26.7.3-4) inverted by bisection."""
+    def central(t):  # P(|T| <= t)
+        theta = math.atan(t / math.sqrt(df))
+        c2 = math.cos(theta) ** 2
+        term = total = 1.0
+        if df % 2 == 0:
+            for k in range(2, df - 1, 2):
+                term *= c2 * (k - 1) / k
+                total += term
+            return math.sin(theta) * total
+        if df == 1:
+            return 2 * theta / math.pi
+        for k in range(3, df - 1, 2):
+            term *= c2 * (k - 1) / k
+            total += term
+        return 2 / math.pi * (theta + math.sin(theta) * math.cos(theta) * total)
+    lo, hi = 0.0, 1000.0
+    for _ in range(200):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if central(mid) < 0.95 else (lo, mid)
+    return (lo + hi) / 2
+
+
+def interval(diffs):
+    """Paired differences -> (mean, SD, 95 % half-width, seeds the SD needs for +-0.5 dB), the
+    half-width t(0.975, n - 1) SD / sqrt(n); None where fewer than 2 seeds."""
+    n = len(diffs)
+    if n < 2:
+        return None
+    sd = statistics.stdev(diffs)
+    need = next((m for m in range(2, 1000) if t975(m - 1) * sd / math.sqrt(m) <= 0.5), None)
+    return statistics.mean(diffs), sd, t975(n - 1) * sd / math.sqrt(n), need
+
+
 def write_atomic(path, text):
     tmp = path + ".tmp"
     with open(tmp, "w") as f:
@@ -157,59 +193,131 @@ def main():
         cells += f" {','.join(psnr_by_seed(run_id, seed_list)) or '–'} |"
         return cells
 
-    chart = []  # (strategy, K, mean gain over the control, its seed spread)
-    for K in budgets:
-        lines += ["", f"## K = {K} camera-times", "", header, rule]
-        lines.append(row("dense", ["1"], "dense (training + pool cameras)"))
-        lines.append(row("backbone", seeds))
-        lines.append(row("control", seeds, "control (no photographs added)"))
+    # A strategy whose every pick scored 0 (on a static scene no Gaussian moves, so FillGS's
+    # and negative's scores are all 0) was chosen by the pool's order, not by its score.
+    def tied(st, K):
+        if st == "random":  # chosen by its draws, not by a score
+            return False
+        scores = set()
+        for s in seeds:
+            p = load(os.path.join(out, f"s{s}", f"{st}.K{K}", "pool_chosen.json"))
+            if p:
+                scores |= {c["score"] for c in p["chosen"]}
+        return scores == {0.0}
+
+    def diffs(x, y, sp):
+        return [metric(s, x, sp, "psnr") - metric(s, y, sp, "psnr") for s in seeds
+                if metric(s, x, sp, "psnr") is not None and metric(s, y, sp, "psnr") is not None]
+
+    def criterion(prefix, K, means, ties):
+        """FillGS against negative, random and the best baseline: the paired difference per split
+        with its 95 % interval (bench/results/README.md, "Criteria, fixed before the runs")."""
+        baselines = [b for b in ("random", "interpolation", "fisherrf", "coverage3d", "coverage4d") if b in means and b not in ties]
+        common = [s for s in seeds if all(s in means[b] for b in baselines)]
+        best = max(baselines, key=lambda b: statistics.mean(means[b][s] for s in common)) if baselines and common else None
+        if "fillgs" in ties:
+            return ["", "FillGS's picks all scored 0 (no Gaussian moves): its selection is the pool's order, so its differences are not applicable."]
+        out_lines = ["", f"FillGS minus each, paired by seed (PSNR, dB): mean ± SD over the seeds, [95 % interval]; **separated** where the "
+                         "interval excludes 0. Best baseline (highest mean over the splits and seeds among random, interpolation, FisherRF, "
+                         f"coverage3d, coverage4d): {best or '–'}.", "",
+                     "| FillGS minus | " + " | ".join(f"{sp}: mean ± SD | 95 % interval" for sp in splits) + " | seeds | seeds for ±0.5 dB |",
+                     "|---|" + "---|---|" * len(splits) + "---|---|"]
+        for other in ["negative", "random"] + ([best] if best and best != "random" else []):
+            label = other + (" (best baseline)" if other == best else "")
+            if other in ties:
+                out_lines.append(f"| {label} | " + " | ".join("not applicable (every score 0) | –" for _ in splits) + " | – | – |")
+                continue
+            cells, n, need = [], 0, []
+            for sp in splits:
+                d = diffs(f"{prefix}fillgs.K{K}", f"{prefix}{other}.K{K}", sp)
+                iv = interval(d)
+                n = max(n, len(d))
+                if iv is None:
+                    cells += [fmt(d), "–"]
+                    continue
+                m, sd, h, nd = iv
+                text = f"[{m - h:.2f}, {m + h:.2f}]"
+                cells += [f"{m:.2f} ± {sd:.2f}", f"**{text}**" if abs(m) > h else text]
+                need.append(nd if h > 0.5 else n)
+            out_lines.append(f"| {label} | " + " | ".join(cells) + f" | {n} | {max(need) if need and None not in need else '–'} |")
+        return out_lines
+
+    def table(prefix, K, reference_rows, ties):
+        """The rows of one protocol at budget K, and each strategy's per-seed mean PSNR over the splits."""
+        rows = [header, rule] + reference_rows
         means = {}
         for st in STRATEGIES:
-            rid = f"{st}.K{K}"
-            lines.append(row(rid, seeds))
+            rid = f"{prefix}{st}.K{K}"
+            label = f"{st}.K{K}" + (" (every score 0, pool order)" if st in ties else "")
+            rows.append(row(rid, seeds, label))
             per_seed = psnr_by_seed(rid, seeds)
-            if per_seed:
+            if per_seed and st not in ties:
                 means[st] = per_seed
+        return rows, means
+
+    def spread_line(K, means):
+        common = [s for s in seeds if all(s in v for v in means.values())]
+        if not means or not common:
+            return []
+        m = {k: [v[s] for s in common] for k, v in means.items()}
+        best = max(m, key=lambda k: statistics.mean(m[k]))
+        worst = min(m, key=lambda k: statistics.mean(m[k]))
+        spread = statistics.mean(m[best]) - statistics.mean(m[worst])
+        seed_sd = [statistics.stdev(v) for v in m.values() if len(v) > 1]
+        sd = statistics.mean(seed_sd) if seed_sd else float("nan")
+        return [f"Mean PSNR over the splits, seeds {','.join(common)} (those every strategy has): best {best} "
+                f"{statistics.mean(m[best]):.2f} dB, worst {worst} {statistics.mean(m[worst]):.2f} dB, spread {spread:.2f} dB "
+                f"against a mean seed spread of {sd:.2f} dB."], best
+
+    chart = []  # (strategy, K, mean gain over the control, its seed spread)
+    for K in budgets:
+        ties = {st for st in STRATEGIES if tied(st, K)}
+        lines += ["", f"## K = {K} camera-times"]
+        scratch_rows = any(summary(s, f"scratch.{st}.K{K}") for s in seeds for st in STRATEGIES)
+        best_id = None
+        if scratch_rows:
+            rows, means = table("scratch.", K, [row("dense", ["1"], "dense reference (training + every pool photograph)"),
+                                                row("scratch.control", seeds, "training cameras alone")], ties)
+            lines += ["", "### Trained from scratch (the main protocol)", "",
+                      "The training cameras and the chosen photographs, with the dense reference's settings, from the seed's backbone's "
+                      "initial points.", ""] + rows + criterion("scratch.", K, means, ties)
+            sl = spread_line(K, means)
+            if sl:
+                lines += [""] + sl[0]
+                best_id = f"scratch.{sl[1]}.K{K}"
+            for st in STRATEGIES:
+                gains = []
+                for s in seeds:
+                    v = [metric(s, f"scratch.{st}.K{K}", sp, "psnr") for sp in splits]
+                    c = [metric(s, "scratch.control", sp, "psnr") for sp in splits]
+                    if all(x is not None for x in v + c):
+                        gains.append(statistics.mean(v) - statistics.mean(c))
+                if gains:
+                    chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0))
+        rows, means = table("", K, [row("backbone", seeds), row("control", seeds, "control (no photographs added)")], ties)
         for w in ("fillgs", "exploregs"):
             rid = f"fillgs.K{K}.w-{w}"
             if any(summary(s, rid) for s in seeds):
-                lines.append(row(rid, seeds))
-        # Paired differences (each seed's backbone is shared by its runs, so a difference
-        # within a seed is free of the backbone's own variation).
-        def paired(x, y):
-            out_sp = []
-            for sp in splits:
-                d = [metric(s, x, sp, "psnr") - metric(s, y, sp, "psnr") for s in seeds
-                     if metric(s, x, sp, "psnr") is not None and metric(s, y, sp, "psnr") is not None]
-                out_sp.append(f"{sp} {fmt(d)}" if d else f"{sp} –")
-            return ", ".join(out_sp)
-        pairs = [("fillgs", "negative"), ("fillgs", "random")]
-        if any(st in means for st in ("fillgs", "negative", "random")):
-            lines += ["", f"Paired differences at K = {K} (PSNR, dB, mean ± standard deviation over the seeds): " +
-                      "; ".join(f"{x} minus {y}: {paired(f'{x}.K{K}', f'{y}.K{K}')}" for x, y in pairs) + "."]
-        for st in STRATEGIES:
-            gains = []
-            for s in seeds:
-                v = [metric(s, f"{st}.K{K}", sp, "psnr") for sp in splits]
-                c = [metric(s, "control", sp, "psnr") for sp in splits]
-                if all(x is not None for x in v + c):
-                    gains.append(statistics.mean(v) - statistics.mean(c))
-            if gains:
-                chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0))
-        # Best and worst over the seeds every strategy has (the others' runs are left out).
-        common = [s for s in seeds if all(s in v for v in means.values())]
-        if means and common:
-            means = {k: [v[s] for s in common] for k, v in means.items()}
-            best = max(means, key=lambda k: statistics.mean(means[k]))
-            worst = min(means, key=lambda k: statistics.mean(means[k]))
-            spread = statistics.mean(means[best]) - statistics.mean(means[worst])
-            seed_sd = [statistics.stdev(v) for v in means.values() if len(v) > 1]
-            sd = statistics.mean(seed_sd) if seed_sd else float("nan")
-            lines += ["", f"best at K={K}: {best}.K{K}",
-                      f"Mean PSNR over the splits, seeds {','.join(common)} (those every strategy has): best {best} "
-                      f"{statistics.mean(means[best]):.2f} dB, worst {worst} {statistics.mean(means[worst]):.2f} dB, spread {spread:.2f} dB "
-                      f"against a mean seed spread of {sd:.2f} dB "
-                      f"({'separated: more than twice' if spread > 2 * sd else 'not separated: less than twice'} the seed spread)."]
+                rows.append(row(rid, seeds))
+        lines += ["", "### Warm start: the backbone fine-tuned with the photographs (second protocol)", "",
+                  "The selection runs here: each round chooses from the current model; the photographs are added at their real poses.",
+                  ""] + rows + criterion("", K, means, ties)
+        sl = spread_line(K, means)
+        if sl:
+            lines += [""] + sl[0]
+            best_id = best_id or f"{sl[1]}.K{K}"
+        if not scratch_rows:
+            for st in STRATEGIES:
+                gains = []
+                for s in seeds:
+                    v = [metric(s, f"{st}.K{K}", sp, "psnr") for sp in splits]
+                    c = [metric(s, "control", sp, "psnr") for sp in splits]
+                    if all(x is not None for x in v + c):
+                        gains.append(statistics.mean(v) - statistics.mean(c))
+                if gains:
+                    chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0))
+        if best_id:
+            lines += ["", f"best at K={K}: {best_id}"]
         # What each strategy chose, per seed: its (camera, frame) pairs.
         chosen = {}
         for st in STRATEGIES:
@@ -236,9 +344,9 @@ def main():
             lines += ["", f"What each strategy chose (camera × frame, seed {seeds[0]}; each run's own picture and list are "
                           f"s{seeds[0]}/<strategy>.K{K}/pool_chosen.png and .json): ![chosen](chosen_K{K}_s{seeds[0]}.png)"]
     if chart and write_chart(out, chart, budgets, a.title):
-        lines += ["", "Gain over the control (mean PSNR over the splits, paired within each seed; bars: mean, whiskers: ± standard "
-                      "deviation over the seeds):", "", "![gain over the control](gain.png)"]
-    lines += ["", "![ground truth | backbone | best strategy | FillGS](compare.png)", ""]
+        lines += ["", "Gain over the control of the main protocol (mean PSNR over the splits, paired within each seed; bars: mean, "
+                      "whiskers: ± standard deviation over the seeds):", "", "![gain over the control](gain.png)"]
+    lines += ["", "![ground truth | backbone | best strategy | FillGS (the main protocol's models)](compare.png)", ""]
     write_atomic(os.path.join(out, "results.md"), "\n".join(lines))
     sys.stdout.write("\n".join(lines))
     return 0

@@ -10,6 +10,8 @@
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/image_io.hpp"
 #include "fillgs/train/train.hpp"
+#include "fillgs/train/train_model.hpp"
+#include "fillgs/io/scene_io.hpp"
 #include "fillgs/model/sh.hpp"
 #include "fillgs/render/raster.hpp"
 #include "helpers.hpp"
@@ -282,4 +284,39 @@ TEST_CASE("colour correction: a camera whose images were scaled and shifted gets
   CHECK((back[1].gain - c[1].gain).norm() < 1e-6f);
   std::ofstream(dir + "/bad.json") << R"({"cam00": {"gain": [1, 1], "offset": [0, 0, 0]}})";
   REQUIRE_THROWS_WITH(read_colour_correction(dir + "/bad.json"), Catch::Contains("bad.json: camera 'cam00' needs 'gain' as three numbers"));
+
+  // Fine-tuning continues the corrections: the reference camera is held at its given one
+  // (not identity), the other starts from its own and moves little, the model fitting already.
+  TrainOptions ft = TrainOptions::scaled(60);
+  ft.colour_correction = true;
+  ft.initial_colour = relative;
+  ft.max_sh_degree = 0;
+  Trainer more(data, params_from_cloud<float>(folded, data.frames()), ft);
+  more.run(60, null_progress());
+  const std::vector<ColourCorrection>& c2 = more.colour_correction();
+  REQUIRE(c2.size() == 2);
+  CHECK(c2[0].gain == relative[0].gain);
+  CHECK(c2[0].offset == relative[0].offset);
+  CHECK((c2[1].gain - relative[1].gain).norm() > 0);  // learned
+  CHECK((c2[1].gain - relative[1].gain).cwiseAbs().maxCoeff() < 0.03f);
+  CHECK((c2[1].offset - relative[1].offset).cwiseAbs().maxCoeff() < 0.03f);
+  ft.colour_correction = false;
+  REQUIRE_THROWS_WITH(Trainer(data, params_from_cloud<float>(folded, data.frames()), ft), Catch::Contains("without colour correction"));
+
+  // fillgs finetune on a degree-0 model with its corrections beside it: both kept.
+  fs::create_directories(dir + "/model");
+  write_fillgs_ply(dir + "/model/model.ply", folded, data.frames());
+  write_colour_correction(dir + "/model/colour_correction.json", relative);
+  std::string text;
+  REQUIRE(run_cli({"finetune", "--model", dir + "/model/model.ply", "--images", dir + "/images", "--cameras", dir + "/transforms_train.json",
+                   "--train-cameras", two.cameras[0] + "," + two.cameras[1], "--iterations", "20", "--trajectories", "0", "--out", dir + "/ft", "--quiet"},
+                  &text, nullptr) == 0);
+  CHECK(text.find("colour correction: continuing the 2 cameras' corrections of") != std::string::npos);
+  CHECK(read_scene(dir + "/ft/model.ply").sh_degree == 0);
+  const std::vector<ColourCorrection> after = read_colour_correction(dir + "/ft/colour_correction.json");
+  REQUIRE(after.size() == 2);
+  for (int ch = 0; ch < 3; ++ch) {  // relative to the mean camera again
+    CHECK(after[0].gain[ch] + after[1].gain[ch] == Approx(2.0));
+    CHECK(after[0].offset[ch] + after[1].offset[ch] == Approx(0.0).margin(1e-6));
+  }
 }

@@ -8,6 +8,7 @@
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cstring>
+#include <set>
 #include <filesystem>
 #include <fstream>
 
@@ -210,6 +211,53 @@ TEST_CASE("datasets: --frames keeps a slice of the video, --downscale averages k
   late.frames = FrameRange::parse("200:");
   CHECK(error_of([&] { Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", late); }).find("selects none of its 150 frames") !=
         std::string::npos);
+}
+
+TEST_CASE("datasets: single camera-times beside the cameras trained at every frame, their images and masks the files'", "[video]") {
+  DatasetOptions o;
+  o.cameras = {"1"};
+  o.frames = FrameRange::parse("0:150:50");  // frames 0, 50, 100 become 0, 1, 2
+  o.downscale = 8;
+  o.camera_times = {{"5", 1}, {"7", 2}, {"1", 0}};  // camera 1 is trained at every frame anyway
+  const Dataset d = Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o);
+  REQUIRE(d.views().size() == 5);
+  std::set<std::pair<std::string, int>> got;
+  for (const TrainView& v : d.views()) got.insert({v.rig, v.frame});
+  CHECK(got == std::set<std::pair<std::string, int>>{{"1", 0}, {"1", 1}, {"1", 2}, {"5", 1}, {"7", 2}});
+  CHECK(d.rigs().size() == 3);
+  REQUIRE(d.has_masks());
+  for (size_t v = 0; v < d.views().size(); ++v) {
+    const TrainView& tv = d.views()[v];
+    if (tv.rig != "7") continue;
+    CHECK(tv.camera.name == "7/000100");  // source frame 100
+    CHECK(tv.camera.time == Approx(1.0));
+    const Image im = read_image(panoptic() + "/ims/7/000100.jpg");
+    double sum = 0;
+    for (int dy = 0; dy < 8; ++dy)
+      for (int dx = 0; dx < 8; ++dx) sum += im.pixels[(size_t(40 + dy) * 640 + size_t(320 + dx)) * size_t(im.channels)];
+    CHECK(d.image(v)[(size_t(5) * 80 + 40) * 3] == Approx(sum / 64).margin(0.6 / 255));
+    // Its mask is the file's, not another view's.
+    const Image m = read_image(panoptic() + "/seg/7/000100.png");
+    size_t fg = 0, mine = 0;
+    for (int y = 0; y < 45; ++y)
+      for (int x = 0; x < 80; ++x) {
+        double s = 0;
+        for (int dy = 0; dy < 8; ++dy)
+          for (int dx = 0; dx < 8; ++dx) s += m.pixels[(size_t(8 * y + dy) * 640 + size_t(8 * x + dx)) * size_t(m.channels)];
+        fg += std::lround(s / 64 * 255) > 127;  // the 8-bit block mean above one half
+        mine += d.mask(v)[size_t(y) * 80 + size_t(x)];
+      }
+    CHECK(fg == mine);
+  }
+  DatasetOptions bad = o;
+  bad.camera_times = {{"5", 3}};
+  CHECK(error_of([&] { Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", bad); }).find("camera-time 5 at frame 3: the video has frames 0 to 2") !=
+        std::string::npos);
+  bad.camera_times = {{"nope", 0}};
+  CHECK(error_of([&] { Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", bad); }).find("no camera named 'nope'") != std::string::npos);
+  bad.cameras.clear();
+  bad.camera_times = {{"5", 0}};
+  CHECK(error_of([&] { Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", bad); }).find("none were named") != std::string::npos);
 }
 
 TEST_CASE("d3dgs reader: bad meta files and missing files are named in one line", "[video]") {

@@ -23,6 +23,7 @@
 #include "fillgs/render/raster.hpp"
 #include "fillgs/experiment/reports.hpp"
 #include "fillgs/io/scene_io.hpp"
+#include "fillgs/base/json_file.hpp"
 #include "fillgs/experiment/synth.hpp"
 #include "fillgs/train/train.hpp"
 #include "fillgs/visibility/visibility.hpp"
@@ -506,7 +507,7 @@ Action declare_observe(CLI::App& app) {
 // ------------------------------------------------------------------ train
 
 struct TrainFlags {
-  std::string images, cameras, out, points, resume, init, test_images, test_cameras;
+  std::string images, cameras, out, points, resume, init, test_images, test_cameras, camera_times;
   int iterations = 3000;
   int checkpoint_every = 0;
   uint64_t seed = 1;
@@ -516,10 +517,32 @@ struct TrainFlags {
   DatasetOptions data;
 };
 
+/// --camera-times FILE: {"chosen": [{"camera": .., "frame": ..}, ..]} (finetune's
+/// pool_chosen.json) or the list alone.
+std::vector<std::pair<std::string, int>> read_camera_times(const std::string& path) {
+  const nlohmann::json j = read_json_file(path);
+  const nlohmann::json& list = j.is_object() && j.contains("chosen") ? j.at("chosen") : j;
+  if (!list.is_array()) throw_error(path, ": camera-times must be a list of {\"camera\", \"frame\"} (or an object whose \"chosen\" is one)");
+  std::vector<std::pair<std::string, int>> out;
+  for (size_t i = 0; i < list.size(); ++i) {
+    const nlohmann::json& e = list[i];
+    if (!e.is_object() || !e.contains("camera") || !e.contains("frame") || !e.at("camera").is_string() || !e.at("frame").is_number_integer())
+      throw_error(path, ": camera-time ", i, " needs \"camera\" (a name) and \"frame\" (a whole number)");
+    out.emplace_back(e.at("camera").get<std::string>(), e.at("frame").get<int>());
+  }
+  if (out.empty()) throw_error(path, ": no camera-times");
+  return out;
+}
+
 int train(const TrainFlags& f, const Invocation& in) {
   const auto t0 = Clock::now();
   TerminalProgress loading(in.err, in.progress());
-  const Dataset data = Dataset::load(f.images, f.cameras, f.data, loading);
+  DatasetOptions dopt = f.data;
+  if (in.given("--camera-times")) {
+    if (dopt.cameras.empty()) in.fail("--camera-times adds single photographs to --train-cameras, and none were named");
+    dopt.camera_times = read_camera_times(f.camera_times);
+  }
+  const Dataset data = Dataset::load(f.images, f.cameras, dopt, loading);
   const int iterations = f.iterations;
   // The schedule scales with the iteration count; the flags given override it.
   TrainOptions o = TrainOptions::scaled(iterations);
@@ -676,6 +699,8 @@ Action declare_train(CLI::App& app) {
   add_text(app, "--init", f->init, "initial points: points, random or random+carve (default: points when there are any)", "NAME");
   add_number(app, "--init-points", f->view_init.random_points, "random: how many points", at_least(1));
   add_flag(app, "--colour-correction", f->colour_correction, "learn a gain and offset per camera");
+  add_text(app, "--camera-times", f->camera_times,
+           "single photographs trained on beside --train-cameras: a JSON list of {camera, frame} (finetune --pool-budget's pool_chosen.json)", "PATH");
   add_dataset_flags(app, f->data, "--train-cameras");
   return bind(f, train);
 }

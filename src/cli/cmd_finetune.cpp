@@ -83,6 +83,16 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   if (in.given("--trajectories")) o.trajectories = f.finetune.trajectories;
   o.train = fine_tune_schedule(o.iterations, motion_rates(in, f.rates));
   o.train.seed = f.seed;
+  // The model's spherical-harmonics degree is kept (a degree-0 model stays one).
+  o.train.max_sh_degree = model.sh_degree;
+  // A model trained with colour correction keeps it: its corrections (beside it, as train
+  // writes them) continue, so the model stays in the colours of the rig's mean camera.
+  const std::string corrections = join_path(fs::path(f.model).parent_path().string(), "colour_correction.json");
+  if (fs::is_regular_file(corrections)) {
+    o.train.colour_correction = true;
+    o.train.initial_colour = read_colour_correction(corrections);
+    in.out << "colour correction: continuing the " << o.train.initial_colour.size() << " cameras' corrections of " << corrections << "\n";
+  }
   if (in.given("--refined-share")) o.train.refined_share = f.refined_share;
   o.select = f.finetune.select;
   o.select.seed = f.seed;

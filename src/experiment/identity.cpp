@@ -25,14 +25,14 @@ json vec3(const Vec3f& v) { return json::array({v.x(), v.y(), v.z()}); }
 // not): the build then stops here until the field's serialiser below has been looked at
 // and these sizes updated (x86-64, the platform fillgs builds on).
 #if defined(__x86_64__)
-static_assert(sizeof(TrainOptions) == 336, "TrainOptions changed: add the new field to identity_json(TrainOptions), then update this size");
+static_assert(sizeof(TrainOptions) == 360, "TrainOptions changed: add the new field to identity_json(TrainOptions), then update this size");
 static_assert(sizeof(SelectOptions) == 112, "SelectOptions changed: add the new field to identity_json(SelectOptions), then update this size");
 static_assert(sizeof(VisibilityOptions) == 20, "VisibilityOptions changed: add the new field to identity_json(SelectOptions), then update this size");
 static_assert(sizeof(MaskOptions) == 104, "MaskOptions changed: add the new field to identity_json(MaskOptions), then update this size");
 static_assert(sizeof(ExplorationOptions) == 32, "ExplorationOptions changed: add the new field to identity_json(ExplorationOptions), then update this size");
 static_assert(sizeof(ArtifactOptions) == 24, "ArtifactOptions changed: add the new field to identity_json(ArtifactOptions), then update this size");
 static_assert(sizeof(ReferenceOptions) == 112, "ReferenceOptions changed: add the new field to identity_json(ReferenceOptions), then update this size");
-static_assert(sizeof(FinetuneOptions) == 680, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
+static_assert(sizeof(FinetuneOptions) == 704, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
 #endif
 
 void differences(const json& was, const json& now, const std::string& path, std::string& first) {
@@ -58,7 +58,7 @@ void differences(const json& was, const json& now, const std::string& path, std:
 }  // namespace
 
 json identity_json(const TrainOptions& o) {
-  return {{"iterations", o.iterations},
+  json j = {{"iterations", o.iterations},
           {"seed", o.seed},
           {"background", vec3(o.background)},
           {"lambda_dssim", o.lambda_dssim},
@@ -108,6 +108,13 @@ json identity_json(const TrainOptions& o) {
           {"colour_correction", o.colour_correction},
           {"colour_lr", o.colour_lr},
           {"refined_share", o.refined_share}};
+  // Only where given, so that the identities of runs without them stay as they were.
+  if (!o.initial_colour.empty()) {
+    json c = json::object();
+    for (const ColourCorrection& x : o.initial_colour) c[x.rig] = {{"gain", vec3(x.gain)}, {"offset", vec3(x.offset)}};
+    j["initial_colour"] = c;
+  }
+  return j;
 }
 
 json identity_json(const SelectOptions& o) {

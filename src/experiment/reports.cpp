@@ -234,6 +234,7 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
                                      const std::string& refiner, double seconds) {
   FinetuneReport report;
   write_fillgs_ply(join_path(dir, "model.ply"), r.model, data.frames());
+  if (!r.colour_correction.empty()) write_colour_correction(join_path(dir, "colour_correction.json"), r.colour_correction);
   write_transforms_json(join_path(dir, "virtual_views.json"), r.virtual_views);
   nlohmann::json rounds = nlohmann::json::array();
   for (const FinetuneRound& rd : r.rounds) {

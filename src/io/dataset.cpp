@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <mutex>
 #include <numeric>
 #include <sstream>
@@ -121,8 +122,11 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
   }
   Dataset d;
   const bool timed = std::all_of(cams.begin(), cams.end(), [](const Camera& c) { return c.has_time(); });
+  if (!opt.camera_times.empty() && opt.cameras.empty())
+    throw_error(cameras_path, ": single camera-times are added to the cameras trained on at every frame, and none were named");
   auto wanted = [&](const std::string& rig) {
-    return opt.cameras.empty() || std::find(opt.cameras.begin(), opt.cameras.end(), rig) != opt.cameras.end();
+    return opt.cameras.empty() || std::find(opt.cameras.begin(), opt.cameras.end(), rig) != opt.cameras.end() ||
+           std::any_of(opt.camera_times.begin(), opt.camera_times.end(), [&](const auto& ct) { return ct.first == rig; });
   };
   const fs::path base = fs::path(cameras_path).parent_path();
   std::vector<std::string> mask_rel;  // per view: its image's path under the images folder
@@ -214,6 +218,9 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
     }
     d.frames_ = std::max(frames, 1);
   }
+  for (const auto& [want, frame] : opt.camera_times)
+    if (std::none_of(d.views_.begin(), d.views_.end(), [&](const TrainView& v) { return v.rig == want; }))
+      throw_error(cameras_path, ": no camera named '", want, "' (a single camera-time asks for it at frame ", frame, ")");
   for (const std::string& want : opt.cameras) {
     bool found = false;
     for (const TrainView& v : d.views_) found = found || v.rig == want;
@@ -221,6 +228,7 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
   }
   if (d.views_.empty()) throw_error(cameras_path, ": no training views");
   d.keep_frames(opt.frames, &mask_rel, cameras_path);
+  if (!opt.camera_times.empty()) d.keep_camera_times(opt, &mask_rel, cameras_path);
   if (!opt.monocular_cycle.empty()) d.keep_cycle(opt.monocular_cycle, &mask_rel, cameras_path);
   for (const TrainView& v : d.views_)
     if (std::find(d.rigs_.begin(), d.rigs_.end(), v.rig) == d.rigs_.end()) d.rigs_.push_back(v.rig);
@@ -322,6 +330,29 @@ void Dataset::keep_frames(const FrameRange& range, std::vector<std::string>* per
   views_ = std::move(kept);
   if (per_view) *per_view = std::move(kept_side);
   frames_ = n;
+}
+
+void Dataset::keep_camera_times(const DatasetOptions& opt, std::vector<std::string>* per_view, const std::string& source) {
+  std::set<std::pair<std::string, int>> single;
+  for (const auto& [rig, frame] : opt.camera_times) {
+    if (frame < 0 || frame >= frames_)
+      throw_error(source, ": camera-time ", rig, " at frame ", frame, ": the video has frames 0 to ", frames_ - 1, " (numbered after the frame range)");
+    single.insert({rig, frame});
+  }
+  std::vector<TrainView> kept;
+  std::vector<std::string> kept_side;
+  for (size_t i = 0; i < views_.size(); ++i) {
+    const TrainView& v = views_[i];
+    const bool every_frame = std::find(opt.cameras.begin(), opt.cameras.end(), v.rig) != opt.cameras.end();
+    if (!every_frame && !single.erase({v.rig, v.frame})) continue;
+    kept.push_back(v);
+    if (per_view) kept_side.push_back((*per_view)[i]);
+  }
+  for (const auto& [rig, frame] : single)
+    if (std::find(opt.cameras.begin(), opt.cameras.end(), rig) == opt.cameras.end())
+      throw_error(source, ": camera '", rig, "' has no view at frame ", frame);
+  views_ = std::move(kept);
+  if (per_view) *per_view = std::move(kept_side);
 }
 
 void Dataset::keep_cycle(const std::vector<std::string>& cycle, std::vector<std::string>* per_view, const std::string& source) {

@@ -246,6 +246,10 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
     result.rounds.push_back(std::move(r));
   }
   result.model = trainer.model();
+  if (to.colour_correction) {  // the model in the colours of the rig's mean camera again
+    result.colour_correction = trainer.colour_correction();
+    fold_mean_colour(result.model, result.colour_correction);
+  }
   result.loss_history = trainer.loss_history();
   result.seconds_train = train_seconds;
   result.seconds_total = seconds_since(t_start);

@@ -329,7 +329,13 @@ Trainer::Trainer(const Dataset& data, ModelParams<float> initial, const TrainOpt
     options_.densify_until = std::max(options_.densify_until, int(std::lround((options_.time_ramp + options_.densify_after_ramp) * options_.iterations)));
   find_fixed_rigs();
   build_change_masks();
-  for (const std::string& rig : data.rigs()) colour_.push_back({rig, Vec3f::Ones(), Vec3f::Zero()});
+  if (!options_.initial_colour.empty() && !options_.colour_correction)
+    throw_error("training: initial colour corrections given without colour correction");
+  for (const std::string& rig : data.rigs()) {
+    colour_.push_back({rig, Vec3f::Ones(), Vec3f::Zero()});
+    for (const ColourCorrection& c : options_.initial_colour)
+      if (c.rig == rig) colour_.back() = c;
+  }
   colour_m_.assign(colour_.size(), {});
   colour_v_.assign(colour_.size(), {});
   colour_steps_.assign(colour_.size(), 0);
@@ -735,7 +741,8 @@ void Trainer::add_refined(std::vector<RefinedView> views) {
 
 int Trainer::correct_colour(size_t view, std::vector<float>& image) const {
   const int r = view_rig_.at(view);
-  if (r <= 0) return -1;  // the reference camera (and a view of no rig)
+  // The reference camera is the identity unless corrections were given (then its own, held).
+  if (r < 0 || (r == 0 && options_.initial_colour.empty())) return -1;
   apply_colour_correction(colour_[size_t(r)], image);
   return r;
 }
@@ -750,6 +757,7 @@ void Trainer::colour_backward(int rig, const std::vector<float>& render, float* 
       g[3 + ch] += d;
       dimg[p + size_t(ch)] = float(d * c.gain[ch]);
     }
+  if (rig == 0) return;  // the reference camera's correction is held: it fixes the gauge
   // Adam on the six values, its own step count per camera.
   constexpr double b1 = 0.9, b2 = 0.999, eps = 1e-15;
   const int t = ++colour_steps_[size_t(rig)];

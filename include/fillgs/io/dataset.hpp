@@ -34,6 +34,10 @@ struct FrameRange {
 struct DatasetOptions {
   /// Rig cameras to train on (names as in the camera file, e.g. "cam00"); empty: all.
   std::vector<std::string> cameras;
+  /// Single photographs added to `cameras` (which must then be given): a camera at one frame,
+  /// the frame numbered as `frames` leaves them — the camera-times a pool selection chose
+  /// (finetune's pool_chosen.json). A camera also in `cameras` keeps every frame.
+  std::vector<std::pair<std::string, int>> camera_times;
   FrameRange frames;
   /// Images averaged over k×k blocks (the last W mod k columns and H mod k rows dropped) and
   /// cameras scaled to match: fx, fy, cx, cy / k.
@@ -103,6 +107,8 @@ class Dataset {
   /// Keeps the views of the frames `range` chooses, renumbered with their times; `per_view`
   /// is filtered alike.
   void keep_frames(const FrameRange& range, std::vector<std::string>* per_view, const std::string& source);
+  /// Keeps the views of `cameras` and the single `camera_times`.
+  void keep_camera_times(const DatasetOptions& options, std::vector<std::string>* per_view, const std::string& source);
   /// Keeps, per frame f, only the view of camera cycle[f mod n].
   void keep_cycle(const std::vector<std::string>& cycle, std::vector<std::string>* per_view, const std::string& source);
 };

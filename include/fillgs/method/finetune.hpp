@@ -91,6 +91,9 @@ struct FinetuneResult {
   double seconds_train = 0, seconds_total = 0;
   std::vector<float> loss_history;
   KeyChoice keys;  ///< a model evaluated by its network: the keys it was given to train (keys 0: none)
+  /// With FinetuneOptions::train.colour_correction: per training camera its correction,
+  /// relative to the rig's mean camera, whose colours `model` is written in (fold_mean_colour).
+  std::vector<ColourCorrection> colour_correction;
 };
 
 /// Fine-tunes `model` (trained on `data`) with views refined by `refiner`.

@@ -73,6 +73,12 @@ constexpr double kMaxTrainCoordinate = 1e7, kMinTrainLogScale = -30, kMaxTrainLo
 /// outside those bounds; train and finetune call it on what they read.
 void check_trainable(const GaussianCloud& cloud, const std::string& source);
 
+/// A rig camera's learned colour correction: its real images ≈ gain ⊙ render + offset.
+struct ColourCorrection {
+  std::string rig;
+  Vec3f gain = Vec3f::Ones(), offset = Vec3f::Zero();
+};
+
 struct TrainOptions {
   int iterations = 3000;
   uint64_t seed = 1;
@@ -141,6 +147,11 @@ struct TrainOptions {
   /// views (refined views have none). The dataset's first camera is the reference (held at
   /// identity), which fixes the gauge between the corrections and the Gaussians' colours.
   bool colour_correction = false;
+  /// Corrections to start from, by rig (fine-tuning a model trained with them: its
+  /// colour_correction.json). Given, every rig named starts from its own and the dataset's
+  /// first camera is held at its given correction instead of identity; rigs not named start at
+  /// identity and learn. Needs colour_correction.
+  std::vector<ColourCorrection> initial_colour;
   double colour_lr = 5e-3;
   /// Fine-tuning: probability that an iteration trains on a refined view (once any were
   /// added) instead of a real one. Refined views would otherwise outnumber real ones on a
@@ -158,11 +169,6 @@ struct TrainStatus {
   int window_frames = 0;      ///< frames in the trained time window (all once the ramp ends)
 };
 
-/// A rig camera's learned colour correction: its real images ≈ gain ⊙ render + offset.
-struct ColourCorrection {
-  std::string rig;
-  Vec3f gain = Vec3f::Ones(), offset = Vec3f::Zero();
-};
 /// Writes / reads `{"<rig>": {"gain": [r, g, b], "offset": [r, g, b]}, ...}` (atomically;
 /// one error naming the file and the camera on bad input).
 void write_colour_correction(const std::string& path, const std::vector<ColourCorrection>& corrections);
