@@ -3,7 +3,8 @@
 # step DIR DONE COMMAND...: runs COMMAND (whose output folder is DIR) unless DIR/DONE exists
 # and DIR/command.txt holds the same command line; a finished step made by another command
 # line is refused. The model a step reads is part of its identity through the step that
-# made it. Prints how long a step that ran took (seconds) to stderr.
+# made it. Prints how long a step that ran took (seconds) to stderr and writes it, with the
+# time it finished (UTC), to DIR/step.txt.
 step() {
   local dir=$1 done=$2
   shift 2
@@ -19,5 +20,6 @@ step() {
   "$@"
   printf '%s\n' "$want" >"$dir/command.txt.tmp"
   mv "$dir/command.txt.tmp" "$dir/command.txt"
+  printf 'seconds %s\nfinished %s\n' $((SECONDS - t0)) "$(date -u +%Y-%m-%dT%H:%M:%SZ)" >"$dir/step.txt"
   echo "$(basename "$0"): $dir: $((SECONDS - t0)) s" >&2
 }
