@@ -87,18 +87,7 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
   auto weigh_and_add = [&](const std::vector<NewView>& items, const GaussianCloud& current, const ObservationTables& tables,
                            float quantile, FinetuneRound& r) {
     const auto t0 = Clock::now();
-    // The weights' D̂ is scaled per frame by the moving Gaussians visible there (their
-    // opacity at each frame of the tables), unless the global scale is asked for.
-    std::vector<float> opacity;
-    if (o.mask.scale == CovisibilityScale::Visible) {
-      const size_t M = tables.dynamic_ids.size();
-      opacity.resize(tables.times.size() * M);
-      for (size_t f = 0; f < tables.times.size(); ++f) {
-        const FrameGaussians fg = frame_at(current, tables.times[f]);
-        for (size_t j = 0; j < M; ++j) opacity[f * M + j] = fg.opacities[tables.dynamic_ids[j]];
-      }
-    }
-    const DeficiencyField field(tables, quantile, opacity.empty() ? nullptr : &opacity);
+    const DeficiencyField field = weight_field(current, tables, quantile, o.mask);
     WeightContext ctx;
     ctx.model = &current;
     ctx.views = views;

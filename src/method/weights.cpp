@@ -322,6 +322,21 @@ const WeightingRule& rule_of(Weighting weighting) {
 
 }  // namespace
 
+DeficiencyField weight_field(const GaussianCloud& model, const ObservationTables& tables, float quantile, const MaskOptions& options) {
+  // D̂ scaled per frame by the moving Gaussians visible there (their opacity at each frame of
+  // the tables), unless the global scale is asked for.
+  std::vector<float> opacity;
+  if (options.scale == CovisibilityScale::Visible) {
+    const size_t M = tables.dynamic_ids.size();
+    opacity.resize(tables.times.size() * M);
+    for (size_t f = 0; f < tables.times.size(); ++f) {
+      const FrameGaussians fg = frame_at(model, tables.times[f]);
+      for (size_t j = 0; j < M; ++j) opacity[f * M + j] = fg.opacities[tables.dynamic_ids[j]];
+    }
+  }
+  return DeficiencyField(tables, quantile, opacity.empty() ? nullptr : &opacity);
+}
+
 ViewWeights compute_weights(const WeightContext& ctx, const Image& refined, const Camera& camera, Weighting weighting,
                             const MaskOptions& o, const std::string& external_name) {
   if (!ctx.model) throw_error("weights: no model");

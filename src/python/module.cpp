@@ -25,7 +25,12 @@
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/math.hpp"
 #include "fillgs/base/progress.hpp"
+#include "fillgs/explore/exploration.hpp"
+#include "fillgs/io/dataset.hpp"
+#include "fillgs/io/image_io.hpp"
 #include "fillgs/io/scene_io.hpp"
+#include "fillgs/method/select.hpp"
+#include "fillgs/method/weights.hpp"
 #include "fillgs/model/camera.hpp"
 #include "fillgs/model/frame_grid.hpp"
 #include "fillgs/model/gaussians.hpp"
@@ -548,6 +553,208 @@ py::dict render_py(const Model& model, const Cameras& cameras, size_t index, dou
   return d;
 }
 
+// ------------------------------------------------------------------ images and views
+
+py::array_t<float> read_image_py(const std::string& path) {
+  require_file(path);
+  Image im = read_image(path);
+  return to_array(std::move(im.pixels), {py::ssize_t(im.height), py::ssize_t(im.width), py::ssize_t(im.channels)});
+}
+
+/// A rig's views as training reads them (`--images`, `--cameras`, `--train-cameras`,
+/// `--frames`, `--downscale`): the views' cameras, each at its time, and their images.
+py::dict load_views(const std::string& images, const std::string& cameras, const std::vector<std::string>& only, const std::string& frames,
+                    int downscale, const py::object& progress) {
+  require_file(images);
+  require_file(cameras);
+  DatasetOptions o;
+  o.cameras = only;
+  o.frames = FrameRange::parse(frames);
+  o.downscale = downscale;
+  PyProgress shown(progress);
+  std::unique_ptr<Dataset> d;
+  {
+    py::gil_scoped_release release;
+    d = std::make_unique<Dataset>(Dataset::load(images, cameras, o, shown));
+  }
+  Cameras c;
+  py::list imgs;
+  for (size_t i = 0; i < d->views().size(); ++i) {
+    const Camera& cam = d->views()[i].camera;
+    c.list.push_back(cam);
+    imgs.append(to_array(d->image(i), {py::ssize_t(cam.height), py::ssize_t(cam.width), 3}));
+  }
+  py::dict out;
+  out["cameras"] = c;
+  out["images"] = imgs;
+  out["frames"] = d->frames();
+  return out;
+}
+
+/// Timed observed views of `cameras` over `frames` (0: the model's or the cameras' count).
+std::pair<std::vector<ObservedView>, int> views_of(const GaussianCloud& cloud, const Cameras& cameras, int frames) {
+  if (cameras.list.empty()) throw py::value_error("cameras: none");
+  if (frames < 0) throw py::value_error("frames: " + std::to_string(frames) + ", expected at least 1");
+  if (!frames) frames = observation_frames(cloud, cameras.list);
+  if (!frames) throw py::value_error("cannot tell the frame count from the model or the cameras; give frames=F");
+  std::vector<Camera> timed;
+  for (const ObservedView& v : observed_views(cameras.list, frames)) timed.push_back(v.camera);
+  return {observed_views(timed, frames), frames};
+}
+
+/// Images for `views` from a sequence of [H,W,3] arrays, checked against each view's size.
+std::vector<std::vector<float>> images_for(const py::object& images, const std::vector<ObservedView>& views, const char* name) {
+  const py::sequence seq = py::reinterpret_borrow<py::sequence>(images);
+  if (py::len(seq) != views.size())
+    throw py::value_error(std::string(name) + ": " + std::to_string(py::len(seq)) + " images for " + std::to_string(views.size()) + " views");
+  std::vector<std::vector<float>> out;
+  for (size_t i = 0; i < views.size(); ++i) {
+    const Camera& c = views[i].camera;
+    const FloatArray a = float_array(seq[i], (std::string(name) + " " + std::to_string(i)).c_str(), {c.height, c.width, 3});
+    out.emplace_back(a.data(), a.data() + a.size());
+  }
+  return out;
+}
+
+// ------------------------------------------------------------------ exploration and selection
+
+struct Grid {
+  std::shared_ptr<const ExplorationGrid> grid;
+};
+
+Grid explore_py(const Model& model, const Cameras& cameras, int frames, int divisions, const py::object& progress) {
+  if (divisions < 1) throw py::value_error("divisions: " + std::to_string(divisions) + ", expected at least 1");
+  ExplorationOptions o;
+  o.divisions = divisions;
+  std::vector<double> sweep;
+  if (frames > 0) sweep = FrameGrid(frames).times();
+  PyProgress shown(progress);
+  py::gil_scoped_release release;
+  return Grid{std::make_shared<ExplorationGrid>(build_exploration_grid(*model.cloud, cameras.list, sweep, o, nullptr, shown))};
+}
+
+py::array_t<uint8_t> grid_labels(const Grid& g) {
+  const Vec3i d = g.grid->dims();
+  std::vector<uint8_t> out(size_t(d.x()) * size_t(d.y()) * size_t(d.z()));
+  size_t k = 0;
+  for (int z = 0; z < d.z(); ++z)
+    for (int y = 0; y < d.y(); ++y)
+      for (int x = 0; x < d.x(); ++x) out[k++] = uint8_t(g.grid->label(Vec3i(x, y, z)));
+  return to_array(std::move(out), {d.z(), d.y(), d.x()});
+}
+
+py::array_t<uint8_t> grid_label_at(const Grid& g, const py::handle& points) {
+  const FloatArray p = float_array(points, "points", {-1, 3});
+  std::vector<uint8_t> out(size_t(p.shape(0)));
+  for (size_t i = 0; i < out.size(); ++i) {
+    const Vec3i ijk = g.grid->voxel_of(Vec3d(p.data()[i * 3], p.data()[i * 3 + 1], p.data()[i * 3 + 2]));
+    out[i] = uint8_t(g.grid->inside(ijk) ? g.grid->label(ijk) : VoxelLabel::Unexplored);
+  }
+  return to_array(std::move(out), {p.shape(0)});
+}
+
+/// A trajectory chosen by select: poses at the trajectory's frame, each rendered over its patch frames.
+struct PyTrajectory {
+  Trajectory t;
+};
+
+py::dict select_py(const Model& model, const Cameras& cameras, int frames, const std::string& strategy, int trajectories, int views, int patch_frames,
+                   uint64_t seed, const py::object& images, const py::object& grid, const py::object& progress) {
+  const GaussianCloud& cloud = *model.cloud;
+  if (cloud.size() == 0) throw py::value_error("model: no Gaussians, so no camera observes anything and there is no view to choose");
+  if (trajectories < 0 || trajectories > 100000) throw py::value_error("trajectories: " + std::to_string(trajectories) + ", expected 0 to 100000");
+  if (views < 1 || views > 1000) throw py::value_error("views: " + std::to_string(views) + ", expected 1 to 1000");
+  if (patch_frames < 1 || patch_frames > 1000) throw py::value_error("patch_frames: " + std::to_string(patch_frames) + ", expected 1 to 1000");
+  SelectOptions o;
+  o.strategy = parse_name<Strategy>(strategy);
+  o.trajectories = trajectories;
+  o.views = views;
+  o.patch_frames = patch_frames;
+  o.seed = seed;
+  SelectInput in;
+  in.scene = &cloud;
+  std::tie(in.views, in.frames) = views_of(cloud, cameras, frames);
+  std::vector<std::vector<float>> pixels;
+  if (!images.is_none()) {
+    pixels = images_for(images, in.views, "images");
+    in.image = [&pixels](size_t i) { return pixels[i]; };
+  }
+  std::shared_ptr<const ExplorationGrid> g = grid.is_none() ? nullptr : grid.cast<const Grid&>().grid;
+  PyProgress shown(progress);
+  SelectResult r;
+  {
+    py::gil_scoped_release release;
+    std::vector<Camera> cams;
+    for (const ObservedView& v : in.views) cams.push_back(v.camera);
+    if (!g) g = std::make_shared<ExplorationGrid>(build_exploration_grid(cloud, cams, {}, ExplorationOptions(), nullptr, shown));
+    in.grid = g.get();
+    r = select_viewpoints(in, o, shown);
+  }
+  py::list trajs;
+  for (Trajectory& t : r.trajectories) trajs.append(PyTrajectory{std::move(t)});
+  py::dict d;
+  d["trajectories"] = trajs;
+  d["deficiency_scale"] = r.deficiency_scale;
+  d["notes"] = r.notes;
+  d["grid"] = Grid{g};
+  return d;
+}
+
+// ------------------------------------------------------------------ weights
+
+/// The fine-tuning weights of refined images against `model` and the observed views
+/// (`cameras` with `images`), as `fillgs finetune` computes them for each refined view.
+py::list weights_py(const Model& model, const Cameras& cameras, const py::object& images, const py::object& refined, const Cameras& refined_cameras,
+                    const std::string& weighting, int frames, const py::object& progress) {
+  const GaussianCloud& cloud = *model.cloud;
+  const auto [views, F] = views_of(cloud, cameras, frames);
+  const std::vector<std::vector<float>> observed = images_for(images, views, "images");
+  std::vector<ObservedView> refined_views;
+  for (const Camera& c : refined_cameras.list) {
+    if (!c.has_time() || c.time < 0 || c.time > 1) throw py::value_error("refined_cameras: " + c.name + " has no time in [0, 1]");
+    refined_views.push_back({c, 0});
+  }
+  const std::vector<std::vector<float>> given = images_for(refined, refined_views, "refined");
+  const Weighting w = parse_name<Weighting>(weighting);
+  const MaskOptions mask;
+  SelectOptions so;
+  PyProgress shown(progress);
+  std::vector<ViewWeights> out;
+  {
+    py::gil_scoped_release release;
+    std::vector<Camera> cams;
+    for (const ObservedView& v : views) cams.push_back(v.camera);
+    ObservationOptions oo;
+    oo.visibility = so.visibility;
+    const FrameGrid grid(F);
+    const ObservationTables tables = observation_tables(cloud, cams, grid.times(), grid.step(), oo, nullptr, shown);
+    const DeficiencyField field = weight_field(cloud, tables, so.deficiency_quantile, mask);
+    WeightContext ctx;
+    ctx.model = &cloud;
+    ctx.views = views;
+    ctx.image = [&](size_t i) { return Image(views[i].camera.width, views[i].camera.height, 3, observed[i]); };
+    ctx.deficiency = &field;
+    ctx.frames = F;
+    shown.start("weights (" + weighting + ")", given.size());
+    for (size_t i = 0; i < given.size(); ++i) {
+      const Camera& c = refined_cameras.list[i];
+      out.push_back(compute_weights(ctx, Image(c.width, c.height, 3, given[i]), c, w, mask));
+      shown.advance(1);
+    }
+    shown.finish();
+  }
+  py::list result;
+  for (size_t i = 0; i < out.size(); ++i) {
+    const py::ssize_t H = refined_cameras.list[i].height, W = refined_cameras.list[i].width;
+    py::dict d;
+    d["weight"] = to_array(std::move(out[i].weight), {H, W});
+    d["consistency"] = out[i].consistency.empty() ? py::object(py::none()) : py::object(to_array(std::move(out[i].consistency), {H, W}));
+    d["covisibility"] = out[i].covisibility.empty() ? py::object(py::none()) : py::object(to_array(std::move(out[i].covisibility), {H, W}));
+    result.append(d);
+  }
+  return result;
+}
+
 }  // namespace
 }  // namespace fillgs::python
 
@@ -615,6 +822,64 @@ PYBIND11_MODULE(fillgs, m) {
       "fillgs.Model, or a frame function f -> dict of arrays (means, log_scales, quaternions, opacity_logits[, sh]) for f = 0 … frames-1, "
       "called with the GIL held (e.g. your own deformation network). Returns a dict: counts [T,N] uint8 (uint16 above 255 views a frame), "
       "speed and deficiency [T,N] float32, times [T], dynamic_ids [M], views, seconds.");
+
+  m.def("read_image", &read_image_py, py::arg("path"), "An image file as fillgs reads it: float32 [H,W,C] in [0, 1], C the file's channels (3 for RGB, 1 for a grey map).");
+  m.def(
+      "write_image",
+      [](const std::string& path, const py::handle& pixels) {
+        py::array a = py::array(py::module_::import("numpy").attr("asarray")(pixels));
+        if (a.ndim() == 2) a = py::array(a.attr("reshape")(a.shape(0), a.shape(1), 1));
+        const FloatArray f = float_array(a, "pixels", {-1, -1, -1});
+        const py::ssize_t C = f.shape(2);
+        if (C != 1 && C != 3 && C != 4) throw py::value_error("pixels: " + std::to_string(C) + " channels, expected 1, 3 or 4");
+        write_image(path, Image(int(f.shape(1)), int(f.shape(0)), int(C), std::vector<float>(f.data(), f.data() + f.size())));
+      },
+      py::arg("path"), py::arg("pixels"),
+      "Writes float [H,W,C] (or [H,W]) in [0, 1] as the file's extension says (PNG: 8-bit), as fillgs writes its images.");
+  m.def("load_views", &load_views, py::arg("images"), py::arg("cameras"), py::arg("train_cameras") = std::vector<std::string>(),
+        py::arg("frames") = "", py::arg("downscale") = 1, py::arg("progress") = py::none(),
+        "A rig's views as `fillgs train` reads them (`--images`, `--cameras`, `--train-cameras`, `--frames`, `--downscale`): a dict with "
+        "cameras (each view at its time), images (float32 [H,W,3] each, in the cameras' order) and frames.");
+
+  py::class_<Grid>(m, "ExplorationGrid", "The exploration space: every voxel free (0), occupied (1) or unexplored (2)")
+      .def_property_readonly("dims", [](const Grid& g) { return std::vector<int>{g.grid->dims().x(), g.grid->dims().y(), g.grid->dims().z()}; },
+                             "voxels along x, y, z")
+      .def_property_readonly("box", [](const Grid& g) {
+        return py::make_tuple(std::vector<double>{g.grid->box().lo.x(), g.grid->box().lo.y(), g.grid->box().lo.z()},
+                              std::vector<double>{g.grid->box().hi.x(), g.grid->box().hi.y(), g.grid->box().hi.z()});
+      }, "(lo, hi) corners")
+      .def_property_readonly("labels", &grid_labels, "uint8 [Z,Y,X]: 0 free, 1 occupied, 2 unexplored")
+      .def("label_at", &grid_label_at, py::arg("points"), "uint8 [n] label of each point [n,3] (outside the box: 2, unexplored)")
+      .def("write", [](const Grid& g, const std::string& path) { g.grid->write(path); }, py::arg("path"), "as fillgs explore writes exploration.vdb");
+  m.def("read_grid", [](const std::string& path) { require_file(path); return Grid{std::make_shared<ExplorationGrid>(ExplorationGrid::read(path))}; },
+        py::arg("path"), "An exploration.vdb written by fillgs explore.");
+  m.def("explore", &explore_py, py::arg("model"), py::arg("cameras"), py::arg("frames") = 0, py::arg("divisions") = 64, py::arg("progress") = py::none(),
+        "The exploration grid, as `fillgs explore` builds it (frames > 0: the moving Gaussians swept over F frames).");
+
+  py::class_<PyTrajectory>(m, "Trajectory", "Virtual poses chosen at one frame, each rendered over its patch frames")
+      .def_property_readonly("index", [](const PyTrajectory& t) { return t.t.index; })
+      .def_property_readonly("frame", [](const PyTrajectory& t) { return t.t.frame; }, "the frame the poses were chosen at")
+      .def_property_readonly("start_view", [](const PyTrajectory& t) { return t.t.start_view; }, "index of the observed view it starts from (-1: none)")
+      .def_property_readonly("is_global", [](const PyTrajectory& t) { return t.t.global; })
+      .def_property_readonly("poses", [](const PyTrajectory& t) { return Cameras{t.t.poses}; }, "Cameras at the trajectory's frame")
+      .def_property_readonly("scores", [](const PyTrajectory& t) { std::vector<double> v = t.t.scores; return to_array(std::move(v), {py::ssize_t(t.t.scores.size())}); })
+      .def_property_readonly("patch_frames", [](const PyTrajectory& t) { std::vector<int> v = t.t.patch_frames; return to_array(std::move(v), {py::ssize_t(t.t.patch_frames.size())}); })
+      .def("views", [](const PyTrajectory& t) { return Cameras{t.t.views()}; }, "every pose at every patch frame (pose-major), with times")
+      .def("__repr__", [](const PyTrajectory& t) {
+        return "<fillgs.Trajectory " + std::to_string(t.t.index) + ": " + std::to_string(t.t.poses.size()) + " poses at frame " + std::to_string(t.t.frame) + ">";
+      });
+  m.def("select", &select_py, py::arg("model"), py::arg("cameras"), py::arg("frames") = 0, py::arg("strategy") = "fillgs", py::arg("trajectories") = 5,
+        py::arg("views") = SelectOptions().views, py::arg("patch_frames") = SelectOptions().patch_frames, py::arg("seed") = 1, py::arg("images") = py::none(),
+        py::arg("grid") = py::none(), py::arg("progress") = py::none(),
+        "Viewpoint-time selection as `fillgs select` runs it, by any strategy (fillgs, random, negative, interpolation, fisherrf, coverage3d, "
+        "coverage4d). `images`: the observed views' images (their order: load_views) for the priority's error term. Returns a dict: "
+        "trajectories (list of Trajectory), deficiency_scale, notes, grid.");
+  m.def("weights", &weights_py, py::arg("model"), py::arg("cameras"), py::arg("images"), py::arg("refined"), py::arg("refined_cameras"),
+        py::arg("weighting") = "fillgs", py::arg("frames") = 0, py::arg("progress") = py::none(),
+        "Fine-tuning weights of refined images (float32 [H,W,3] each, at refined_cameras, which carry times) against the model and its observed "
+        "views (cameras with their images), as `fillgs finetune` computes them: a list of dicts weight [H,W] (the loss weight), consistency and "
+        "covisibility [H,W] (None where the weighting has none). Weightings: fillgs, none, no-consistency, no-covisibility, 3dgs-enhancer, "
+        "exploregs, ua-4dgs.");
 
   m.def("render", &render_py, py::arg("model"), py::arg("cameras"), py::arg("index") = 0, py::arg("t") = 0.0,
         py::arg("background") = std::vector<float>{0, 0, 0},

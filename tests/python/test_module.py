@@ -288,3 +288,92 @@ def test_progress_callback(cameras_file):
     seen = []
     fillgs.observe(fillgs.load_model(fixture("ed3dgs")), fillgs.read_cameras(cameras_file), progress=lambda label, done, total: seen.append((label, done, total)))
     assert seen and seen[-1][0] == "observe" and seen[-1][1] == seen[-1][2] == 12
+
+
+@pytest.fixture(scope="module")
+def synth(tmp_path_factory):
+    """fillgs synth's small scene: a model with moving Gaussians, timed training cameras, images."""
+    d = str(tmp_path_factory.mktemp("synth") / "scene")
+    r = cli("synth", "--out", d, "--frames", "3", "--width", "48", "--height", "36", "--spacing", "0.06", "--quiet")
+    assert r.returncode == 0, r.stderr
+    return d
+
+
+def test_explore_equals_cli_grid(tmp_path, synth):
+    """explore's labels are those of the exploration.vdb `fillgs explore` writes; label_at reads them."""
+    out = str(tmp_path / "explore")
+    r = cli("explore", "--scene", f"{synth}/scene.ply", "--cameras", f"{synth}/transforms_train.json", "--out", out, "--quiet")
+    assert r.returncode == 0, r.stderr
+    want = fillgs.read_grid(f"{out}/exploration.vdb")
+    got = fillgs.explore(fillgs.load_model(f"{synth}/scene.ply"), fillgs.read_cameras(f"{synth}/transforms_train.json"))
+    assert got.dims == want.dims == [64, 64, 64]
+    np.testing.assert_allclose(got.box[0], want.box[0], rtol=1e-6)
+    labels = got.labels
+    assert labels.dtype == np.uint8 and labels.shape == (64, 64, 64)
+    assert np.array_equal(labels, want.labels)
+    assert set(np.unique(labels)) <= {0, 1, 2} and (labels == 1).any() and (labels == 0).any()
+    # label_at: a voxel's centre gets that voxel's label.
+    lo, hi = np.array(got.box[0]), np.array(got.box[1])
+    size = (hi - lo) / 64
+    zyx = np.argwhere(labels == 1)[:5]
+    centres = lo + (zyx[:, ::-1] + 0.5) * size
+    assert (got.label_at(centres) == 1).all()
+    assert got.label_at(np.array([hi + 10 * size]))[0] == 2  # outside the box: unexplored
+
+
+@pytest.mark.parametrize("strategy", ["fillgs", "coverage4d"])
+def test_select_equals_cli(tmp_path, synth, strategy):
+    """select's trajectories are the CLI's: the same virtual cameras (transforms.json) and scores."""
+    out = str(tmp_path / "select")
+    r = cli("select", "--scene", f"{synth}/scene.ply", "--cameras", f"{synth}/transforms_train.json", "--out", out, "--trajectories", "2",
+            "--seed", "3", "--strategy", strategy, "--no-renders", "--quiet")
+    assert r.returncode == 0, r.stderr
+    model = fillgs.load_model(f"{synth}/scene.ply")
+    cams = fillgs.read_cameras(f"{synth}/transforms_train.json")
+    sel = fillgs.select(model, cams, trajectories=2, seed=3, strategy=strategy)
+    trajs = sel["trajectories"]
+    ref = json.load(open(f"{out}/trajectories.json"))
+    assert len(trajs) == len(ref["trajectories"]) == 2
+    assert sel["deficiency_scale"] == pytest.approx(ref["deficiency_scale"], rel=1e-6)
+    for t, w in zip(trajs, ref["trajectories"]):
+        assert t.index == w["index"] and t.frame == w["frame"] and t.is_global == w["global"]
+        assert list(t.patch_frames) == w["patch_frames"]
+        np.testing.assert_allclose(t.scores, [p["score"] for p in w["poses"]], rtol=1e-9)
+    got = [c for t in trajs for c in [t.views().arrays()]]
+    want = fillgs.read_cameras(f"{out}/transforms.json").arrays()
+    for key in ("K", "world_to_camera", "time"):
+        np.testing.assert_allclose(np.concatenate([g[key] for g in got]), want[key], atol=1e-9, err_msg=key)
+
+
+def test_weights_equal_finetune_maps(tmp_path, synth):
+    """weights() gives the weight maps `fillgs finetune` writes beside each refined image (8-bit)."""
+    out = str(tmp_path / "ft")
+    script = os.path.join(SOURCE, "scripts", "refiners", "median_denoise.sh")
+    r = cli("finetune", "--model", f"{synth}/scene.ply", "--images", synth, "--cameras", f"{synth}/transforms_train.json",
+            "--train-cameras", "cam04,cam06", "--out", out, "--iterations", "10", "--select-every", "10", "--trajectories", "1",
+            "--refiner", "external", "--refiner-command", f"bash {script} {{in}} {{out}}", "--quiet")
+    assert r.returncode == 0, r.stderr
+    views = fillgs.load_views(synth, f"{synth}/transforms_train.json", train_cameras=["cam04", "cam06"])
+    assert len(views["images"]) == 6 and views["images"][0].shape == (36, 48, 3)
+    patch = json.load(open(f"{out}/work/patches/r0_t00/patch.json"))
+    items = [im for im in patch["images"] if not im["observed"]]
+    assert items
+    c2w = np.array([im["camera"]["camera_to_world_opencv"] for im in items])
+    K = np.array([[[im["camera"]["fx"], 0, im["camera"]["cx"]], [0, im["camera"]["fy"], im["camera"]["cy"]], [0, 0, 1]] for im in items])
+    refined_cams = fillgs.Cameras(K, np.linalg.inv(c2w), 48, 36, time=np.array([im["time"] for im in items]))
+    stems = [f"{out}/work/refined/r0_t00/{os.path.splitext(im['file'])[0]}" for im in items]
+    refined = [fillgs.read_image(s + ".png") for s in stems]
+    got = fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], views["images"], refined, refined_cams, weighting="fillgs")
+    assert len(got) == len(items)
+    for g, s in zip(got, stems):
+        for key, suffix in (("weight", "_weight.png"), ("consistency", "_mask.png"), ("covisibility", "_covis.png")):
+            want = fillgs.read_image(s + suffix)[:, :, 0]
+            assert g[key].shape == want.shape
+            assert np.abs(g[key] - want).max() <= 0.5 / 255 + 1e-6, f"{s}{suffix}"
+    # No weights: every pixel counts 1.
+    none = fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], views["images"], refined[:1],
+                          fillgs.Cameras(K[:1], np.linalg.inv(c2w[:1]), 48, 36, time=np.array([items[0]["time"]])), weighting="none")
+    assert (none[0]["weight"] == 1).all() and none[0]["consistency"] is None
+    with pytest.raises(ValueError, match="refined: 2 images for 1 views"):
+        fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], views["images"], refined[:2],
+                       fillgs.Cameras(K[:1], np.linalg.inv(c2w[:1]), 48, 36, time=np.array([items[0]["time"]])))

@@ -123,6 +123,12 @@ struct ViewWeights {
   int adjacent[2] = {-1, -1};       ///< observed views compared against
 };
 
+/// The deficiency field the weights of a round read: D̂ of `tables` (the observation tables
+/// of the round's training views), its scale the `quantile` of D per frame over the moving
+/// Gaussians `model` shows there (each weighted by its opacity at that frame), or over every
+/// moving Gaussian of every frame where options.scale is Global.
+DeficiencyField weight_field(const GaussianCloud& model, const ObservationTables& tables, float quantile, const MaskOptions& options);
+
 /// Weights of a refined view (`camera` at its time; frame = nearest frame).
 /// `external_name` locates an external consistency map when options.method is External.
 ViewWeights compute_weights(const WeightContext& context, const Image& refined, const Camera& camera, Weighting weighting,
