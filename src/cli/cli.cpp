@@ -26,6 +26,7 @@
 #include "fillgs/base/json_file.hpp"
 #include "fillgs/experiment/synth.hpp"
 #include "fillgs/train/train.hpp"
+#include "fillgs/train/train_job.hpp"
 #include "fillgs/visibility/visibility.hpp"
 #include "commands.hpp"
 #include "options.hpp"
@@ -572,84 +573,29 @@ int train(const TrainFlags& f, const Invocation& in) {
     test = std::make_unique<Dataset>(Dataset::load(in.given("--test-images") ? f.test_images : f.images, f.test_cameras, to));
   }
 
-  std::unique_ptr<Trainer> trainer;
-  PointSet init_points;  // written beside the model when made from the views
-  if (in.given("--resume")) {
-    trainer = std::make_unique<Trainer>(Trainer::resume(data, f.resume, o));
-    // A checkpoint at exactly --iterations is a run killed after its last checkpoint and
-    // before its model was written: resuming it writes the model, training nothing more.
-    if (trainer->iteration() > iterations)
-      in.fail("--iterations ", iterations, ": ", f.resume, " is already at iteration ", trainer->iteration(),
-              "; give at least that many iterations to continue it");
-    if (trainer->iteration() == iterations)
-      in.out << f.resume << " is at iteration " << iterations << ", the last: writing the model from it\n";
-  } else {
-    // Initial points: --points, else points.ply beside the cameras, else from the views
-    // (init.hpp: random points the first frame's cameras see, plus the foreground's visual
-    // hull when the dataset has masks); --init picks explicitly.
-    std::string points = f.points;
-    const std::string beside = join_path(std::filesystem::path(f.cameras).parent_path().string(), "points.ply");
-    if (points.empty() && std::filesystem::exists(beside)) points = beside;
-    const std::string init = in.given("--init") ? f.init : points.empty() ? "random+carve" : "points";
-    if (init == "points") {
-      if (points.empty()) in.fail("--init points needs --points (no points.ply beside ", f.cameras, ")");
-      const PointSet ps = read_points(points);
-      for (size_t i = 0; i < ps.positions.size(); ++i)
-        if (!(ps.positions[i].cwiseAbs().maxCoeff() <= kMaxTrainCoordinate))
-          throw_error(points, ": point ", i, " lies beyond what training keeps finite (|x| <= 1e7)");
-      trainer = std::make_unique<Trainer>(data, init_from_points(ps), o);
-    } else if (init == "random" || init == "random+carve") {
-      ViewInitOptions vo = f.view_init;
-      vo.method = parse_name<ViewInit>(init);
-      vo.seed = o.seed;
-      const ViewInitResult vi = points_from_views(data, vo);
-      in.out << "initial points from the cameras' first views: " << vi.random << " random in the cameras' common volume"
-          << (vo.method == ViewInit::RandomAndCarve ? ", " + std::to_string(vi.carved) + " carved from the foreground masks" +
-                                                          (data.has_masks() ? "" : " (no masks)")
-                                                    : "")
-          << "\n";
-      init_points = vi.points;
-      trainer = std::make_unique<Trainer>(data, init_from_points(vi.points), o);
-    } else {
-      in.fail("unknown --init \"", init, "\" (points, random, random+carve)");
-    }
-  }
-  // The folder is unfinished until the model is written; a new run first removes the
-  // results of a finished one it would replace, so a run killed half-way never leaves an
-  // old model.ply and summary.json beside its own checkpoint.
-  UnfinishedMarker unfinished(f.out, "train");
-  if (!in.given("--resume"))
-    for (const char* old : {"model.ply", "frame0_3dgs.ply", "summary.json", "colour_correction.json", "init_points.ply", "loss.png", "loss.csv",
-                            "loss.gp"}) {
-      std::error_code ec;
-      std::filesystem::remove(join_path(f.out, old), ec);
-    }
-  make_directories(join_path(f.out, "checkpoints"));
-  if (!init_points.positions.empty()) write_points_ply(join_path(f.out, "init_points.ply"), init_points);
-  in.out << "training on " << data.views().size() << " views (" << data.rigs().size() << " cameras x " << data.frames() << " frames; "
-      << (data.image_bytes() >> 20) << " MB of 8-bit images " << (data.images_spilled() ? "in the image cache file, read on demand" : "in memory")
-      << "), " << trainer->params().size() << " initial Gaussians, " << iterations << " iterations\n";
+  TrainJob job;
+  job.data = &data;
+  job.out = f.out;
+  job.options = o;
+  job.iterations = iterations;
+  if (in.given("--resume")) job.resume = f.resume;
+  // Initial points: --points, else points.ply beside the cameras, else from the views
+  // (init.hpp: random points the first frame's cameras see, plus the foreground's visual
+  // hull when the dataset has masks); --init picks explicitly.
+  job.points = f.points;
+  const std::string beside = join_path(std::filesystem::path(f.cameras).parent_path().string(), "points.ply");
+  if (job.points.empty() && std::filesystem::exists(beside)) job.points = beside;
+  job.init = in.given("--init") ? parse_name<InitSource>(f.init) : job.points.empty() ? InitSource::RandomAndCarve : InitSource::Points;
+  if (job.init == InitSource::Points && job.points.empty()) in.fail("--init points needs --points (no points.ply beside ", f.cameras, ")");
+  job.view_init = f.view_init;
   TerminalProgress progress(in.err, in.progress());
-  while (trainer->iteration() < iterations) {
-    const int next = std::min(iterations, (trainer->iteration() / o.checkpoint_interval + 1) * o.checkpoint_interval);
-    trainer->run(next, progress);
-    const TrainStatus st = trainer->status();
-    char line[200];
-    std::snprintf(line, sizeof line, "iteration %d: loss %.4f, PSNR %.2f dB, %zu Gaussians (%zu moving), %.1f it/s\n", st.iteration, st.loss,
-                  st.psnr, st.gaussians, st.dynamic, st.iterations_per_second);
-    in.out << line << std::flush;
-    trainer->save_checkpoint(join_path(f.out, "checkpoints/latest.ckpt"));
-  }
-  const double train_seconds = seconds_since(t0);
-  GaussianCloud model = trainer->model();
-  // Held-out cameras have no correction of their own: the model is written in the colours
-  // of the rig's mean camera, the corrections relative to it (train.hpp, fold_mean_colour).
-  std::vector<ColourCorrection> corrections = trainer->colour_correction();
-  const ColourCorrection mean = o.colour_correction ? fold_mean_colour(model, corrections) : ColourCorrection{};
-  write_fillgs_ply(join_path(f.out, "model.ply"), model, data.frames());
-  write_3dgs_ply(join_path(f.out, "frame0_3dgs.ply"), model, 0.0);
+  TrainingReport report;
+  const TrainJobResult r = run_train_job(job, in.out, progress, [&](const Trainer& trainer, const GaussianCloud& model, double seconds) {
+    report = write_training_report(f.out, trainer, model, data, o, test.get(), seconds);
+  });
+  const GaussianCloud& model = r.model;
+  const double train_seconds = r.seconds_train;
   if (o.colour_correction) {
-    write_colour_correction(join_path(f.out, "colour_correction.json"), corrections);
     auto put = [&](const ColourCorrection& c) {
       char line[160];
       std::snprintf(line, sizeof line, " %s %.3f,%.3f,%.3f/%+.3f,%+.3f,%+.3f;", c.rig.c_str(), c.gain[0], c.gain[1], c.gain[2], c.offset[0],
@@ -657,13 +603,11 @@ int train(const TrainFlags& f, const Invocation& in) {
       in.out << line;
     };
     in.out << "colours of the rig's mean camera, in those of " << data.rigs()[0] << " (gain r,g,b / offset r,g,b):";
-    put(mean);
+    put(r.mean);
     in.out << "\ncolour correction per camera, relative to the mean camera:";
-    for (const ColourCorrection& c : corrections) put(c);
+    for (const ColourCorrection& c : r.corrections) put(c);
     in.out << "\n";
   }
-  const TrainingReport report = write_training_report(f.out, *trainer, model, data, o, test.get(), train_seconds);
-  unfinished.finish();
   in.out << "trained " << model.size() << " Gaussians (" << model.dynamic_count() << " moving) in " << train_seconds << " s; train PSNR "
          << report.train.psnr << " dB";
   if (test) in.out << ", test PSNR " << report.test.psnr << " dB over " << report.test.views << " views";
