@@ -20,6 +20,7 @@
 
 #include "cli/options.hpp"
 #include "fillgs/base/error.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/npy.hpp"
 #include "fillgs/model/camera.hpp"

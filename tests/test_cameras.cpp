@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fillgs/model/camera.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/io/npy.hpp"
 #include "fillgs/train/train.hpp"

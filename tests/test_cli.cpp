@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "fillgs/model/camera.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/base/threads.hpp"

@@ -23,6 +23,7 @@
 #include "helpers.hpp"
 #include "torch_craft.hpp"
 #include "fillgs/base/error.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/base/limits.hpp"
 #include "fillgs/base/process.hpp"

@@ -7,6 +7,7 @@
 #include <cmath>
 
 #include "fillgs/model/camera.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/train/flow.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/image_io.hpp"

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "fillgs/model/frame_grid.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/experiment/evaluate.hpp"

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "fillgs/model/frame_grid.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/model/camera.hpp"

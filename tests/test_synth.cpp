@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "fillgs/render/raster.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/experiment/rigs.hpp"
 #include "fillgs/experiment/synth.hpp"
 #include "helpers.hpp"

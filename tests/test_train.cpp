@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "fillgs/experiment/evaluate.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/image_io.hpp"

@@ -14,6 +14,7 @@
 
 #include "helpers.hpp"
 #include "fillgs/base/error.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/image_io.hpp"

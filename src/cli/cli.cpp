@@ -1,6 +1,7 @@
 // fillgs info, render, synth, convert, cameras, observe and train; the command table, help
 // and the error line.
 #include "fillgs/cli.hpp"
+#include "fillgs/io/camera_io.hpp"
 
 #include <nlohmann/json.hpp>
 

@@ -8,6 +8,7 @@
 #include "commands.hpp"
 #include "options.hpp"
 #include "fillgs/model/frame_grid.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/explore/exploration.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/experiment/reports.hpp"

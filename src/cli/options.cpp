@@ -1,4 +1,5 @@
 #include "fillgs/base/limits.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "options.hpp"
 #include "progress_bar.hpp"
 

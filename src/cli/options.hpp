@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "fillgs/model/camera.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/limits.hpp"
 #include "fillgs/base/math.hpp"

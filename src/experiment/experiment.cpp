@@ -1,4 +1,5 @@
 #include "fillgs/experiment/experiment.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/json_file.hpp"
 
 #include <algorithm>

@@ -1,5 +1,6 @@
 // What the commands write beside their results (reports.hpp).
 #include "fillgs/experiment/reports.hpp"
+#include "fillgs/io/camera_io.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -57,7 +58,7 @@ nlohmann::json exploration_summary(const ExplorationGrid& g, const ExplorationSt
 void write_exploration(const std::string& dir, const ExplorationGrid& grid, const std::vector<Camera>& cameras, const ExplorationStats& stats,
                        double seconds) {
   grid.write(join_path(dir, "exploration.vdb"));
-  write_topdown_png(join_path(dir, "exploration.png"), grid, cameras, {}, "exploration space");
+  write_topdown_png(join_path(dir, "exploration.png"), topdown_slice(grid, cameras), cameras, {}, "exploration space");
   const nlohmann::json j = {{"command", "explore"}, {"grid", exploration_summary(grid, &stats)}, {"seconds", seconds}};
   write_file_atomically(join_path(dir, "summary.json"), j.dump(2) + "\n");
 }
@@ -159,7 +160,7 @@ SelectionReport write_selection(const std::string& dir, const SelectInput& in, c
     write_bar_chart_png(join_path(dir, "priority_over_time.png"), frame_names, per_frame, {"mean E per frame", "frame", "E"});
     prio = {{"evaluated_views", r.priority.views.size()}, {"seconds", r.priority.seconds}};
   }
-  write_topdown_png(join_path(dir, "trajectories.png"), grid, cams, virtual_cams,
+  write_topdown_png(join_path(dir, "trajectories.png"), topdown_slice(grid, cams), cams, virtual_cams,
                     std::string("strategy ") + to_string(o.strategy) + ": " + std::to_string(r.trajectories.size()) + " trajectories");
 
   const SelectTimings& tm = r.timings;

@@ -1,4 +1,5 @@
 #include "fillgs/experiment/synth.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/model/frame_grid.hpp"
 #include "fillgs/train/train.hpp"
 

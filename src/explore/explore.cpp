@@ -207,4 +207,31 @@ ExplorationGrid build_exploration_grid(const GaussianCloud& scene, const std::ve
   return grid;
 }
 
+int vertical_axis(const std::vector<Camera>& cameras) {
+  Vec3d up = Vec3d::Zero();
+  for (const Camera& c : cameras) up -= c.R.row(1).transpose();  // OpenCV y points down
+  int axis = 2;
+  up.cwiseAbs().maxCoeff(&axis);
+  return axis;
+}
+
+TopdownSlice topdown_slice(const ExplorationGrid& grid, const std::vector<Camera>& training) {
+  TopdownSlice s;
+  s.v = vertical_axis(training), s.a = (s.v + 1) % 3, s.b = (s.v + 2) % 3;
+  s.lo = grid.box().lo, s.hi = grid.box().hi;
+  const Vec3i dims = grid.dims();
+  s.na = dims[s.a], s.nb = dims[s.b];
+  // The horizontal slice at the training cameras' mean height (a floor would hide a projection).
+  for (const Camera& c : training) s.height += c.centre()[s.v] / double(training.size());
+  const int layer = std::clamp(grid.voxel_of(Vec3d::Constant(s.height))[s.v], 0, dims[s.v] - 1);
+  s.labels.resize(size_t(s.na) * size_t(s.nb));
+  for (int i = 0; i < s.na; ++i)
+    for (int j = 0; j < s.nb; ++j) {
+      Vec3i ijk;
+      ijk[s.a] = i, ijk[s.b] = j, ijk[s.v] = layer;
+      s.labels[size_t(i) * size_t(s.nb) + size_t(j)] = uint8_t(grid.label(ijk));
+    }
+  return s;
+}
+
 }  // namespace fillgs

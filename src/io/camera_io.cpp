@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "fillgs/model/frame_grid.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/model/camera.hpp"
 #include "fillgs/io/camera_json.hpp"
 #include "fillgs/base/error.hpp"

@@ -1,5 +1,6 @@
 // Multi-view video for training and evaluation (dataset.hpp).
 #include "fillgs/io/dataset.hpp"
+#include "fillgs/io/camera_io.hpp"
 
 #include <nlohmann/json.hpp>
 

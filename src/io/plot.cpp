@@ -9,7 +9,6 @@
 
 #include "fillgs/base/error.hpp"
 #include "fillgs/model/camera.hpp"
-#include "fillgs/explore/exploration.hpp"
 #include "fillgs/base/fs_util.hpp"
 
 namespace fillgs {
@@ -50,19 +49,11 @@ void save(const std::string& path, const cv::Mat& img) {
 
 }  // namespace
 
-int vertical_axis(const std::vector<Camera>& cameras) {
-  Vec3d up = Vec3d::Zero();
-  for (const Camera& c : cameras) up -= c.R.row(1).transpose();  // OpenCV y points down
-  int axis = 2;
-  up.cwiseAbs().maxCoeff(&axis);
-  return axis;
-}
-
-void write_topdown_png(const std::string& path, const ExplorationGrid& grid, const std::vector<Camera>& training,
+void write_topdown_png(const std::string& path, const TopdownSlice& slice, const std::vector<Camera>& training,
                        const std::vector<Camera>& virtual_cameras, const std::string& title) {
-  const int v = vertical_axis(training), a = (v + 1) % 3, b = (v + 2) % 3;
-  const Vec3i dims = grid.dims();
-  const Vec3d lo = grid.box().lo, hi = grid.box().hi;
+  const int v = slice.v, a = slice.a, b = slice.b;
+  const Vec3d lo = slice.lo, hi = slice.hi;
+  if (slice.labels.size() != size_t(slice.na) * size_t(slice.nb)) throw_error(path, ": the slice's labels do not match its ", slice.na, "x", slice.nb, " cells");
   const double wa = hi[a] - lo[a], wb = hi[b] - lo[b];
   const double px = 640.0 / std::max(wa, wb);  // pixels per world unit
   const int margin = 40, top = 34;
@@ -71,21 +62,13 @@ void write_topdown_png(const std::string& path, const ExplorationGrid& grid, con
   // world (a, b) → pixel: a to the right, b up
   auto to_px = [&](const Vec3d& p) { return cv::Point2d(margin + (p[a] - lo[a]) * px, top + (hi[b] - p[b]) * px); };
   const cv::Scalar occupied(70, 70, 70), free_col(250, 250, 250), unexplored(235, 215, 190);
-  // The horizontal slice at the training cameras' mean height (a floor would hide a projection).
-  double height = 0;
-  for (const Camera& c : training) height += c.centre()[v] / double(training.size());
-  const int layer = std::clamp(grid.voxel_of(Vec3d::Constant(height))[v], 0, dims[v] - 1);
-  for (int i = 0; i < dims[a]; ++i)
-    for (int j = 0; j < dims[b]; ++j) {
-      Vec3i ijk;
-      ijk[a] = i;
-      ijk[b] = j;
-      ijk[v] = layer;
-      const VoxelLabel l = grid.label(ijk);
-      const int best = l == VoxelLabel::Occupied ? 1 : l == VoxelLabel::Free ? 0 : 2;
+  const double height = slice.height;
+  for (int i = 0; i < slice.na; ++i)
+    for (int j = 0; j < slice.nb; ++j) {
+      const int best = slice.labels[size_t(i) * size_t(slice.nb) + size_t(j)];
       Vec3d c0 = lo, c1 = lo;
-      c0[a] += i * wa / dims[a], c0[b] += (j + 1) * wb / dims[b];
-      c1[a] += (i + 1) * wa / dims[a], c1[b] += j * wb / dims[b];
+      c0[a] += i * wa / slice.na, c0[b] += (j + 1) * wb / slice.nb;
+      c1[a] += (i + 1) * wa / slice.na, c1[b] += j * wb / slice.nb;
       cv::rectangle(img, to_px(c0), to_px(c1), best == 1 ? occupied : best == 0 ? free_col : unexplored, cv::FILLED);
     }
   cv::rectangle(img, to_px(lo), to_px(hi), kInk, 1);

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "fillgs/base/error.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/math.hpp"
 #include "fillgs/base/progress.hpp"
 #include "fillgs/explore/exploration.hpp"

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "fillgs/model/camera.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/image_io.hpp"

@@ -26,6 +26,7 @@
 
 #include "fillgs/base/names.hpp"
 #include "fillgs/model/camera.hpp"
+#include "fillgs/io/plot.hpp"
 #include "fillgs/model/gaussians.hpp"
 #include "fillgs/base/progress.hpp"
 
@@ -132,11 +133,8 @@ ExplorationGrid build_exploration_grid(const GaussianCloud& scene, const std::ve
 /// World axis (0, 1, 2) closest to the training cameras' mean up direction.
 int vertical_axis(const std::vector<Camera>& cameras);
 
-/// Top-down picture: the grid's horizontal slice at the training cameras' mean height
-/// (labels as colours), training cameras in red, `virtual_cameras` in blue (a dot and a
-/// short line along the viewing direction), all projected along the vertical axis.
-/// Written atomically.
-void write_topdown_png(const std::string& path, const ExplorationGrid& grid, const std::vector<Camera>& training,
-                       const std::vector<Camera>& virtual_cameras, const std::string& title);
+/// The grid's horizontal slice at the training cameras' mean height, for the top-down
+/// picture (io/plot.hpp, write_topdown_png).
+TopdownSlice topdown_slice(const ExplorationGrid& grid, const std::vector<Camera>& training);
 
 }  // namespace fillgs

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "fillgs/base/progress.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/model/camera.hpp"
 #include "fillgs/io/pixel_store.hpp"
 

@@ -4,12 +4,30 @@
 // numbers) and NAME.gp (the script: `gnuplot NAME.gp` re-plots) beside it, and a missing
 // gnuplot leaves the CSV and script with one warning line. Pictures (scene top views, image
 // grids; src/io/plot.cpp) are drawn with OpenCV. Files are written atomically.
+#include <cstdint>
 #include <string>
 #include <vector>
 
 #include "fillgs/model/camera.hpp"
 
 namespace fillgs {
+
+/// A horizontal slice of an exploration space seen from above: axis `a` to the right, `b`
+/// up, `v` the vertical one, at height `height`; labels[i * nb + j] of cell (i, j) along a
+/// and b: 0 free, 1 occupied, 2 unexplored; lo and hi the space's corners.
+struct TopdownSlice {
+  int a = 0, b = 1, v = 2;
+  double height = 0;
+  Vec3d lo = Vec3d::Zero(), hi = Vec3d::Ones();
+  int na = 0, nb = 0;
+  std::vector<uint8_t> labels;
+};
+
+/// Top-down picture: the slice's labels as colours, training cameras in red,
+/// `virtual_cameras` in blue (a dot and a short line along the viewing direction), all
+/// projected along the vertical axis. Written atomically.
+void write_topdown_png(const std::string& path, const TopdownSlice& slice, const std::vector<Camera>& training,
+                       const std::vector<Camera>& virtual_cameras, const std::string& title);
 
 struct PlotLabels {
   std::string title, x, y;

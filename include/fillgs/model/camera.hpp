@@ -58,38 +58,4 @@ struct RingPlacement {
 /// The ring's cameras, with the intrinsics and size of `lens`.
 std::vector<Camera> camera_ring(const RingPlacement& ring, const Camera& lens);
 
-enum class CameraFormat { Auto, Colmap, Llff, Transforms, GaussianJson, Technicolor, D3dgs };
-FILLGS_ENUM_NAMES(CameraFormat, "camera format",
-    {CameraFormat::Auto, "auto"}, {CameraFormat::Colmap, "colmap"}, {CameraFormat::Llff, "llff"}, {CameraFormat::Transforms, "transforms"},
-    {CameraFormat::GaussianJson, "3dgs"}, {CameraFormat::Technicolor, "technicolor"}, {CameraFormat::D3dgs, "d3dgs"},
-    {CameraFormat::Transforms, "nerf"}, {CameraFormat::D3dgs, "panoptic"});
-
-struct CameraReadOptions {
-  CameraFormat format = CameraFormat::Auto;
-  /// Image size for formats that do not store one (NeRF camera_angle_x without w/h when
-  /// the image cannot be opened, Technicolor). 0: look at the image, then fail clearly.
-  int width = 0, height = 0;
-  /// LLFF: divide the stored H, W, f by this (Neural 3D Video is used at 2 → 1352×1014).
-  double llff_downscale = 1.0;
-};
-
-/// Reads cameras, detecting the format from the path unless told:
-/// a directory or cameras.txt/images.txt/*.bin → COLMAP; *.npy → LLFF;
-/// *.json holding a list → 3DGS cameras.json, an object with frames → transforms;
-/// *.txt other than COLMAP's → Technicolor cameras_parameters.txt; *_meta.json → Dynamic 3D
-/// Gaussians (CMU Panoptic): a camera per frame and camera, "<cam_id>/<frame:06d>", timed.
-std::vector<Camera> read_cameras(const std::string& path, const CameraReadOptions& options = {});
-CameraFormat detect_camera_format(const std::string& path);
-
-/// Writes NeRF-style transforms.json: per-frame fl_x fl_y cx cy w h, time (when known),
-/// camera-to-world in OpenGL axes, file_path = image_path or the camera name.
-void write_transforms_json(const std::string& path, const std::vector<Camera>& cams);
-
-/// Writes COLMAP text (cameras.txt, images.txt, empty points3D.txt) into a directory;
-/// one PINHOLE camera per view.
-void write_colmap_text(const std::string& dir, const std::vector<Camera>& cams);
-/// Throws naming the file when `dir` holds a binary COLMAP model (cameras.bin, images.bin),
-/// which readers take before a text one: text cameras written there would be shadowed.
-void check_colmap_text_target(const std::string& dir);
-
 }  // namespace fillgs
