@@ -325,4 +325,11 @@ GaussianCloud read_scene_shown(const std::string& path, SceneReadOptions options
   return read_scene(path, options);
 }
 
+std::string fixed(double x, int digits) {
+  if (!std::isfinite(x)) return "-";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*f", digits, x);
+  return b;
+}
+
 }  // namespace fillgs::cli

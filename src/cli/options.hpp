@@ -272,6 +272,9 @@ struct MotionRateFlags {
 void add_motion_rate_flags(CLI::App& app, MotionRateFlags& f);
 MotionRates motion_rates(const Invocation& in, const MotionRateFlags& f);
 
+/// x with `digits` decimals ("-" when not finite), as the commands print figures.
+std::string fixed(double x, int digits = 2);
+
 }  // namespace fillgs::cli
 
 namespace fillgs {
