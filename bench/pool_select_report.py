@@ -270,6 +270,19 @@ def main():
                 f"against a mean seed spread of {sd:.2f} dB."], best
 
     chart = []  # (strategy, K, mean gain over the control, its seed spread)
+
+    def chart_gains(prefix, control, K):
+        """Each strategy's gain over `control` (mean PSNR over the splits, paired within each seed) onto the chart."""
+        for st in STRATEGIES:
+            gains = []
+            for s in seeds:
+                v = [metric(s, f"{prefix}{st}.K{K}", sp, "psnr") for sp in splits]
+                c = [metric(s, control, sp, "psnr") for sp in splits]
+                if all(x is not None for x in v + c):
+                    gains.append(statistics.mean(v) - statistics.mean(c))
+            if gains:
+                chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0))
+
     for K in budgets:
         ties = {st for st in STRATEGIES if tied(st, K)}
         lines += ["", f"## K = {K} camera-times"]
@@ -285,15 +298,7 @@ def main():
             if sl:
                 lines += [""] + sl[0]
                 best_id = f"scratch.{sl[1]}.K{K}"
-            for st in STRATEGIES:
-                gains = []
-                for s in seeds:
-                    v = [metric(s, f"scratch.{st}.K{K}", sp, "psnr") for sp in splits]
-                    c = [metric(s, "scratch.control", sp, "psnr") for sp in splits]
-                    if all(x is not None for x in v + c):
-                        gains.append(statistics.mean(v) - statistics.mean(c))
-                if gains:
-                    chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0))
+            chart_gains("scratch.", "scratch.control", K)
         rows, means = table("", K, [row("backbone", seeds), row("control", seeds, "control (no photographs added)")], ties)
         for w in ("fillgs", "exploregs"):
             rid = f"fillgs.K{K}.w-{w}"
@@ -307,15 +312,7 @@ def main():
             lines += [""] + sl[0]
             best_id = best_id or f"{sl[1]}.K{K}"
         if not scratch_rows:
-            for st in STRATEGIES:
-                gains = []
-                for s in seeds:
-                    v = [metric(s, f"{st}.K{K}", sp, "psnr") for sp in splits]
-                    c = [metric(s, "control", sp, "psnr") for sp in splits]
-                    if all(x is not None for x in v + c):
-                        gains.append(statistics.mean(v) - statistics.mean(c))
-                if gains:
-                    chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0))
+            chart_gains("", "control", K)
         if best_id:
             lines += ["", f"best at K={K}: {best_id}"]
         # What each strategy chose, per seed: its (camera, frame) pairs.
