@@ -967,7 +967,7 @@ TEST_CASE("Student's t quantile matches the printed table", "[refine][bench]") {
   CHECK_THROWS(student_t_975(0));
 }
 
-TEST_CASE("bench report: an unweighted strategy pairs with FillGS's unweighted run; intervals over five seeds", "[refine][bench]") {
+TEST_CASE("bench report: an unweighted strategy pairs with FillGS's unweighted run, with intervals over five seeds", "[refine][bench]") {
   auto result = [](const std::string& id, uint64_t seed, double interp) {
     RunResult r;
     r.id = id;

@@ -104,6 +104,7 @@ int train(const TrainFlags& f, const Invocation& in) {
   job.out = f.out;
   job.options = o;
   job.iterations = iterations;
+  job.iterations_name = "--iterations";
   if (in.given("--resume")) job.resume = f.resume;
   // Initial points: --points, else points.ply beside the cameras, else from the views
   // (init.hpp: random points the first frame's cameras see, plus the foreground's visual

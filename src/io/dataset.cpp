@@ -219,9 +219,9 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
     }
     d.frames_ = std::max(frames, 1);
   }
-  for (const auto& [want, frame] : opt.camera_times)
-    if (std::none_of(d.views_.begin(), d.views_.end(), [&](const TrainView& v) { return v.rig == want; }))
-      throw_error(cameras_path, ": no camera named '", want, "' (a single camera-time asks for it at frame ", frame, ")");
+  for (const std::pair<std::string, int>& ct : opt.camera_times)
+    if (std::none_of(d.views_.begin(), d.views_.end(), [&](const TrainView& v) { return v.rig == ct.first; }))
+      throw_error(cameras_path, ": no camera named '", ct.first, "' (a single camera-time asks for it at frame ", ct.second, ")");
   for (const std::string& want : opt.cameras) {
     bool found = false;
     for (const TrainView& v : d.views_) found = found || v.rig == want;

@@ -708,7 +708,9 @@ py::dict select_py(const Model& model, const Cameras& cameras, int frames, const
 py::list weights_py(const Model& model, const Cameras& cameras, const py::object& images, const py::object& refined, const Cameras& refined_cameras,
                     const std::string& weighting, int frames, const py::object& progress) {
   const GaussianCloud& cloud = *model.cloud;
-  const auto [views, F] = views_of(cloud, cameras, frames);
+  const std::pair<std::vector<ObservedView>, int> viewed = views_of(cloud, cameras, frames);
+  const std::vector<ObservedView>& views = viewed.first;
+  const int F = viewed.second;
   const std::vector<std::vector<float>> observed = images_for(images, views, "images");
   std::vector<ObservedView> refined_views;
   for (const Camera& c : refined_cameras.list) {

@@ -28,8 +28,8 @@ TrainJobResult run_train_job(const TrainJob& job, std::ostream& log, Progress& p
     // A checkpoint at exactly `iterations` is a run killed after its last checkpoint and
     // before its model was written: resuming it writes the model, training nothing more.
     if (trainer->iteration() > job.iterations)
-      throw_error(job.resume, " is already at iteration ", trainer->iteration(), ": give at least that many iterations (", job.iterations,
-                  " given) to continue it");
+      throw_error(job.iterations_name, " ", job.iterations, ": ", job.resume, " is already at iteration ", trainer->iteration(),
+                  "; give at least that many iterations to continue it");
     if (trainer->iteration() == job.iterations) log << job.resume << " is at iteration " << job.iterations << ", the last: writing the model from it\n";
   } else if (job.init == InitSource::Points) {
     if (job.points.empty()) throw_error("training: initial points from a file, and none was given");

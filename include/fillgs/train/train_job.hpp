@@ -26,6 +26,8 @@ struct TrainJob {
   std::string out;         ///< model.ply, frame0_3dgs.ply, colour_correction.json, init_points.ply, checkpoints/
   TrainOptions options;    ///< its schedule for `iterations`; checkpoint_interval > 0
   int iterations = 3000;
+  /// How the caller names `iterations` in its messages ("--iterations" on the command line).
+  std::string iterations_name = "iterations";
   std::string resume;      ///< a checkpoint to continue ("" : a new run)
   /// Initial points: `points` (a PLY or COLMAP file) for InitSource::Points; the views'
   /// random points (and the masks' visual hull) otherwise, written as init_points.ply.
