@@ -256,18 +256,19 @@ def main():
         return rows, means
 
     def spread_line(K, means):
+        """(the line comparing the best and worst strategy, the best's name), or None without common seeds."""
         common = [s for s in seeds if all(s in v for v in means.values())]
         if not means or not common:
-            return []
+            return None
         m = {k: [v[s] for s in common] for k, v in means.items()}
         best = max(m, key=lambda k: statistics.mean(m[k]))
         worst = min(m, key=lambda k: statistics.mean(m[k]))
         spread = statistics.mean(m[best]) - statistics.mean(m[worst])
         seed_sd = [statistics.stdev(v) for v in m.values() if len(v) > 1]
         sd = statistics.mean(seed_sd) if seed_sd else float("nan")
-        return [f"Mean PSNR over the splits, seeds {','.join(common)} (those every strategy has): best {best} "
+        return (f"Mean PSNR over the splits, seeds {','.join(common)} (those every strategy has): best {best} "
                 f"{statistics.mean(m[best]):.2f} dB, worst {worst} {statistics.mean(m[worst]):.2f} dB, spread {spread:.2f} dB "
-                f"against a mean seed spread of {sd:.2f} dB."], best
+                f"against a mean seed spread of {sd:.2f} dB."), best
 
     chart = []  # (strategy, K, mean gain over the control, its seed spread)
 
@@ -296,7 +297,7 @@ def main():
                       "initial points.", ""] + rows + criterion("scratch.", K, means, ties)
             sl = spread_line(K, means)
             if sl:
-                lines += [""] + sl[0]
+                lines += ["", sl[0]]
                 best_id = f"scratch.{sl[1]}.K{K}"
             chart_gains("scratch.", "scratch.control", K)
         rows, means = table("", K, [row("backbone", seeds), row("control", seeds, "control (no photographs added)")], ties)
@@ -309,7 +310,7 @@ def main():
                   ""] + rows + criterion("", K, means, ties)
         sl = spread_line(K, means)
         if sl:
-            lines += [""] + sl[0]
+            lines += ["", sl[0]]
             best_id = best_id or f"{sl[1]}.K{K}"
         if not scratch_rows:
             chart_gains("", "control", K)

@@ -339,7 +339,7 @@ def test_select_equals_cli(tmp_path, synth, strategy):
         assert t.index == w["index"] and t.frame == w["frame"] and t.is_global == w["global"]
         assert list(t.patch_frames) == w["patch_frames"]
         np.testing.assert_allclose(t.scores, [p["score"] for p in w["poses"]], rtol=1e-9)
-    got = [c for t in trajs for c in [t.views().arrays()]]
+    got = [t.views().arrays() for t in trajs]
     want = fillgs.read_cameras(f"{out}/transforms.json").arrays()
     for key in ("K", "world_to_camera", "time"):
         np.testing.assert_allclose(np.concatenate([g[key] for g in got]), want[key], atol=1e-9, err_msg=key)
