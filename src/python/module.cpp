@@ -36,6 +36,7 @@
 #include "fillgs/model/frame_grid.hpp"
 #include "fillgs/model/gaussians.hpp"
 #include "fillgs/render/raster.hpp"
+#include "fillgs/visibility/observe_io.hpp"
 #include "fillgs/visibility/visibility.hpp"
 
 namespace py = pybind11;
@@ -480,10 +481,7 @@ py::dict observe_py(const Model& model, const std::shared_ptr<const CallerFrames
   }
   if (hit_cache_mb >= 0) o.static_hit_cache_bytes = size_t(hit_cache_mb * 1048576.0);
   const size_t T = times.size(), N = cloud.size();
-  const auto views = views_per_frame(cameras.list, times, frame_step);
-  size_t max_views = 0;
-  for (const auto& v : views) max_views = std::max(max_views, v.size());
-  const bool narrow = max_views <= 255;
+  const bool narrow = counts_fit_uint8(max_views_per_frame(cameras.list, times, frame_step));
   py::array counts = narrow ? py::array(py::array_t<uint8_t>({py::ssize_t(T), py::ssize_t(N)})) : py::array(py::array_t<uint16_t>({py::ssize_t(T), py::ssize_t(N)}));
   py::array_t<float> speed({py::ssize_t(T), py::ssize_t(N)}), deficiency({py::ssize_t(T), py::ssize_t(N)});
   void* cp = counts.mutable_data();

@@ -115,6 +115,12 @@ nlohmann::json per_camera_json(const ObserveTallies& t) {
 
 }  // namespace
 
+size_t max_views_per_frame(const std::vector<Camera>& cameras, const std::vector<double>& times, double frame_step) {
+  size_t max_views = 0;
+  for (const auto& v : views_per_frame(cameras, times, frame_step)) max_views = std::max(max_views, v.size());
+  return max_views;
+}
+
 ObserveReport observe_to_directory(const GaussianCloud& cloud, const std::vector<Camera>& cameras, const std::vector<double>& times,
                                    double frame_step, const ObservationOptions& options, const std::string& dir,
                                    const ObserveOutputOptions& output, Progress& progress) {
@@ -131,10 +137,8 @@ ObserveReport write_observation(const GaussianCloud& cloud, const std::vector<Ca
   const bool shard = !options.frames.empty();
   const size_t N = cloud.size(), M = cloud.dynamic_count(), T = shard ? options.frames.size() : times.size();
   // The count type follows every frame of the job, so that a shard writes what the whole would.
-  const auto views = views_per_frame(cameras, times, frame_step);
-  size_t max_views = 0;
-  for (const auto& v : views) max_views = std::max(max_views, v.size());
-  const bool narrow = max_views <= 255;
+  const size_t max_views = max_views_per_frame(cameras, times, frame_step);
+  const bool narrow = counts_fit_uint8(max_views);
 
   ObserveReport report;
   const std::string motion_suffix = output.dense_motion_tables ? "" : "_dynamic";

@@ -25,6 +25,11 @@ struct ObserveReport {
   size_t peak_memory_bytes = 0;                ///< process peak resident set (VmHWM)
 };
 
+/// The most views any of `times` has (views_per_frame), and whether the count tables then fit
+/// uint8 (at most 255), else uint16: the type `observe` writes and the Python module returns.
+size_t max_views_per_frame(const std::vector<Camera>& cameras, const std::vector<double>& times, double frame_step);
+inline bool counts_fit_uint8(size_t max_views) { return max_views <= 255; }
+
 /// Computes the tables (see observe) and writes into `dir`:
 ///   count.npy [T, N] (uint8 when at most 255 views share a time, else uint16),
 ///   speed.npy / deficiency.npy [T, N] float32 (or the _dynamic [T, M] variants),
