@@ -1,6 +1,6 @@
 // fillgs_bench n3v-rig: a stand-in for a whole Neural 3D Video scene as distributed — one
-// camNN.mp4 per camera of the real N3V rig and its poses_bounds.npy — at the size issue 14
-// asks fillgs to train within this machine (21 cameras x 300 frames at 1352x1014, 26 GB of
+// camNN.mp4 per camera of the real N3V rig and its poses_bounds.npy — at the size a user
+// trains within this machine (21 cameras x 300 frames at 1352x1014, 26 GB of
 // 8-bit frames). `../shared/data` holds frame 0 of flame_steak only, so frame f of camera c
 // is that camera's real frame-0 photograph with a disc painted in at a place that moves with
 // f: the real rig's geometry, image sizes and real image content, and frames that differ, so

@@ -58,7 +58,7 @@ int bench_networks(const std::vector<std::string>& args) {
       if (!std::filesystem::exists(dir)) continue;
       SceneReadOptions o;
       if (std::string(name) != "e-d3dgs") o.model_frames = model_frames;
-      const auto model = open_trained_model(dir, detect_trained_model(dir), o);
+      const auto model = open_trained_model(dir, "auto", o);
       const size_t N = model->size();
       std::vector<uint32_t> all(N);
       for (size_t i = 0; i < N; ++i) all[i] = uint32_t(i);

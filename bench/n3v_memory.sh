@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Training a whole Neural 3D Video scene within this machine's memory (issue 14): 21
+# Training a whole Neural 3D Video scene within this machine's memory: 21
 # cameras x 300 frames at 1352x1014 is 26 GB of 8-bit frames, more than the machine holds
 # beside anything else, so `fillgs train` keeps what exceeds --image-memory (default a
 # quarter of the machine) in its image cache file and reads images back when drawn.

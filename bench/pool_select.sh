@@ -4,17 +4,21 @@
 # model), and every model is judged on held-out cameras read from a camera file that
 # training, the initial points, the pool and the selection never see (`--held-out`).
 # Two protocols, each its own table:
-#  * trained from scratch (the main one): a model trained on the training cameras plus the
-#    K chosen photographs (`fillgs train --camera-times`) with exactly the dense reference's
-#    settings — its iterations, SH degree, colour correction — from the same initial points
-#    (the seed's backbone's) and the run's seed. Its window is the backbone-to-dense gap, and
-#    K = every pool photograph is the dense reference. The control: the training cameras alone.
-#  * warm start (labelled as such): the backbone fine-tuned with the chosen photographs added
-#    at their real poses, the way the selection itself runs; the same selection feeds the
-#    first protocol.
+#  * trained from scratch (the main one): each strategy chooses the K camera-times on the
+#    seed's backbone in one greedy round (`finetune --pool-budget K --iterations 1
+#    --select-every 1`: every chosen one counted as an observation before the next; the one
+#    training step is discarded), then a model is trained on the training cameras plus those
+#    photographs (`fillgs train --camera-times`) with exactly the dense reference's settings
+#    — its iterations, SH degree, colour correction — from the same initial points (the
+#    seed's backbone's) and the run's seed. Its window is the backbone-to-dense gap, and K =
+#    every pool photograph is the dense reference. The control: the training cameras alone.
+#    Every seed's main protocol runs before any warm start.
+#  * warm start (labelled as such; after the main protocol, or not with --no-warm-start): the
+#    backbone fine-tuned for 2,400 iterations with the photographs added at their real
+#    poses, chosen in three rounds, each from the current model.
 #
 #   bench/pool_select.sh [--scene panoptic|n3v-static] [--smoke] [--test-cameras FILE]
-#                        [--seeds 1,2,3,4,5] [--budgets ...] [--strategies a,b,..] [--no-scratch] [OUT]
+#                        [--seeds 1,2,3,4,5] [--budgets ...] [--strategies a,b,..] [--no-scratch] [--no-warm-start] [OUT]
 #       (default OUT: bench/results/video/panoptic_pool or bench/results/video/n3v_static_pool)
 #
 # Both splits were fixed from the cameras' geometry before any run (bench/results/README.md,
@@ -65,7 +69,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source bench/lib.sh
-SMOKE=0 TEST= SEEDS=1,2,3,4,5 BUDGETS= SCENE=panoptic ONLY= NO_SCRATCH=0
+SMOKE=0 TEST= SEEDS=1,2,3,4,5 BUDGETS= SCENE=panoptic ONLY= NO_SCRATCH=0 NO_WARM=0
 while [ $# -gt 0 ]; do
   case $1 in
     --scene) SCENE=$2; shift ;;
@@ -75,6 +79,7 @@ while [ $# -gt 0 ]; do
     --budgets) BUDGETS=$2; shift ;;
     --strategies) ONLY=$2; shift ;;
     --no-scratch) NO_SCRATCH=1 ;;
+    --no-warm-start) NO_WARM=1 ;;
     -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
     -*) echo "pool_select: unknown option $1" >&2; exit 1 ;;
     *) break ;;
@@ -195,48 +200,70 @@ backbone 1
 step "$OUT/dense" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE[@]}" --points "$(scratch_points 1)" "${OPTS[@]}" \
   --seed 1 --out "$OUT/dense" --quiet
 evaluate "$OUT/dense"
-for s in "${seeds[@]}"; do
-  S=$OUT/s$s
-  backbone "$s"
-  # Trained from scratch with the dense reference's settings on the training cameras and the
-  # photographs a selection chose (none: the training cameras alone).
-  scratch() {  # id, extra train options
-    local id=scratch.$1
-    shift
-    step "$S/$id" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "$@" "${DENSE[@]}" --points "$(scratch_points "$s")" "${OPTS[@]}" \
-      --seed "$s" --out "$S/$id" --quiet
-    evaluate "$S/$id"
-  }
-  scratch control
-  finetune() {  # id, extra finetune options
-    local id=$1
-    shift
-    step "$S/$id" summary.json "$FILLGS" finetune --model "$S/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
-      --seed "$s" --out "$S/$id" "${FT[@]}" "$@" --quiet
-    evaluate "$S/$id"
-  }
-  finetune control --trajectories 0
-  for K in "${budgets[@]}"; do
-    for st in "${STRATEGIES[@]}"; do
-      finetune "$st.K$K" --pool-cameras $POOL --pool-budget "$K" --strategy "$st" --weighting none
-      [ $NO_SCRATCH = 1 ] || scratch "$st.K$K" --camera-times "$S/$st.K$K/pool_chosen.json"
+# Trained from scratch with the dense reference's settings on the training cameras and the
+# photographs a selection chose (none: the training cameras alone).
+scratch() {  # seed, id, extra train options
+  local s=$1 id=scratch.$2
+  shift 2
+  step "$OUT/s$s/$id" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "$@" "${DENSE[@]}" --points "$(scratch_points "$s")" "${OPTS[@]}" \
+    --seed "$s" --out "$OUT/s$s/$id" --quiet
+  evaluate "$OUT/s$s/$id"
+}
+# The backbone fine-tuned (the warm start; with --pool-budget the selection runs in its rounds).
+finetune() {  # seed, id, extra finetune options
+  local s=$1 id=$2
+  shift 2
+  step "$OUT/s$s/$id" summary.json "$FILLGS" finetune --model "$OUT/s$s/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
+    --seed "$s" --out "$OUT/s$s/$id" "${FT[@]}" "$@" --quiet
+  evaluate "$OUT/s$s/$id"
+}
+# The main protocol, every seed first.
+if [ $NO_SCRATCH = 0 ]; then
+  for s in "${seeds[@]}"; do
+    backbone "$s"
+    scratch "$s" control
+    for K in "${budgets[@]}"; do
+      for st in "${STRATEGIES[@]}"; do
+        # K camera-times chosen on the backbone in one greedy round.
+        step "$OUT/s$s/choose.$st.K$K" summary.json "$FILLGS" finetune --model "$OUT/s$s/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
+          --seed "$s" --out "$OUT/s$s/choose.$st.K$K" --iterations 1 --select-every 1 --pool-cameras $POOL --pool-budget "$K" --strategy "$st" \
+          --weighting none --quiet
+        scratch "$s" "$st.K$K" --camera-times "$OUT/s$s/choose.$st.K$K/pool_chosen.json"
+      done
     done
   done
-  # What FillGS's and ExploreGS's weights do to real photographs (FillGS's selection), once:
-  # seed 1 at the smallest budget.
-  if [ "$s" = 1 ] && [[ ",$BUDGETS," == *",$WEIGHTS_K,"* ]]; then
-    for w in fillgs exploregs; do
-      finetune "fillgs.K$WEIGHTS_K.w-$w" --pool-cameras $POOL --pool-budget "$WEIGHTS_K" --strategy fillgs --weighting $w
+fi
+# The warm start.
+if [ $NO_WARM = 0 ]; then
+  for s in "${seeds[@]}"; do
+    backbone "$s"
+    finetune "$s" control --trajectories 0
+    for K in "${budgets[@]}"; do
+      for st in "${STRATEGIES[@]}"; do
+        finetune "$s" "$st.K$K" --pool-cameras $POOL --pool-budget "$K" --strategy "$st" --weighting none
+      done
     done
-  fi
-done
+    # What FillGS's and ExploreGS's weights do to real photographs (FillGS's selection), once:
+    # seed 1 at the smallest budget.
+    if [ "$s" = 1 ] && [[ ",$BUDGETS," == *",$WEIGHTS_K,"* ]]; then
+      for w in fillgs exploregs; do
+        finetune "$s" "fillgs.K$WEIGHTS_K.w-$w" --pool-cameras $POOL --pool-budget "$WEIGHTS_K" --strategy fillgs --weighting $w
+      done
+    fi
+  done
+fi
 
 python3 bench/pool_select_report.py "$OUT" --title "$TITLE" --seeds "$SEEDS" --budgets "$BUDGETS" --splits "$(IFS=,; echo "${SPLITS[*]}")" >/dev/null
 # What every strategy chose, side by side (camera x frame, first seed).
 for K in "${budgets[@]}"; do
   pics=()
   for st in "${STRATEGIES[@]}"; do
-    [ -f "$OUT/s${seeds[0]}/$st.K$K/pool_chosen.png" ] && pics+=("$OUT/s${seeds[0]}/$st.K$K/pool_chosen.png")
+    for d in "choose.$st.K$K" "$st.K$K"; do  # the main protocol's selection where it ran
+      if [ -f "$OUT/s${seeds[0]}/$d/pool_chosen.png" ]; then
+        pics+=("$OUT/s${seeds[0]}/$d/pool_chosen.png")
+        break
+      fi
+    done
   done
   [ ${#pics[@]} -gt 0 ] && oiiotool --nosoftwareattrib "${pics[@]}" --mosaic 4x2 -o "$OUT/chosen_K${K}_s${seeds[0]}.png"
 done

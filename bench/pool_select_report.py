@@ -195,12 +195,17 @@ def main():
 
     # A strategy whose every pick scored 0 (on a static scene no Gaussian moves, so FillGS's
     # and negative's scores are all 0) was chosen by the pool's order, not by its score.
-    def tied(st, K):
+    def chosen_id(prefix, st, K):
+        """Where a protocol's selection is: the main protocol's on the backbone (choose.*), the
+        warm start's in its own rounds."""
+        return f"choose.{st}.K{K}" if prefix == "scratch." else f"{st}.K{K}"
+
+    def tied(prefix, st, K):
         if st == "random":  # chosen by its draws, not by a score
             return False
         scores = set()
         for s in seeds:
-            p = load(os.path.join(out, f"s{s}", f"{st}.K{K}", "pool_chosen.json"))
+            p = load(os.path.join(out, f"s{s}", chosen_id(prefix, st, K), "pool_chosen.json"))
             if p:
                 scores |= {c["score"] for c in p["chosen"]}
         return scores == {0.0}
@@ -285,28 +290,30 @@ def main():
                 chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0))
 
     for K in budgets:
-        ties = {st for st in STRATEGIES if tied(st, K)}
         lines += ["", f"## K = {K} camera-times"]
         scratch_rows = any(summary(s, f"scratch.{st}.K{K}") for s in seeds for st in STRATEGIES)
         best_id = None
         if scratch_rows:
+            ties = {st for st in STRATEGIES if tied("scratch.", st, K)}
             rows, means = table("scratch.", K, [row("dense", ["1"], "dense reference (training + every pool photograph)"),
                                                 row("scratch.control", seeds, "training cameras alone")], ties)
             lines += ["", "### Trained from scratch (the main protocol)", "",
-                      "The training cameras and the chosen photographs, with the dense reference's settings, from the seed's backbone's "
-                      "initial points.", ""] + rows + criterion("scratch.", K, means, ties)
+                      "Each strategy chooses the K camera-times on the seed's backbone in one greedy round (each chosen one counted as an "
+                      "observation before the next); a model is then trained on the training cameras and the chosen photographs with the "
+                      "dense reference's settings, from the seed's backbone's initial points.", ""] + rows + criterion("scratch.", K, means, ties)
             sl = spread_line(K, means)
             if sl:
                 lines += ["", sl[0]]
                 best_id = f"scratch.{sl[1]}.K{K}"
             chart_gains("scratch.", "scratch.control", K)
+        ties = {st for st in STRATEGIES if tied("", st, K)}
         rows, means = table("", K, [row("backbone", seeds), row("control", seeds, "control (no photographs added)")], ties)
         for w in ("fillgs", "exploregs"):
             rid = f"fillgs.K{K}.w-{w}"
             if any(summary(s, rid) for s in seeds):
                 rows.append(row(rid, seeds))
         lines += ["", "### Warm start: the backbone fine-tuned with the photographs (second protocol)", "",
-                  "The selection runs here: each round chooses from the current model; the photographs are added at their real poses.",
+                  "The selection runs here, in three rounds, each choosing from the current model; the photographs are added at their real poses.",
                   ""] + rows + criterion("", K, means, ties)
         sl = spread_line(K, means)
         if sl:
@@ -316,11 +323,13 @@ def main():
             chart_gains("", "control", K)
         if best_id:
             lines += ["", f"best at K={K}: {best_id}"]
-        # What each strategy chose, per seed: its (camera, frame) pairs.
+        # What each strategy chose, per seed: its (camera, frame) pairs (the main protocol's
+        # selection where it ran, else the warm start's).
+        pick = "scratch." if scratch_rows else ""
         chosen = {}
         for st in STRATEGIES:
             for s in seeds:
-                p = load(os.path.join(out, f"s{s}", f"{st}.K{K}", "pool_chosen.json"))
+                p = load(os.path.join(out, f"s{s}", chosen_id(pick, st, K), "pool_chosen.json"))
                 if p:
                     chosen.setdefault(st, {})[s] = {(c["camera"], c["frame"]) for c in p["chosen"]}
         # How spread each strategy's choices are: distinct cameras and frames (mean over the seeds).
@@ -340,7 +349,7 @@ def main():
                     cells.append(f"{statistics.mean(share):.2f}" if share else "–")
                 lines.append(f"| {x} | " + " | ".join(cells) + " |")
             lines += ["", f"What each strategy chose (camera × frame, seed {seeds[0]}; each run's own picture and list are "
-                          f"s{seeds[0]}/<strategy>.K{K}/pool_chosen.png and .json): ![chosen](chosen_K{K}_s{seeds[0]}.png)"]
+                          f"s{seeds[0]}/{chosen_id(pick, '<strategy>', K)}/pool_chosen.png and .json): ![chosen](chosen_K{K}_s{seeds[0]}.png)"]
     if chart and write_chart(out, chart, budgets, a.title):
         lines += ["", "Gain over the control of the main protocol (mean PSNR over the splits, paired within each seed; bars: mean, "
                       "whiskers: ± standard deviation over the seeds):", "", "![gain over the control](gain.png)"]

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs every fillgs command on the synthetic scene and prints one line per output file:
-# its SHA-256 and its path. Two builds whose lists agree write the same bytes (issue 16:
-# a refactor must leave every output as it was).
+# its SHA-256 and its path. Two builds whose lists agree write the same bytes:
+# a refactor must leave every output as it was.
 #
 #   tests/output_hashes.sh BIN WORKDIR > hashes.txt
 #   diff <(tests/output_hashes.sh old/fillgs /tmp/a) <(tests/output_hashes.sh build/bin/fillgs /tmp/b)
@@ -32,7 +32,7 @@ run observe --scene scene/scene.ply --cameras scene/transforms_train.json --out 
 run observe --scene scene/scene.ply --cameras scene/transforms_train.json --out observe_ray --mode raytraced --stride 2 "${q[@]}"
 run explore --scene scene/scene.ply --cameras scene/transforms_train.json --out explore --frames 6 "${q[@]}"
 run select --scene scene/scene.ply --cameras scene/transforms_train.json --out select --trajectories 2 --views 3 "${q[@]}"
-# Every strategy and every weighting (their classes, issue 16), small.
+# Every strategy and every weighting (their classes), small.
 for strategy in fillgs random negative interpolation fisherrf coverage3d coverage4d; do
   run select --scene scene/scene.ply --cameras scene/transforms_train.json --out "select_$strategy" --strategy "$strategy" \
     --trajectories 2 --views 2 --no-renders "${q[@]}"

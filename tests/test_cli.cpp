@@ -21,10 +21,12 @@
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/base/threads.hpp"
 #include "fillgs/io/image_io.hpp"
+#include "fillgs/io/model_formats.hpp"
 #include "fillgs/io/npy.hpp"
 #include "fillgs/visibility/visibility.hpp"
 #include "fillgs/io/ply.hpp"
 #include "fillgs/render/raster.hpp"
+#include "fillgs/io/model_formats.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "cli_run.hpp"
 #include "helpers.hpp"
@@ -545,12 +547,29 @@ TEST_CASE("enum names: every name parses to its value and back, aliases parse, a
     }
   };
   round_trip(VisibilityMode{});
-  round_trip(SceneFormat{});
   round_trip(CameraFormat{});
   round_trip(Kernel{});
   CHECK(parse_name<CameraFormat>("nerf") == CameraFormat::Transforms);  // aliases parse, never print
-  CHECK(parse_name<SceneFormat>("spacetime") == SceneFormat::Spacetime);
-  CHECK(std::string(to_string(SceneFormat::Spacetime)) == "stg");
+  // The model formats are a table of rows, not an enum: every name and alias finds its own
+  // row, none is taken twice, and an unknown name's message lists every name.
+  std::set<std::string> taken;
+  for (const ModelFormat* f : model_formats()) {
+    CHECK(&model_format(f->name) == f);
+    CHECK(taken.insert(f->name).second);
+    for (const std::string& a : f->aliases) {
+      CHECK(&model_format(a) == f);
+      CHECK(taken.insert(a).second);
+    }
+    CHECK((f->open != nullptr) != (f->read != nullptr));  // a row opens a model or reads a file, not both
+  }
+  CHECK(model_formats().size() == 10);
+  CHECK(model_format("spacetime").name == "stg");
+  try {
+    model_format("no-such-name");
+    FAIL("found an unknown format");
+  } catch (const Error& e) {
+    for (const ModelFormat* f : model_formats()) CHECK(std::string(e.what()).find(f->name) != std::string::npos);
+  }
   CHECK(names_of<CameraFormat>().size() == 7);
 }
 

@@ -24,6 +24,7 @@
 #include "fillgs/render/loss.hpp"
 #include "fillgs/render/raster.hpp"
 #include "fillgs/method/refine.hpp"
+#include "fillgs/method/refiners.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/train/train_model.hpp"
 #include "fillgs/method/weights.hpp"
@@ -60,6 +61,41 @@ int view_index(const std::vector<ObservedView>& views, const std::string& rig, i
 }
 
 }  // namespace
+
+TEST_CASE("refiners are rows of one table: names unique, what each needs checked, the benchmark's run identity as its files hold it", "[refine]") {
+  std::set<std::string> names;
+  for (const RefinerKind* k : refiner_kinds()) {
+    CHECK(names.insert(k->name).second);
+    CHECK(&refiner_kind(k->name) == k);
+    CHECK(k->make);
+    CHECK(k->identity);
+  }
+  CHECK(names == std::set<std::string>{"external", "identity", "oracle", "oracle-full", "reference", "rig", "warp"});
+  // The benchmark runs those made from the truth and the training cameras alone, the
+  // calibrated reference first (its rows carry no @suffix).
+  CHECK(bench_refiners() == std::vector<std::string>{"reference", "oracle", "oracle-full"});
+  CHECK_THROWS_WITH(bench_refiner("warp"), Catch::Contains("unknown bench refiner 'warp'") && Catch::Contains("reference, oracle or oracle-full"));
+  CHECK_THROWS_WITH(refiner_kind("diffusion"), Catch::Contains("unknown refiner 'diffusion'") && Catch::Contains("external"));
+  // What a row needs and the inputs lack: one line, nothing made.
+  const RefinerInputs none;
+  CHECK_THROWS_WITH(make_refiner("oracle", none), Catch::Contains("oracle refiner needs the ground-truth scene"));
+  CHECK_THROWS_WITH(make_refiner("reference", none), Catch::Contains("reference refiner needs the ground-truth scene"));
+  CHECK_THROWS_WITH(make_refiner("rig", none), Catch::Contains("rig refiner needs pool cameras"));
+  CHECK_THROWS_WITH(make_refiner("external", none), Catch::Contains("external refiner needs a command"));
+  CHECK(make_refiner("identity", none)->name() == "identity");
+  // The oracle's identity, as bench runs made before the table existed wrote it (a stored
+  // identity.json of random.w-none@oracle, seed 1, artifact strength 0.5): a finished run is
+  // reused only when this is equal, so the table must not change it.
+  RefinerInputs in;
+  in.oracle.artifacts.strength = 0.5;
+  in.oracle.artifacts.seed = 1;
+  const nlohmann::json stored = nlohmann::json::parse(
+      R"({"artifacts": {"region_fraction": 0.18, "seed": 1, "strength": 0.5}, "name": "oracle", "support": "observed", "window": 2})");
+  CHECK(refiner_kind("oracle").identity(in) == stored);
+  nlohmann::json full = stored;
+  full["support"] = "full";
+  CHECK(refiner_kind("oracle-full").identity(in) == full);
+}
 
 TEST_CASE("patch: 3 frames x 4 views in serpentine order with the observed start image", "[refine]") {
   const SynthScene s = small_synth(6, 48, 36, 0.05);
@@ -662,7 +698,7 @@ TEST_CASE("cli: finetune with the example refiner, eval, and bad input", "[refin
   fails(with({"--weighting", "roma"}), "unknown weighting 'roma'");
   fails(with({"--refiner", "diffusion"}), "--refiner: unknown refiner 'diffusion'");
   fails(with({"--refiner", "external", "--refiner-command", "denoise"}), "must contain {in} and {out}");
-  fails(with({"--refiner", "oracle"}), "missing --truth");
+  fails(with({"--refiner", "oracle"}), "--refiner oracle needs --truth");
   fails(with({"--train-cameras", "cam04,cam06", "--refiner", "rig"}), "--refiner rig needs --pool-cameras");
   fails(with({"--train-cameras", "cam04,cam06", "--refiner", "rig", "--pool-cameras", "cam05,cam06"}), "names cam06, a training camera");
   fails({"finetune", "--model", join_path(dir, "none.ply"), "--images", join_path(dir, "scene"), "--cameras", cams, "--out", join_path(dir, "bad")},

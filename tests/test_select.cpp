@@ -123,7 +123,7 @@ TEST_CASE("priority: the highest viewpoints see the chair move, the lowest do no
     INFO(v.camera.name << " t=" << v.camera.time);
     CHECK_FALSE((chair_moving(v.camera.time) && chair_seen(v.camera, v.camera.time) > 0));
   }
-  // Normalisation (METHOD.md §2): L averages 1, the groups 3/7, 3/7 and 1/7.
+  // Normalisation (the paper, Sec. 3.2): L averages 1, the groups 3/7, 3/7 and 1/7.
   auto mean = [](const std::vector<double>& x) { return std::accumulate(x.begin(), x.end(), 0.0) / double(x.size()); };
   CHECK(mean(p.error) == Approx(1.0).epsilon(1e-9));
   CHECK(mean(p.translation) == Approx(3.0 / 7.0).epsilon(1e-9));
@@ -156,7 +156,7 @@ TEST_CASE("patch frames and the time window stay inside the frame range at t = 0
   }
 }
 
-TEST_CASE("candidates: the 12 local poses are METHOD.md's steps and angles", "[select]") {
+TEST_CASE("candidates: the 12 local poses are the paper's steps and angles (Appendix A)", "[select]") {
   const Fixture& fx = fixture();
   const Camera cur = fx.synth.train[3];
   const double step = 0.37;

@@ -114,7 +114,7 @@ Activated activate(const ModelState& s) {
 void check_model(const std::string& name) {
   const std::string dir = fixtures() + "/" + name;
   const Expect e = read_expect(dir);
-  const SceneFormat f = detect_scene_format(dir);
+  const std::string f = detect_scene_format(dir);
   const auto model = open_trained_model(dir, f, options_for(name));
   const size_t T = e.shapes.at("times")[0], N = e.shapes.at("means")[1];
   REQUIRE(model->size() == N);
@@ -295,12 +295,12 @@ TEST_CASE("a network's working memory is charged to FILLGS_MAX_ALLOC before it i
   const size_t network = threads * 1024 * 48 * 16;
   {
     const test::EnvOverride cap("FILLGS_MAX_ALLOC", std::to_string(network / 2));
-    CHECK_THROWS_WITH(open_trained_model(dir, SceneFormat::Ed3dgs, {}),
+    CHECK_THROWS_WITH(open_trained_model(dir, "e-d3dgs", {}),
                       Catch::Contains("E-D3DGS's network evaluation (" + std::to_string(threads) + " threads x 1024 rows x 4 blocks of its widest layer, 48 values)") &&
                           Catch::Contains("would bring this file's memory to"));
   }
   const test::EnvOverride cap("FILLGS_MAX_ALLOC", std::to_string(network * 4));
-  CHECK(open_trained_model(dir, SceneFormat::Ed3dgs, {})->size() > 0);
+  CHECK(open_trained_model(dir, "e-d3dgs", {})->size() > 0);
 }
 
 TEST_CASE(".pth tensors of every dtype and strides read as PyTorch converts them to float", "[trained-models]") {
@@ -392,7 +392,7 @@ TEST_CASE("the still rule: Gaussians whose network noise stays within the tolera
   CHECK(agree == c.size());
   CHECK(c.static_count() == 180);
   // A still Gaussian stays where frame 0 put it; a moving one follows the network at any time.
-  const auto model = open_trained_model(dir, SceneFormat::Ed3dgs, o);
+  const auto model = open_trained_model(dir, "e-d3dgs", o);
   FrameSampler s(c);
   for (const double t : {0.0, 0.37, 1.0}) {
     const ModelState want = model->at(model->frame_time(t * (model->frames - 1)));

@@ -12,6 +12,7 @@
 #include "fillgs/base/limits.hpp"
 #include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/experiment/experiment.hpp"
+#include "fillgs/method/refiners.hpp"
 #include "fillgs/method/finetune.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/experiment/reports.hpp"
@@ -32,7 +33,7 @@ struct BenchFlags {
   std::vector<ConfigGroup> only;
   double artifact_strength = 0.5;
   Weighting baseline_weighting = Weighting::ExploreGS;
-  std::vector<BenchRefiner> refiners = {BenchRefiner::Reference};
+  std::vector<std::string> refiners = {"reference"};
   ReferenceOptions reference = bench_reference_options(0.5, 1);  ///< the calibration's knobs set its fields
   SetupFlags setup;
 };
@@ -60,9 +61,15 @@ int bench(const BenchFlags& f, const Invocation& in) {
   std::vector<uint64_t> seeds;
   for (const std::string& s : in.given("--seeds") ? f.seeds : std::vector<std::string>(smoke ? std::vector<std::string>{"1"} : std::vector<std::string>{"1", "2", "3"}))
     seeds.push_back(uint64_t(parse_count(s, size_t(1) << 62, "fillgs bench", "--seeds value")));
-  for (size_t i = 0; i < f.refiners.size(); ++i)
+  for (size_t i = 0; i < f.refiners.size(); ++i) {
+    try {
+      bench_refiner(f.refiners[i]);
+    } catch (const Error& e) {
+      in.fail("--refiner: ", e.what());
+    }
     for (size_t j = 0; j < i; ++j)
-      if (f.refiners[i] == f.refiners[j]) in.fail("--refiner names ", to_string(f.refiners[i]), " twice");
+      if (f.refiners[i] == f.refiners[j]) in.fail("--refiner names ", f.refiners[i], " twice");
+  }
   std::vector<RunConfig> configs = standard_configs(f.baseline_weighting, f.artifact_strength, f.refiners);
   for (RunConfig& c : configs) c.reference = f.reference;
   const std::vector<ConfigGroup>& only = f.only;
@@ -126,8 +133,7 @@ Action declare_bench(CLI::App& app) {
   add_list(app, "--configs", f->configs, "only these configurations");
   add_number(app, "--artifact-strength", f->artifact_strength, "strength of the oracle's simulated refiner artifacts", at_least(0));
   add_choice(app, "--baseline-weighting", f->baseline_weighting, "the weights the baseline strategies fine-tune with");
-  add_choice_list(app, "--refiner", f->refiners,
-                  "refiners, a table each (the first's rows unsuffixed, the others' ending @NAME): reference (calibrated, the default), oracle, oracle-full");
+  add_list(app, "--refiner", f->refiners, "refiners, a table each (the first's rows unsuffixed, the others' ending @NAME): " + refiner_names(true) + " (the first the default)");
   add_number(app, "--reference-angle", f->reference.angle_scale_degrees,
              "the reference refiner's confidence angle in degrees (the calibration's knob; default: the calibrated value)", positive());
   add_number(app, "--reference-hallucination", f->reference.hallucination,

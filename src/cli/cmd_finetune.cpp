@@ -13,22 +13,12 @@
 #include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/experiment/experiment.hpp"
 #include "fillgs/method/finetune.hpp"
+#include "fillgs/method/refiners.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/experiment/reports.hpp"
 #include "fillgs/io/scene_io.hpp"
 
 namespace fs = std::filesystem;
-
-namespace fillgs::cli {
-/// What turns a rendered patch into a refined one (--refiner).
-enum class RefinerChoice { Identity, Oracle, External, Rig, Reference, Warp };
-}  // namespace fillgs::cli
-
-namespace fillgs {
-FILLGS_ENUM_NAMES(cli::RefinerChoice, "refiner", {cli::RefinerChoice::Identity, "identity"}, {cli::RefinerChoice::Oracle, "oracle"},
-                  {cli::RefinerChoice::External, "external"}, {cli::RefinerChoice::Rig, "rig"}, {cli::RefinerChoice::Reference, "reference"},
-                  {cli::RefinerChoice::Warp, "warp"});
-}  // namespace fillgs
 
 namespace fillgs::cli {
 
@@ -43,7 +33,7 @@ void require_fresh(const std::string& dir, const std::string& command) {
 
 struct FinetuneFlags {
   std::string model, images, cameras, out, refiner_command, truth, confidence;
-  RefinerChoice refiner = RefinerChoice::Identity;
+  std::string refiner = "identity";
   bool paper_schedule = false;
   uint64_t seed = 1;
   double refiner_timeout = 600.0, refined_share = TrainOptions().refined_share;
@@ -100,40 +90,34 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   }
   o.work_dir = join_path(f.out, "work");
 
-  const RefinerChoice kind = f.refiner;
-  std::unique_ptr<Refiner> refiner;
+  // The refiner (method/refiners.hpp): what it is made from, then the row's own make.
+  const RefinerKind& kind = refiner_kind(f.refiner);
+  RefinerInputs ri;
   std::unique_ptr<GaussianCloud> truth;
-  std::unique_ptr<Dataset> pool_data;
-  if (kind == RefinerChoice::Identity) {
-    refiner = make_identity_refiner();
-  } else if (kind == RefinerChoice::Oracle) {
-    if (!in.given("--truth")) in.fail("missing --truth");
+  if (in.given("--truth")) {
     truth = std::make_unique<GaussianCloud>(read_scene_shown(f.truth, f.read, in));
-    OracleOptions oo = f.oracle;
-    oo.artifacts.seed = o.train.seed;
-    for (const TrainView& v : data.views()) oo.observers.push_back(v.camera);
-    oo.frames = data.frames();
-    refiner = make_oracle_refiner(*truth, oo);
-  } else if (kind == RefinerChoice::Reference || kind == RefinerChoice::Warp) {
-    // The benchmark's calibrated refiner (bench/results/README.md, "Calibrating the refiner").
-    ReferenceOptions ro = f.reference;
-    ro.artifacts.strength = f.oracle.artifacts.strength;
-    ro.artifacts.seed = o.train.seed;
-    if (in.given("--truth")) truth = std::make_unique<GaussianCloud>(read_scene_shown(f.truth, f.read, in));
-    if (kind == RefinerChoice::Reference) {
-      if (!truth) in.fail("--refiner reference needs --truth (the ground-truth scene; on real data use --refiner warp)");
-      refiner = make_reference_refiner(*truth, ro);
-    } else {
-      refiner = make_warp_refiner(ro, nullptr, truth.get());
-    }
-  } else if (kind == RefinerChoice::External) {
-    if (!in.given("--refiner-command")) in.fail("missing --refiner-command");
-    refiner = make_external_refiner(f.refiner_command, f.refiner_timeout);
+    ri.truth = truth.get();
   }
+  if (kind.needs_truth && !truth)
+    in.fail("--refiner ", kind.name, " needs --truth (the ground-truth scene", kind.name == "reference" ? "; on real data use --refiner warp)" : ")");
+  if (kind.needs_command && !in.given("--refiner-command")) in.fail("missing --refiner-command");
+  for (const TrainView& v : data.views()) ri.observers.push_back(v.camera);
+  ri.frames = data.frames();
+  ri.command = f.refiner_command;
+  ri.timeout_seconds = f.refiner_timeout;
+  ri.oracle = f.oracle;
+  ri.oracle.artifacts.seed = o.train.seed;
+  // The benchmark's calibrated reference refiner (bench/results/README.md, "Calibrating the
+  // refiner"), --reference-angle setting its angle.
+  ri.reference = f.reference;
+  ri.reference.artifacts.strength = f.oracle.artifacts.strength;
+  ri.reference.artifacts.seed = o.train.seed;
+  ri.rig = f.rig;
   // The pool: rig cameras neither trained on nor held out, every frame the training views have.
   RigPool pool;
-  if (kind == RefinerChoice::Rig || f.finetune.pool_budget > 0) {
-    const std::string why = kind == RefinerChoice::Rig ? "--refiner rig" : "--pool-budget";
+  std::unique_ptr<Dataset> pool_data;
+  if (kind.needs_pool || f.finetune.pool_budget > 0) {
+    const std::string why = f.finetune.pool_budget > 0 ? "--pool-budget" : "--refiner " + kind.name;
     if (f.finetune.pool_budget > 0 && in.given("--refiner"))
       in.fail("--pool-budget adds the pool's own photographs: it takes no --refiner");
     if (f.finetune.pool_budget > 0 && in.given("--trajectories"))
@@ -151,8 +135,9 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     for (const TrainView& v : pool_data->views()) pool.cameras.push_back(v.camera);
     pool.frame_count = pool_data->frames();
     pool.image = [d = pool_data.get()](size_t i) { return d->image(i); };
-    if (kind == RefinerChoice::Rig) refiner = make_rig_refiner(pool, f.rig);
+    ri.pool = &pool;
   }
+  const std::unique_ptr<Refiner> refiner = make_refiner(kind.name, ri);
   if (f.finetune.pool_budget > 0) {
     o.pool = &pool;
     o.pool_budget = f.finetune.pool_budget;
@@ -192,7 +177,6 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
 Action declare_finetune(CLI::App& app) {
   auto f = std::make_shared<FinetuneFlags>();
   FinetuneOptions& o = f->finetune;
-  f->oracle.support = OracleSupport::Observed;  // the benchmark's protocol: truth only where the cameras looked
   add_text(app, "--model", f->model, "the trained model", "PATH")->required();
   add_text(app, "--images", f->images, "the training images", "DIR")->required();
   add_text(app, "--cameras", f->cameras, "the training cameras", "PATH")->required();
@@ -210,9 +194,16 @@ Action declare_finetune(CLI::App& app) {
   add_text(app, "--confidence", f->confidence, "consistency maps computed elsewhere (a folder)", "DIR");
   add_choice(app, "--covis-scale", o.mask.scale, "the co-visibility weight's D-hat scale: per frame over the visible moving Gaussians, or global");
   add_flag(app, "--normalise-weights", o.mask.normalise, "divide each refined view's weights by their mean");
-  add_choice(app, "--refiner", f->refiner,
-             "reference: conditioned on the start view (synthetic, needs --truth); warp: the start photograph warped through the render's depth "
-             "(any data); oracle: the ground truth; external: a command; rig: real pool cameras");
+  {
+    std::vector<std::string> names;
+    std::string help = "the refiner:";
+    for (const RefinerKind* k : refiner_kinds()) {
+      names.push_back(k->name);
+      help += " " + k->name + ", " + k->description + (k->needs_truth ? " (needs --truth)" : k->needs_pool ? " (needs --pool-cameras)" : "") + ";";
+    }
+    help.back() = '.';
+    add_row_choice(app, "--refiner", f->refiner, names, [](const std::string& v) { return refiner_kind(v).name; }, help);
+  }
   add_number(app, "--reference-angle", f->reference.angle_scale_degrees, "reference/warp: the parallax angle (degrees) at which confidence falls to 1/e",
              positive());
   add_text(app, "--refiner-command", f->refiner_command, "external: the command, with {in} and {out}", "CMD");
@@ -221,7 +212,6 @@ Action declare_finetune(CLI::App& app) {
            "go on when the refiner fails on every patch of a round (default: that ends the run with an error, nothing written)");
   add_text(app, "--truth", f->truth, "oracle/reference: the ground-truth scene (warp: only for its records)", "PATH");
   add_number(app, "--artifact-strength", f->oracle.artifacts.strength, "oracle/reference/warp: strength of the simulated refiner artifacts", at_least(0));
-  add_choice(app, "--support", f->oracle.support, "oracle: truth everywhere, or only where the training cameras observed");
   add_number(app, "--support-window", f->oracle.window, "oracle: frames either side that count as observed", at_least(0));
   add_list(app, "--pool-cameras", f->pool_cameras, "rig and --pool-budget: cameras neither trained on nor held out");
   add_number(app, "--pool-budget", o.pool_budget,

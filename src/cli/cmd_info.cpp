@@ -1,4 +1,5 @@
 // fillgs info: what a model holds.
+#include "fillgs/io/model_formats.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/io/camera_io.hpp"
 #include <nlohmann/json.hpp>
@@ -60,7 +61,7 @@ struct InfoFlags {
 int info(const InfoFlags& f, const Invocation& in) {
   const GaussianCloud c = read_scene_shown(f.scene, f.read, in);
   nlohmann::json j = scene_summary(c);
-  j["format"] = to_string(f.read.format == SceneFormat::Auto ? detect_scene_format(f.scene) : f.read.format);
+  j["format"] = f.read.format == "auto" ? detect_scene_format(f.scene) : model_format(f.read.format).name;
   j["moving_share"] = c.size() ? double(c.dynamic_count()) / double(c.size()) : 0.0;
   if (c.motion == MotionModel::Keyframed) {
     const KeyframedMotion& k = c.keyframed;

@@ -12,6 +12,7 @@
 #include "fillgs/base/limits.hpp"
 #include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/experiment/experiment.hpp"
+#include "fillgs/method/refiners.hpp"
 #include "fillgs/method/finetune.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/experiment/reports.hpp"
@@ -32,14 +33,14 @@ constexpr double kRunArtifactStrength = 0.5;
 struct RunFlags {
   std::string out = "fillgs_run", scene = "n3v";
   Strategy baseline = Strategy::Coverage4D;
-  BenchRefiner refiner = BenchRefiner::Reference;
+  std::string refiner = "reference";
   SetupFlags setup;
 };
 
 int run_pipeline(const RunFlags& f, const Invocation& in) {
   const std::string& dir = f.out;
   const std::string baseline = to_string(f.baseline);
-  const BenchRefiner refiner = f.refiner;
+  const std::string& refiner = f.refiner;
   if (f.baseline == Strategy::FillGS) in.fail("--baseline must be another strategy than fillgs");
   const auto t0 = Clock::now();
   BenchSetup setup = bench_setup(f.setup, in);
@@ -50,7 +51,7 @@ int run_pipeline(const RunFlags& f, const Invocation& in) {
   const ExperimentOptions eo = setup.scene.resolved();
   in.out << "fillgs run: the whole pipeline on the built-in scene (" << eo.scene_name() << ", " << eo.width << "x" << eo.height << ", "
       << eo.frames << " frames): train a backbone on 2 cameras, then fine-tune it without generated views, with FillGS's and with "
-      << baseline << "'s viewpoints (" << to_string(refiner) << " refiner, artifacts) -> " << dir << "\n";
+      << baseline << "'s viewpoints (" << refiner << " refiner, artifacts) -> " << dir << "\n";
   const PreparedScene p = prepare_scene(dir, setup.scene, progress, in.out);
   RunResult bb = evaluate_model(p, p.backbone, "backbone", "", progress);
   bb.group = ConfigGroup::Control;
@@ -96,7 +97,8 @@ Action declare_run(CLI::App& app) {
   add_text(app, "--out", f->out, "the folder for the report, pictures and runs", "DIR");
   add_text(app, "--scene", f->scene, "built-in scene: " + join_names(bench_scenes()), "NAME");
   add_choice(app, "--baseline", f->baseline, "the strategy FillGS is compared with");
-  add_choice(app, "--refiner", f->refiner, "the refiner: reference (calibrated, the default), oracle (truth where any camera saw), oracle-full");
+  add_row_choice(app, "--refiner", f->refiner, bench_refiners(), [](const std::string& v) { return bench_refiner(v); },
+                 "the refiner: " + refiner_names(true) + " (" + bench_refiners().front() + " the default)");
   add_setup_flags(app, f->setup, false);
   return bind(f, run_pipeline);
 }

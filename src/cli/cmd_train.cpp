@@ -62,7 +62,6 @@ std::vector<std::pair<std::string, int>> read_camera_times(const std::string& pa
 }
 
 int train(const TrainFlags& f, const Invocation& in) {
-  const auto t0 = Clock::now();
   TerminalProgress loading(in.err, in.progress());
   DatasetOptions dopt = f.data;
   if (in.given("--camera-times")) {

@@ -8,6 +8,7 @@
 #include <set>
 
 #include "fillgs/model/frame_grid.hpp"
+#include "fillgs/io/model_formats.hpp"
 #include "fillgs/visibility/visibility.hpp"
 
 namespace fillgs::cli {
@@ -153,8 +154,33 @@ CLI::Option* add_bytes(CLI::App& app, const std::string& flag, int64_t& dest, do
   return o;
 }
 
+CLI::Option* add_row_choice(CLI::App& app, const std::string& flag, std::string& dest, const std::vector<std::string>& names,
+                            std::function<std::string(const std::string&)> canonical, const std::string& help) {
+  const std::string name = app.get_name();
+  CLI::Option* o = app.add_option(
+      flag,
+      [&dest, flag, name, canonical](const CLI::results_t& r) {
+        try {
+          dest = canonical(r.back());
+        } catch (const Error& e) {
+          throw_error(name, ": ", flag, ": ", e.what());
+        }
+        return true;
+      },
+      help);
+  std::string type;
+  for (const std::string& n : names) type += (type.empty() ? "" : "|") + n;
+  o->type_name(type);
+  o->default_str(dest);
+  return o;
+}
+
 void add_scene_flags(CLI::App& app, SceneReadOptions& o) {
-  add_choice(app, "--scene-format", o.format, "the scene's format (auto: from the file)")->group("Scene options");
+  std::vector<std::string> formats = {"auto"};
+  for (const ModelFormat* f : model_formats()) formats.push_back(f->name);
+  add_row_choice(app, "--scene-format", o.format, formats,
+                 [](const std::string& v) { return v == "auto" ? v : model_format(v).name; }, "the scene's format (auto: from the file)")
+      ->group("Scene options");
   add_number(app, "--duration", o.ex4dgs_duration, "Ex4DGS: frames the model covers (0: from cfg_args)", at_least(0))->group("Scene options");
   add_number(app, "--stg-duration", o.stg_duration, "Spacetime Gaussians: frames one model covers", at_least(1))->group("Scene options");
   add_text(app, "--stg-color", o.stg_color_activation, "Spacetime Gaussians colour activation: auto, sigmoid, clamp or none", "NAME")

@@ -194,6 +194,11 @@ CLI::Option* add_choice(CLI::App& app, const std::string& flag, E& dest, const s
   return o;
 }
 
+/// One of a table's names (model formats, refiners): `canonical` turns a name the user gave
+/// into the row's own, or throws the table's one-line message; the help lists `names`.
+CLI::Option* add_row_choice(CLI::App& app, const std::string& flag, std::string& dest, const std::vector<std::string>& names,
+                            std::function<std::string(const std::string&)> canonical, const std::string& help);
+
 /// A comma-separated list of an enum's names ("a,b"); the help lists them.
 template <class E>
 CLI::Option* add_choice_list(CLI::App& app, const std::string& flag, std::vector<E>& dest, const std::string& help) {

@@ -1,4 +1,5 @@
 #include "fillgs/experiment/experiment.hpp"
+#include "fillgs/method/refiners.hpp"
 #include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/json_file.hpp"
 
@@ -181,7 +182,7 @@ namespace {
 /// Runs of one scene and seed in the order of standard_configs (backbone first, then by id).
 void sort_by_configuration(std::vector<RunResult>::iterator first, std::vector<RunResult>::iterator last) {
   std::vector<std::string> order = {"backbone"};
-  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, 0.5, values_of<BenchRefiner>())) order.push_back(c.id);
+  for (const RunConfig& c : standard_configs(Weighting::ExploreGS, 0.5, bench_refiners())) order.push_back(c.id);
   std::unordered_map<std::string, size_t> ranks;  // first place of each id; others after every listed one
   for (size_t k = 0; k < order.size(); ++k) ranks.emplace(order[k], k);
   auto rank = [&](const std::string& id) {
@@ -271,8 +272,8 @@ std::vector<RunResult> read_results_csv(const std::string& path) {
       throw_error(path, ": ", where, " column 4: ", e.what());
     }
     r.support = f[4];
-    if (old_names && r.support == "observed") r.support = to_string(BenchRefiner::Oracle);
-    if (old_names && r.support == "full") r.support = to_string(BenchRefiner::OracleFull);
+    if (old_names && r.support == "observed") r.support = "oracle";
+    if (old_names && r.support == "full") r.support = "oracle-full";
     r.interpolation.split = "interpolation", r.extrapolation.split = "extrapolation", r.train.split = "train";
     r.interpolation.psnr = num(5), r.interpolation.ssim = num(6), r.interpolation.psnr_moving = num(7);
     r.extrapolation.psnr = num(8), r.extrapolation.ssim = num(9), r.extrapolation.psnr_moving = num(10);
@@ -457,7 +458,20 @@ ReferenceOptions bench_reference_options(double artifact_strength, uint64_t seed
   return o;
 }
 
-std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double strength, const std::vector<BenchRefiner>& refiners) {
+std::vector<std::string> bench_refiners() {
+  std::vector<std::string> out;
+  for (const RefinerKind* k : refiner_kinds())
+    if (k->benchmark) out.push_back(k->name);
+  return out;
+}
+
+std::string bench_refiner(const std::string& name) {
+  for (const std::string& n : bench_refiners())
+    if (n == name) return n;
+  throw_error("unknown bench refiner '", name.substr(0, 40), "' (expected ", refiner_names(true), ")");
+}
+
+std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double strength, const std::vector<std::string>& refiners) {
   std::vector<RunConfig> out;
   {
     RunConfig c;  // the control has no generated views: one row whatever the refiners
@@ -465,12 +479,12 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
     c.group = ConfigGroup::Control;
     c.weighting = Weighting::None;
     c.trajectories = 0;
-    c.refiner = refiners.empty() ? BenchRefiner::Reference : refiners.front();
+    c.refiner = refiners.empty() ? "reference" : bench_refiner(refiners.front());
     out.push_back(c);
   }
   for (size_t ri = 0; ri < refiners.size(); ++ri) {
-    const BenchRefiner refiner = refiners[ri];
-    const std::string suffix = ri == 0 ? "" : std::string("@") + to_string(refiner);
+    const std::string refiner = bench_refiner(refiners[ri]);
+    const std::string suffix = ri == 0 ? "" : "@" + refiner;
     auto add = [&](const std::string& id, ConfigGroup group, Strategy s, Weighting w, double a, int k) {
       RunConfig c;
       c.id = id + suffix;
@@ -607,15 +621,19 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
     fo.train.refined_share = double(test_views) / (double(test_views) + double(p.train->views().size()));
   }
   const bool generated = c.kind == RunKind::Finetune && c.trajectories > 0;
-  OracleOptions oo;
-  oo.artifacts.strength = c.artifact_strength;
-  oo.artifacts.seed = p.options.seed;
-  oo.support = c.refiner == BenchRefiner::OracleFull ? OracleSupport::Full : OracleSupport::Observed;
-  for (const TrainView& v : p.train->views()) oo.observers.push_back(v.camera);
-  oo.frames = F;
-  ReferenceOptions ro = c.reference;
-  ro.artifacts.strength = c.artifact_strength;
-  ro.artifacts.seed = p.options.seed;
+  // The refiner's inputs (method/refiners.hpp): the truth and the training cameras.
+  SupportStats stats;
+  RefinerInputs ri;
+  ri.truth = &p.synth.scene;
+  ri.oracle.artifacts.strength = c.artifact_strength;
+  ri.oracle.artifacts.seed = p.options.seed;
+  for (const TrainView& v : p.train->views()) ri.observers.push_back(v.camera);
+  ri.frames = F;
+  ri.reference = c.reference;
+  ri.reference.artifacts.strength = c.artifact_strength;
+  ri.reference.artifacts.seed = p.options.seed;
+  ri.stats = &stats;
+  const RefinerKind& refiner_row = refiner_kind(bench_refiner(c.refiner));
   json identity = {{"id", c.id}, {"scene", options_json(p.options)}};
   if (c.kind == RunKind::Dense) {
     identity["kind"] = "dense";
@@ -624,9 +642,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
     identity["kind"] = c.kind == RunKind::TestViews ? "test-views" : "finetune";
     identity["finetune"] = identity_json(fo);
     // The refiner is part of what a run is only where it refines something.
-    if (generated && c.refiner == BenchRefiner::Reference) identity["refiner"] = identity_json(ro);
-    if (generated && c.refiner != BenchRefiner::Reference)
-      identity["refiner"] = {{"name", "oracle"}, {"artifacts", identity_json(oo.artifacts)}, {"support", to_string(oo.support)}, {"window", oo.window}};
+    if (generated) identity["refiner"] = refiner_row.identity(ri);
     if (c.kind == RunKind::TestViews) identity["test_views"] = test_views;
   }
   if (fs::exists(result_path)) {
@@ -668,15 +684,13 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
         fo.extra_views.push_back({v.camera, render(truth.at(v.camera.time), v.camera).rgb, std::vector<float>(P, 1.0f)});
       }
   }
-  SupportStats stats;
-  const std::unique_ptr<Refiner> refiner = c.refiner == BenchRefiner::Reference ? make_reference_refiner(p.synth.scene, ro, &stats)
-                                                                                 : make_oracle_refiner(p.synth.scene, oo, &stats);
+  const std::unique_ptr<Refiner> refiner = make_refiner(refiner_row.name, ri);
   const FinetuneResult fr = finetune(*p.train, p.backbone, *refiner, fo, progress);
   RunResult r = evaluate_model(p, fr.model, c.id, "", progress);
   r.group = c.group;
   r.trajectories = 0;
   if (generated) {
-    r.support = to_string(c.refiner);
+    r.support = c.refiner;
     r.support_share = stats.share();
   }
   if (!stats.views.empty()) write_refined_view_records(join_path(dir, "refined_views.csv"), stats.views);
@@ -1092,13 +1106,9 @@ void write_run_report(const std::string& dir, const RunReportInput& in) {
      << " frames; backbone trained on " << in.scene->train->rigs().size() << " cameras (";
   for (size_t k = 0; k < in.scene->options.train_cameras.size(); ++k) md << (k ? ", " : "") << in.scene->options.train_cameras[k];
   md << ") for " << o.backbone_iterations << " iterations; each fine-tuning: " << in.finetune.iterations << " iterations, "
-     << in.finetune.trajectories << " trajectories every " << in.finetune.select_every << " iterations, refiner `" << to_string(in.refiner) << "` "
-     << (in.refiner == BenchRefiner::Reference
-             ? "(conditioned on each patch's start view alone, confidence falling with the parallax angle to it, calibrated before any strategy "
-               "ran with it; see the calibration below)"
-             : in.refiner == BenchRefiner::Oracle ? "(ground truth wherever any training camera saw it: a bound, not a generator)"
-                                                  : "(ground truth everywhere: a bound, not a generator)")
-     << " with artifacts (strength " << in.artifact_strength << "). Baselines use ExploreGS weights (the paper's protocol); FillGS its own.\n\n";
+     << in.finetune.trajectories << " trajectories every " << in.finetune.select_every << " iterations, refiner `" << in.refiner << "` ("
+     << refiner_kind(in.refiner).description << (in.refiner == "reference" ? "; calibrated before any strategy ran with it, see the calibration below" : "")
+     << ") with artifacts (strength " << in.artifact_strength << "). Baselines use ExploreGS weights (the paper's protocol); FillGS its own.\n\n";
   // The result as measured, in one sentence.
   auto find = [&](const std::string& id) -> const RunResult* {
     for (const RunResult& r : in.results)

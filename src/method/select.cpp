@@ -264,7 +264,7 @@ void DeficiencyField::add_view(int f, const std::vector<uint32_t>& visible) {
   }
 }
 
-// ------------------------------------------------------------------ §2 exploration priority
+// ------------------------------------------------------------------ exploration priority (the paper, Sec. 3.2)
 
 PriorityScores exploration_priority(const SelectInput& in, const SelectOptions& o, Progress& progress) {
   FILLGS_CHECK(in.scene && in.grid);

@@ -30,7 +30,7 @@ class SelectionStrategy {
   /// Where trajectories start: the observed views by the exploration priority E (highest
   /// first, or lowest first), or in a random order.
   enum class Starts { HighestPriority, LowestPriority, Shuffled };
-  /// How a trajectory is made: grown from its start by scored candidates (§3), a random
+  /// How a trajectory is made: grown from its start by scored candidates (the paper, Sec. 3.3), a random
   /// walk from a random free position, or poses between neighbouring training cameras.
   enum class Paths { Grown, RandomWalk, BetweenCameras };
 

@@ -29,6 +29,7 @@
 #include "fillgs/explore/exploration.hpp"
 #include "fillgs/io/dataset.hpp"
 #include "fillgs/io/image_io.hpp"
+#include "fillgs/io/model_formats.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/method/select.hpp"
 #include "fillgs/method/weights.hpp"
@@ -338,7 +339,7 @@ Model load_model(const std::string& path, const std::string& format, int frames,
                  float still_tolerance, const py::object& progress) {
   require_file(path);
   SceneReadOptions o;
-  o.format = parse_name<SceneFormat>(format);
+  o.format = format == "auto" ? format : model_format(format).name;
   o.model_frames = frames;
   o.model_time_range = time_range;
   o.model_evaluation = parse_name<ModelEvaluation>(evaluation);
@@ -784,6 +785,22 @@ PYBIND11_MODULE(fillgs, m) {
   m.def("load_model", &load_model, py::arg("path"), py::arg("format") = "auto", py::arg("frames") = 0, py::arg("time_range") = "",
         py::arg("evaluation") = "streamed", py::arg("still_tolerance") = -1.0f, py::arg("progress") = py::none(),
         "Reads a model as the command line does (`--scene-format`, `--model-frames`, `--model-time-range`, `--model-evaluation`, `--still-tolerance`).");
+  m.def(
+      "model_formats",
+      [] {
+        py::list out;
+        for (const ModelFormat* f : model_formats()) {
+          py::dict d;
+          d["name"] = f->name;
+          d["aliases"] = f->aliases;
+          d["description"] = f->description;
+          d["evaluated"] = bool(f->open);
+          out.append(d);
+        }
+        return out;
+      },
+      "The formats load_model reads, in detection order: dicts of name, aliases, description and evaluated (the model's own code "
+      "evaluates it at any time; else its file is read whole).");
   m.def(
       "model_from_arrays",
       [](const py::dict& arrays) {

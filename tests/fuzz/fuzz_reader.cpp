@@ -89,7 +89,7 @@ void read_one(const std::string& data) {
   const std::string& r = kReader;
   if (r == "ply_3dgs" || r == "ply_fillgs" || r == "ply_stg") {
     SceneReadOptions o;
-    o.format = r == "ply_3dgs" ? SceneFormat::Gaussian3D : r == "ply_fillgs" ? SceneFormat::Fillgs4D : SceneFormat::Spacetime;
+    o.format = r == "ply_3dgs" ? "3dgs" : r == "ply_fillgs" ? "fillgs" : "stg";
     read_scene(put("scene.ply", data), o);
   } else if (r == "ex4dgs") {
     const std::vector<std::string> p = split(data, 3);
@@ -97,7 +97,7 @@ void read_one(const std::string& data) {
     put("ex4dgs/point_cloud/iteration_1/dynamic_point_cloud.ply", p[1]);
     put("ex4dgs/cfg_args", p[2]);
     SceneReadOptions o;
-    o.format = SceneFormat::Ex4dgs;
+    o.format = "ex4dgs";
     read_scene(join_path(work_dir(), "ex4dgs/point_cloud/iteration_1/point_cloud.ply"), o);
   } else if (r == "npy") {
     const std::string path = put("array.npy", data);
@@ -140,7 +140,7 @@ void read_one(const std::string& data) {
       if (tf.kind(PickleValues::Ref(i)) == PickleValues::Kind::Tensor) tf.tensor(PickleValues::Ref(i), "tensor");
   } else if (r == "npz_dynamic3dgs") {
     SceneReadOptions o;
-    o.format = SceneFormat::Dynamic3DGS;
+    o.format = "dynamic3dgs";
     read_scene(put("d3dgs/params.npz", data), o);
   } else if (r == "ed3dgs" || r == "4dgaussians") {
     const std::vector<std::string> p = split(data, 3);
@@ -149,7 +149,7 @@ void read_one(const std::string& data) {
     put(run + "/point_cloud/iteration_100/deformation.pth", p[1]);
     put(run + "/cfg_args", p[2]);
     SceneReadOptions o;
-    o.format = r == "ed3dgs" ? SceneFormat::Ed3dgs : SceneFormat::FourDGaussians;
+    o.format = r == "ed3dgs" ? "e-d3dgs" : "4dgaussians";
     o.model_frames = r == "ed3dgs" ? 0 : 3;
     read_scene(join_path(work_dir(), run), o);
   } else if (r == "deformable3dgs") {
@@ -158,12 +158,12 @@ void read_one(const std::string& data) {
     put("deformable_run/deform/iteration_100/deform.pth", p[1]);
     put("deformable_run/cfg_args", p[2]);
     SceneReadOptions o;
-    o.format = SceneFormat::Deformable3DGS;
+    o.format = "deformable3dgs";
     o.model_frames = 3;
     read_scene(join_path(work_dir(), "deformable_run"), o);
   } else if (r == "4dgs") {
     SceneReadOptions o;
-    o.format = SceneFormat::FourDGS;
+    o.format = "4dgs";
     o.model_frames = 3;
     o.model_time_range = "0:1";
     read_scene(put("4dgs/chkpnt100.pth", data), o);
@@ -172,7 +172,7 @@ void read_one(const std::string& data) {
     put("frames/time_00000.ply", p[0]);
     put("frames/time_00001.ply", p[1]);
     SceneReadOptions o;
-    o.format = SceneFormat::PlyFrames;
+    o.format = "ply-frames";
     read_scene(join_path(work_dir(), "frames"), o);
   } else if (r == "checkpoint") {
     TrainOptions o;
@@ -244,7 +244,7 @@ void make_seeds(const std::string& dir) {
     seed("seed_binary.ply", read_file(stg_ply(PlyFormat::BinaryLittleEndian)));
   } else if (r == "ply_fillgs") {
     SceneReadOptions o;
-    o.format = SceneFormat::Spacetime;
+    o.format = "stg";
     write_fillgs_ply(tmp + ".ply", read_scene(stg_ply(PlyFormat::BinaryLittleEndian), o), 3);
     seed("seed.ply", read_file(tmp + ".ply"));
   } else if (r == "ex4dgs") {

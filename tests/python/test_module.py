@@ -68,6 +68,25 @@ def test_model_at_equals_pytorch(name):
             np.testing.assert_allclose(got, want, rtol=1e-4, atol=2e-5, err_msg=f"{name} {key} at model time {tau}")
 
 
+def test_model_formats_are_the_cli_table():
+    """model_formats() is the command line's table: the names --scene-format takes, the format
+    `fillgs info` detects for each fixture, and load_model(format=) reads it by that name."""
+    formats = fillgs.model_formats()
+    names = [f["name"] for f in formats]
+    assert len(set(names)) == len(names) == 10
+    help_text = cli("info", "--help").stdout
+    for n in names:
+        assert n in help_text
+    for name in FRAMES:
+        info = json.loads(cli("info", fixture(name), "--json", "--quiet", "--model-frames", str(FRAMES[name])).stdout)
+        assert info["format"] in names
+        assert [f["evaluated"] for f in formats if f["name"] == info["format"]] == [True]
+        m = fillgs.load_model(fixture(name), format=info["format"], frames=FRAMES[name])
+        assert m.size == info["gaussians"]
+    with pytest.raises(fillgs.Error, match="unknown scene format 'no-such'.*e-d3dgs"):
+        fillgs.load_model(fixture("ed3dgs"), format="no-such")
+
+
 def test_model_arrays_layout():
     m = fillgs.load_model(fixture("ed3dgs"))
     s = m.at(0.5)

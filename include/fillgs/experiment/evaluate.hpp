@@ -1,5 +1,5 @@
 #pragma once
-// Evaluation (METHOD.md §9): PSNR, SSIM and PSNR restricted to the moving region, per test
+// Evaluation (the paper, Sec. 4.1): PSNR, SSIM and PSNR restricted to the moving region, per test
 // split; LPIPS through a user-supplied ONNX network (OpenCV DNN) when one is given.
 //
 // PSNR and SSIM are means over views (each view's PSNR first, as 3DGS reports it). The

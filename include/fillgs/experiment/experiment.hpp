@@ -35,12 +35,13 @@ FILLGS_ENUM_NAMES(ConfigGroup, "configuration group", {ConfigGroup::Control, "co
                   {ConfigGroup::Selection, "selection"}, {ConfigGroup::Weighting, "weighting"}, {ConfigGroup::Budget, "budget"},
                   {ConfigGroup::Refiner, "refiner"}, {ConfigGroup::Unweighted, "unweighted"});
 
-/// The refiner a configuration's generated views come from: the reference-conditioned one
-/// (the benchmark's default, calibrated: refine.hpp, ReferenceOptions), or the oracle with
-/// observed or full support (labelled bounds).
-enum class BenchRefiner { Reference, Oracle, OracleFull };
-FILLGS_ENUM_NAMES(BenchRefiner, "bench refiner", {BenchRefiner::Reference, "reference"}, {BenchRefiner::Oracle, "oracle"},
-                  {BenchRefiner::OracleFull, "oracle-full"});
+/// The refiners the benchmark runs: the rows of method/refiners.hpp made from the truth and
+/// the training cameras alone (`benchmark`), in listing order: the reference-conditioned one
+/// (the default, calibrated: refine.hpp, ReferenceOptions), then the oracles with observed
+/// and full support (labelled bounds).
+std::vector<std::string> bench_refiners();
+/// `name` when it is one of bench_refiners(); one line listing them otherwise.
+std::string bench_refiner(const std::string& name);
 
 /// The reference refiner of the benchmark: its calibrated parameters (bench/results/README.md,
 /// "Calibrating the refiner"), with the configuration's artifact strength and seed.
@@ -103,7 +104,7 @@ struct RunConfig {
   ExplorationOptions grid;  ///< the exploration space (label_unexplored is the one a configuration sets)
   double artifact_strength = 0.5;  ///< the refiner's injected artifacts (0: none)
   int trajectories = 5;     ///< per round; 0: fine-tune on the real views only (the control)
-  BenchRefiner refiner = BenchRefiner::Reference;
+  std::string refiner = "reference";  ///< a row of bench_refiners()
   /// The reference refiner's parameters (the calibrated ones unless the calibration's
   /// knobs say otherwise); its artifact strength and seed are the run's.
   ReferenceOptions reference = bench_reference_options(0.5, 1);
@@ -117,7 +118,7 @@ struct RunConfig {
 /// weights (Table 3), weighting ablations (Table 4), budgets 1/10/20, the clean refiner;
 /// then the two upper bounds (once).
 std::vector<RunConfig> standard_configs(Weighting baseline_weighting = Weighting::ExploreGS, double artifact_strength = 0.5,
-                                        const std::vector<BenchRefiner>& refiners = {BenchRefiner::Reference});
+                                        const std::vector<std::string>& refiners = {"reference"});
 
 struct RunResult {
   std::string id, variant;         ///< variant: the scene name
@@ -218,7 +219,7 @@ struct RunReportInput {
   std::vector<RunResult> results;    ///< the backbone first, then each run
   std::vector<std::string> run_ids;  ///< the fine-tuned runs, their models under <scene dir>/runs/<id>
   FinetuneOptions finetune;          ///< their schedule
-  BenchRefiner refiner = BenchRefiner::Reference;
+  std::string refiner = "reference";
   double artifact_strength = 0;
   std::string command;               ///< the command line, as typed
 };

@@ -1,5 +1,5 @@
 #pragma once
-// Camera rigs of the paper's datasets, for synthetic scenes shaped like them (METHOD.md §9).
+// Camera rigs of the paper's datasets, for synthetic scenes shaped like them (the paper, Sec. 4.1).
 //
 // * Neural 3D Video: the 21 cameras of the real rig as its COLMAP model stores them
 //   (../shared/data/video/n3v_flame_steak_frame0/sparse/0: one PINHOLE camera, 2690×2016,

@@ -1,8 +1,8 @@
 #pragma once
 // Synthetic dynamic scenes made of Gaussians, with ground truth for every camera and frame.
 //
-// Two kinds of scene, each with its rig and its sparse-view split (METHOD.md §9–§10):
-//  * rig "ring" — the paper's analysis scene (METHOD.md §10): a room (textured floor and
+// Two kinds of scene, each with its rig and its sparse-view split (the paper, Sec. 4.1 and Appendix B.3):
+//  * rig "ring" — the paper's analysis scene (the paper's Appendix B.3): a room (textured floor and
 //    walls), a static shelf with thin boards and a back panel, some clutter, and a chair
 //    that moves only for t in [move_start, move_end], passing behind the shelf so that some
 //    cameras cannot see it while it moves. 16 training cameras on a circle 22.5° apart;

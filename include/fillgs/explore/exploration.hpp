@@ -1,5 +1,5 @@
 #pragma once
-// The exploration space (METHOD.md §4): a voxel grid over the scene box, stored as an
+// The exploration space (the paper, Appendix A, after ExploreGS): a voxel grid over the scene box, stored as an
 // OpenVDB grid (accel/exploration_grid.cpp), that candidate viewpoints are sampled from.
 //
 // Labels:
@@ -89,7 +89,7 @@ class ExplorationGrid {
   const Box3& box() const { return box_; }
   const Vec3i& dims() const { return dims_; }
   Vec3d voxel_size() const { return (box_.hi - box_.lo).cwiseQuotient(dims_.cast<double>()); }
-  /// Candidate step: twice the voxel's body diagonal (METHOD.md §4).
+  /// Candidate step: twice the voxel's body diagonal (the paper, Appendix A, after ExploreGS).
   double step() const { return 2.0 * voxel_size().norm(); }
 
   /// Voxel index of a point (may lie outside [0, dims)).
@@ -121,7 +121,7 @@ class ExplorationGrid {
   Vec3i dims_ = Vec3i::Zero();
 };
 
-/// The exploration space of a scene (METHOD.md §4): a box around the training cameras and
+/// The exploration space of a scene (the paper, Appendix A, after ExploreGS): a box around the training cameras and
 /// the robust bounds of the Gaussians that reach `occupancy_alpha`; occupied where such a
 /// Gaussian's ellipsoid (grown by half a voxel diagonal) holds a voxel's centre at any of
 /// `times` (empty: every frame of a keyframed scene, else 33 samples), unexplored where no

@@ -1,26 +1,14 @@
 #pragma once
 #include "fillgs/base/progress.hpp"
-// Readers and writers for Gaussian scene files.
-//
-//  * standard 3DGS PLY (any property order; binary LE/BE or ASCII; SH degree 0..3);
-//  * Spacetime Gaussians PLY (polynomial motion; its 6/9-channel colour features have no
-//    SH meaning: the first three, activated, become the base colour);
-//  * Ex4DGS keyframed pair (point_cloud.ply + dynamic_point_cloud.ply, cfg_args);
-//  * the fillgs 4D PLY (baked tracks, documented in data/README.md), read and written.
+// Reading a scene or model of any format fillgs reads (the formats are rows of one table,
+// io/model_formats.hpp, one file each under src/io/formats/), and the writers: standard
+// 3DGS PLY and the fillgs 4D PLY (baked tracks, documented in data/README.md).
 #include <string>
 
 #include "fillgs/base/names.hpp"
 #include "fillgs/model/gaussians.hpp"
 
 namespace fillgs {
-
-enum class SceneFormat { Auto, Gaussian3D, Spacetime, Ex4dgs, Fillgs4D, Ed3dgs, FourDGaussians, FourDGS, Dynamic3DGS, PlyFrames, Deformable3DGS };
-FILLGS_ENUM_NAMES(SceneFormat, "scene format",
-    {SceneFormat::Auto, "auto"}, {SceneFormat::Gaussian3D, "3dgs"}, {SceneFormat::Spacetime, "stg"}, {SceneFormat::Ex4dgs, "ex4dgs"},
-    {SceneFormat::Fillgs4D, "fillgs"}, {SceneFormat::Ed3dgs, "e-d3dgs"}, {SceneFormat::FourDGaussians, "4dgaussians"},
-    {SceneFormat::FourDGS, "4dgs"}, {SceneFormat::Dynamic3DGS, "dynamic3dgs"}, {SceneFormat::PlyFrames, "ply-frames"},
-    {SceneFormat::Deformable3DGS, "deformable3dgs"},
-    {SceneFormat::Spacetime, "spacetime"});
 
 /// Trained models' static rule (io/trained_models.hpp): a Gaussian is still when, at every frame of the sweep (and at every
 /// frame of the model where the sweep saw it near a tolerance), its state stays within these of its state at frame 0.
@@ -49,7 +37,8 @@ enum class NetworkKernel { Simd, Eigen };
 FILLGS_ENUM_NAMES(NetworkKernel, "network kernel", {NetworkKernel::Simd, "simd"}, {NetworkKernel::Eigen, "eigen"});
 
 struct SceneReadOptions {
-  SceneFormat format = SceneFormat::Auto;
+  /// A format's name or alias (io/model_formats.hpp), or "auto": detected from the path.
+  std::string format = "auto";
   /// Spacetime Gaussians: frames one model covers (configs use 50).
   int stg_duration = 50;
   /// Spacetime Gaussians colour activation for f_dc_0..2: "auto" (sigmoid for the full
@@ -81,8 +70,9 @@ struct SceneReadOptions {
 /// Throws fillgs::Error with one line naming the file and element on bad input.
 GaussianCloud read_scene(const std::string& path, const SceneReadOptions& options = {});
 
-/// Detected format of a path (a directory or a .ply).
-SceneFormat detect_scene_format(const std::string& path);
+/// The name of the format a path holds (a file or a folder); one line naming the path when
+/// no format fillgs reads holds it.
+std::string detect_scene_format(const std::string& path);
 
 /// Writes a standard 3DGS PLY of the scene at time t (62 floats at degree 3; opens in
 /// common splat viewers). Values are stored raw (logits, log-scales), like 3DGS.

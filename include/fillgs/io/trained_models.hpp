@@ -1,18 +1,9 @@
 #pragma once
 // The 4D models users train with the field's codebases, read as their training code saves
-// them and evaluated at any time exactly as their renderers do:
-//
-//  * E-D3DGS (the FillGS paper's backbone): point_cloud.ply with per-Gaussian embeddings,
-//    deformation.pth (temporal embeddings, per-camera time offsets, a coarse and a fine MLP),
-//    cfg_args;
-//  * 4DGaussians: point_cloud.ply, deformation.pth (HexPlane feature planes, MLP heads),
-//    cfg_args;
-//  * 4D Gaussian Splatting (Yang et al.): chkpnt*.pth (4D means, scales, two quaternions,
-//    time mean and scale, SH with time terms), sliced in time in closed form;
-//  * Deformable 3D Gaussians: point_cloud.ply, deform/iteration_N/deform.pth (an MLP on
-//    encoded position and time), cfg_args;
-//  * Dynamic 3D Gaussians: params.npz (per-frame means, colours, rotations);
-//  * a folder of per-frame 3DGS PLYs (4DGaussians' export_perframe_3DGS.py, viewer sequences).
+// them and evaluated at any time exactly as their renderers do: E-D3DGS (the FillGS paper's
+// backbone), 4DGaussians, 4D Gaussian Splatting (Yang et al.), Deformable 3D Gaussians,
+// Dynamic 3D Gaussians and folders of per-frame 3DGS PLYs, each one file under
+// src/io/formats/ (io/model_formats.hpp lists them).
 //
 // The networks and 4DGS's slice are streamed (stream_trained_model): a command evaluates
 // their moving Gaussians exactly at each time it asks for; Gaussians the still rule finds
@@ -44,7 +35,7 @@ class TrainedModel {
   /// Whether evaluate() is a network's (moving Gaussians are worth telling from still ones).
   virtual bool has_network() const { return false; }
 
-  SceneFormat format = SceneFormat::Auto;
+  std::string format;          ///< its format's name (io/model_formats.hpp)
   std::string source;
   int frames = 0;                ///< frames the model covers
   double time_first = 0.0;       ///< model time of frame 0
@@ -57,8 +48,9 @@ class TrainedModel {
   }
 };
 
-/// Opens a trained model of one of the formats above (`format` must be one of them).
-std::unique_ptr<TrainedModel> open_trained_model(const std::string& path, SceneFormat format, const SceneReadOptions& options);
+/// Opens a trained model of format `format` (a name; "auto": detected), one whose own code
+/// evaluates it at any time (a row of io/model_formats.hpp with open()).
+std::unique_ptr<TrainedModel> open_trained_model(const std::string& path, const std::string& format, const SceneReadOptions& options);
 
 /// The model sampled at each of its frames into keyframed tracks, one key per frame
 /// (t_f = f / (frames - 1)); SH bands above the DC keep their mean over the frames. What
@@ -75,13 +67,6 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
 
 /// The frames of the sweep (ascending, frame 0 and frames-1 among them).
 std::vector<int> sweep_frames(int frames, int wanted);
-
-/// The format of a directory or file holding one of the models above, or Auto if none.
-SceneFormat detect_trained_model(const std::string& path);
-
-/// Throws one line if `ply` is the canonical PLY of a deformation model (embedding_*
-/// properties, or deformation.pth / deform/ beside it), saying what to pass instead.
-void refuse_canonical_ply(const std::string& ply, const std::string& header);
 
 /// A Python literal (what cfg_args holds: Namespace(key=value, ...)) as JSON; exposed for tests.
 std::string python_literal_to_json(const std::string& text, const std::string& source);

@@ -1,5 +1,5 @@
 #pragma once
-// Fine-tuning with refined virtual views (METHOD.md §5–§7): continue training the 4D model
+// Fine-tuning with refined virtual views (the paper, Sec. 3.5 and Appendix A): continue training the 4D model
 // on its real views; every `select_every` iterations select `trajectories` new ones with a
 // strategy, export their patches, refine them, weight every refined view and add it.
 //

@@ -1,5 +1,5 @@
 #pragma once
-// Spatiotemporal patches for a generative refiner (METHOD.md §6) and the refiners fillgs
+// Spatiotemporal patches for a generative refiner (the paper, Sec. 3.4 and Appendix A) and the refiners fillgs
 // drives: `external` (any program, through a folder protocol), `oracle` (synthetic scenes:
 // the ground truth at the virtual view where the training cameras support it, with optional
 // injected generation artifacts), `rig` (real captures: the photograph of the nearest pool
@@ -117,7 +117,7 @@ class Refiner {
 
 /// Copies the rendered images.
 std::unique_ptr<Refiner> make_identity_refiner();
-/// What the oracle may restore (METHOD.md §9: a generative model conditioned on the observed
+/// What the oracle may restore (the premise of the paper's Sec. 3.4: a generative model conditioned on the observed
 /// views restores what they support and hallucinates the rest).
 ///  * Full: the ground truth everywhere (the earlier behaviour; rewards looking away from
 ///    the capture).

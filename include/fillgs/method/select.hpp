@@ -1,12 +1,12 @@
 #pragma once
-// Viewpoint-time selection (METHOD.md §2, §3, §8): the FillGS strategy and the baselines
+// Viewpoint-time selection (the paper, Sec. 3.2–3.3; the baselines of Sec. 4.3): the FillGS strategy and the baselines
 // the paper compares against, behind one interface.
 //
 // Inputs: a 4D scene, its observed viewpoints (training cameras, each at a frame time),
 // optionally their images (for the error term L), and the exploration grid. Output:
 // trajectories, each a start viewpoint (an observed camera at a frame), `views` virtual
 // poses found at that frame, and the consecutive frames a refiner patch spans
-// (METHOD.md §6): every pose is a virtual view at every patch frame.
+// (the paper, Sec. 3.4): every pose is a virtual view at every patch frame.
 //
 // FillGS, in order:
 //  1. exploration priority E(v) = L(v) + V(v) over observed viewpoints (every
@@ -77,10 +77,10 @@ struct SelectOptions {
   int patch_frames = 3;          ///< consecutive frames each pose is rendered at (centred on the start's)
   uint64_t seed = 1;
 
-  // starting viewpoints (§2)
+  // starting viewpoints (the paper, Sec. 3.2)
   int time_stride = 1;           ///< priority on every k-th frame only (long videos)
   double render_scale = 0.5;     ///< V and Fisher renders at this fraction of the resolution (L is always full)
-  // candidates (§3)
+  // candidates (the paper, Sec. 3.3)
   int global_candidates = 12;
   double rotation_step_degrees = 10.0;
   MapRenderer renderer = MapRenderer::Raster;  // measured faster than rays at equal accuracy (bench select)
@@ -141,7 +141,7 @@ struct SelectInput {
   std::vector<Camera> earlier_views;
 };
 
-/// Exploration priority of the evaluated observed viewpoints (§2).
+/// Exploration priority of the evaluated observed viewpoints (the paper, Sec. 3.2).
 struct PriorityScores {
   std::vector<uint32_t> views;        ///< indices into SelectInput::views that were evaluated
   std::vector<double> error;          ///< L (mean 1)
@@ -214,16 +214,16 @@ struct PoolSelectResult {
 PoolSelectResult select_from_pool(const SelectInput& input, const std::vector<ObservedView>& pool, int count, const SelectOptions& options,
                                   bool exhaustive = false, Progress& progress = null_progress());
 
-/// §2 alone, for the given observed viewpoints (used by select_viewpoints and tests).
+/// The exploration priority (the paper, Sec. 3.2) alone, for the given observed viewpoints (used by select_viewpoints and tests).
 PriorityScores exploration_priority(const SelectInput& input, const SelectOptions& options, Progress& progress = null_progress());
 
-/// §3's 12 local candidates of a viewpoint, unfiltered, in the order: +right, −right, +up,
+/// The 12 local candidates (the paper, Sec. 3.3 and Appendix A) of a viewpoint, unfiltered, in the order: +right, −right, +up,
 /// −up, +forward, −forward (translations by `step`), +pitch, −pitch (about right), +yaw,
 /// −yaw (about up), then half-way to the nearest and second nearest of `training` (by
 /// centre distance, ignoring cameras at the same centre).
 std::vector<Camera> local_candidates(const Camera& current, const std::vector<Camera>& training, double step, double rotation_degrees);
 
-/// §3's global candidates: `count` points drawn among the free voxels of the box spanned by
+/// The global candidates (the paper, Sec. 3.3): `count` points drawn among the free voxels of the box spanned by
 /// `start` and its two nearest cameras in `training` (ignoring any at its centre), grown by
 /// `grow` on every side; each looks in the direction slerped between those two cameras by
 /// distance (all the way to a's when at a). With one other camera (two training cameras),

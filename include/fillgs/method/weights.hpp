@@ -1,5 +1,5 @@
 #pragma once
-// Per-pixel trust in a refined (generated) view (METHOD.md §7).
+// Per-pixel trust in a refined (generated) view (the paper, Sec. 3.5).
 //
 // FillGS: weight = consistency mask × co-visibility weight.
 //  * Consistency: agreement of the refined image with each of its two adjacent observed

@@ -193,7 +193,7 @@ struct DensifyRecord {
 };
 
 /// A refined (generated) view for fine-tuning: its camera (with time), image and per-pixel
-/// loss weights (METHOD.md §7: the loss on it is weight × photometric error).
+/// loss weights (the paper, Sec. 3.5: the loss on it is weight × photometric error).
 struct RefinedView {
   Camera camera;
   std::vector<float> rgb;     ///< [H][W][3] in [0, 1]

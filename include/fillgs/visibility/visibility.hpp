@@ -1,6 +1,6 @@
 #pragma once
 // Visibility: which Gaussians a camera observes at a time, the observation-count,
-// speed and deficiency tables over all frames (METHOD.md §1), and per-pixel maps of the
+// speed and deficiency tables over all frames (the paper, Sec. 3.3, Eq. (motion-aware density)), and per-pixel maps of the
 // deficiency for any viewpoint (co-visibility weights, candidate scores).
 //
 // Three modes, one interface, each a point on the speed/accuracy curve:

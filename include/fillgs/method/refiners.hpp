@@ -1,0 +1,57 @@
+#pragma once
+// The refiners fillgs drives, one table: each is one file under src/method/refiners/ that
+// defines its row {name, what it needs, make(inputs)}, and the build collects every file
+// there into the table (CMakeLists.txt, src/row_table.cpp.in). `finetune --refiner`, the
+// benchmark's `--refiner` and the Python module all make refiners here; adding a refiner is
+// adding its file (and its test).
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "fillgs/method/refine.hpp"
+
+namespace fillgs {
+
+/// What a refiner may be made from; a row says which it needs (make_refiner checks).
+struct RefinerInputs {
+  const GaussianCloud* truth = nullptr;  ///< the ground-truth scene (synthetic data)
+  std::vector<Camera> observers;         ///< the training cameras, with their times (the oracle's support)
+  int frames = 0;                        ///< the video's frame count
+  const RigPool* pool = nullptr;         ///< a rig's pool cameras and their photographs
+  std::string command;                   ///< an external program, with {in} and {out}
+  double timeout_seconds = 600.0;        ///< the external program's time per patch
+  OracleOptions oracle;                  ///< the oracles' artifacts, window and background (the row sets the support)
+  ReferenceOptions reference;            ///< the reference-conditioned refiners' parameters
+  RigOptions rig;
+  SupportStats* stats = nullptr;         ///< where the oracles and the reference-conditioned refiners record what they restored
+};
+
+struct RefinerKind {
+  std::string name;         ///< what --refiner takes
+  std::string description;  ///< what it restores, one line (help, reports)
+  int order = 50;           ///< listing order (help, reports), lower first
+  bool needs_truth = false;    ///< a synthetic scene's ground truth
+  bool needs_pool = false;     ///< a rig's pool cameras
+  bool needs_command = false;  ///< an external program
+  /// Made from the truth and the training cameras alone, so the benchmark (synthetic scenes)
+  /// can run it.
+  bool benchmark = false;
+  std::function<std::unique_ptr<Refiner>(const RefinerInputs&)> make;
+  /// What of the inputs decides its output, as JSON: a benchmark run's identity
+  /// (experiment/identity.hpp).
+  std::function<nlohmann::json(const RefinerInputs&)> identity;
+};
+
+/// Every refiner, in listing order.
+const std::vector<const RefinerKind*>& refiner_kinds();
+/// The refiner of that name; one line listing the names otherwise.
+const RefinerKind& refiner_kind(const std::string& name);
+/// "a, b or c": the refiners' names (only the benchmark's with `benchmark_only`).
+std::string refiner_names(bool benchmark_only = false);
+/// The refiner `name` made from `inputs`; one line naming what it needs and lacks.
+std::unique_ptr<Refiner> make_refiner(const std::string& name, const RefinerInputs& inputs);
+
+}  // namespace fillgs

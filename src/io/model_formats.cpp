@@ -1,0 +1,77 @@
+#include "fillgs/io/model_formats.hpp"
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+#include "fillgs/base/error.hpp"
+#include "fillgs/base/fs_util.hpp"
+#include "fillgs/io/ply.hpp"
+
+namespace fs = std::filesystem;
+
+namespace fillgs {
+
+namespace model_io {
+std::vector<const ModelFormat*> rows();  // generated from src/io/formats/ (src/row_table.cpp.in)
+}  // namespace model_io
+
+FormatProbe::FormatProbe(std::string path) : path_(std::move(path)) {
+  std::error_code ec;
+  directory_ = fs::is_directory(path_, ec);
+}
+
+std::string FormatProbe::filename() const { return fs::path(path_).filename().string(); }
+
+bool FormatProbe::beside(const std::string& name, bool folder) const {
+  std::error_code ec;
+  const fs::path p = (directory_ ? fs::path(path_) : fs::path(path_).parent_path()) / name;
+  return folder ? fs::is_directory(p, ec) : fs::exists(p, ec);
+}
+
+const std::string& FormatProbe::ply_header() const {
+  if (header_read_ || directory_) return header_;
+  header_read_ = true;
+  // The first bytes first: a large file that is no PLY is not read up to a newline.
+  char magic[3] = {0, 0, 0};
+  std::ifstream in(path_, std::ios::binary);
+  if (in.read(magic, 3) && std::string(magic, 3) == "ply") header_ = read_ply_header(path_);
+  return header_;
+}
+
+const std::vector<const ModelFormat*>& model_formats() {
+  static const std::vector<const ModelFormat*> rows = [] {
+    std::vector<const ModelFormat*> r = model_io::rows();
+    std::stable_sort(r.begin(), r.end(), [](const ModelFormat* a, const ModelFormat* b) { return a->detect_order < b->detect_order; });
+    return r;
+  }();
+  return rows;
+}
+
+std::string model_format_names() {
+  std::vector<std::string> names;
+  for (const ModelFormat* f : model_formats()) names.push_back(f->name);
+  return join_names(names);
+}
+
+const ModelFormat& model_format(const std::string& name) {
+  for (const ModelFormat* f : model_formats()) {
+    if (f->name == name) return *f;
+    for (const std::string& a : f->aliases)
+      if (a == name) return *f;
+  }
+  throw_error("unknown scene format '", name.substr(0, 40), "' (expected auto, ", model_format_names(), ")");
+}
+
+const ModelFormat* find_model_format(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw_error(path, ": no such file or directory");
+  // A named pipe or a device is refused before any row opens it (a pipe would block).
+  if (!fs::is_directory(path, ec)) require_regular_file(path);
+  const FormatProbe probe(path);
+  for (const ModelFormat* f : model_formats())
+    if (f->detect(probe)) return f;
+  return nullptr;
+}
+
+}  // namespace fillgs
