@@ -63,7 +63,13 @@
 #
 # Resumable (bench/lib.sh, step): rerun the same command and every finished step is reused;
 # a step made by another command line stops the script. Each step that runs prints its
-# seconds. Writes OUT/results.md (a table per budget, mean +- standard deviation over the
+# seconds. Across checkouts: git keeps each finished step's records (command.txt, step.txt,
+# summary.json, metrics.json, pool_chosen.json and .png, the backbone's model.sha256 and the
+# first seed's picture render; .gitignore), not its models. A backbone whose model is not
+# here is trained again when a step still to run reads it, and must come out byte for byte
+# the one its finished rows used (model.sha256), or the script stops. Every path in a
+# command line is relative to the repository (the data at ../shared/data unless
+# FILLGS_SHARED_DATA is set), so the records carry no machine's path. Writes OUT/results.md (a table per budget, mean +- standard deviation over the
 # seeds), OUT/chosen_K<k>_s<seed>.png (what each strategy chose, camera x frame) and
 # OUT/compare.png. --smoke: small images, K = 2, seed 1, a few iterations (CI).
 set -euo pipefail
@@ -87,7 +93,7 @@ while [ $# -gt 0 ]; do
   shift
 done
 FILLGS=${FILLGS:-build/bin/fillgs}
-DATA=${FILLGS_SHARED_DATA:-$(cd .. && pwd)/shared/data}
+DATA=${FILLGS_SHARED_DATA:-../shared/data}
 STRATEGIES=(fillgs random negative interpolation fisherrf coverage3d coverage4d)
 [ -n "$ONLY" ] && IFS=, read -r -a STRATEGIES <<<"$ONLY"
 BB=(--iterations 2000) DENSE=(--iterations 3000) FT=() INIT=()
@@ -139,7 +145,7 @@ json.dump(out, open(sys.argv[2], "w"))
 PY
       mv "$TEST.tmp" "$TEST"
     fi
-    [ -e "$OUT/seg" ] || ln -s "$P/seg" "$OUT/seg"
+    [ -e "$OUT/seg" ] || ln -sfn "$(cd "$P" && pwd)/seg" "$OUT/seg"  # absolute: the link sits in OUT, P is relative to the root
   else
     TEST=$OUT/test_cameras.json  # transforms.json of the held-out cameras
     if [ ! -f "$TEST" ]; then
@@ -173,22 +179,80 @@ fi
 TRAIN_DS=("${DS[@]}" --cameras "$CAMERAS" --held-out "$TEST")
 OPTS=(--sh-degree 0 --colour-correction)
 
+# The picture (fixed before any run): the first near (or held-out) camera at the clip's middle
+# frame; every row of the first seed renders it when it is evaluated, so that the picture
+# needs no model a later checkout lacks.
+cam=${NEAR%%,*}
+if [ $SCENE = panoptic ]; then
+  [ "${SPLIT_CAMS[0]}" = all ] && cam=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['cam_id'][0][0])" "$TEST")
+  NF=$(ls "$P/ims/$cam" | wc -l)
+  STEP=${FRAMES##*:}
+  SRC=$(( (NF / 2) / STEP * STEP ))
+  truth="$P/ims/$cam/$(printf '%06d' $SRC).jpg" render=$(printf '%s_%06d.png' "$cam" $SRC)
+else
+  [ "${SPLIT_CAMS[0]}" = all ] && cam=$(python3 -c "import json,os,sys; print(os.path.splitext(os.path.basename(json.load(open(sys.argv[1]))['frames'][0]['file_path']))[0])" "$TEST")
+  SRC=0 truth="$P/images/$cam.png" render="${cam}_${cam}.png"  # eval names a render <camera>_<image>
+fi
 evaluate() {  # model folder
+  local m=$1/model.ply
   for k in "${!SPLITS[@]}"; do
     local sel=()
     [ "${SPLIT_CAMS[$k]}" = all ] || sel=(--select-cameras "${SPLIT_CAMS[$k]}")
-    step "$1/eval_${SPLITS[$k]}" metrics.json "$FILLGS" eval --model "$1/model.ply" "${DS[@]}" --cameras "$TEST" "${sel[@]}" \
-      --splits "${SPLITS[$k]}" --no-renders --ls-gain --out "$1/eval_${SPLITS[$k]}" --quiet >/dev/null
+    local cmd=("$FILLGS" eval --model "$m" "${DS[@]}" --cameras "$TEST" "${sel[@]}" --splits "${SPLITS[$k]}" --no-renders --ls-gain
+      --out "$1/eval_${SPLITS[$k]}" --quiet)
+    finished "$1/eval_${SPLITS[$k]}" metrics.json "${cmd[@]}" || have_model "$1"
+    step "$1/eval_${SPLITS[$k]}" metrics.json "${cmd[@]}" >/dev/null
   done
+  if [ "$1" != "${1#$OUT/s${seeds[0]}/}" ] && [ ! -f "$1/picture/renders/picture/$render" ]; then
+    have_model "$1"
+    rm -rf "$1/picture.tmp"
+    "$FILLGS" eval --model "$m" "${DS[@]}" --cameras "$TEST" --select-cameras "$cam" --splits picture --out "$1/picture.tmp" --quiet >/dev/null
+    rm -rf "$1/picture"
+    mv "$1/picture.tmp" "$1/picture"
+  fi
+}
+have_model() {  # model folder: a step still to run reads its model.ply
+  [ -f "$1/model.ply" ] && return 0
+  case $1 in
+    */backbone) backbone_again "$(basename "$(dirname "$1")")" ;;
+    *) echo "pool_select: $1/model.ply is not here (git keeps a run's records, not its model) and a step still to run reads it; delete $1 to train it again" >&2
+       exit 1 ;;
+  esac
 }
 
 IFS=, read -r -a seeds <<<"$SEEDS"
 IFS=, read -r -a budgets <<<"$BUDGETS"
+backbone_command() {  # seed, output folder -> BCMD
+  BCMD=("$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "${BB[@]}" "${INIT[@]}" "${OPTS[@]}" --seed "$1" --out "$2" --quiet)
+}
+backbone_files() { ls model.ply init_points.ply 2>/dev/null; }  # what model.sha256 records (in the folder)
 backbone() {  # seed: the backbone, from the training cameras alone
   local S=$OUT/s$1
-  step "$S/backbone" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "${BB[@]}" "${INIT[@]}" "${OPTS[@]}" --seed "$1" \
-    --out "$S/backbone" --quiet
+  backbone_command "$1" "$S/backbone"
+  step "$S/backbone" summary.json "${BCMD[@]}"
+  [ -f "$S/backbone/model.sha256" ] || (cd "$S/backbone" && sha256sum $(backbone_files) >model.sha256.tmp && mv model.sha256.tmp model.sha256)
   evaluate "$S/backbone"
+}
+backbone_again() {  # "s<seed>": its backbone trained again where git kept only its records
+  local S=$OUT/$1
+  [ -f "$S/backbone/model.sha256" ] || { echo "pool_select: $S/backbone has no model.ply and no model.sha256; delete $S/backbone" >&2; exit 1; }
+  echo "pool_select: $S/backbone/model.ply is not here (git keeps the records, not the models): training it again" >&2
+  backbone_command "${1#s}" "$S/backbone.again"
+  rm -rf "$S/backbone.again"
+  "${BCMD[@]}"
+  if ! (cd "$S/backbone.again" && sha256sum --check --quiet ../backbone/model.sha256); then
+    echo "pool_select: $S/backbone trained again is not the model its finished rows used (model.sha256); delete $OUT/$1 to run the seed again" >&2
+    exit 1
+  fi
+  (cd "$S/backbone.again" && mv $(backbone_files) ../backbone/)
+  rm -rf "$S/backbone.again"
+}
+# A step that reads seed SEED's backbone (its model or its initial points).
+bstep() {  # seed, step's arguments
+  local s=$1
+  shift
+  finished "$@" || have_model "$OUT/s$s/backbone"
+  step "$@"
 }
 # Initial points of every model trained from scratch, the dense reference's included: the
 # backbone's (COLMAP points of the training cameras, or the points its views gave, saved
@@ -197,7 +261,7 @@ scratch_points() {  # seed
   if [ ${#INIT[@]} -gt 0 ]; then echo "${INIT[1]}"; else echo "$OUT/s$1/backbone/init_points.ply"; fi
 }
 backbone 1
-step "$OUT/dense" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE[@]}" --points "$(scratch_points 1)" "${OPTS[@]}" \
+bstep 1 "$OUT/dense" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE[@]}" --points "$(scratch_points 1)" "${OPTS[@]}" \
   --seed 1 --out "$OUT/dense" --quiet
 evaluate "$OUT/dense"
 # Trained from scratch with the dense reference's settings on the training cameras and the
@@ -205,7 +269,7 @@ evaluate "$OUT/dense"
 scratch() {  # seed, id, extra train options
   local s=$1 id=scratch.$2
   shift 2
-  step "$OUT/s$s/$id" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "$@" "${DENSE[@]}" --points "$(scratch_points "$s")" "${OPTS[@]}" \
+  bstep "$s" "$OUT/s$s/$id" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "$@" "${DENSE[@]}" --points "$(scratch_points "$s")" "${OPTS[@]}" \
     --seed "$s" --out "$OUT/s$s/$id" --quiet
   evaluate "$OUT/s$s/$id"
 }
@@ -213,7 +277,7 @@ scratch() {  # seed, id, extra train options
 finetune() {  # seed, id, extra finetune options
   local s=$1 id=$2
   shift 2
-  step "$OUT/s$s/$id" summary.json "$FILLGS" finetune --model "$OUT/s$s/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
+  bstep "$s" "$OUT/s$s/$id" summary.json "$FILLGS" finetune --model "$OUT/s$s/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
     --seed "$s" --out "$OUT/s$s/$id" "${FT[@]}" "$@" --quiet
   evaluate "$OUT/s$s/$id"
 }
@@ -225,7 +289,7 @@ if [ $NO_SCRATCH = 0 ]; then
     for K in "${budgets[@]}"; do
       for st in "${STRATEGIES[@]}"; do
         # K camera-times chosen on the backbone in one greedy round.
-        step "$OUT/s$s/choose.$st.K$K" summary.json "$FILLGS" finetune --model "$OUT/s$s/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
+        bstep "$s" "$OUT/s$s/choose.$st.K$K" summary.json "$FILLGS" finetune --model "$OUT/s$s/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
           --seed "$s" --out "$OUT/s$s/choose.$st.K$K" --iterations 1 --select-every 1 --pool-cameras $POOL --pool-budget "$K" --strategy "$st" \
           --weighting none --quiet
         scratch "$s" "$st.K$K" --camera-times "$OUT/s$s/choose.$st.K$K/pool_chosen.json"
@@ -279,25 +343,11 @@ if [ -z "$best" ]; then
   exit 0
 fi
 S=$OUT/s${seeds[0]}
-cam=${NEAR%%,*}
-if [ $SCENE = panoptic ]; then
-  [ "${SPLIT_CAMS[0]}" = all ] && cam=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['cam_id'][0][0])" "$TEST")
-  NF=$(ls "$P/ims/$cam" | wc -l)
-  STEP=${FRAMES##*:}
-  SRC=$(( (NF / 2) / STEP * STEP ))
-  truth="$P/ims/$cam/$(printf '%06d' $SRC).jpg" render=$(printf '%s_%06d.png' "$cam" $SRC)
-else
-  [ "${SPLIT_CAMS[0]}" = all ] && cam=$(python3 -c "import json,os,sys; print(os.path.splitext(os.path.basename(json.load(open(sys.argv[1]))['frames'][0]['file_path']))[0])" "$TEST")
-  SRC=0 truth="$P/images/$cam.png" render="${cam}_${cam}.png"  # eval names a render <camera>_<image>
-fi
 tiles=("$truth")
 fill=fillgs.K$K
-[ -f "$S/scratch.fillgs.K$K/model.ply" ] && fill=scratch.fillgs.K$K  # the main protocol's model where it ran
+[ -f "$S/scratch.fillgs.K$K/summary.json" ] && fill=scratch.fillgs.K$K  # the main protocol's model where it ran
 for id in backbone "$best" "$fill"; do
-  if [ ! -d "$S/$id/picture" ]; then
-    "$FILLGS" eval --model "$S/$id/model.ply" "${DS[@]}" --cameras "$TEST" --select-cameras "$cam" --splits picture --out "$S/$id/picture.tmp" --quiet >/dev/null
-    mv "$S/$id/picture.tmp" "$S/$id/picture"
-  fi
+  evaluate "$S/$id"  # its picture, where an older run did not render one
   tiles+=("$S/$id/picture/renders/picture/$render")
 done
 # The photograph at the renders' size.
