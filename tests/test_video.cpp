@@ -304,6 +304,10 @@ TEST_CASE("d3dgs reader: bad meta files and missing files are named in one line"
   fs::rename(join_path(dir, "moved.jpg"), join_path(dir, "ims/2/000001.jpg"));
   fs::remove(join_path(dir, "seg/1/000000.png"));
   CHECK(load(small).find("seg/1/000000.png: no foreground mask for") != std::string::npos);
+  // A seg link that points nowhere is refused, not read as "no masks".
+  fs::rename(join_path(dir, "seg"), join_path(dir, "seg.real"));
+  fs::create_symlink("no/such/seg", join_path(dir, "seg"));
+  CHECK(load(small).find("seg: a link to 'no/such/seg', which does not exist") != std::string::npos);
 }
 
 TEST_CASE("initialisation: the centre of interest of cameras looking at one point is that point", "[video][init]") {

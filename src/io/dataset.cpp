@@ -248,6 +248,10 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
   }
   // Foreground masks where a seg/ folder stands beside the camera file.
   const fs::path seg = base / "seg";
+  std::error_code seg_ec;
+  if (fs::is_symlink(seg, seg_ec) && !fs::exists(seg, seg_ec))
+    throw_error(seg.string(), ": a link to '", fs::read_symlink(seg, seg_ec).string(),
+                "', which does not exist (the foreground masks beside the camera file; a relative link is read from its own folder)");
   const bool masked = fs::is_directory(seg);
   // Load every image (and mask) once, 8-bit, checking sizes; downscaled by k; held in
   // memory or, past the budget, in the image cache file.

@@ -1,7 +1,7 @@
 #pragma once
 // The model formats fillgs reads, one table: each format is one file under src/io/formats/
 // that defines its row {name, detect(path), open(path, options)}, and the build collects
-// every file there into the table (CMakeLists.txt, src/io/model_format_table.cpp.in).
+// every file there into the table (CMakeLists.txt, src/row_table.cpp.in).
 // Adding a format is adding that file (and its test); nothing else names it.
 //
 // read_scene (io/scene_io.hpp) detects a path's format here, and reads it through its row:

@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# bench/pool_select.sh resumed from the records git keeps (its .gitignore): on a finished smoke
+# folder, every model removed and one strategy's two steps deleted, the script trains the
+# seed's backbone again, checks it against model.sha256 and reruns the two steps to the same
+# choice and the same metrics; a backbone that comes out otherwise (a changed model.sha256) stops it.
+#   tests/pool_select_resume.sh OUT FILLGS SCRIPT   (OUT: a finished `pool_select.sh --smoke OUT`)
+set -euo pipefail
+out=$1 fillgs=$2 script=$3
+test -f "$out/results.md"
+row=(choose.random.K2/pool_chosen.json scratch.random.K2/eval_near/metrics.json scratch.random.K2/eval_far/metrics.json)
+rm -rf "$out/before" && mkdir -p "$out/before"
+for f in "${row[@]}"; do cp "$out/s1/$f" "$out/before/${f//\//_}"; done
+forget() {  # what a fresh checkout lacks: every model, and one strategy's steps
+  find "$out/s1" "$out/dense" -name '*.ply' -delete
+  rm -rf "$out/s1/choose.random.K2" "$out/s1/scratch.random.K2"
+}
+forget
+FILLGS=$fillgs bash "$script" --smoke "$out" >/dev/null 2>"$out/resume.err"
+grep -q "s1/backbone/model.ply is not here (git keeps the records, not the models): training it again" "$out/resume.err"
+test -s "$out/s1/scratch.random.K2/model.ply"
+for f in "${row[@]}"; do cmp "$out/s1/$f" "$out/before/${f//\//_}"; done
+# A backbone that does not come out as the one the finished rows used is refused.
+forget
+awk 'NR == 1 { $0 = (substr($0, 1, 1) == "0" ? "1" : "0") substr($0, 2) } { print }' "$out/s1/backbone/model.sha256" >"$out/sha.tmp"
+mv "$out/sha.tmp" "$out/s1/backbone/model.sha256"
+if FILLGS=$fillgs bash "$script" --smoke "$out" >/dev/null 2>"$out/resume.err"; then
+  echo "pool_select_resume: a backbone unlike its model.sha256 was accepted" >&2
+  exit 1
+fi
+grep -q "s1/backbone trained again is not the model its finished rows used (model.sha256)" "$out/resume.err"
+test ! -e "$out/s1/scratch.random.K2"
+echo "pool_select_resume: resumed from the records to the same choice and metrics; a different backbone refused"
