@@ -145,6 +145,31 @@ TEST_CASE("heatmap: the matrix and row sums in the CSV, rows in order", "[plot]"
   CHECK(ink(read_image(join_path(dir, "named.png"))) > 0.2);
 }
 
+TEST_CASE("interval chart: each row's intervals in the CSV, separated only where 0 lies outside", "[plot]") {
+  if (!have_gnuplot()) {
+    WARN("skipped: no gnuplot (Debian gnuplot-nox; scripts/install-deps.sh installs it)");
+    return;
+  }
+  const std::string dir = scratch("plot_interval");
+  const double nan = std::nan("");
+  // Row 1 of the second series has no interval (one seed): its line is left out.
+  const IntervalSeries a{"interpolation", {0.5, -0.1, -0.6}, {0.2, -0.5, -1.0}, {0.8, 0.3, -0.1}};
+  const IntervalSeries b{"extrapolation", {0.0, nan, 1.0}, {-0.4, nan, 0.0}, {0.4, nan, 2.0}};
+  write_interval_chart_png(join_path(dir, "iv.png"), {"negative", "random", "coverage4d's"}, {a, b}, {"FillGS minus each", "dB", ""});
+  const auto csv = csv_rows(join_path(dir, "iv.csv"));
+  REQUIRE(csv.size() == 6);
+  CHECK(csv[0] == std::vector<std::string>{"series", "y", "estimate", "low", "high", "separated", "row_name", "series_name"});
+  // series, y (row -/+ a quarter for two series), estimate, low, high, separated
+  const double want[5][6] = {{0, -0.25, 0.5, 0.2, 0.8, 1}, {0, 0.75, -0.1, -0.5, 0.3, 0}, {0, 1.75, -0.6, -1.0, -0.1, 1},
+                             {1, 0.25, 0.0, -0.4, 0.4, 0}, {1, 2.25, 1.0, 0.0, 2.0, 0}};  // [0, 2] touches 0: not separated
+  for (size_t i = 0; i < 5; ++i)
+    for (size_t k = 0; k < 6; ++k) CHECK(std::stod(csv[i + 1][k]) == Approx(want[i][k]).margin(1e-12));
+  CHECK(csv[3][6] == "coverage4d's");
+  const std::string gp = read_file(join_path(dir, "iv.gp"));
+  CHECK(gp.find("set ytics ('negative' 0, 'random' 1, 'coverage4d''s' 2)") != std::string::npos);
+  CHECK(ink(read_image(join_path(dir, "iv.png"))) > 0.01);
+}
+
 TEST_CASE("without gnuplot a chart leaves its CSV and script, one warning and no PNG", "[plot]") {
   const std::string dir = scratch("plot_missing");
   const EnvOverride no_gnuplot("FILLGS_GNUPLOT", "/nonexistent/gnuplot");

@@ -958,6 +958,7 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
     md << "\n";
   }
   const std::vector<PairedDifference> paired = paired_differences(results);
+  bool paired_chart = false;
   if (!paired.empty()) {
     md << "## FillGS − each method, paired by seed\n\nPer seed, FillGS's PSNR minus the method's (dB; positive: FillGS ahead): the mean "
           "over the seeds both ran, ± the standard deviation, and the 95 % confidence interval of the mean (t over the paired seeds); "
@@ -976,6 +977,27 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
       md << " | " << fmt(d.mean[1], 2) << " / " << fmt(d.mean[3], 2) << " | " << d.seeds << " |\n";
     }
     md << "\n";
+    // Table 1's intervals as a picture (the first scene): each strategy under both protocols
+    // (its own weights; one weighting) and the control.
+    std::vector<std::string> rows;
+    IntervalSeries si{"interpolation", {}, {}, {}}, se{"extrapolation", {}, {}, {}};
+    for (const PairedDifference& d : paired) {
+      if (d.variant != paired.front().variant || d.seeds < 2) continue;
+      // FillGS's own rows (its weights against none) belong to Table 4, not here.
+      if (d.id.rfind("fillgs", 0) == 0 || !(d.group == ConfigGroup::Strategy || d.id == "no-refinement" || unweighted_strategy_row(d.id))) continue;
+      rows.push_back(d.id);
+      for (auto [series, j] : {std::pair<IntervalSeries*, int>{&si, 0}, {&se, 2}}) {
+        series->estimate.push_back(d.mean[j]);
+        series->low.push_back(d.mean[j] - d.half_width[j]);
+        series->high.push_back(d.mean[j] + d.half_width[j]);
+      }
+    }
+    if (!rows.empty()) {
+      write_interval_chart_png(join_path(root, "paired_table1.png"), rows, {si, se},
+                               {"FillGS minus each (" + paired.front().variant + "): mean and 95 % interval over paired seeds; filled: excludes 0",
+                                "PSNR difference (dB; x.w-none rows: FillGS's unweighted row minus x's)", ""});
+      paired_chart = true;
+    }
   }
   md << "## Seconds per phase (mean per run)\n\n| Scene | Method | select | refine | weights | train | eval |\n|---|---|---|---|---|---|---|\n";
   for (const Mean& m : means)
@@ -1020,6 +1042,7 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   // Each strategy's gain over the control (same scene), per refiner: the chart the
   // comparison is read from.
   std::vector<std::string> figures = {"psnr_interpolation", "psnr_extrapolation", "budget", "time_per_phase"};
+  if (paired_chart) figures.insert(figures.begin(), "paired_table1");
   {
     std::vector<std::string> gain_names;
     std::vector<double> gain_interp, gain_extrap;

@@ -145,6 +145,16 @@ void draw(const std::string& png_path, const std::string& csv, const std::string
   }
 }
 
+/// `set ytics ("a" 0, "b" 1, ...)` for named rows; nothing without names.
+std::string ytic_names(const std::vector<std::string>& names) {
+  if (names.empty()) return "";
+  std::string t = "set ytics (";
+  for (size_t r = 0; r < names.size(); ++r) t += (r ? ", " : "") + quoted(names[r]) + " " + std::to_string(r);
+  return t + ")\n";
+}
+
+const char* const kSeriesColours[] = {"#3c78b4", "#e0872c", "#4aa04a", "#b44a4a"};
+
 std::string title_lines(const PlotLabels& labels) {
   std::string s;
   if (!labels.title.empty()) s += "set title " + quoted(labels.title) + "\n";
@@ -178,6 +188,46 @@ void write_bar_chart_png(const std::string& path, const std::vector<std::string>
   if (n <= 24) gp << ", '' skip 1 using 0:2:3 with labels offset 0,0.7 font ',9'";
   gp << "\n";
   draw(path, csv.str(), gp.str(), width, height);
+}
+
+void write_interval_chart_png(const std::string& path, const std::vector<std::string>& rows, const std::vector<IntervalSeries>& series,
+                              const PlotLabels& labels) {
+  FILLGS_CHECK(!series.empty() && series.size() <= 4);
+  const size_t n = rows.size();
+  // CSV: one line per row and series: the series (its index in the legend), its y (the row,
+  // offset by the series within it), the estimate, the interval, whether it excludes 0 (1)
+  // or not (0), and the names.
+  std::ostringstream csv;
+  csv << "series,y,estimate,low,high,separated,row_name,series_name\n";
+  double extent = 0.5;
+  const double band = 0.5;  // of a row's height, shared by its series
+  for (size_t k = 0; k < series.size(); ++k) {
+    const IntervalSeries& s = series[k];
+    FILLGS_CHECK(s.estimate.size() == n && s.low.size() == n && s.high.size() == n);
+    const double offset = series.size() == 1 ? 0.0 : band * (double(k) / double(series.size() - 1) - 0.5);
+    for (size_t r = 0; r < n; ++r) {
+      if (!std::isfinite(s.estimate[r]) || !std::isfinite(s.low[r]) || !std::isfinite(s.high[r])) continue;
+      extent = std::max({extent, std::fabs(s.low[r]), std::fabs(s.high[r])});
+      const bool separated = s.low[r] > 0 || s.high[r] < 0;
+      csv << k << "," << number(double(r) + offset) << "," << number(s.estimate[r]) << "," << number(s.low[r]) << "," << number(s.high[r]) << ","
+          << (separated ? 1 : 0) << "," << csv_field(rows[r]) << "," << csv_field(s.name) << "\n";
+    }
+  }
+  const std::string data = quoted(fs::path(path).stem().string() + ".csv");
+  std::ostringstream gp;
+  gp << title_lines(labels) << "set key outside right top vertical\nunset grid\nset grid xtics lc rgb '#dddddd' lt 1\n"
+     << "set yrange [" << number(double(n) - 0.5) << ":-0.5]\nset ytics scale 0\n" << ytic_names(rows)
+     << "set xrange [" << number(-1.1 * extent) << ":" << number(1.1 * extent) << "]\n"
+     << "set arrow from 0, graph 0 to 0, graph 1 nohead dt 2 lc rgb '#404040'\n"
+     << "plot ";
+  // Each series takes its own lines of the CSV (column 1), so the CSV stays one table: a
+  // filled point where the interval excludes 0 (column 6), an open one where it does not.
+  for (size_t k = 0; k < series.size(); ++k)
+    for (const bool separated : {true, false})
+      gp << (k || !separated ? ", \\\n     " : "") << data << " skip 1 using ($1 == " << k << " && $6 " << (separated ? ">" : "<") << " 0.5 ? $3 : NaN):2:4:5 with xerrorbars pt "
+         << (separated ? 7 : 6) << " ps 1.3 lw 2 lc rgb '" << kSeriesColours[k] << "' " << (separated ? "title " + quoted(series[k].name) : std::string("notitle"));
+  gp << "\n";
+  draw(path, csv.str(), gp.str(), 900, int(std::clamp<size_t>(140 + 34 * n, 300, 1200)));
 }
 
 namespace {
@@ -291,13 +341,6 @@ void write_scatter_png(const std::string& path, const std::vector<ScatterSeries>
 
 }
 
-/// `set ytics ("a" 0, "b" 1, ...)` for named rows; nothing without names.
-std::string ytic_names(const std::vector<std::string>& names) {
-  if (names.empty()) return "";
-  std::string t = "set ytics (";
-  for (size_t r = 0; r < names.size(); ++r) t += (r ? ", " : "") + quoted(names[r]) + " " + std::to_string(r);
-  return t + ")\n";
-}
 
 void write_heatmap_png(const std::string& path, const std::vector<float>& values, int rows, int cols, const PlotLabels& labels,
                        const std::vector<double>* row_totals) {

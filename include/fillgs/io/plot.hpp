@@ -46,6 +46,19 @@ void write_heatmap_png(const std::string& path, const std::vector<float>& values
 void write_bar_chart_png(const std::string& path, const std::vector<std::string>& names, const std::vector<double>& values,
                          const PlotLabels& labels);
 
+/// One series of intervals on an interval chart: per row its estimate and the interval around
+/// it (NaN: no interval for that row; the row is left empty in this series).
+struct IntervalSeries {
+  std::string name;
+  std::vector<double> estimate, low, high;
+};
+
+/// A forest plot: one row per name (top to bottom), each series' interval as a horizontal
+/// bar with its estimate as a point, filled where the interval excludes 0 and open where it
+/// does not; a dashed line at 0. Up to four series, side by side within a row.
+void write_interval_chart_png(const std::string& path, const std::vector<std::string>& rows, const std::vector<IntervalSeries>& series,
+                              const PlotLabels& labels);
+
 struct ScatterSeries {
   std::string name;
   std::vector<double> x, y;
