@@ -122,6 +122,45 @@ def write_chart(out, chart, budgets, title):
     return True
 
 
+def write_interval_chart(out, name, rows, series, title):
+    """OUT/NAME.csv and NAME.gp, and NAME.png where gnuplot is installed: a forest plot, one row
+    per label (top to bottom), each series' 95 % interval as a bar with its mean as a point,
+    filled where the interval excludes 0 (the layout of fillgs's own interval charts,
+    src/io/chart.cpp). rows: [(label, {series: (mean, low, high)})]."""
+    colours = ["#3c78b4", "#e0872c", "#4aa04a", "#b44a4a"]
+    lines, extent = ["series,y,estimate,low,high,separated,row_name,series_name"], 0.5
+    for k, sname in enumerate(series):
+        offset = 0.0 if len(series) == 1 else 0.5 * (k / (len(series) - 1) - 0.5)
+        for r, (label, cells) in enumerate(rows):
+            if sname not in cells:
+                continue
+            m, lo, hi = cells[sname]
+            extent = max(extent, abs(lo), abs(hi))
+            lines.append(f"{k},{r + offset:.4f},{m:.6f},{lo:.6f},{hi:.6f},{1 if lo > 0 or hi < 0 else 0},\"{label}\",{sname}")
+    plots = []
+    for k, sname in enumerate(series):
+        for sep in (True, False):
+            plots.append(f"'{name}.csv' skip 1 using ($1 == {k} && $6 {'>' if sep else '<'} 0.5 ? $3 : NaN):2:4:5 with xerrorbars "
+                         f"pt {7 if sep else 6} ps 1.3 lw 2 lc rgb '{colours[k % 4]}' " + (f"title '{sname}'" if sep else "notitle"))
+    gp = [f"# {name}.png from {name}.csv (written by bench/pool_select_report.py); re-plot with: gnuplot {name}.gp",
+          f"set terminal pngcairo size 900,{min(1200, max(300, 140 + 34 * len(rows)))} noenhanced font 'DejaVu Sans,10'",
+          "set datafile separator ','", "set border 3 lc rgb '#404040'", "set tics nomirror", f"set output '{name}.png'",
+          f"set title '{title}'", "set xlabel 'PSNR difference (dB)'", "set key outside right top vertical",
+          "set grid xtics lc rgb '#dddddd' lt 1", f"set yrange [{len(rows) - 0.5}:-0.5]", "set ytics scale 0",
+          "set ytics (" + ", ".join("'" + label.replace("'", "''") + f"' {r}" for r, (label, _) in enumerate(rows)) + ")",
+          f"set xrange [{-1.1 * extent:.4f}:{1.1 * extent:.4f}]", "set arrow from 0, graph 0 to 0, graph 1 nohead dt 2 lc rgb '#404040'",
+          "plot " + ", \\\n     ".join(plots)]
+    write_atomic(os.path.join(out, f"{name}.csv"), "\n".join(lines) + "\n")
+    write_atomic(os.path.join(out, f"{name}.gp"), "\n".join(gp) + "\n")
+    if not shutil.which("gnuplot"):
+        return False
+    r = subprocess.run(["gnuplot", f"{name}.gp"], cwd=out, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.stderr.write(f"pool_select_report: gnuplot {name}.gp failed: {r.stderr.strip()}\n")
+        return False
+    return True
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("out")
@@ -214,7 +253,7 @@ def main():
         return [metric(s, x, sp, "psnr") - metric(s, y, sp, "psnr") for s in seeds
                 if metric(s, x, sp, "psnr") is not None and metric(s, y, sp, "psnr") is not None]
 
-    def criterion(prefix, K, means, ties):
+    def criterion(prefix, K, means, ties, collect=None, protocol=""):
         """FillGS against negative, random and the best baseline: the paired difference per split
         with its 95 % interval (bench/results/README.md, "Criteria, fixed before the runs")."""
         baselines = [b for b in ("random", "interpolation", "fisherrf", "coverage3d", "coverage4d") if b in means and b not in ties]
@@ -241,6 +280,11 @@ def main():
                     cells += [fmt(d), "–"]
                     continue
                 m, sd, h, nd = iv
+                if collect is not None:
+                    key = f"{label} ({protocol})"
+                    if not collect or collect[-1][0] != key:
+                        collect.append((key, {}))
+                    collect[-1][1][sp] = (m, m - h, m + h)
                 text = f"[{m - h:.2f}, {m + h:.2f}]"
                 cells += [f"{m:.2f} ± {sd:.2f}", f"**{text}**" if abs(m) > h else text]
                 need.append(nd if h > 0.5 else n)
@@ -291,6 +335,7 @@ def main():
 
     for K in budgets:
         lines += ["", f"## K = {K} camera-times"]
+        intervals = []  # FillGS minus negative, random and the best baseline, both protocols
         scratch_rows = any(summary(s, f"scratch.{st}.K{K}") for s in seeds for st in STRATEGIES)
         best_id = None
         if scratch_rows:
@@ -300,7 +345,7 @@ def main():
             lines += ["", "### Trained from scratch (the main protocol)", "",
                       "Each strategy chooses the K camera-times on the seed's backbone in one greedy round (each chosen one counted as an "
                       "observation before the next); a model is then trained on the training cameras and the chosen photographs with the "
-                      "dense reference's settings, from the seed's backbone's initial points.", ""] + rows + criterion("scratch.", K, means, ties)
+                      "dense reference's settings, from the seed's backbone's initial points.", ""] + rows + criterion("scratch.", K, means, ties, intervals, "from scratch")
             sl = spread_line(K, means)
             if sl:
                 lines += ["", sl[0]]
@@ -314,13 +359,16 @@ def main():
                 rows.append(row(rid, seeds))
         lines += ["", "### Warm start: the backbone fine-tuned with the photographs (second protocol)", "",
                   "The selection runs here, in three rounds, each choosing from the current model; the photographs are added at their real poses.",
-                  ""] + rows + criterion("", K, means, ties)
+                  ""] + rows + criterion("", K, means, ties, intervals, "warm start")
         sl = spread_line(K, means)
         if sl:
             lines += ["", sl[0]]
             best_id = best_id or f"{sl[1]}.K{K}"
         if not scratch_rows:
             chart_gains("", "control", K)
+        if intervals and write_interval_chart(out, f"intervals_K{K}", intervals, splits,
+                                              f"{a.title.replace(chr(39), chr(39) * 2)}, K = {K}: FillGS minus each, 95 % intervals (filled: excludes 0)"):
+            lines += ["", f"![FillGS minus each, K = {K}, 95 % intervals](intervals_K{K}.png)"]
         if best_id:
             lines += ["", f"best at K={K}: {best_id}"]
         # What each strategy chose, per seed: its (camera, frame) pairs (the main protocol's

@@ -1,0 +1,69 @@
+"""bench/pool_select_report.py on a folder of runs with known PSNRs: the paired differences'
+means, SDs and 95 % intervals against values worked out by hand (t(0.975, 2) = 4.302653,
+the printed table's), the "separated" mark only where the interval excludes 0, and the
+interval chart's CSV. Needs no fillgs build; run by CTest with the module's tests."""
+import json
+import math
+import os
+import subprocess
+import sys
+
+SOURCE = os.environ.get("FILLGS_SOURCE", os.path.join(os.path.dirname(__file__), "..", ".."))
+STRATEGIES = ["fillgs", "random", "negative", "interpolation", "fisherrf", "coverage3d", "coverage4d"]
+T975_DF2 = 4.302653
+
+
+def write(path, obj):
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path, "w") as f:
+        json.dump(obj, f)
+
+
+def make_folder(root):
+    """Three seeds of the main protocol at K = 30: FillGS - negative is 0.1, 0.2, 0.3 dB at the
+    near cameras and 0 far; FillGS - random 1.0, 1.1, 1.2 near; every other strategy 2 dB below
+    FillGS (so random is the best baseline)."""
+    base = {1: 16.0, 2: 16.5, 3: 15.5}
+    offset = {"fillgs": 0.0, "interpolation": -2.0, "fisherrf": -2.0, "coverage3d": -2.0, "coverage4d": -2.0}
+    for s, b in base.items():
+        k = s - 1  # seed index
+        near = {"fillgs": b, "negative": b - (0.1, 0.2, 0.3)[k], "random": b - (1.0, 1.1, 1.2)[k]}
+        for st in STRATEGIES:
+            n = near.get(st, b + offset.get(st, 0.0))
+            f = b + (0.0 if st in ("fillgs", "negative", "random") else -2.0)
+            d = os.path.join(root, f"s{s}", f"scratch.{st}.K30")
+            write(os.path.join(d, "summary.json"), {"seconds": 100.0})
+            write(os.path.join(d, "eval_near", "metrics.json"), {"near": {"psnr": n, "ssim": 0.5, "psnr_ls_gain": n}})
+            write(os.path.join(d, "eval_far", "metrics.json"), {"far": {"psnr": f, "ssim": 0.5, "psnr_ls_gain": f}})
+            write(os.path.join(root, f"s{s}", f"choose.{st}.K30", "pool_chosen.json"),
+                  {"chosen": [{"camera": "9", "frame": j, "score": 0.5 if st != "random" else 0.0} for j in range(30)]})
+        for rid in ("scratch.control", "backbone"):
+            d = os.path.join(root, f"s{s}", rid)
+            write(os.path.join(d, "summary.json"), {"seconds": 100.0})
+            for sp in ("near", "far"):
+                write(os.path.join(d, f"eval_{sp}", "metrics.json"), {sp: {"psnr": b - 1, "ssim": 0.5, "psnr_ls_gain": b}})
+
+
+def test_intervals_equal_hand_worked_values(tmp_path):
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    r = subprocess.run([sys.executable, os.path.join(SOURCE, "bench", "pool_select_report.py"), root, "--seeds", "1,2,3", "--budgets", "30",
+                        "--splits", "near,far"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    md = open(os.path.join(root, "results.md")).read()
+    h = T975_DF2 * 0.1 / math.sqrt(3)  # SD 0.1 over three seeds
+    # FillGS - negative near: 0.20 +- 0.10, [0.20 - h, 0.20 + h] = [-0.05, 0.45]: not separated.
+    neg = next(line for line in md.splitlines() if line.startswith("| negative |"))
+    assert "0.20 ± 0.10" in neg and f"[{0.2 - h:.2f}, {0.2 + h:.2f}]" in neg and "**[" not in neg.split("|")[3]
+    # FillGS - random near: 1.10 +- 0.10, separated; far 0.00 +- 0.00.
+    rnd = next(line for line in md.splitlines() if line.startswith("| random (best baseline) |"))
+    assert "1.10 ± 0.10" in rnd and f"**[{1.1 - h:.2f}, {1.1 + h:.2f}]**" in rnd
+    # The chart's CSV holds the same intervals, separated only for random at the near cameras.
+    rows = [line.split(",") for line in open(os.path.join(root, "intervals_K30.csv")).read().splitlines()[1:]]
+    got = {(row[6].strip('"'), row[7]): (float(row[2]), float(row[3]), float(row[4]), int(row[5])) for row in rows}
+    m, lo, hi, sep = got[("negative (from scratch)", "near")]
+    assert math.isclose(m, 0.2, abs_tol=1e-6) and math.isclose(lo, 0.2 - h, abs_tol=1e-5) and math.isclose(hi, 0.2 + h, abs_tol=1e-5) and sep == 0
+    m, lo, hi, sep = got[("random (best baseline) (from scratch)", "near")]
+    assert math.isclose(m, 1.1, abs_tol=1e-6) and sep == 1
+    assert got[("random (best baseline) (from scratch)", "far")][3] == 0
+    assert "![FillGS minus each, K = 30, 95 % intervals](intervals_K30.png)" in md or not os.path.exists(os.path.join(root, "intervals_K30.png"))
