@@ -69,9 +69,10 @@
 # here is trained again when a step still to run reads it, and must come out byte for byte
 # the one its finished rows used (model.sha256), or the script stops. Every path in a
 # command line is relative to the repository (the data at ../shared/data unless
-# FILLGS_SHARED_DATA is set), so the records carry no machine's path. Writes OUT/results.md (a table per budget, mean +- standard deviation over the
-# seeds), OUT/chosen_K<k>_s<seed>.png (what each strategy chose, camera x frame) and
-# OUT/compare.png. --smoke: small images, K = 2, seed 1, a few iterations (CI).
+# FILLGS_SHARED_DATA is set), so the records carry no machine's path.
+# Writes OUT/results.md (a table per budget, mean +- standard deviation over the seeds, and
+# FillGS's paired 95 % intervals, drawn in OUT/intervals_K<k>.png), OUT/chosen_K<k>_s<seed>.png
+# (what each strategy chose, camera x frame) and OUT/compare.png. --smoke: small images, K = 2, seed 1, a few iterations (CI).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source bench/lib.sh
