@@ -1003,6 +1003,18 @@ TEST_CASE("Student's t quantile matches the printed table", "[refine][bench]") {
   CHECK_THROWS(student_t_975(0));
 }
 
+TEST_CASE("seeds for a half-width: the fewest paired seeds whose 95 % interval is narrow enough", "[refine][bench]") {
+  // From the printed t table: sd 0.4 at n = 5 gives 2.776 * 0.4 / sqrt(5) = 0.497, at n = 4
+  // 3.182 * 0.4 / 2 = 0.636; sd 1 at n = 18 gives 2.110 / sqrt(18) = 0.497, at n = 17
+  // 2.120 / sqrt(17) = 0.514.
+  CHECK(seeds_for_half_width(0.4, 0.5) == 5);
+  CHECK(seeds_for_half_width(1.0, 0.5) == 18);
+  CHECK(seeds_for_half_width(0.0, 0.5) == 2);
+  // sd 100 would need (1.96 * 200)^2 > 10,000 seeds: reported as not reachable.
+  CHECK(seeds_for_half_width(100.0, 0.5) == 0);
+  CHECK(seeds_for_half_width(std::nan(""), 0.5) == 0);
+}
+
 TEST_CASE("bench report: an unweighted strategy pairs with FillGS's unweighted run, with intervals over five seeds", "[refine][bench]") {
   auto result = [](const std::string& id, uint64_t seed, double interp) {
     RunResult r;

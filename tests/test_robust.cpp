@@ -660,3 +660,12 @@ TEST_CASE("a commit that stops half-way says what it left, and a missing TMPDIR 
   else ::unsetenv("TMPDIR");
   expect_error(t, {dir + "/no/such/folder (TMPDIR)", "cannot make the image cache"});
 }
+
+TEST_CASE("FNV-1a 64 fingerprints match the published test vectors", "[robust]") {
+  // Test vectors of the FNV reference (Fowler, Noll, Vo: "FNV hash", test suite):
+  // "" -> cbf29ce484222325, "a" -> af63dc4c8601ec8c, "foobar" -> 85944171f73967e8.
+  CHECK(fnv1a64_hex("") == "cbf29ce484222325");
+  CHECK(fnv1a64_hex("a") == "af63dc4c8601ec8c");
+  CHECK(fnv1a64_hex("foobar") == "85944171f73967e8");
+  CHECK(fnv1a64_hex(std::string("a\0b", 3)) != fnv1a64_hex("ab"));  // every byte counts, NUL included
+}

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdint>
 #include <cstdio>
 #include <random>
 #include <cerrno>
@@ -423,6 +424,14 @@ void require_regular_file(const std::string& path) {
     return;
   }
   throw_error(path, ": ", not_a_file(st.st_mode), ", expected a file");
+}
+
+std::string fnv1a64_hex(const std::string& bytes) {
+  uint64_t h = 0xcbf29ce484222325ull;
+  for (const unsigned char c : bytes) h = (h ^ c) * 0x100000001b3ull;
+  char out[17];
+  std::snprintf(out, sizeof out, "%016llx", static_cast<unsigned long long>(h));
+  return out;
 }
 
 std::string read_file(const std::string& path) {

@@ -96,20 +96,30 @@ int bench(const BenchFlags& f, const Invocation& in) {
       eo.rig = choice.rig;
       eo.variant = choice.variant;
       eo.seed = seed;
-      const PreparedScene p = prepare_scene(root, eo, progress, in.out);
+      // The backbone is read or trained only where something still needs it: a seed whose
+      // runs are all finished trains none.
+      PreparedScene p = prepare_scene(root, eo, progress, in.out, false);
       const std::string bb_path = join_path(join_path(p.dir, "backbone"), "result.json");
+      const bool all_finished = std::all_of(chosen.begin(), chosen.end(), [&](const RunConfig& c) {
+        return c.kind == RunKind::Dense || fs::exists(p.result_path(c.id));
+      });
       RunResult bb;
       if (fs::exists(bb_path)) {
         bb = load_result(bb_path);
-      } else {
+      } else if (!all_finished) {
+        ensure_backbone(p, progress, in.out);
         bb = evaluate_model(p, p.backbone, "backbone", "", progress);
         bb.group = ConfigGroup::Control;
         save_result(bb_path, bb);
       }
-      in.out << sc << " seed " << seed << " backbone: interpolation " << fixed(bb.interpolation.psnr) << " dB, extrapolation "
-          << fixed(bb.extrapolation.psnr) << " dB, train " << fixed(bb.train.psnr) << " dB\n";
+      if (fs::exists(bb_path))
+        in.out << sc << " seed " << seed << " backbone: interpolation " << fixed(bb.interpolation.psnr) << " dB, extrapolation "
+            << fixed(bb.extrapolation.psnr) << " dB, train " << fixed(bb.train.psnr) << " dB\n";
+      else
+        in.out << sc << " seed " << seed << ": every run is finished and the backbone's own row was not kept; it is not trained again for it\n";
       for (const RunConfig& c : chosen) {
         FinetuneOptions fo = setup.finetune;
+        if (c.kind != RunKind::Dense && !fs::exists(p.result_path(c.id))) ensure_backbone(p, progress, in.out);
         results.push_back(run_config(p, c, fo, progress, in.out));
         // After every run, over everything the folder holds (earlier invocations included):
         // an interrupted bench still has its tables.

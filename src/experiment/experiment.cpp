@@ -372,7 +372,8 @@ ExperimentOptions ExperimentOptions::resolved() const {
 
 std::string PreparedScene::scene_dir() const { return join_path(dir, "scene"); }
 
-PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& options, Progress& progress, std::ostream& log) {
+PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& options, Progress& progress, std::ostream& log,
+                            bool with_backbone) {
   PreparedScene p;
   ExperimentOptions o = options.resolved();
   SynthOptions so;
@@ -413,29 +414,85 @@ PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& op
   p.interpolation = load_split(p.dir, scene_dir, p.synth, "interpolation", o.interpolation_cameras);
   p.extrapolation = load_split(p.dir, scene_dir, p.synth, "extrapolation", o.extrapolation_cameras);
 
+  if (with_backbone) ensure_backbone(p, progress, log);
+  return p;
+}
+
+std::string PreparedScene::result_path(const std::string& config_id) const {
+  return join_path(join_path(join_path(dir, "runs"), config_id), "result.json");
+}
+
+void ensure_backbone(PreparedScene& p, Progress& progress, std::ostream& log) {
+  if (p.has_backbone) return;
+  const ExperimentOptions& o = p.options;
   const std::string bb = join_path(p.dir, "backbone");
   const std::string model_path = join_path(bb, "model.ply");
+  const std::string summary_path = join_path(bb, "summary.json");
   if (fs::exists(model_path)) {
     p.backbone = read_scene(model_path);
-    p.reused_backbone = true;
+    p.has_backbone = p.reused_backbone = true;
+    if (fs::exists(summary_path)) {
+      json record = read_json_file(summary_path);
+      const std::string fingerprint = fnv1a64_hex(read_file(model_path));
+      if (!record.contains("model_fnv1a64")) {
+        record["model_fnv1a64"] = fingerprint;
+        write_file_atomically(summary_path, record.dump(1) + "\n");
+      } else if (record["model_fnv1a64"] != fingerprint) {
+        throw_error(model_path, ": not the backbone ", summary_path, " names (model_fnv1a64 ", record["model_fnv1a64"].dump(), ", the file's \"",
+                    fingerprint, "\"); use another --out, or delete ", p.dir, " to run the seed again");
+      }
+    }
     log << "backbone reused: " << model_path << "\n";
-    return p;
+    return;
   }
-  t0 = Clock::now();
+  const auto t0 = Clock::now();
+  const std::string scene_dir = p.scene_dir();
   p.backbone = train_backbone(*p.train, join_path(scene_dir, "points.ply"), o, progress);
   p.seconds_backbone = seconds_since(t0);
   make_directories(bb);
-  write_fillgs_ply(model_path, p.backbone, o.frames);
+  // Written beside the model first: a backbone trained again is kept only if it is the one
+  // the seed's record (summary.json, which git keeps) names.
+  const std::string fresh_path = join_path(bb, "model.again.ply");
+  write_fillgs_ply(fresh_path, p.backbone, o.frames);
   const json summary = {{"iterations", o.backbone_iterations},
                         {"seconds", p.seconds_backbone},
                         {"gaussians", p.backbone.size()},
                         {"moving_gaussians", p.backbone.dynamic_count()},
+                        {"model_fnv1a64", fnv1a64_hex(read_file(fresh_path))},
                         {"train_cameras", o.train_cameras}};
-  write_file_atomically(join_path(bb, "summary.json"), summary.dump(1) + "\n");
+  if (fs::exists(summary_path)) {
+    // The seed's backbone was made before (its runs may be finished): the same options give
+    // the same model on the same kind of machine, but another SIMD target (AVX2 against
+    // AVX-512) rounds otherwise and trains another backbone, whose runs would not pair.
+    const json before = read_json_file(summary_path);
+    std::string differs;
+    for (const char* key : {"model_fnv1a64", "gaussians", "moving_gaussians"})
+      if (before.contains(key) && before[key] != summary[key]) {
+        differs = std::string(key) + " " + before[key].dump() + " there, " + summary[key].dump() + " now";
+        break;
+      }
+    if (!differs.empty()) {
+      fs::remove(fresh_path);
+      throw_error(summary_path, ": the backbone trained again is not the one this seed was made with (", differs,
+                  "; a machine with another SIMD target trains another); use another --out, or delete ", p.dir, " to run the seed again");
+    }
+    log << "backbone trained again: the model " << summary_path << " names\n";
+  }
+  fs::rename(fresh_path, model_path);
+  if (!fs::exists(summary_path)) {
+    write_file_atomically(summary_path, summary.dump(1) + "\n");
+  } else {
+    // A seed recorded before the fingerprint keeps its record (its seconds) and gains it.
+    json before = read_json_file(summary_path);
+    if (!before.contains("model_fnv1a64")) {
+      before["model_fnv1a64"] = summary["model_fnv1a64"];
+      write_file_atomically(summary_path, before.dump(1) + "\n");
+    }
+  }
   log << "backbone: " << o.backbone_iterations << " iterations on " << p.train->views().size() << " views ("
       << p.train->rigs().size() << " cameras) in " << fmt(p.seconds_backbone, 1) << " s, " << p.backbone.size() << " Gaussians ("
       << p.backbone.dynamic_count() << " moving)" << std::endl;
-  return p;
+  p.has_backbone = true;
 }
 
 ReferenceOptions bench_reference_options(double artifact_strength, uint64_t seed) {
@@ -597,7 +654,7 @@ RunResult evaluate_model(const PreparedScene& p, const GaussianCloud& model, con
 
 RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneOptions& base, Progress& progress, std::ostream& log) {
   const std::string dir = join_path(join_path(p.dir, "runs"), c.id);
-  const std::string result_path = join_path(dir, "result.json"), identity_path = join_path(dir, "identity.json");
+  const std::string result_path = p.result_path(c.id), identity_path = join_path(dir, "identity.json");
   const int F = p.options.frames;
   // What the run does, all of it decided before anything runs: its identity is every option
   // among these (and the scene's, options.json), so a folder is reused only for the same run.
@@ -657,6 +714,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
     log << c.id << ": reused " << result_path << "\n";
     return r;
   }
+  if (c.kind != RunKind::Dense && !p.has_backbone) throw_error("run ", c.id, ": the scene's backbone was not prepared (ensure_backbone)");
   const auto t0 = Clock::now();
   make_directories(dir);
   write_file_atomically(identity_path, identity.dump(1) + "\n");
@@ -822,6 +880,16 @@ double student_t_975(int df) {
   return 0.5 * (lo + hi);
 }
 
+int seeds_for_half_width(double sd, double half_width) {
+  if (!std::isfinite(sd) || !(half_width > 0)) return 0;
+  // t(0.975, df) > 1.96 for every df, so no n below (1.96 sd / half-width)² can do.
+  const double lower = std::ceil(std::pow(1.959963 * sd / half_width, 2));
+  if (lower > 10000) return 0;
+  for (int n = std::max(2, int(lower)); n <= 10000; ++n)
+    if (student_t_975(n - 1) * sd / std::sqrt(double(n)) <= half_width) return n;
+  return 0;
+}
+
 std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& results, const std::string& reference) {
   auto values = [](const RunResult& r) {
     return std::array<double, 4>{r.interpolation.psnr, r.interpolation.psnr_moving, r.extrapolation.psnr, r.extrapolation.psnr_moving};
@@ -964,17 +1032,26 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
           "over the seeds both ran, ± the standard deviation, and the 95 % confidence interval of the mean (t over the paired seeds); "
           "**separated** only where the interval excludes 0. A strategy's unweighted row (`x.w-none`) is paired with FillGS's unweighted "
           "row, every other row with `fillgs`. Ablation and weighting rows read as the paper's Tables 3 and 4: what the component "
-          "is worth.\n\n| Scene | Method | group | Interp ΔPSNR | 95 % CI | Extrap ΔPSNR | 95 % CI | moving Δ interp / extrap | seeds |\n"
-          "|---|---|---|---|---|---|---|---|---|\n";
+          "is worth. \"Seeds for ±0.5\": where an interval is wider than ±0.5 dB, the paired seeds its measured SD would need "
+          "for ±0.5 dB (interpolation / extrapolation; \"met\" where it already is).\n\n"
+          "| Scene | Method | group | Interp ΔPSNR | 95 % CI | Extrap ΔPSNR | 95 % CI | moving Δ interp / extrap | seeds | seeds for ±0.5 |\n"
+          "|---|---|---|---|---|---|---|---|---|---|\n";
     auto interval = [](const PairedDifference& d, int j) {
       if (d.seeds < 2) return std::string("–");
       const std::string iv = "[" + fmt(d.mean[j] - d.half_width[j], 2) + ", " + fmt(d.mean[j] + d.half_width[j], 2) + "]";
       return d.separated(j) ? "**" + iv + "**" : iv;
     };
+    auto seeds_needed = [](const PairedDifference& d, int j) {
+      if (d.seeds < 2) return std::string("–");
+      if (d.half_width[j] <= 0.5) return std::string("met");
+      const int n = seeds_for_half_width(d.sd[j], 0.5);
+      return n > 0 ? std::to_string(n) : std::string("> 10,000");
+    };
     for (const PairedDifference& d : paired) {
       md << "| " << d.variant << " | " << d.id << " | " << to_string(d.group);
       for (int j : {0, 2}) md << " | " << fmt(d.mean[j], 2) << (d.seeds > 1 ? " ± " + fmt(d.sd[j], 2) : "") << " | " << interval(d, j);
-      md << " | " << fmt(d.mean[1], 2) << " / " << fmt(d.mean[3], 2) << " | " << d.seeds << " |\n";
+      md << " | " << fmt(d.mean[1], 2) << " / " << fmt(d.mean[3], 2) << " | " << d.seeds << " | " << seeds_needed(d, 0) << " / " << seeds_needed(d, 2)
+         << " |\n";
     }
     md << "\n";
     // Table 1's intervals as a picture (the first scene): each strategy under both protocols

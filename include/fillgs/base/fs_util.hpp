@@ -36,6 +36,10 @@ void require_regular_file(const std::string& path);
 /// otherwise replace the system's /dev/null with a file). write_atomically calls it first.
 void require_replaceable(const std::string& path);
 
+/// FNV-1a (64-bit) of `bytes`, as 16 lower-case hex digits: a file's fingerprint, to tell
+/// whether a model made again is the one a record names (not a cryptographic hash).
+std::string fnv1a64_hex(const std::string& bytes);
+
 /// Creates a directory (and parents); throws naming it on failure.
 void make_directories(const std::string& path);
 

@@ -75,15 +75,24 @@ struct PreparedScene {
   ExperimentOptions options;  ///< resolved
   std::string dir;  ///< <root>/<scene>_s<seed>
   std::unique_ptr<Dataset> train, interpolation, extrapolation;
-  GaussianCloud backbone;
+  GaussianCloud backbone;  ///< empty until ensure_backbone (prepare_scene's default calls it)
+  bool has_backbone = false;
   double seconds_synth = 0, seconds_backbone = 0;  ///< 0 when reused
   bool reused_scene = false, reused_backbone = false;
   std::string scene_dir() const;
+  /// <dir>/runs/<id>/result.json: where a configuration's finished run lies.
+  std::string result_path(const std::string& config_id) const;
 };
 
 /// Renders the scene and trains the backbone, or reuses what an earlier run left (checked
-/// against the options it was made with).
-PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& options, Progress& progress, std::ostream& log);
+/// against the options it was made with). With `with_backbone` false the backbone is left
+/// for ensure_backbone, so a seed whose runs are all finished trains none.
+PreparedScene prepare_scene(const std::string& root, const ExperimentOptions& options, Progress& progress, std::ostream& log,
+                            bool with_backbone = true);
+
+/// Reads the seed's backbone, or trains it (deterministically from the scene's options)
+/// where it is not there; does nothing once the scene has it.
+void ensure_backbone(PreparedScene& p, Progress& progress, std::ostream& log);
 
 /// What a configuration does with the backbone.
 enum class RunKind {
@@ -188,6 +197,11 @@ struct PairedDifference {
 /// 4, → 1.960), from its distribution function's closed form for integer df (Abramowitz and
 /// Stegun 26.7.3–4) inverted by bisection.
 double student_t_975(int df);
+
+/// The fewest paired seeds n ≥ 2 whose 95 % interval, t(0.975, n − 1) · sd / √n, is at most
+/// `half_width` for a paired SD of `sd` (what a report prints where the measured interval is
+/// wider than the criterion's); 0 where more than 10,000 would be needed or `sd` is not finite.
+int seeds_for_half_width(double sd, double half_width);
 
 /// For every configuration but the reference (and the backbone): `reference` − it, over
 /// the seeds both have in the same scene. A configuration run with the second oracle
