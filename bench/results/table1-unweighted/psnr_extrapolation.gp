@@ -1,0 +1,18 @@
+# psnr_extrapolation.png from psnr_extrapolation.csv (written by fillgs); re-plot with: gnuplot psnr_extrapolation.gp
+set terminal pngcairo size 640,480 noenhanced font 'DejaVu Sans,10'
+set datafile separator ','
+set border 3 lc rgb '#404040'
+set tics nomirror
+set grid ytics lc rgb '#dddddd' lt 1
+set style fill solid 0.85 noborder
+set output 'psnr_extrapolation.png'
+set title 'extrapolation PSNR per strategy (n3v)'
+set xlabel ''
+set ylabel 'PSNR (dB)'
+set key off
+set xtics rotate by -45 left scale 0 ('backbone' 0, 'no-refinement' 1)
+set xrange [-0.6:1.6]
+set yrange [*<0:*]
+set offsets 0, 0, graph 0.08, 0
+set boxwidth 0.7
+plot 'psnr_extrapolation.csv' skip 1 using 0:2 with boxes lc rgb '#3c78b4', '' skip 1 using 0:2:3 with labels offset 0,0.7 font ',9'
