@@ -100,9 +100,9 @@ int bench(const BenchFlags& f, const Invocation& in) {
       // runs are all finished trains none.
       PreparedScene p = prepare_scene(root, eo, progress, in.out, false);
       const std::string bb_path = join_path(join_path(p.dir, "backbone"), "result.json");
-      const bool all_finished = std::all_of(chosen.begin(), chosen.end(), [&](const RunConfig& c) {
-        return c.kind == RunKind::Dense || fs::exists(p.result_path(c.id));
-      });
+      // A run still to make that fine-tunes the backbone (the dense model trains its own).
+      const auto needs_backbone = [&](const RunConfig& c) { return c.kind != RunKind::Dense && !fs::exists(p.result_path(c.id)); };
+      const bool all_finished = std::none_of(chosen.begin(), chosen.end(), needs_backbone);
       RunResult bb;
       if (fs::exists(bb_path)) {
         bb = load_result(bb_path);
@@ -119,7 +119,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
         in.out << sc << " seed " << seed << ": every run is finished and the backbone's own row was not kept; it is not trained again for it\n";
       for (const RunConfig& c : chosen) {
         FinetuneOptions fo = setup.finetune;
-        if (c.kind != RunKind::Dense && !fs::exists(p.result_path(c.id))) ensure_backbone(p, progress, in.out);
+        if (needs_backbone(c)) ensure_backbone(p, progress, in.out);
         results.push_back(run_config(p, c, fo, progress, in.out));
         // After every run, over everything the folder holds (earlier invocations included):
         // an interrupted bench still has its tables.
