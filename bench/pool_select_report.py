@@ -223,6 +223,10 @@ def main():
                 cells += f" {fmt([metric(s, run_id, sp, key) for s in seed_list], d)} |"
         sums = [summary(s, run_id) for s in seed_list]
         views = [float(x["virtual_views"]) for x in sums if x and "virtual_views" in x]
+        if run_id.startswith("scratch.") and run_id != "scratch.control":  # trained on the photographs its choice lists
+            picks = [load(os.path.join(out, f"s{s}", "choose." + run_id[len("scratch."):], "pool_chosen.json"))
+                     for s in seed_list if summary(s, run_id)]
+            views = [float(len(p["chosen"])) for p in picks if p]
         weights = [statistics.mean(r["mean_weight"] for r in x["rounds"] if r["views_added"]) for x in sums
                    if x and "rounds" in x and any(r["views_added"] for r in x["rounds"])]
         secs = [seconds(s, run_id) for s in seed_list]
@@ -341,6 +345,7 @@ def main():
         if scratch_rows:
             ties = {st for st in STRATEGIES if tied("scratch.", st, K)}
             rows, means = table("scratch.", K, [row("dense", ["1"], "dense reference (training + every pool photograph)"),
+                                                row("backbone", seeds, "backbone (the model every strategy chooses on)"),
                                                 row("scratch.control", seeds, "training cameras alone")], ties)
             lines += ["", "### Trained from scratch (the main protocol)", "",
                       "Each strategy chooses the K camera-times on the seed's backbone in one greedy round (each chosen one counted as an "
@@ -351,21 +356,25 @@ def main():
                 lines += ["", sl[0]]
                 best_id = f"scratch.{sl[1]}.K{K}"
             chart_gains("scratch.", "scratch.control", K)
-        ties = {st for st in STRATEGIES if tied("", st, K)}
-        rows, means = table("", K, [row("backbone", seeds), row("control", seeds, "control (no photographs added)")], ties)
-        for w in ("fillgs", "exploregs"):
-            rid = f"fillgs.K{K}.w-{w}"
-            if any(summary(s, rid) for s in seeds):
-                rows.append(row(rid, seeds))
-        lines += ["", "### Warm start: the backbone fine-tuned with the photographs (second protocol)", "",
-                  "The selection runs here, in three rounds, each choosing from the current model; the photographs are added at their real poses.",
-                  ""] + rows + criterion("", K, means, ties, intervals, "warm start")
-        sl = spread_line(K, means)
-        if sl:
-            lines += ["", sl[0]]
-            best_id = best_id or f"{sl[1]}.K{K}"
-        if not scratch_rows:
-            chart_gains("", "control", K)
+        warm_rows = any(summary(s, rid) for s in seeds for rid in ["control"] + [f"{st}.K{K}" for st in STRATEGIES])
+        if not warm_rows:
+            lines += ["", f"### Warm start (second protocol)", "", f"No warm-start run at K = {K} for these seeds."]
+        else:
+            ties = {st for st in STRATEGIES if tied("", st, K)}
+            rows, means = table("", K, [row("backbone", seeds), row("control", seeds, "control (no photographs added)")], ties)
+            for w in ("fillgs", "exploregs"):
+                rid = f"fillgs.K{K}.w-{w}"
+                if any(summary(s, rid) for s in seeds):
+                    rows.append(row(rid, seeds))
+            lines += ["", "### Warm start: the backbone fine-tuned with the photographs (second protocol)", "",
+                      "The selection runs here, in three rounds, each choosing from the current model; the photographs are added at their real poses.",
+                      ""] + rows + criterion("", K, means, ties, intervals, "warm start")
+            sl = spread_line(K, means)
+            if sl:
+                lines += ["", sl[0]]
+                best_id = best_id or f"{sl[1]}.K{K}"
+            if not scratch_rows:
+                chart_gains("", "control", K)
         if intervals and write_interval_chart(out, f"intervals_K{K}", intervals, splits,
                                               f"{a.title.replace(chr(39), chr(39) * 2)}, K = {K}: FillGS minus each, 95 % intervals (filled: excludes 0)"):
             lines += ["", f"![FillGS minus each, K = {K}, 95 % intervals](intervals_K{K}.png)"]

@@ -67,3 +67,21 @@ def test_intervals_equal_hand_worked_values(tmp_path):
     assert math.isclose(m, 1.1, abs_tol=1e-6) and sep == 1
     assert got[("random (best baseline) (from scratch)", "far")][3] == 0
     assert "![FillGS minus each, K = 30, 95 % intervals](intervals_K30.png)" in md or not os.path.exists(os.path.join(root, "intervals_K30.png"))
+
+
+def test_main_protocol_rows_without_a_warm_start(tmp_path):
+    """The main protocol's table carries the backbone (mean of 15.0, 15.5, 14.5 = 15.00 dB) and
+    each strategy's photographs from its choice (30); with no warm-start run the second protocol
+    is one line, not a table of dashes."""
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    r = subprocess.run([sys.executable, os.path.join(SOURCE, "bench", "pool_select_report.py"), root, "--seeds", "1,2,3", "--budgets", "30",
+                        "--splits", "near,far"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    md = open(os.path.join(root, "results.md")).read().splitlines()
+    backbone = next(line for line in md if line.startswith("| backbone (the model every strategy chooses on) |"))
+    assert backbone.split("|")[2].strip() == "15.00 ± 0.50"
+    fillgs = next(line for line in md if line.startswith("| fillgs.K30 |"))
+    assert fillgs.split("|")[10].strip() == "30 ± 0"
+    assert "No warm-start run at K = 30 for these seeds." in md
+    assert not any(line.startswith("| control (no photographs added) |") for line in md)
