@@ -30,6 +30,35 @@ inline double clock_ghz() {
   return mhz / 1000.0;
 }
 
+/// Ranks of x from 0, ties sharing their mean rank.
+inline std::vector<double> ranks(const std::vector<double>& x) {
+  std::vector<size_t> o(x.size());
+  std::iota(o.begin(), o.end(), 0);
+  std::sort(o.begin(), o.end(), [&](size_t a, size_t b) { return x[a] < x[b]; });
+  std::vector<double> r(x.size());
+  for (size_t i = 0; i < o.size();) {
+    size_t j = i;
+    while (j + 1 < o.size() && x[o[j + 1]] == x[o[i]]) ++j;
+    for (size_t k = i; k <= j; ++k) r[o[k]] = 0.5 * double(i + j);
+    i = j + 1;
+  }
+  return r;
+}
+
+/// Spearman's rank correlation of a and b (ties share their mean rank); 1 where either is constant.
+inline double spearman(const std::vector<double>& a, const std::vector<double>& b) {
+  const std::vector<double> ra = ranks(a), rb = ranks(b);
+  const double ma = std::accumulate(ra.begin(), ra.end(), 0.0) / double(ra.size());
+  const double mb = std::accumulate(rb.begin(), rb.end(), 0.0) / double(rb.size());
+  double sab = 0, saa = 0, sbb = 0;
+  for (size_t i = 0; i < ra.size(); ++i) {
+    sab += (ra[i] - ma) * (rb[i] - mb);
+    saa += (ra[i] - ma) * (ra[i] - ma);
+    sbb += (rb[i] - mb) * (rb[i] - mb);
+  }
+  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 1.0;
+}
+
 /// A path as a results file names it: under the shared data as "shared/data/...", else by
 /// its file name; never the absolute path of the machine that ran the benchmark.
 inline std::string shown_path(const std::string& path) {

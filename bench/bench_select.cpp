@@ -86,29 +86,6 @@ double mean_deficiency(const Setup& s, const SelectResult& r) {
   return n ? sum / double(n) : 0.0;
 }
 
-std::vector<double> ranks(const std::vector<double>& x) {
-  std::vector<size_t> o(x.size());
-  std::iota(o.begin(), o.end(), 0);
-  std::sort(o.begin(), o.end(), [&](size_t a, size_t b) { return x[a] < x[b]; });
-  std::vector<double> r(x.size());
-  for (size_t i = 0; i < o.size();) {  // ties share their mean rank
-    size_t j = i;
-    while (j + 1 < o.size() && x[o[j + 1]] == x[o[i]]) ++j;
-    for (size_t k = i; k <= j; ++k) r[o[k]] = 0.5 * double(i + j);
-    i = j + 1;
-  }
-  return r;
-}
-
-double spearman(const std::vector<double>& a, const std::vector<double>& b) {
-  const std::vector<double> ra = ranks(a), rb = ranks(b);
-  const double ma = std::accumulate(ra.begin(), ra.end(), 0.0) / double(ra.size());
-  const double mb = std::accumulate(rb.begin(), rb.end(), 0.0) / double(rb.size());
-  double sab = 0, saa = 0, sbb = 0;
-  for (size_t i = 0; i < ra.size(); ++i) sab += (ra[i] - ma) * (rb[i] - mb), saa += (ra[i] - ma) * (ra[i] - ma), sbb += (rb[i] - mb) * (rb[i] - mb);
-  return saa > 0 && sbb > 0 ? sab / std::sqrt(saa * sbb) : 1.0;
-}
-
 /// Share of the reference's top-k priority (by the reference's own E) that a run's top-k captures.
 double captured(const PriorityScores& ref, const PriorityScores& run, size_t k) {
   std::vector<double> e_ref(ref.views.size());

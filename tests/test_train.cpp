@@ -15,6 +15,7 @@
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/model/sh.hpp"
 #include "fillgs/render/raster.hpp"
+#include "cli_run.hpp"
 #include "helpers.hpp"
 
 using namespace fillgs;
@@ -36,14 +37,6 @@ const std::string& tiny_synth_dir() {
     return d;
   }();
   return dir;
-}
-
-int run_cli(const std::vector<std::string>& args, std::string* out_text, std::string* err_text) {
-  std::ostringstream out, err;
-  const int rc = cli::run(args, out, err);
-  if (out_text) *out_text = out.str();
-  if (err_text) *err_text = err.str();
-  return rc;
 }
 
 }  // namespace
@@ -183,12 +176,11 @@ TEST_CASE("fillgs train: bad input gives one line, a non-zero exit and writes no
   fs::copy(src, d + "/data", fs::copy_options::recursive);
   const std::string out = d + "/out";
   auto expect_fail = [&](std::vector<std::string> args, const std::string& message) {
-    std::string o, e;
-    const int rc = run_cli(args, &o, &e);
-    INFO(e);
-    REQUIRE(rc != 0);
-    REQUIRE(e.find(message) != std::string::npos);
-    REQUIRE(std::count(e.begin(), e.end(), '\n') == 1);
+    const test::CliResult r = test::run_cli(args);
+    INFO(r.err);
+    REQUIRE(r.code != 0);
+    REQUIRE(r.err.find(message) != std::string::npos);
+    REQUIRE(std::count(r.err.begin(), r.err.end(), '\n') == 1);
     REQUIRE(!fs::exists(out));
   };
   const std::vector<std::string> base = {"train", "--cameras", d + "/data/transforms_train.json", "--out", out, "--iterations", "5", "--quiet"};
@@ -207,11 +199,11 @@ TEST_CASE("fillgs train: bad input gives one line, a non-zero exit and writes no
   write_points_ply(d + "/empty.ply", PointSet{});
   expect_fail(with({"--images", d + "/data/images", "--points", d + "/empty.ply"}), "point cloud is empty");
   // And a good run writes the model, a 3DGS PLY of frame 0, a checkpoint and a summary.
-  std::string o, e;
-  REQUIRE(run_cli(with({"--images", d + "/data/images", "--train-cameras", "cam00,cam08"}), &o, &e) == 0);
+  const test::CliResult good = test::run_cli(with({"--images", d + "/data/images", "--train-cameras", "cam00,cam08"}));
+  REQUIRE(good.code == 0);
   for (const char* f : {"model.ply", "frame0_3dgs.ply", "checkpoints/latest.ckpt", "summary.json", "loss.png"})
     REQUIRE(fs::exists(out + "/" + f));
-  REQUIRE(o.find("2 cameras x 4 frames") != std::string::npos);
+  REQUIRE(good.out.find("2 cameras x 4 frames") != std::string::npos);
 }
 
 TEST_CASE("colour correction: a camera whose images were scaled and shifted gets that gain and offset back", "[train]") {
@@ -308,11 +300,10 @@ TEST_CASE("colour correction: a camera whose images were scaled and shifted gets
   fs::create_directories(dir + "/model");
   write_fillgs_ply(dir + "/model/model.ply", folded, data.frames());
   write_colour_correction(dir + "/model/colour_correction.json", relative);
-  std::string text;
-  REQUIRE(run_cli({"finetune", "--model", dir + "/model/model.ply", "--images", dir + "/images", "--cameras", dir + "/transforms_train.json",
-                   "--train-cameras", two.cameras[0] + "," + two.cameras[1], "--iterations", "20", "--trajectories", "0", "--out", dir + "/ft", "--quiet"},
-                  &text, nullptr) == 0);
-  CHECK(text.find("colour correction: continuing the 2 cameras' corrections of") != std::string::npos);
+  const test::CliResult finetuned = test::run_cli({"finetune", "--model", dir + "/model/model.ply", "--images", dir + "/images", "--cameras", dir + "/transforms_train.json",
+                                                  "--train-cameras", two.cameras[0] + "," + two.cameras[1], "--iterations", "20", "--trajectories", "0", "--out", dir + "/ft", "--quiet"});
+  REQUIRE(finetuned.code == 0);
+  CHECK(finetuned.out.find("colour correction: continuing the 2 cameras' corrections of") != std::string::npos);
   CHECK(read_scene(dir + "/ft/model.ply").sh_degree == 0);
   const std::vector<ColourCorrection> after = read_colour_correction(dir + "/ft/colour_correction.json");
   REQUIRE(after.size() == 2);
