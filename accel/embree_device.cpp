@@ -4,11 +4,14 @@
 
 #include "fillgs/visibility/accel.hpp"
 #include "fillgs/base/error.hpp"
+#include "fillgs/base/instruction_set.hpp"
 
 namespace fillgs::accel {
 
 EmbreeDevice::EmbreeDevice(const char* config) {
-  device_ = rtcNewDevice(config);
+  // Without a configuration of its own, the device keeps to FILLGS_INSTRUCTION_SET's cap.
+  const std::string capped = embree_device_config();
+  device_ = rtcNewDevice(config ? config : capped.empty() ? nullptr : capped.c_str());
   if (!device_) throw_error("Embree: cannot create a device (error ", int(rtcGetDeviceError(nullptr)), ")");
   rtcSetDeviceErrorFunction(device_, &EmbreeDevice::on_error, this);
 }

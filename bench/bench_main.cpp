@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "fillgs/base/error.hpp"
+#include "fillgs/base/instruction_set.hpp"
 #include "fillgs/base/memory.hpp"
 
 int bench_render(const std::vector<std::string>& args);
@@ -27,6 +28,7 @@ int main(int argc, char** argv) {
   const std::string name = argv[1];
   std::vector<std::string> args(argv + 2, argv + argc);
   try {
+    fillgs::limit_instruction_set_from_environment();
     if (name == "render") return bench_render(args);
     if (name == "visibility") return bench_visibility(args);
     if (name == "train") return bench_train(args);

@@ -67,7 +67,9 @@
 # summary.json, metrics.json, pool_chosen.json and .png, the backbone's model.sha256 and the
 # first seed's picture render; .gitignore), not its models. A backbone whose model is not
 # here is trained again when a step still to run reads it, and must come out byte for byte
-# the one its finished rows used (model.sha256), or the script stops. Every path in a
+# the one its finished rows used (model.sha256), or the script stops; records made on
+# another instruction set (step.txt's cpu line) are continued on it, FILLGS_INSTRUCTION_SET
+# holding fillgs's kernels there (an AVX-512 machine continues AVX2 records). Every path in a
 # command line is relative to the repository (the data at ../shared/data unless
 # FILLGS_SHARED_DATA is set), so the records carry no machine's path.
 # Writes OUT/results.md (a table per budget, mean +- standard deviation over the seeds, and
@@ -223,6 +225,9 @@ have_model() {  # model folder: a step still to run reads its model.ply
 
 IFS=, read -r -a seeds <<<"$SEEDS"
 IFS=, read -r -a budgets <<<"$BUDGETS"
+# Records made on another instruction set are continued on it: seed 1's backbone is the
+# first step every run makes (bench/lib.sh, hold_instruction_set).
+hold_instruction_set "$OUT/s1/backbone/step.txt"
 backbone_command() {  # seed, output folder -> BCMD
   BCMD=("$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "${BB[@]}" "${INIT[@]}" "${OPTS[@]}" --seed "$1" --out "$2" --quiet)
 }

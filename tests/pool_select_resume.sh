@@ -3,10 +3,15 @@
 # folder, every model removed and one strategy's two steps deleted, the script trains the
 # seed's backbone again, checks it against model.sha256 and reruns the two steps to the same
 # choice and the same metrics; a backbone that comes out otherwise (a changed model.sha256) stops it.
+# The smoke folder was made with FILLGS_INSTRUCTION_SET=sse4 (CTest), and this resumes it without:
+# the script must read SSE4 from the records and hold fillgs to it; held to the CPU's widest
+# instead, the backbone trained again is another model and is refused.
 #   tests/pool_select_resume.sh OUT FILLGS SCRIPT   (OUT: a finished `pool_select.sh --smoke OUT`)
 set -euo pipefail
 out=$1 fillgs=$2 script=$3
+unset FILLGS_INSTRUCTION_SET
 test -f "$out/results.md"
+grep -q '^cpu .*, sse4 (a CPU with .*, held to sse4 by FILLGS_INSTRUCTION_SET)$' "$out/s1/backbone/step.txt"
 row=(choose.random.K2/pool_chosen.json scratch.random.K2/eval_near/metrics.json scratch.random.K2/eval_far/metrics.json)
 rm -rf "$out/before" && mkdir -p "$out/before"
 for f in "${row[@]}"; do cp "$out/s1/$f" "$out/before/${f//\//_}"; done
@@ -16,9 +21,17 @@ forget() {  # what a fresh checkout lacks: every model, and one strategy's steps
 }
 forget
 FILLGS=$fillgs bash "$script" --smoke "$out" >/dev/null 2>"$out/resume.err"
+grep -q "s1/backbone/step.txt ran on sse4 and this CPU has .*: every step runs with FILLGS_INSTRUCTION_SET=sse4" "$out/resume.err"
 grep -q "s1/backbone/model.ply is not here (git keeps the records, not the models): training it again" "$out/resume.err"
 test -s "$out/s1/scratch.random.K2/model.ply"
 for f in "${row[@]}"; do cmp "$out/s1/$f" "$out/before/${f//\//_}"; done
+# Held to the CPU's widest instead of the recorded SSE4, the backbone is another model.
+forget
+if FILLGS_INSTRUCTION_SET=native FILLGS=$fillgs bash "$script" --smoke "$out" >/dev/null 2>"$out/resume.err"; then
+  echo "pool_select_resume: a backbone trained on another instruction set than its records was accepted" >&2
+  exit 1
+fi
+grep -q "s1/backbone trained again is not the model its finished rows used (model.sha256)" "$out/resume.err"
 # A backbone that does not come out as the one the finished rows used is refused.
 forget
 awk 'NR == 1 { $0 = (substr($0, 1, 1) == "0" ? "1" : "0") substr($0, 2) } { print }' "$out/s1/backbone/model.sha256" >"$out/sha.tmp"
@@ -29,4 +42,4 @@ if FILLGS=$fillgs bash "$script" --smoke "$out" >/dev/null 2>"$out/resume.err"; 
 fi
 grep -q "s1/backbone trained again is not the model its finished rows used (model.sha256)" "$out/resume.err"
 test ! -e "$out/s1/scratch.random.K2"
-echo "pool_select_resume: resumed from the records to the same choice and metrics; a different backbone refused"
+echo "pool_select_resume: resumed from SSE4 records to the same choice and metrics; a backbone of another instruction set or hash refused"

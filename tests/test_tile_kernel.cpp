@@ -1,18 +1,23 @@
 // The vector tile kernel against the scalar reference (src/render/tile_kernel.hpp): its
 // exp within the stated bound, the same images, contributor lists and gradients on real
-// scenes, the same output for any thread count, and the CLI's --kernel switch.
+// scenes, the same output for any thread count, the CLI's --kernel switch, and
+// FILLGS_INSTRUCTION_SET's cap.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <cstdlib>
 #include <sstream>
+#include <tuple>
 
 #include "fillgs/cli.hpp"
 #include "fillgs/base/fs_util.hpp"
+#include "fillgs/base/instruction_set.hpp"
 #include "fillgs/render/loss.hpp"
 #include "fillgs/render/raster.hpp"
 #include "fillgs/render/raster_grad.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/train/train_model.hpp"
+#include "fillgs/visibility/accel.hpp"
 #include "helpers.hpp"
 #include "render/tile_kernel.hpp"
 
@@ -193,4 +198,46 @@ TEST_CASE("the kernel option selects the kernel for one command and rejects unkn
     CHECK(summary.find(std::string("\"name\": \"") + kernel + "\"") != std::string::npos);
     CHECK(resolve_kernel(Kernel::Default) == Kernel::Simd);
   }
+}
+
+TEST_CASE("FILLGS_INSTRUCTION_SET holds the vector kernels to a narrower instruction set", "[kernel][data]") {
+  const std::string widest = simd_target();
+  const GaussianCloud c = read_scene(shared_data() + "/scenes/playbot_3k.ply");
+  const FrameGaussians g = frame_at(c, 0);
+  const Camera cam = orbit_camera(c, 1.0, 160, 120);
+  RenderOptions o;
+  o.kernel = Kernel::Scalar;
+  const RenderOutput ref = render(g, cam, o);
+  // Highway's names and a float vector's lanes: 128 bits for SSE4, 256 for AVX2.
+  for (const auto& [name, target, lanes] : {std::tuple<std::string, std::string, int>{"sse4", "SSE4", 4}, {"avx2", "AVX2", 8}}) {
+    try {
+      limit_instruction_set(name, "FILLGS_INSTRUCTION_SET");
+    } catch (const Error& e) {
+      WARN("skipped " << name << ": " << e.what());  // a CPU without it
+      continue;
+    }
+    INFO("held to " << name);
+    CHECK(instruction_set_limit() == name);
+    CHECK(std::string(simd_target()) == target);
+    CHECK(kernel_instruction_set() == target);
+    CHECK(tiles::simd_lane_count() == lanes);
+    CHECK(embree_device_config() == (name == "sse4" ? "max_isa=sse4.2" : "max_isa=avx2"));
+    CHECK_NOTHROW(accel::accel_info());  // Embree takes the cap in its device's configuration
+    o.kernel = Kernel::Simd;
+    CHECK(max_abs_diff(ref.rgb, render(g, cam, o).rgb) < 1e-5);  // the same bound as the widest target's
+  }
+  limit_instruction_set("native", "test");
+  CHECK(instruction_set_limit().empty());
+  CHECK(embree_device_config().empty());
+  CHECK(std::string(simd_target()) == widest);
+  CHECK_THROWS_WITH(limit_instruction_set("avx9", "FILLGS_INSTRUCTION_SET"),
+                    Catch::Contains("FILLGS_INSTRUCTION_SET: 'avx9' is not an instruction set"));
+  // The command line reads the variable and refuses a bad value in one line.
+  ::setenv("FILLGS_INSTRUCTION_SET", "avx9", 1);
+  std::ostringstream out, err;
+  const int code = cli::run({"--version"}, out, err);
+  ::unsetenv("FILLGS_INSTRUCTION_SET");
+  CHECK(code == 1);
+  CHECK(err.str() == "error: FILLGS_INSTRUCTION_SET: 'avx9' is not an instruction set fillgs can be held to (avx512, avx2, sse4 or native)\n");
+  CHECK(std::string(simd_target()) == widest);
 }

@@ -10,6 +10,7 @@
 #include <optional>
 #include <sstream>
 #include "fillgs/base/error.hpp"
+#include "fillgs/base/instruction_set.hpp"
 #include "fillgs/base/threads.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/image_io.hpp"
@@ -110,8 +111,11 @@ int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
       else print_overview(out);
       return args.empty() ? 2 : 0;
     }
+    limit_instruction_set_from_environment();
     if (args[0] == "--version") {
-      out << "fillgs 0.1.0\n";
+      const std::string& cap = instruction_set_limit();
+      out << "fillgs 0.1.0\nkernels: " << kernel_instruction_set()
+          << (cap.empty() ? std::string(" (the CPU's widest)") : " (held to " + cap + " by FILLGS_INSTRUCTION_SET)") << "\n";
       return 0;
     }
     const Command* command = nullptr;

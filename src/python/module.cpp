@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "fillgs/base/error.hpp"
+#include "fillgs/base/instruction_set.hpp"
 #include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/math.hpp"
 #include "fillgs/base/progress.hpp"
@@ -765,6 +766,7 @@ PYBIND11_MODULE(fillgs, m) {
   using namespace fillgs::python;
   m.doc() = "fillgs: observation counts, motion-aware deficiency and renders of 4D Gaussian models, as NumPy arrays";
   py::register_exception<Error>(m, "Error", PyExc_ValueError);
+  limit_instruction_set_from_environment();  // FILLGS_INSTRUCTION_SET, as the command line keeps to it
 
   py::class_<Model>(m, "Model", "A 4D Gaussian model: any the command line reads (load_model), or Gaussians from arrays (model_from_arrays)")
       .def_property_readonly("size", [](const Model& x) { return x.cloud->size(); }, "Gaussians")
