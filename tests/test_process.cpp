@@ -196,16 +196,26 @@ TEST_CASE("a train or finetune killed half-way leaves its folder marked unfinish
   REQUIRE(cli::run({"train", "--images", images, "--cameras", cams, "--iterations", "20", "--quiet", "--out", out}, o, e) == 0);
   REQUIRE(fs::exists(join_path(out, "model.ply")));
   CHECK_FALSE(fs::exists(join_path(out, ".fillgs-unfinished")));
-  // A second, long training in the same folder, killed (SIGKILL to its process group) after 4 s.
-  auto killed_after = [&](const std::vector<std::string>& args, double seconds) {
+  // A second, long training in the same folder, killed (SIGKILL to its process group) after 4 s;
+  // where a loaded machine (a sanitizer build beside other jobs) had not yet reached the folder
+  // by then, killed again after 8, 16, ... 64 s: a run killed before it marks the folder must
+  // leave it as it was, the old model intact.
+  auto killed_after = [&](const std::vector<std::string>& args, const std::string& folder) {
     std::vector<std::string> argv = {FILLGS_BINARY};
     argv.insert(argv.end(), args.begin(), args.end());
-    ProcessOptions po;
-    po.stdout_path = po.stderr_path = log;
-    po.timeout_seconds = seconds;
-    return run_process(argv, po);
+    ProcessResult last;
+    for (double seconds = 4; seconds <= 64; seconds *= 2) {
+      ProcessOptions po;
+      po.stdout_path = po.stderr_path = log;
+      po.timeout_seconds = seconds;
+      last = run_process(argv, po);
+      if (!last.timed_out || fs::exists(join_path(folder, ".fillgs-unfinished"))) break;
+      INFO("killed after " << seconds << " s before it marked " << folder);
+      CHECK((folder != out || fs::exists(join_path(out, "model.ply"))));
+    }
+    return last;
   };
-  ProcessResult r = killed_after({"train", "--images", images, "--cameras", cams, "--iterations", "1000000", "--quiet", "--out", out}, 4);
+  ProcessResult r = killed_after({"train", "--images", images, "--cameras", cams, "--iterations", "1000000", "--quiet", "--out", out}, out);
   REQUIRE(r.timed_out);
   CHECK(fs::exists(join_path(out, ".fillgs-unfinished")));
   CHECK_FALSE(fs::exists(join_path(out, "model.ply")));
@@ -219,7 +229,7 @@ TEST_CASE("a train or finetune killed half-way leaves its folder marked unfinish
   const std::string ft = join_path(dir, "finetuned");
   r = killed_after({"finetune", "--model", join_path(out, "model.ply"), "--images", images, "--cameras", cams, "--iterations", "1000000",
                     "--refiner", "identity", "--quiet", "--out", ft},
-                   4);
+                   ft);
   REQUIRE(r.timed_out);
   CHECK(fs::exists(join_path(ft, ".fillgs-unfinished")));
   std::ostringstream o4, e4;
