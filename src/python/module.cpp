@@ -905,4 +905,15 @@ PYBIND11_MODULE(fillgs, m) {
         py::arg("background") = std::vector<float>{0, 0, 0},
         "Renders camera `index` at normalised time t: a dict of float32 arrays colour [H,W,3], depth [H,W] (the blended z; divide by alpha for "
         "the expected depth) and alpha [H,W].");
+  m.def(
+      "instruction_set",
+      [] {
+        py::dict d;
+        d["kernels"] = kernel_instruction_set();
+        d["held_to"] = instruction_set_limit();
+        return d;
+      },
+      "The instruction set the vector kernels run on (Highway's name: 'AVX3', 'AVX2', ...) and the cap FILLGS_INSTRUCTION_SET set when the "
+      "module was imported ('avx2', 'sse4', 'avx512'; '' for none): a model trained on an AVX2 machine is trained again bit for bit on an "
+      "AVX-512 one held to avx2.");
 }

@@ -417,3 +417,24 @@ def test_weights_equal_finetune_maps(tmp_path, synth):
     with pytest.raises(ValueError, match="refined: 2 images for 1 views"):
         fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], views["images"], refined[:2],
                        fillgs.Cameras(K[:1], np.linalg.inv(c2w[:1]), 48, 36, time=np.array([items[0]["time"]])))
+
+
+def test_instruction_set_read_at_import():
+    """FILLGS_INSTRUCTION_SET holds the kernels from import on, as the command line's `--version` says; a bad value is
+    the command line's one line, at import."""
+    def run(value, code):
+        env = dict(os.environ)
+        env.pop("FILLGS_INSTRUCTION_SET", None)
+        if value is not None:
+            env["FILLGS_INSTRUCTION_SET"] = value
+        return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    widest = run(None, "import fillgs; print(fillgs.instruction_set()['kernels'])").stdout.strip()
+    assert widest == fillgs.instruction_set()["kernels"]
+    cli = subprocess.run([CLI, "--version"], capture_output=True, text=True, env={k: v for k, v in os.environ.items() if k != "FILLGS_INSTRUCTION_SET"})
+    assert f"kernels: {widest} (the CPU's widest)" in cli.stdout
+    held = run("sse4", "import fillgs, json; print(json.dumps(fillgs.instruction_set()))")
+    assert held.returncode == 0, held.stderr
+    assert json.loads(held.stdout) == {"kernels": "SSE4", "held_to": "sse4"}
+    bad = run("avx9", "import fillgs")
+    assert bad.returncode != 0
+    assert "FILLGS_INSTRUCTION_SET: 'avx9' is not an instruction set fillgs can be held to (avx512, avx2, sse4 or native)" in bad.stderr
