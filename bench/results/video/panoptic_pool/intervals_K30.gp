@@ -10,8 +10,8 @@ set key outside right top vertical
 set grid xtics lc rgb '#dddddd' lt 1
 set yrange [2.5:-0.5]
 set ytics scale 0
-set ytics ('negative (from scratch)' 0, 'random (from scratch)' 1, 'coverage3d (best baseline) (from scratch)' 2)
-set xrange [-1.3224:1.3224]
+set ytics ('negative (from scratch)' 0, 'random (from scratch)' 1, 'coverage4d (best baseline) (from scratch)' 2)
+set xrange [-0.9304:0.9304]
 set arrow from 0, graph 0 to 0, graph 1 nohead dt 2 lc rgb '#404040'
 plot 'intervals_K30.csv' skip 1 using ($1 == 0 && $6 > 0.5 ? $3 : NaN):2:4:5 with xerrorbars pt 7 ps 1.3 lw 2 lc rgb '#3c78b4' title 'near', \
      'intervals_K30.csv' skip 1 using ($1 == 0 && $6 < 0.5 ? $3 : NaN):2:4:5 with xerrorbars pt 6 ps 1.3 lw 2 lc rgb '#3c78b4' notitle, \
