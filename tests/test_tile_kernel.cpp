@@ -12,6 +12,7 @@
 #include "fillgs/cli.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/base/instruction_set.hpp"
+#include "fillgs/io/camera_io.hpp"
 #include "fillgs/render/loss.hpp"
 #include "fillgs/render/raster.hpp"
 #include "fillgs/render/raster_grad.hpp"
@@ -186,11 +187,18 @@ TEST_CASE("the kernel option selects the kernel for one command and rejects unkn
   CHECK(err.str().find("unknown kernel 'vector'") != std::string::npos);
   CHECK(resolve_kernel(Kernel::Default) == Kernel::Simd);
   // The kernel that rendered is recorded: scalar for this command only, then the default again.
-  const std::string cams = shared_data() + "/video/n3v_flame_steak_frame0/sparse/0";
+  // The rig's cameras at 32x24 (COLMAP stores 2690x2016, which --width does not override).
+  std::vector<Camera> rig = read_cameras(shared_data() + "/video/n3v_flame_steak_frame0/sparse/0");
+  for (Camera& c : rig) {
+    const double s = 32.0 / c.width;
+    c.fx *= s, c.fy *= s, c.cx *= s, c.cy *= s;
+    c.width = 32, c.height = 24;
+  }
+  const std::string cams = join_path(scratch("kernel_option_cameras"), "transforms.json");
+  write_transforms_json(cams, rig);
   for (const char* kernel : {"scalar", "simd"}) {
     const std::string dir = scratch(std::string("kernel_option_") + kernel);
-    std::vector<std::string> args = {"render", "--scene", shared_data() + "/scenes/playbot_3k.ply", "--cameras", cams,
-                                     "--width", "32", "--height", "24", "--out", dir, "--quiet"};
+    std::vector<std::string> args = {"render", "--scene", shared_data() + "/scenes/playbot_3k.ply", "--cameras", cams, "--out", dir, "--quiet"};
     if (std::string(kernel) == "scalar") args.insert(args.end(), {"--kernel", "scalar"});
     std::ostringstream o, e;
     REQUIRE(cli::run(args, o, e) == 0);
