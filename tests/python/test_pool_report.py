@@ -85,3 +85,25 @@ def test_main_protocol_rows_without_a_warm_start(tmp_path):
     assert fillgs.split("|")[10].strip() == "30 ± 0"
     assert "No warm-start run at K = 30 for these seeds." in md
     assert not any(line.startswith("| control (no photographs added) |") for line in md)
+
+
+def test_warm_start_control_alone_is_no_table(tmp_path):
+    """A warm-start control (it serves every budget) with warm-start runs at K = 30 only: K = 30
+    gets the warm-start table, K = 10 one line, not a table of dashes under a control row."""
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    for s in (1, 2, 3):
+        for rid in ("control", "fillgs.K30", "random.K30"):
+            d = os.path.join(root, f"s{s}", rid)
+            write(os.path.join(d, "summary.json"), {"seconds": 100.0, "pool_added": 0 if rid == "control" else 30})
+            for sp in ("near", "far"):
+                write(os.path.join(d, f"eval_{sp}", "metrics.json"), {sp: {"psnr": 15.0, "ssim": 0.5, "psnr_ls_gain": 15.0}})
+    r = subprocess.run([sys.executable, os.path.join(SOURCE, "bench", "pool_select_report.py"), root, "--seeds", "1,2,3", "--budgets", "10,30",
+                        "--splits", "near,far"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    md = open(os.path.join(root, "results.md")).read().splitlines()
+    assert "No warm-start run at K = 10 for these seeds." in md
+    assert "No warm-start run at K = 30 for these seeds." not in md
+    assert not any(line.startswith("| fillgs.K10 |") for line in md)
+    assert sum(line.startswith("| control (no photographs added) |") for line in md) == 1
+    assert any(line.startswith("| fillgs.K30 | 15.00 ± 0.00 |") for line in md)

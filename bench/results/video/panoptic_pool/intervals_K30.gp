@@ -1,5 +1,5 @@
 # intervals_K30.png from intervals_K30.csv (written by bench/pool_select_report.py); re-plot with: gnuplot intervals_K30.gp
-set terminal pngcairo size 900,300 noenhanced font 'DejaVu Sans,10'
+set terminal pngcairo size 900,344 noenhanced font 'DejaVu Sans,10'
 set datafile separator ','
 set border 3 lc rgb '#404040'
 set tics nomirror
@@ -8,10 +8,10 @@ set title 'Panoptic basketball, K = 30: FillGS minus each, 95 % intervals (fille
 set xlabel 'PSNR difference (dB)'
 set key outside right top vertical
 set grid xtics lc rgb '#dddddd' lt 1
-set yrange [2.5:-0.5]
+set yrange [5.5:-0.5]
 set ytics scale 0
-set ytics ('negative (from scratch)' 0, 'random (from scratch)' 1, 'coverage4d (best baseline) (from scratch)' 2)
-set xrange [-0.9304:0.9304]
+set ytics ('negative (from scratch)' 0, 'random (from scratch)' 1, 'coverage4d (best baseline) (from scratch)' 2, 'negative (warm start)' 3, 'random (warm start)' 4, 'fisherrf (best baseline) (warm start)' 5)
+set xrange [-1.7754:1.7754]
 set arrow from 0, graph 0 to 0, graph 1 nohead dt 2 lc rgb '#404040'
 plot 'intervals_K30.csv' skip 1 using ($1 == 0 && $6 > 0.5 ? $3 : NaN):2:4:5 with xerrorbars pt 7 ps 1.3 lw 2 lc rgb '#3c78b4' title 'near', \
      'intervals_K30.csv' skip 1 using ($1 == 0 && $6 < 0.5 ? $3 : NaN):2:4:5 with xerrorbars pt 6 ps 1.3 lw 2 lc rgb '#3c78b4' notitle, \
