@@ -190,9 +190,8 @@ TEST_CASE("the kernel option selects the kernel for one command and rejects unkn
   // The rig's cameras at 32x24 (COLMAP stores 2690x2016, which --width does not override).
   std::vector<Camera> rig = read_cameras(shared_data() + "/video/n3v_flame_steak_frame0/sparse/0");
   for (Camera& c : rig) {
-    const double s = 32.0 / c.width;
-    c.fx *= s, c.fy *= s, c.cx *= s, c.cy *= s;
-    c.width = 32, c.height = 24;
+    c = scaled_camera(c, 32.0 / c.width);
+    REQUIRE((c.width == 32 && c.height == 24));  // 2016 x 32 / 2690 = 23.98, rounded
   }
   const std::string cams = join_path(scratch("kernel_option_cameras"), "transforms.json");
   write_transforms_json(cams, rig);

@@ -49,16 +49,6 @@ bool same_pose(const Camera& a, const Camera& b, double tol) {
 
 }  // namespace
 
-Camera scaled_camera(const Camera& c, double s) {
-  if (s == 1.0) return c;
-  Camera out = c;
-  out.width = std::max(1, int(std::lround(c.width * s)));
-  out.height = std::max(1, int(std::lround(c.height * s)));
-  const double sx = double(out.width) / c.width, sy = double(out.height) / c.height;
-  out.fx *= sx, out.cx *= sx, out.fy *= sy, out.cy *= sy;
-  return out;
-}
-
 // ------------------------------------------------------------------ cameras
 
 std::vector<float> render_value_map(const FrameGaussians& frame, const Camera& camera, const float* values) {

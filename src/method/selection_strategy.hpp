@@ -51,7 +51,4 @@ class SelectionStrategy {
 /// The strategy named by `s`, sharing `context` (which must outlive it).
 std::unique_ptr<SelectionStrategy> make_strategy(Strategy s, SelectionContext& context);
 
-/// Intrinsics scaled by s (image size rounded, at least one pixel).
-Camera scaled_camera(const Camera& c, double s);
-
 }  // namespace fillgs

@@ -1,5 +1,6 @@
 #include "fillgs/model/camera.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace fillgs {
@@ -51,6 +52,16 @@ void Camera::set_fov_x(double fov_x, int w, int h) {
   fx = fy = w / (2.0 * std::tan(fov_x / 2.0));
   cx = w / 2.0;
   cy = h / 2.0;
+}
+
+Camera scaled_camera(const Camera& c, double s) {
+  if (s == 1.0) return c;
+  Camera out = c;
+  out.width = std::max(1, int(std::lround(c.width * s)));
+  out.height = std::max(1, int(std::lround(c.height * s)));
+  const double sx = double(out.width) / c.width, sy = double(out.height) / c.height;
+  out.fx *= sx, out.cx *= sx, out.fy *= sy, out.cy *= sy;
+  return out;
 }
 
 }  // namespace fillgs

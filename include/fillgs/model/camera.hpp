@@ -41,6 +41,10 @@ struct Camera {
   void set_fov_x(double fov_x, int w, int h);
 };
 
+/// The camera with its intrinsics scaled by s: image size rounded (at least one pixel), focal
+/// lengths and principal point by the rounded size's own ratio per axis.
+Camera scaled_camera(const Camera& c, double s);
+
 /// Where the cameras of a ring stand: `count` of them evenly spaced on a circle of
 /// `radius` around `centre` + `elevation`·up, in the plane normal to `up` (from e1 = x, or y
 /// when up is along x, towards e2 = up × e1, starting at angle `phase`), each looking at
