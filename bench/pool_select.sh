@@ -232,6 +232,18 @@ backbone_command() {  # seed, output folder -> BCMD
   BCMD=("$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "${BB[@]}" "${INIT[@]}" "${OPTS[@]}" --seed "$1" --out "$2" --quiet)
 }
 backbone_files() { ls model.ply init_points.ply 2>/dev/null; }  # what model.sha256 records (in the folder)
+# A record vouches for exactly the files named after it: one line each, no other (a record
+# cut to its first line would check init_points.ply and let any model.ply through).
+sha256_covers() {  # record, files
+  local record=$1
+  shift
+  local named
+  named=$(sed -n 's/^[0-9a-f]\{64\}  \(.*\)$/\1/p' "$record" | sort)
+  if [ "$named" != "$(printf '%s\n' "$@" | sort)" ] || [ "$(wc -l <"$record")" -ne $# ]; then
+    echo "pool_select: $record names $(echo $named | tr -d '\n' | sed 's/^$/nothing/'), not exactly the backbone's $*" >&2
+    return 1
+  fi
+}
 backbone() {  # seed: the backbone, from the training cameras alone
   local S=$OUT/s$1
   backbone_command "$1" "$S/backbone"
@@ -246,7 +258,7 @@ backbone_again() {  # "s<seed>": its backbone trained again where git kept only 
   backbone_command "${1#s}" "$S/backbone.again"
   rm -rf "$S/backbone.again"
   "${BCMD[@]}"
-  if ! (cd "$S/backbone.again" && sha256sum --check --quiet ../backbone/model.sha256); then
+  if ! (cd "$S/backbone.again" && sha256_covers ../backbone/model.sha256 $(backbone_files) && sha256sum --check --quiet ../backbone/model.sha256); then
     echo "pool_select: $S/backbone trained again is not the model its finished rows used (model.sha256); delete $OUT/$1 to run the seed again" >&2
     exit 1
   fi
@@ -350,14 +362,18 @@ if [ -z "$best" ]; then
 fi
 S=$OUT/s${seeds[0]}
 tiles=("$truth")
-fill=fillgs.K$K
-[ -f "$S/scratch.fillgs.K$K/summary.json" ] && fill=scratch.fillgs.K$K  # the main protocol's model where it ran
-for id in backbone "$best" "$fill"; do
+ids=(backbone "$best")
+fill=
+for d in "scratch.fillgs.K$K" "fillgs.K$K"; do  # the main protocol's model where it ran; none where FillGS did not run
+  if [ -z "$fill" ] && [ -f "$S/$d/summary.json" ]; then fill=$d; fi
+done
+[ -n "$fill" ] && [ "$fill" != "$best" ] && ids+=("$fill")
+for id in "${ids[@]}"; do
   evaluate "$S/$id"  # its picture, where an older run did not render one
   tiles+=("$S/$id/picture/renders/picture/$render")
 done
 # The photograph at the renders' size.
 size=$(oiiotool --info "${tiles[1]}" | sed -n 's/.* \([0-9]*\) x *\([0-9]*\).*/\1x\2/p' | head -n 1)
 tiles=("${tiles[0]}" --resize "$size" "${tiles[@]:1}")
-oiiotool --nosoftwareattrib "${tiles[@]}" --mosaic 4x1 --resize 200% -o "$OUT/compare.png"
-echo "picture: ground truth | backbone | $best | $fill at held-out camera $cam, source frame $SRC -> $OUT/compare.png"
+oiiotool --nosoftwareattrib "${tiles[@]}" --mosaic "$((${#ids[@]} + 1))x1" --resize 200% -o "$OUT/compare.png"
+echo "picture: ground truth | ${ids[*]} at held-out camera $cam, source frame $SRC -> $OUT/compare.png"

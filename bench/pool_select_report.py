@@ -19,6 +19,10 @@ import sys
 STRATEGIES = ["fillgs", "random", "negative", "interpolation", "fisherrf", "coverage3d", "coverage4d"]
 
 
+class ReportError(Exception):
+    """Bad input to the report: one line naming the file and what is wrong."""
+
+
 @functools.lru_cache(maxsize=None)
 def load(path):
     """A run's JSON file (read once; callers only read it), or None where the run has not written it."""
@@ -27,6 +31,23 @@ def load(path):
             return json.load(f)
     except FileNotFoundError:
         return None
+    except (ValueError, UnicodeDecodeError) as e:
+        raise ReportError(f"{path}: not a JSON file ({e})") from None
+
+
+def number(value, path, where):
+    """A finite number from a kept record; one line naming the file and the key otherwise."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ReportError(f"{path}: {where} is {json.dumps(value)[:40]}, not a finite number")
+    return float(value)
+
+
+def gnuplot_text(text):
+    """`text` inside a gnuplot single-quoted string: '' for a quote, and no line break or
+    backquote, which would end the command or run a shell (a title is the user's text)."""
+    return "".join(" " if c in "\r\n`" or ord(c) < 32 else c for c in text).replace("'", "''")
 
 
 def fmt(values, digits=2):
@@ -106,7 +127,7 @@ def write_chart(out, chart, budgets, title):
           "set terminal pngcairo size 720,480 noenhanced font 'DejaVu Sans,10'",
           "set datafile separator ','", "set datafile missing 'NaN'", "set border 3 lc rgb '#404040'", "set tics nomirror",
           "set grid ytics lc rgb '#dddddd' lt 1", "set style fill solid 0.85 noborder", "set output 'gain.png'",
-          f"set title '{title}: gain over the control per strategy and budget'", "set ylabel 'PSNR gain over the control (dB)'",
+          f"set title '{gnuplot_text(title)}: gain over the control per strategy and budget'", "set ylabel 'PSNR gain over the control (dB)'",
           "set key top right", "set xzeroaxis lt 1 lc rgb '#404040'",
           "set xtics scale 0 (" + ", ".join(f"'{st}' {i}" for i, st in enumerate(names)) + ")",
           f"set xrange [-0.6:{len(names) - 0.4}]", "set yrange [*<0:0<*]", "set offsets 0, 0, graph 0.08, graph 0.05",
@@ -145,9 +166,9 @@ def write_interval_chart(out, name, rows, series, title):
     gp = [f"# {name}.png from {name}.csv (written by bench/pool_select_report.py); re-plot with: gnuplot {name}.gp",
           f"set terminal pngcairo size 900,{min(1200, max(300, 140 + 34 * len(rows)))} noenhanced font 'DejaVu Sans,10'",
           "set datafile separator ','", "set border 3 lc rgb '#404040'", "set tics nomirror", f"set output '{name}.png'",
-          f"set title '{title}'", "set xlabel 'PSNR difference (dB)'", "set key outside right top vertical",
+          f"set title '{gnuplot_text(title)}'", "set xlabel 'PSNR difference (dB)'", "set key outside right top vertical",
           "set grid xtics lc rgb '#dddddd' lt 1", f"set yrange [{len(rows) - 0.5}:-0.5]", "set ytics scale 0",
-          "set ytics (" + ", ".join("'" + label.replace("'", "''") + f"' {r}" for r, (label, _) in enumerate(rows)) + ")",
+          "set ytics (" + ", ".join("'" + gnuplot_text(label) + f"' {r}" for r, (label, _) in enumerate(rows)) + ")",
           f"set xrange [{-1.1 * extent:.4f}:{1.1 * extent:.4f}]", "set arrow from 0, graph 0 to 0, graph 1 nohead dt 2 lc rgb '#404040'",
           "plot " + ", \\\n     ".join(plots)]
     write_atomic(os.path.join(out, f"{name}.csv"), "\n".join(lines) + "\n")
@@ -172,17 +193,26 @@ def main():
     seeds = a.seeds.split(",")
     budgets = a.budgets.split(",")
     splits = a.splits.split(",")
+    for flag, given in (("--seeds", seeds), ("--budgets", budgets), ("--splits", splits)):
+        twice = sorted({x for x in given if given.count(x) > 1})
+        if twice or "" in given:
+            # A seed counted twice would pair a run with itself: a zero-width "separated" interval.
+            ap.error(f"{flag} {','.join(given)}: " + (f"{twice[0]} is given twice" if twice else "an empty item"))
     out = a.out
 
     def run_dir(seed, run_id):
         return os.path.join(out, "dense") if run_id == "dense" else os.path.join(out, f"s{seed}", run_id)
 
     def metric(seed, run_id, split, key):
-        m = load(os.path.join(run_dir(seed, run_id), f"eval_{split}", "metrics.json"))
-        if not m or split not in m:
+        path = os.path.join(run_dir(seed, run_id), f"eval_{split}", "metrics.json")
+        m = load(path)
+        if m is None:
             return None
-        v = m[split].get(key)
-        return float(v) if v is not None else None
+        if not isinstance(m, dict) or (split in m and not isinstance(m[split], dict)):
+            raise ReportError(f"{path}: expected an object with a '{split}' object of metrics")
+        if split not in m:
+            return None
+        return number(m[split].get(key), path, f"{split}.{key}")
 
     def psnr_by_seed(run_id, seed_list):
         """{seed: mean PSNR over the splits} for the seeds whose run has every split evaluated."""
@@ -200,9 +230,14 @@ def main():
         s = summary(seed, run_id)
         if not s:
             return None
-        if "rounds" not in s:  # a training run
-            return {"select": None, "train": s.get("seconds"), "total": s.get("seconds")}
-        return {"select": sum(r["seconds"]["select"] for r in s["rounds"]), "train": s["seconds"]["train"], "total": s["seconds"]["total"]}
+        path = os.path.join(run_dir(seed, run_id), "summary.json")
+        try:
+            if "rounds" not in s:  # a training run
+                return {"select": None, "train": number(s.get("seconds"), path, "seconds"), "total": number(s.get("seconds"), path, "seconds")}
+            return {"select": sum(number(r["seconds"]["select"], path, "rounds[].seconds.select") for r in s["rounds"]),
+                    "train": number(s["seconds"]["train"], path, "seconds.train"), "total": number(s["seconds"]["total"], path, "seconds.total")}
+        except (KeyError, TypeError) as e:
+            raise ReportError(f"{path}: not a run summary (no {e})") from None
 
     lines = [f"# Which camera-times help most: {a.title}, real pool photographs", ""]
     lines.append(f"Seeds {a.seeds}; PSNR in dB on the held-out cameras ({', '.join(splits)}), mean ± standard deviation over the seeds; "
@@ -377,7 +412,7 @@ def main():
             if not scratch_rows:
                 chart_gains("", "control", K)
         if intervals and write_interval_chart(out, f"intervals_K{K}", intervals, splits,
-                                              f"{a.title.replace(chr(39), chr(39) * 2)}, K = {K}: FillGS minus each, 95 % intervals (filled: excludes 0)"):
+                                              f"{a.title}, K = {K}: FillGS minus each, 95 % intervals (filled: excludes 0)"):
             lines += ["", f"![FillGS minus each, K = {K}, 95 % intervals](intervals_K{K}.png)"]
         if best_id:
             lines += ["", f"best at K={K}: {best_id}"]
@@ -418,4 +453,8 @@ def main():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except ReportError as e:
+        sys.stderr.write(f"pool_select_report: {e}\n")
+        sys.exit(1)

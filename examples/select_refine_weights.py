@@ -17,6 +17,7 @@ Needs the module (PYTHONPATH=build/python, or installed with `cmake --install bu
 --component python`)."""
 import argparse
 import os
+import re
 import shlex
 import subprocess
 import sys
@@ -39,6 +40,9 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--refiner-command", default="oiiotool {in} --median 3x3 -o {out}")
     a = ap.parse_args()
+    words = shlex.split(a.refiner_command)
+    if not words or any(w in (";", "|", "||", "&", "&&", ">", ">>", "<") for w in words):
+        sys.exit(f"--refiner-command {a.refiner_command!r}: a program and its arguments, run without a shell (no ; | & > <)")
 
     model = fillgs.load_model(a.model)
     views = fillgs.load_views(a.images, a.cameras, train_cameras=[c for c in a.train_cameras.split(",") if c])
@@ -63,8 +67,11 @@ def main():
         src = os.path.join(a.out, "renders", f"view{i:04d}.png")
         dst = os.path.join(a.out, "refined", f"view{i:04d}.png")
         fillgs.write_image(src, rendered)
-        cmd = a.refiner_command.replace("{in}", shlex.quote(src)).replace("{out}", shlex.quote(dst))
-        r = subprocess.run(cmd, shell=True, capture_output=True, text=True)
+        # Without a shell, as `fillgs finetune --refiner` runs one: the template is split into
+        # words first, then each word's {in} and {out} are the paths, whatever they contain.
+        # One pass, so that a path holding "{out}" is not substituted again.
+        cmd = [re.sub(r"\{in\}|\{out\}", lambda m: src if m.group() == "{in}" else dst, w) for w in words]
+        r = subprocess.run(cmd, capture_output=True, text=True)
         if r.returncode != 0 or not os.path.exists(dst):
             sys.exit(f"refiner failed on {src}: {r.stderr.strip() or 'no output written'}")
         refined.append(fillgs.read_image(dst)[:, :, :3])

@@ -14,4 +14,10 @@ nlohmann::json read_json_file(const std::string& path) {
   }
 }
 
+nlohmann::json read_json_object(const std::string& path) {
+  nlohmann::json j = read_json_file(path);
+  if (!j.is_object()) throw_error(path, ": expected a JSON object, got ", j.is_array() ? "an array" : j.type_name());
+  return j;
+}
+
 }  // namespace fillgs

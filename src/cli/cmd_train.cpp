@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -55,7 +56,12 @@ std::vector<std::pair<std::string, int>> read_camera_times(const std::string& pa
     const nlohmann::json& e = list[i];
     if (!e.is_object() || !e.contains("camera") || !e.contains("frame") || !e.at("camera").is_string() || !e.at("frame").is_number_integer())
       throw_error(path, ": camera-time ", i, " needs \"camera\" (a name) and \"frame\" (a whole number)");
-    out.emplace_back(e.at("camera").get<std::string>(), e.at("frame").get<int>());
+    // nlohmann's get<int> wraps a larger number (4294967298 -> 2): read it whole, then bound it.
+    const nlohmann::json& frame = e.at("frame");
+    const bool fits = frame.is_number_unsigned() ? frame.get<uint64_t>() <= uint64_t(std::numeric_limits<int>::max())
+                                                  : frame.get<int64_t>() >= 0 && frame.get<int64_t>() <= std::numeric_limits<int>::max();
+    if (!fits) throw_error(path, ": camera-time ", i, " has frame ", frame.dump(), ", not a frame number (0 to ", std::numeric_limits<int>::max(), ")");
+    out.emplace_back(e.at("camera").get<std::string>(), int(frame.get<int64_t>()));
   }
   if (out.empty()) throw_error(path, ": no camera-times");
   return out;

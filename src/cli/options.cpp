@@ -13,16 +13,6 @@
 
 namespace fillgs::cli {
 
-namespace {
-
-std::string number_text(double x) {
-  std::ostringstream s;
-  s << x;
-  return s.str();
-}
-
-}  // namespace
-
 std::vector<std::string> split_commas(const std::string& s) {
   std::vector<std::string> out;
   std::stringstream ss(s);
@@ -42,6 +32,14 @@ std::unique_ptr<CLI::App> make_parser(const std::string& name, const std::string
 }
 
 bool parse_flags(CLI::App& app, const std::vector<std::string>& args, std::ostream& out) {
+  // Help wins wherever it stands: a flag that takes a value must not swallow it
+  // (`--out --help` would run the whole job into a folder named "--help"). A value that
+  // really is "--help" can still be given as `--out=--help`.
+  for (const std::string& a : args)
+    if (a == "--help" || a == "-h") {
+      out << app.help();
+      return false;
+    }
   std::string parse_error;
   try {
     std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes them last first
@@ -64,18 +62,12 @@ bool parse_flags(CLI::App& app, const std::vector<std::string>& args, std::ostre
   return true;
 }
 
-Bounds at_least(double lo) { return {lo, INFINITY, false, false, "at least " + number_text(lo)}; }
-Bounds positive() { return {0.0, INFINITY, true, false, "positive"}; }
-Bounds within(double lo, double hi) { return {lo, hi, false, false, "in [" + number_text(lo) + ", " + number_text(hi) + "]"}; }
-Bounds within_open(double lo, double hi) { return {lo, hi, true, true, "in (" + number_text(lo) + ", " + number_text(hi) + ")"}; }
-Bounds from_below(double lo, double hi) { return {lo, hi, false, true, "in [" + number_text(lo) + ", " + number_text(hi) + ")"}; }
-
 std::string check_number(const std::string& text, bool integral, const Bounds& bounds, double* out) {
   double x = 0;
   if (!parse_number(text, &x)) return std::string("expects ") + (integral ? "an integer" : "a number") + ", got '" + text + "'";
   if (integral && x != std::floor(x)) return "expects an integer, got '" + text + "'";
-  if (!bounds.holds(x)) return "must be " + (bounds.words.empty() ? "in [" + number_text(bounds.lo) + ", " + number_text(bounds.hi) + "]" : bounds.words) +
-                               ", got " + text;
+  const std::string why = bounds_problem(x, bounds, text);
+  if (!why.empty()) return why;
   *out = x;
   return "";
 }

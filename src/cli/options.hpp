@@ -23,6 +23,7 @@
 
 #include "fillgs/model/camera.hpp"
 #include "fillgs/io/camera_io.hpp"
+#include "fillgs/base/bounds.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/limits.hpp"
 #include "fillgs/base/math.hpp"
@@ -33,6 +34,14 @@
 #include "fillgs/train/train.hpp"
 
 namespace fillgs::cli {
+
+// The bounds live in the library (base/bounds.hpp), where the Python module checks with them too.
+using fillgs::Bounds;
+using fillgs::at_least;
+using fillgs::from_below;
+using fillgs::positive;
+using fillgs::within;
+using fillgs::within_open;
 
 using fillgs::Clock;
 using fillgs::seconds_since;
@@ -95,21 +104,6 @@ std::unique_ptr<CLI::App> make_parser(const std::string& name, const std::string
 bool parse_flags(CLI::App& app, const std::vector<std::string>& args, std::ostream& out);
 
 // ------------------------------------------------------------------ checks
-
-/// The interval a number must lie in, for the check and its message.
-struct Bounds {
-  double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
-  bool lo_open = false, hi_open = false;
-  std::string words;  ///< "at least 1", "in (0, 1)": the message's wording
-  bool holds(double x) const {
-    return (lo_open ? x > lo : x >= lo) && (hi_open ? x < hi : x <= hi);
-  }
-};
-Bounds at_least(double lo);
-Bounds positive();
-Bounds within(double lo, double hi);       ///< [lo, hi]
-Bounds within_open(double lo, double hi);  ///< (lo, hi)
-Bounds from_below(double lo, double hi);   ///< [lo, hi)
 
 // ------------------------------------------------------------------ declarations
 

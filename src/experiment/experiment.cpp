@@ -177,6 +177,14 @@ RunResult load_result(const std::string& path) {
   }
 }
 
+RunResult load_result(const std::string& path, const std::string& id, uint64_t seed) {
+  RunResult r = load_result(path);
+  if (r.id != id)
+    throw_error(path, ": holds run '", r.id, "', not '", id, "' whose folder it is in (a copied or moved record); delete it to run ", id, " again");
+  if (seed > 0 && r.seed != seed) throw_error(path, ": holds seed ", r.seed, "'s result, not seed ", seed, "'s; delete it to run ", id, " again");
+  return r;
+}
+
 namespace {
 
 /// Runs of one scene and seed in the order of standard_configs (backbone first, then by id).
@@ -203,10 +211,10 @@ std::vector<RunResult> collect_results(const std::string& root) {
   std::vector<RunResult> out;
   for (const fs::path& sc : scenes) {
     std::vector<RunResult> rs;
-    if (fs::exists(sc / "backbone" / "result.json")) rs.push_back(load_result((sc / "backbone" / "result.json").string()));
+    if (fs::exists(sc / "backbone" / "result.json")) rs.push_back(load_result((sc / "backbone" / "result.json").string(), "backbone"));
     if (fs::is_directory(sc / "runs"))
       for (const auto& e : fs::directory_iterator(sc / "runs"))
-        if (fs::exists(e.path() / "result.json")) rs.push_back(load_result((e.path() / "result.json").string()));
+        if (fs::exists(e.path() / "result.json")) rs.push_back(load_result((e.path() / "result.json").string(), e.path().filename().string()));
     sort_by_configuration(rs.begin(), rs.end());
     out.insert(out.end(), rs.begin(), rs.end());
   }
@@ -432,7 +440,7 @@ void ensure_backbone(PreparedScene& p, Progress& progress, std::ostream& log) {
     p.backbone = read_scene(model_path);
     p.has_backbone = p.reused_backbone = true;
     if (fs::exists(summary_path)) {
-      json record = read_json_file(summary_path);
+      json record = read_json_object(summary_path);
       const std::string fingerprint = fnv1a64_hex(read_file(model_path));
       if (!record.contains("model_fnv1a64")) {
         record["model_fnv1a64"] = fingerprint;
@@ -464,7 +472,7 @@ void ensure_backbone(PreparedScene& p, Progress& progress, std::ostream& log) {
     // The seed's backbone was made before (its runs may be finished): the same options give
     // the same model on the same kind of machine, but another SIMD target (AVX2 against
     // AVX-512) rounds otherwise and trains another backbone, whose runs would not pair.
-    const json before = read_json_file(summary_path);
+    const json before = read_json_object(summary_path);
     std::string differs;
     for (const char* key : {"model_fnv1a64", "gaussians", "moving_gaussians"})
       if (before.contains(key) && before[key] != summary[key]) {
@@ -483,7 +491,7 @@ void ensure_backbone(PreparedScene& p, Progress& progress, std::ostream& log) {
     write_file_atomically(summary_path, summary.dump(1) + "\n");
   } else {
     // A seed recorded before the fingerprint keeps its record (its seconds) and gains it.
-    json before = read_json_file(summary_path);
+    json before = read_json_object(summary_path);
     if (!before.contains("model_fnv1a64")) {
       before["model_fnv1a64"] = summary["model_fnv1a64"];
       write_file_atomically(summary_path, before.dump(1) + "\n");
@@ -710,7 +718,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
     if (!diff.empty())
       throw_error(identity_path, ": run ", c.id, " was made with other options (", diff, "); use another --out, or delete ", dir,
                   " to run it again");
-    RunResult r = load_result(result_path);
+    RunResult r = load_result(result_path, c.id, p.options.seed);
     log << c.id << ": reused " << result_path << "\n";
     return r;
   }

@@ -83,6 +83,13 @@ ExplorationGrid build_exploration_grid(const GaussianCloud& scene, const std::ve
     }
   }
   Vec3d size = box.hi - box.lo;
+  // Nothing spans space: one camera and no Gaussian that occupies anything (an empty model, or
+  // one whose every Gaussian is fainter than the occupancy alpha). A grid around a point would
+  // have voxels of size 0, which OpenVDB refuses with its own words.
+  if (!(size.maxCoeff() > 0.0))
+    throw_error("exploration grid: nothing to span: ", scene.size() == 0 ? std::string("the model has no Gaussians")
+                                                                         : "no Gaussian reaches the occupancy alpha " + std::to_string(o.occupancy_alpha),
+                " and the ", training.size(), " training camera(s) stand at one point");
   const double longest = std::max(size.maxCoeff(), 1e-6);
   for (int k = 0; k < 3; ++k) {  // a flat box (cameras and scene in one plane) still gets a slab
     const double pad = std::max(o.margin * size[k], size[k] < 1e-3 * longest ? 0.05 * longest : 0.0);

@@ -26,28 +26,9 @@ using nlohmann::json;
 namespace fillgs {
 
 namespace {
-
-std::string strip_extension_and_dot(std::string p) {
-  if (p.rfind("./", 0) == 0) p = p.substr(2);
-  const fs::path fp(p);
-  if (fp.has_extension()) p = (fp.parent_path() / fp.stem()).string();
-  return p;
-}
-
-/// A rotation from a stored quaternion; a zero or non-finite one is refused.
-Mat3d quat_wxyz_to_matrix(const std::string& source, const std::string& element, double w, double x, double y, double z) {
-  Vec4d q(w, x, y, z);
-  if (!q.allFinite() || !(q.norm() > 1e-9))
-    throw_error(source, ": ", element, " has a zero or non-finite quaternion (", w, ", ", x, ", ", y, ", ", z, ")");
-  q.normalize();
-  return quat_to_matrix<double>(q);
-}
-
 constexpr double kMinFocal = 1e-3, kMaxFocal = 1e9, kMaxCoordinate = 1e7;
+}  // namespace
 
-/// What every reader checks before a camera is used: finite, positive intrinsics; a rotation
-/// (orthonormal, determinant +1, to 1e-3); a size within [1, 65536] whose render buffers
-/// (about 32 bytes a pixel) fit this machine; a time, when there is one, in [0, 1].
 void check_camera(const std::string& source, const std::string& element, const Camera& c) {
   const bool ok = std::isfinite(c.fx) && std::isfinite(c.fy) && std::isfinite(c.cx) && std::isfinite(c.cy) &&
                   c.R.allFinite() && c.t.allFinite() && c.fx > 0 && c.fy > 0 && c.width > 0 && c.height > 0;
@@ -74,6 +55,24 @@ void check_camera(const std::string& source, const std::string& element, const C
   if (c.has_time() && !std::isfinite(c.time)) throw_error(source, ": ", element, " has a non-finite time");
   if (c.has_time() && (c.time < 0 || c.time > 1))
     throw_error(source, ": ", element, " has time ", c.time, " outside [0, 1] (fillgs times are normalised)");
+}
+
+namespace {
+
+std::string strip_extension_and_dot(std::string p) {
+  if (p.rfind("./", 0) == 0) p = p.substr(2);
+  const fs::path fp(p);
+  if (fp.has_extension()) p = (fp.parent_path() / fp.stem()).string();
+  return p;
+}
+
+/// A rotation from a stored quaternion; a zero or non-finite one is refused.
+Mat3d quat_wxyz_to_matrix(const std::string& source, const std::string& element, double w, double x, double y, double z) {
+  Vec4d q(w, x, y, z);
+  if (!q.allFinite() || !(q.norm() > 1e-9))
+    throw_error(source, ": ", element, " has a zero or non-finite quaternion (", w, ", ", x, ", ", y, ", ", z, ")");
+  q.normalize();
+  return quat_to_matrix<double>(q);
 }
 
 // ---------------------------------------------------------------- COLMAP

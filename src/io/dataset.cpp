@@ -252,6 +252,9 @@ Dataset Dataset::load(const std::string& images_dir, const std::string& cameras_
   if (fs::is_symlink(seg, seg_ec) && !fs::exists(seg, seg_ec))
     throw_error(seg.string(), ": a link to '", fs::read_symlink(seg, seg_ec).string(),
                 "', which does not exist (the foreground masks beside the camera file; a relative link is read from its own folder)");
+  if (fs::exists(seg, seg_ec) && !fs::is_directory(seg, seg_ec))
+    throw_error(seg.string(), ": not a folder", fs::is_symlink(seg, seg_ec) ? " (a link to '" + fs::read_symlink(seg, seg_ec).string() + "')" : std::string(),
+                "; the foreground masks beside the camera file are a folder seg/ of PNGs (remove or rename it to train without masks)");
   const bool masked = fs::is_directory(seg);
   // Load every image (and mask) once, 8-bit, checking sizes; downscaled by k; held in
   // memory or, past the budget, in the image cache file.

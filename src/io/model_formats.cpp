@@ -69,9 +69,18 @@ const ModelFormat* find_model_format(const std::string& path) {
   // A named pipe or a device is refused before any row opens it (a pipe would block).
   if (!fs::is_directory(path, ec)) require_regular_file(path);
   const FormatProbe probe(path);
-  for (const ModelFormat* f : model_formats())
-    if (f->detect(probe)) return f;
-  return nullptr;
+  const ModelFormat* found = nullptr;
+  for (const ModelFormat* f : model_formats()) {
+    if (!f->detect(probe)) continue;
+    if (!probe.directory()) return f;  // a file: the most specific format that claims it
+    // A folder holding two models (params.npz and a chkpnt*.pth) is not read as whichever
+    // format detection asks first: the user says which.
+    if (found)
+      throw_error(path, ": holds both a ", found->name, " model and a ", f->name, " model; give --scene-format ", found->name, " or ",
+                  f->name, " (Python: format=)");
+    found = f;
+  }
+  return found;
 }
 
 }  // namespace fillgs

@@ -197,6 +197,8 @@ RunFolder run_folder(const std::string& path, const char* needed) {
 }
 
 TorchTensor checked(TorchTensor t, const std::string& source, const std::string& what, const std::vector<int64_t>& shape) {
+  for (size_t d = 0; d < t.shape.size(); ++d)  // a size no tensor has (an empty one still claims it)
+    if (t.shape[d] < 0) throw_error(source, ": ", what, " has shape ", t.shape_text(), ": dimension ", d, " is negative");
   bool ok = shape.empty() || t.shape.size() == shape.size();
   for (size_t d = 0; ok && d < shape.size(); ++d) ok = shape[d] < 0 || shape[d] == t.shape[d];
   if (!ok) {

@@ -1,6 +1,7 @@
 #include "ply_gaussians.hpp"
 
 #include <cmath>
+#include <filesystem>
 
 #include "fillgs/base/error.hpp"
 
@@ -69,6 +70,22 @@ void read_base(const PlyElement& v, GaussianCloud& c, const std::vector<uint32_t
       const auto& q = v.finite_column("rot_" + std::to_string(a));
       for (size_t r = 0; r < v.count; ++r) c.rotations[ids[r]][a] = q[r];
     }
+}
+
+void refuse_canonical_ply(const std::string& ply, const std::string& header) {
+  std::error_code ec;
+  const std::filesystem::path dir = std::filesystem::path(ply).parent_path();
+  const bool embeddings = header.find(" embedding_0\n") != std::string::npos;
+  const bool deformation = std::filesystem::exists(dir / "deformation.pth", ec);
+  const bool deform_dir = std::filesystem::is_directory(dir.parent_path().parent_path() / "deform", ec) || std::filesystem::is_directory(dir / "deform", ec);
+  if (!embeddings && !deformation && !deform_dir) return;
+  const std::string what = embeddings ? "the canonical point cloud of an E-D3DGS model (it has embedding_* properties)"
+                           : deformation ? "the canonical point cloud of a deformation model (deformation.pth lies beside it)"
+                                         : "the canonical point cloud of a Deformable 3D Gaussians model (a deform/ folder lies beside it)";
+  const std::string instead = deform_dir && !deformation && !embeddings
+                                  ? "pass the training run's folder (the one holding deform/ and point_cloud/) instead"
+                                  : "pass the folder " + (dir.empty() ? std::string(".") : dir.string()) + " (or the training run's folder) instead";
+  throw_error(ply, ": ", what, ", which is no frame of the video: fillgs will not read it as a static scene; ", instead);
 }
 
 std::vector<uint32_t> iota_ids(size_t n, uint32_t first) {

@@ -30,6 +30,11 @@ void read_base(const PlyElement& v, GaussianCloud& c, const std::vector<uint32_t
 /// first, first + 1, ..., first + n - 1.
 std::vector<uint32_t> iota_ids(size_t n, uint32_t first = 0);
 
+/// Throws one line if `ply` (whose header is `header`) is the canonical PLY of a deformation
+/// model (embedding_* properties, or deformation.pth / deform/ beside it), which is no frame
+/// of the video, saying what to pass instead. Every reader of a plain PLY asks this first.
+void refuse_canonical_ply(const std::string& ply, const std::string& header);
+
 /// A static cloud from a vertex element with the standard 3DGS properties.
 GaussianCloud read_standard_vertex(const PlyElement& v);
 

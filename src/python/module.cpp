@@ -19,9 +19,11 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "fillgs/base/bounds.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/instruction_set.hpp"
 #include "fillgs/io/camera_io.hpp"
@@ -96,6 +98,17 @@ py::array_t<float> rows_of(const std::vector<Eigen::Matrix<float, D, 1>>& v) {
   return to_array(std::move(out), {py::ssize_t(v.size()), D});
 }
 
+/// An optional number keyword (None: the library's default), checked with the bounds the
+/// command line's flag has, in the same words.
+std::optional<double> number_or_none(const py::object& value, const char* name, const Bounds& bounds) {
+  if (value.is_none()) return std::nullopt;
+  if (py::isinstance<py::bool_>(value) || !(py::isinstance<py::int_>(value) || py::isinstance<py::float_>(value) || py::hasattr(value, "__float__")))
+    throw py::type_error(std::string(name) + ": expected a number or None, got " + std::string(py::str(py::type::of(value).attr("__name__"))));
+  const double x = value.cast<double>();
+  check_within(name, x, bounds);
+  return x;
+}
+
 void require_file(const std::string& path) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) {
@@ -105,6 +118,33 @@ void require_file(const std::string& path) {
 }
 
 // ------------------------------------------------------------------ progress
+
+/// The Python exception that stopped a long call (Ctrl-C's KeyboardInterrupt, or what a
+/// progress callback raised), kept while fillgs::Cancelled unwinds the library; the
+/// translator registered for Cancelled raises it again, unchanged. Touched with the GIL held.
+struct PendingError {
+  PyObject *type = nullptr, *value = nullptr, *trace = nullptr;
+  void keep() {  // the error set in the interpreter now
+    clear();
+    PyErr_Fetch(&type, &value, &trace);
+  }
+  void raise() {  // sets it again (or KeyboardInterrupt where none was kept)
+    if (!type) {
+      PyErr_SetNone(PyExc_KeyboardInterrupt);
+      return;
+    }
+    PyErr_Restore(type, value, trace);
+    type = value = trace = nullptr;
+  }
+  void clear() {
+    Py_XDECREF(type), Py_XDECREF(value), Py_XDECREF(trace);
+    type = value = trace = nullptr;
+  }
+};
+PendingError& pending_error() {
+  static PendingError* p = new PendingError;  // never destroyed: no Python object outlives the interpreter here
+  return *p;
+}
 
 /// Progress reported to a Python callable (label, done, total), at most ten times a second
 /// and at the end; with `true`, to a tqdm bar where tqdm is installed (else nowhere).
@@ -143,11 +183,26 @@ class PyProgress : public Progress {
 
  private:
   void report(bool always) {
-    if (!callback_ && !tqdm_) return;
     const auto now = std::chrono::steady_clock::now();
     if (!always && now - last_ < std::chrono::milliseconds(100) && done_ < total_) return;
     last_ = now;
     py::gil_scoped_acquire gil;
+    // Ctrl-C stops the call within a tenth of a second of the library's next step, even
+    // with no callback: the handler only sets a flag, which is looked at here.
+    if (PyErr_CheckSignals() != 0) stop();
+    if (!callback_ && !tqdm_) return;
+    try {
+      show();
+    } catch (py::error_already_set& e) {
+      e.restore();  // the callback's own exception, passed through unchanged
+      stop();
+    }
+  }
+  [[noreturn]] void stop() {
+    pending_error().keep();
+    throw Cancelled();
+  }
+  void show() {
     if (callback_) {
       callback_(label_, done_, total_);
       return;
@@ -181,7 +236,7 @@ struct Model {
 
 /// The Gaussians at normalised time t as arrays, in the files' parametrisation.
 py::dict state_at(const Model& m, double t) {
-  if (!std::isfinite(t)) throw py::value_error("t: " + std::to_string(t) + " is not a time in [0, 1]");
+  check_within("t", t, within(0, 1));  // as render() and the command line take times: never clamped
   FrameGaussians g;
   {
     py::gil_scoped_release release;
@@ -233,7 +288,7 @@ ModelState state_from(const py::handle& frame, const char* what, py::ssize_t n) 
     const FloatArray sh = float_array(d["sh"], (w + " sh").c_str(), {N, -1, 3});
     const py::ssize_t K = sh.shape(1);
     const int degree = int(std::lround(std::sqrt(double(K)))) - 1;
-    if ((degree + 1) * (degree + 1) != K || degree > 3)
+    if (K < 1 || (degree + 1) * (degree + 1) != K || degree > 3)
       throw py::value_error(w + " sh: " + std::to_string(K) + " coefficients per Gaussian, expected 1, 4, 9 or 16");
     s.sh_degree = degree;
     s.sh.assign(sh.data(), sh.data() + sh.size());
@@ -337,14 +392,14 @@ std::pair<Model, std::shared_ptr<const CallerFrames>> model_from_frames(const py
 }
 
 Model load_model(const std::string& path, const std::string& format, int frames, const std::string& time_range, const std::string& evaluation,
-                 float still_tolerance, const py::object& progress) {
+                 const py::object& still_tolerance, const py::object& progress) {
   require_file(path);
   SceneReadOptions o;
   o.format = format == "auto" ? format : model_format(format).name;
   o.model_frames = frames;
   o.model_time_range = time_range;
   o.model_evaluation = parse_name<ModelEvaluation>(evaluation);
-  if (still_tolerance >= 0) o.still.position = still_tolerance;
+  if (const auto x = number_or_none(still_tolerance, "still_tolerance", at_least(0))) o.still.position = float(*x);
   PyProgress shown(progress);
   o.progress = &shown;
   std::shared_ptr<GaussianCloud> c;
@@ -403,23 +458,38 @@ Cameras cameras_from(const py::handle& K, const py::handle& w2c, const py::handl
       T[size_t(i)] = x;
     }
   }
+  std::vector<py::object> name_list;
+  if (!names.is_none()) {
+    if (py::isinstance<py::str>(names) || !py::isinstance<py::sequence>(names)) throw py::type_error("names: expected a sequence of " + std::to_string(C) + " strings");
+    const py::sequence seq = py::reinterpret_borrow<py::sequence>(names);
+    if (py::ssize_t(py::len(seq)) != C)
+      throw Error("names: " + std::to_string(py::len(seq)) + " names for " + std::to_string(C) + " cameras");
+    for (const py::handle n : seq) name_list.push_back(py::reinterpret_borrow<py::object>(n));
+  }
   Cameras out;
   for (py::ssize_t i = 0; i < C; ++i) {
     Camera c;
     const float* ki = k.data() + i * 9;
     const float* mi = m.data() + i * 16;
+    const std::string element = "element " + std::to_string(i);
+    // A pinhole camera has no skew and K's last row is (0, 0, 1); a pose's last row is
+    // (0, 0, 0, 1). fillgs keeps neither term, so a value there is refused, not dropped.
+    if (ki[1] != 0.0f || ki[3] != 0.0f || ki[6] != 0.0f || ki[7] != 0.0f || ki[8] != 1.0f)
+      throw Error("K: " + element + " is not a pinhole matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (skew " + std::to_string(ki[1]) +
+                  ", last row " + std::to_string(ki[6]) + " " + std::to_string(ki[7]) + " " + std::to_string(ki[8]) + ")");
+    if (mi[12] != 0.0f || mi[13] != 0.0f || mi[14] != 0.0f || mi[15] != 1.0f)
+      throw Error("world_to_camera: " + element + " has last row (" + std::to_string(mi[12]) + ", " + std::to_string(mi[13]) + ", " +
+                  std::to_string(mi[14]) + ", " + std::to_string(mi[15]) + "), expected (0, 0, 0, 1)");
     c.fx = ki[0], c.fy = ki[4], c.cx = ki[2], c.cy = ki[5];
-    if (!(c.fx > 0 && c.fy > 0)) throw py::value_error("K: element " + std::to_string(i) + " has a focal length that is not positive");
     for (int r = 0; r < 3; ++r) {
       for (int q = 0; q < 3; ++q) c.R(r, q) = mi[r * 4 + q];
       c.t[r] = mi[r * 4 + 3];
     }
-    if (std::fabs(c.R.determinant() - 1.0) > 1e-3 || (c.R * c.R.transpose() - Mat3d::Identity()).cwiseAbs().maxCoeff() > 1e-3)
-      throw py::value_error("world_to_camera: element " + std::to_string(i) + " is not a rotation and a translation");
     c.width = W[size_t(i)];
     c.height = H[size_t(i)];
     c.time = T[size_t(i)];
-    c.name = names.is_none() ? "cam" + std::to_string(i) : py::str(names[py::int_(i)]).cast<std::string>();
+    c.name = names.is_none() ? "cam" + std::to_string(i) : py::str(name_list[size_t(i)]).cast<std::string>();
+    check_camera("cameras", element, c);  // the bounds every camera file's reader enforces
     out.list.push_back(c);
   }
   return out;
@@ -455,7 +525,8 @@ py::dict cameras_arrays(const Cameras& c) {
 /// time, else uint16), speed and deficiency [T, N] float32 (0 for static Gaussians), times
 /// [T], dynamic_ids [M]. Written straight into the arrays returned (no second copy).
 py::dict observe_py(const Model& model, const std::shared_ptr<const CallerFrames>& caller, const Cameras& cameras, int frames,
-                    const py::object& times_arg, const std::string& mode, int stride, double tau, double hit_cache_mb, const py::object& progress) {
+                    const py::object& times_arg, const std::string& mode, int stride, const py::object& tau, const py::object& hit_cache_mb,
+                    const py::object& progress) {
   const GaussianCloud& cloud = *model.cloud;
   if (cameras.list.empty()) throw py::value_error("cameras: none");
   if (frames < 0) throw py::value_error("frames: " + std::to_string(frames) + ", expected at least 1");
@@ -477,11 +548,8 @@ py::dict observe_py(const Model& model, const std::shared_ptr<const CallerFrames
   o.visibility.mode = parse_name<VisibilityMode>(mode);
   if (stride < 1) throw py::value_error("stride: " + std::to_string(stride) + ", expected at least 1");
   o.visibility.stride = stride;
-  if (tau >= 0) {
-    if (!(tau > 0 && tau < 1)) throw py::value_error("tau: " + std::to_string(tau) + ", expected in (0, 1)");
-    o.visibility.min_weight = float(tau);
-  }
-  if (hit_cache_mb >= 0) o.static_hit_cache_bytes = size_t(hit_cache_mb * 1048576.0);
+  if (const auto x = number_or_none(tau, "tau", within_open(0, 1))) o.visibility.min_weight = float(*x);
+  if (const auto x = number_or_none(hit_cache_mb, "hit_cache_mb", from_below(0, 1e9))) o.static_hit_cache_bytes = size_t(*x * 1048576.0);
   const size_t T = times.size(), N = cloud.size();
   const bool narrow = counts_fit_uint8(max_views_per_frame(cameras.list, times, frame_step));
   py::array counts = narrow ? py::array(py::array_t<uint8_t>({py::ssize_t(T), py::ssize_t(N)})) : py::array(py::array_t<uint16_t>({py::ssize_t(T), py::ssize_t(N)}));
@@ -537,6 +605,7 @@ py::dict render_py(const Model& model, const Cameras& cameras, size_t index, dou
   if (index >= cameras.list.size()) throw py::index_error("camera " + std::to_string(index) + ": there are " + std::to_string(cameras.list.size()));
   if (!std::isfinite(t) || t < 0.0 || t > 1.0) throw py::value_error("t: " + std::to_string(t) + ", expected a time in [0, 1]");
   if (background.size() != 3) throw py::value_error("background: expected three values");
+  for (size_t k = 0; k < 3; ++k) check_within("background[" + std::to_string(k) + "]", background[k], within(0, 1));  // --background's range
   RenderOptions o;
   o.depth = true;
   o.background = Vec3f(background[0], background[1], background[2]);
@@ -680,6 +749,9 @@ py::dict select_py(const Model& model, const Cameras& cameras, int frames, const
     pixels = images_for(images, in.views, "images");
     in.image = [&pixels](size_t i) { return pixels[i]; };
   }
+  if (!grid.is_none() && !py::isinstance<Grid>(grid))
+    throw py::type_error("grid: expected a fillgs.ExplorationGrid (from explore, select or read_grid) or None, got " +
+                         std::string(py::str(py::type::of(grid).attr("__name__"))));
   std::shared_ptr<const ExplorationGrid> g = grid.is_none() ? nullptr : grid.cast<const Grid&>().grid;
   PyProgress shown(progress);
   SelectResult r;
@@ -766,6 +838,13 @@ PYBIND11_MODULE(fillgs, m) {
   using namespace fillgs::python;
   m.doc() = "fillgs: observation counts, motion-aware deficiency and renders of 4D Gaussian models, as NumPy arrays";
   py::register_exception<Error>(m, "Error", PyExc_ValueError);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const Cancelled&) {
+      pending_error().raise();
+    }
+  });
   limit_instruction_set_from_environment();  // FILLGS_INSTRUCTION_SET, as the command line keeps to it
 
   py::class_<Model>(m, "Model", "A 4D Gaussian model: any the command line reads (load_model), or Gaussians from arrays (model_from_arrays)")
@@ -785,7 +864,7 @@ PYBIND11_MODULE(fillgs, m) {
       });
 
   m.def("load_model", &load_model, py::arg("path"), py::arg("format") = "auto", py::arg("frames") = 0, py::arg("time_range") = "",
-        py::arg("evaluation") = "streamed", py::arg("still_tolerance") = -1.0f, py::arg("progress") = py::none(),
+        py::arg("evaluation") = "streamed", py::arg("still_tolerance") = py::none(), py::arg("progress") = py::none(),
         "Reads a model as the command line does (`--scene-format`, `--model-frames`, `--model-time-range`, `--model-evaluation`, `--still-tolerance`).");
   m.def(
       "model_formats",
@@ -828,8 +907,8 @@ PYBIND11_MODULE(fillgs, m) {
 
   m.def(
       "observe",
-      [](const py::object& model, const Cameras& cameras, int frames, const py::object& times, const std::string& mode, int stride, double tau,
-         double hit_cache_mb, const py::object& progress) {
+      [](const py::object& model, const Cameras& cameras, int frames, const py::object& times, const std::string& mode, int stride, const py::object& tau,
+         const py::object& hit_cache_mb, const py::object& progress) {
         if (py::isinstance<Model>(model)) return observe_py(model.cast<const Model&>(), nullptr, cameras, frames, times, mode, stride, tau, hit_cache_mb, progress);
         if (!PyCallable_Check(model.ptr())) throw py::type_error("model: expected a fillgs.Model or a frame function f -> dict of arrays");
         if (frames < 1) throw py::value_error("frames: give the frame count with a frame function");
@@ -837,7 +916,7 @@ PYBIND11_MODULE(fillgs, m) {
         return observe_py(made.first, made.second, cameras, frames, times, mode, stride, tau, hit_cache_mb, progress);
       },
       py::arg("model"), py::arg("cameras"), py::arg("frames") = 0, py::arg("times") = py::none(), py::arg("mode") = "frustum", py::arg("stride") = 4,
-      py::arg("tau") = -1.0, py::arg("hit_cache_mb") = -1.0, py::arg("progress") = py::none(),
+      py::arg("tau") = py::none(), py::arg("hit_cache_mb") = py::none(), py::arg("progress") = py::none(),
       "Observation counts, speeds and the motion-aware deficiency for every Gaussian and frame, as `fillgs observe` writes them. `model`: a "
       "fillgs.Model, or a frame function f -> dict of arrays (means, log_scales, quaternions, opacity_logits[, sh]) for f = 0 … frames-1, "
       "called with the GIL held (e.g. your own deformation network). Returns a dict: counts [T,N] uint8 (uint16 above 255 views a frame), "

@@ -83,6 +83,10 @@ std::vector<ColourCorrection> read_colour_correction(const std::string& path) {
       for (int k = 0; k < 3; ++k) {
         const nlohmann::json& x = e[key][size_t(k)];
         if (!x.is_number() || !std::isfinite(x.get<double>())) throw_error(path, ": camera '", rig, "' ", key, "[", k, "] is not a finite number");
+        // A gain scales the camera's colours and is divided by when the model is folded to
+        // the mean camera: a gain of 0 (or one far from 1) is no camera's exposure.
+        if (std::string(key) == "gain" && !(x.get<double>() >= 1e-3 && x.get<double>() <= 1e3))
+          throw_error(path, ": camera '", rig, "' gain[", k, "] is ", x.get<double>(), ", outside [0.001, 1000]");
         (std::string(key) == "gain" ? c.gain : c.offset)[k] = x.get<float>();
       }
     }

@@ -17,6 +17,14 @@ class Error : public std::runtime_error {
   explicit Error(const std::string& message) : std::runtime_error(message) {}
 };
 
+/// A long call stopped by its front end (Ctrl-C in Python, or an exception a progress
+/// callback raised), thrown through the library from a Progress: not an input error, so no
+/// reader turns it into one; the front end that threw it says what happened.
+class Cancelled : public std::exception {
+ public:
+  const char* what() const noexcept override { return "cancelled"; }
+};
+
 /// Builds an Error message from streamable parts: throw_error("a.ply: vertex ", i, " bad").
 template <typename... Parts>
 [[noreturn]] void throw_error(const Parts&... parts) {

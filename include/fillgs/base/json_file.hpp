@@ -9,5 +9,8 @@
 namespace fillgs {
 
 nlohmann::json read_json_file(const std::string& path);
+/// A JSON file that must hold an object (a record, a summary, options): "PATH: expected a
+/// JSON object, got an array" otherwise.
+nlohmann::json read_json_object(const std::string& path);
 
 }  // namespace fillgs

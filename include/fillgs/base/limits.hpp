@@ -80,7 +80,7 @@ std::string hex_byte(unsigned char byte);
 /// (overlong forms, surrogates and code points past U+10FFFF included), or npos.
 size_t first_invalid_utf8(const std::string& text);
 
-/// Runs a reader. fillgs::Errors pass through; any other exception the input can provoke
+/// Runs a reader. fillgs::Errors and Cancelled pass through; any other exception the input can provoke
 /// becomes "SOURCE: malformed (what)" or "SOURCE: a size in the file needs more memory than
 /// this machine has", so no message names nothing.
 template <typename F>
@@ -88,6 +88,8 @@ auto reading(const std::string& source, F&& read) -> decltype(read()) {
   try {
     return read();
   } catch (const Error&) {
+    throw;
+  } catch (const Cancelled&) {
     throw;
   } catch (const std::bad_alloc&) {
     throw_error(source, ": a size in the file needs more memory than this machine has");

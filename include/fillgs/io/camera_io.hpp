@@ -33,6 +33,14 @@ struct CameraReadOptions {
 std::vector<Camera> read_cameras(const std::string& path, const CameraReadOptions& options = {});
 CameraFormat detect_camera_format(const std::string& path);
 
+/// What every reader checks before a camera is used, and what any other face (the Python
+/// module's arrays) must check too: finite intrinsics with a focal length in [1e-3, 1e9]
+/// pixels, a principal point and a camera position within 1e7 of the origin (what single
+/// precision can represent), a rotation (orthonormal, determinant +1, to 1e-3), a size within
+/// [1, 65536] whose render buffers fit this machine, and a time, when there is one, in [0, 1].
+/// Throws fillgs::Error "<source>: <element> ..." naming what is wrong.
+void check_camera(const std::string& source, const std::string& element, const Camera& c);
+
 /// Writes NeRF-style transforms.json: per-frame fl_x fl_y cx cy w h, time (when known),
 /// camera-to-world in OpenGL axes, file_path = image_path or the camera name.
 void write_transforms_json(const std::string& path, const std::vector<Camera>& cams);

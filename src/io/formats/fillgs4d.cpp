@@ -32,6 +32,10 @@ std::map<std::string, std::string> parse_key_values(const std::string& s) {
 }
 
 GaussianCloud read_fillgs(const std::string& path, const SceneReadOptions&) {
+  // A PLY without fillgs's comment (read so by --scene-format fillgs) is checked as every
+  // reader of a plain PLY checks it: a deformation model's canonical cloud is no scene.
+  const std::string header = read_ply_header(path);
+  if (header.find(kFillgsMagic) == std::string::npos) refuse_canonical_ply(path, header);
   const PlyData ply = read_ply(path);
   const PlyElement& v = ply.element("vertex");
   GaussianCloud c = read_standard_vertex(v);

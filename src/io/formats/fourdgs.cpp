@@ -66,6 +66,8 @@ class FourDGS : public TrainedModel {
     const TorchTensor opacity = tensor(6, "_opacity", {N, 1});
     const TorchTensor tmean = tensor(13, "_t", {N, 1});
     const TorchTensor tscale = tensor(14, "_scaling_t", {N, 1});
+    if (rest.shape[1] > 47)  // time degree 2 at space degree 3: 48 channels, the most 4DGS stores
+      throw_error(source, ": entry 3 (_features_rest) has ", rest.shape[1], " SH channels, more than the 47 of 4DGS's largest basis");
     channels_ = int(rest.shape[1]) + 1;
     if (rot_4d_) rot_r_ = tensor(15, "_rotation_r", {N, 4}).values;
     if (deg_ < 0 || deg_ > 3 || deg_t_ < 0 || deg_t_ > 2) throw_error(source, ": active SH degrees ", deg_, " / ", deg_t_, " out of range");
