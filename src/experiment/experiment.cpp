@@ -12,6 +12,7 @@
 #include <map>
 #include <tuple>
 #include <unordered_map>
+#include <unordered_set>
 #include <nlohmann/json.hpp>
 #include <ostream>
 #include <set>
@@ -904,6 +905,15 @@ std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& r
   };
   std::vector<PairedDifference> out;
   std::vector<std::array<Moments, 4>> moments;  // per entry of out
+  // Indexes, so that the report is linear in its rows (a merge of 100,000 rows scanned them
+  // all for each row): runs by (scene, seed, id), ids run per scene, out's rows by (scene, id).
+  auto key = [](const std::string& variant, const std::string& id, uint64_t seed) { return variant + '\x1f' + id + '\x1f' + std::to_string(seed); };
+  std::unordered_map<std::string, size_t> run_at, out_at;
+  std::unordered_set<std::string> ran;
+  for (size_t i = 0; i < results.size(); ++i) {
+    run_at.emplace(key(results[i].variant, results[i].id, results[i].seed), i);
+    ran.insert(key(results[i].variant, results[i].id, 0));
+  }
   for (const RunResult& r : results) {
     if (r.id == "backbone") continue;
     // Each run against the reference of its own oracle: "x@full" against "fillgs@full", the
@@ -913,23 +923,24 @@ std::vector<PairedDifference> paired_differences(const std::vector<RunResult>& r
     const std::string base = r.id.substr(0, at);
     const bool clean = base.size() > 6 && base.compare(base.size() - 6, 6, ".clean") == 0;
     auto find = [&](const std::string& id) {
-      return std::find_if(results.begin(), results.end(), [&](const RunResult& x) { return x.id == id && x.variant == r.variant && x.seed == r.seed; });
+      const auto at = run_at.find(key(r.variant, id, r.seed));
+      return at == run_at.end() ? results.end() : results.begin() + ptrdiff_t(at->second);
     };
     // "random.w-none" against "fillgs.w-none" where it ran: one weighting, only the selection differs.
     const size_t w = base.find(".w-");
     const std::string same_weighting = w == std::string::npos || base.substr(0, w) == reference ? "" : reference + base.substr(w) + support;
     std::string ref_id = reference + (clean ? ".clean" : "") + support;
-    if (!same_weighting.empty() && std::any_of(results.begin(), results.end(), [&](const RunResult& x) { return x.id == same_weighting && x.variant == r.variant; }))
+    if (!same_weighting.empty() && ran.count(key(r.variant, same_weighting, 0)))
       ref_id = same_weighting;
     if (r.id == ref_id) continue;
     const auto ref = find(ref_id);
     if (ref == results.end()) continue;
-    auto it = std::find_if(out.begin(), out.end(), [&](const PairedDifference& d) { return d.id == r.id && d.variant == r.variant; });
-    if (it == out.end()) {
+    const auto [slot, fresh] = out_at.emplace(key(r.variant, r.id, 0), out.size());
+    if (fresh) {
       out.push_back({r.variant, r.id, r.group});
       moments.emplace_back();
-      it = out.end() - 1;
     }
+    const auto it = out.begin() + ptrdiff_t(slot->second);
     const std::array<double, 4> a = values(*ref), b = values(r);
     std::array<Moments, 4>& m = moments[size_t(it - out.begin())];
     for (size_t j = 0; j < 4; ++j) m[j].add(a[j] - b[j]);
@@ -977,13 +988,14 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
     double sd(int k) const { return v[k].sd(); }
   };
   std::vector<Mean> means;
+  std::unordered_map<std::string, size_t> mean_at;  // (scene, id) -> row of means: linear in the runs
   for (const RunResult& r : results) {
-    auto it = std::find_if(means.begin(), means.end(), [&](const Mean& m) { return m.id == r.id && m.variant == r.variant; });
-    if (it == means.end()) {
+    const auto [slot, fresh] = mean_at.emplace(r.variant + '\x1f' + r.id, means.size());
+    if (fresh) {
       means.emplace_back();
       means.back().id = r.id, means.back().group = r.group, means.back().variant = r.variant, means.back().support = r.support;
-      it = means.end() - 1;
     }
+    const auto it = means.begin() + ptrdiff_t(slot->second);
     const double x[kValues] = {r.interpolation.psnr, r.interpolation.ssim, r.interpolation.psnr_moving, r.extrapolation.psnr,
                                r.extrapolation.ssim,  r.extrapolation.psnr_moving, r.train.psnr, r.mean_weight, double(r.trajectories),
                                r.support_share};
@@ -1133,8 +1145,9 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
     std::vector<double> gain_interp, gain_extrap;
     for (const Mean& m : means) {
       if (m.variant != plotted || m.group != ConfigGroup::Strategy) continue;
-      const auto control = std::find_if(means.begin(), means.end(), [&](const Mean& x) { return x.variant == m.variant && x.id == "no-refinement"; });
-      if (control == means.end()) continue;
+      const auto found = mean_at.find(m.variant + '\x1f' + "no-refinement");
+      if (found == mean_at.end()) continue;
+      const auto control = means.begin() + ptrdiff_t(found->second);
       gain_names.push_back(m.id);
       gain_interp.push_back(m.mean(0) - control->mean(0));
       gain_extrap.push_back(m.mean(3) - control->mean(3));

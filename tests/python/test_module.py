@@ -264,10 +264,10 @@ def test_bad_arrays_raise():
         fillgs.model_from_arrays({"means": good["means"]})
     with pytest.raises(ValueError, match="sh: 2 coefficients"):
         fillgs.model_from_arrays(dict(good, sh=np.zeros((1, 2, 3), np.float32)))
-    with pytest.raises(ValueError, match="world_to_camera: element 0 is not a rotation"):
-        fillgs.Cameras(np.eye(3)[None] * 100, np.diag([2.0, 1, 1, 1])[None], 64, 48)
+    with pytest.raises(ValueError, match="cameras: element 0 has a rotation that is not one"):
+        fillgs.Cameras(np.diag([100.0, 100.0, 1.0])[None], np.diag([2.0, 1, 1, 1])[None], 64, 48)
     with pytest.raises(ValueError, match="width: element 0 is not a pixel count"):
-        fillgs.Cameras(np.eye(3)[None] * 100, np.eye(4)[None], 0, 48)
+        fillgs.Cameras(np.diag([100.0, 100.0, 1.0])[None], np.eye(4)[None], 0, 48)
     # Non-contiguous and float64 arrays are copied once and give the same model.
     wide = np.zeros((1, 6), np.float64)
     wide[:, ::2] = good["means"]
@@ -309,7 +309,7 @@ def test_no_reference_leaks():
     good = single_gaussian()
     means = good["means"]
     m = fillgs.model_from_arrays(good)
-    cams = fillgs.Cameras(np.eye(3)[None] * 100, np.eye(4)[None], 64, 48)
+    cams = fillgs.Cameras(np.diag([100.0, 100.0, 1.0])[None], np.eye(4)[None], 64, 48)
     for _ in range(20):
         fillgs.model_from_arrays(good), m.at(0), fillgs.render(m, cams, 0)
     gc.collect()

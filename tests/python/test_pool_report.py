@@ -107,3 +107,46 @@ def test_warm_start_control_alone_is_no_table(tmp_path):
     assert not any(line.startswith("| fillgs.K10 |") for line in md)
     assert sum(line.startswith("| control (no photographs added) |") for line in md) == 1
     assert any(line.startswith("| fillgs.K30 | 15.00 ± 0.00 |") for line in md)
+
+
+def report(root, *args):
+    return subprocess.run([sys.executable, os.path.join(SOURCE, "bench", "pool_select_report.py"), root, "--budgets", "30", "--splits", "near,far",
+                           *args], capture_output=True, text=True)
+
+
+def test_a_title_with_quotes_and_commands_stays_a_title(tmp_path):
+    """The title is the user's text in gnuplot's scripts: a quote ended the string (a 0-byte
+    chart) and a line break or backquote ran what followed as gnuplot's (or a shell's) command."""
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    title = "Bob's kitchen\nsystem \"touch PWNED\" `touch PWNED2`"
+    r = report(root, "--seeds", "1,2,3", "--title", title)
+    assert r.returncode == 0, r.stderr
+    for gp in ("gain.gp", "intervals_K30.gp"):
+        script = open(os.path.join(root, gp)).read()
+        assert "`" not in script and "\nsystem" not in script and "Bob''s kitchen" in script
+    assert not os.path.exists(os.path.join(root, "PWNED")) and not os.path.exists(os.path.join(root, "PWNED2"))
+    if subprocess.run(["which", "gnuplot"], capture_output=True).returncode == 0:
+        assert os.path.getsize(os.path.join(root, "gain.png")) > 1000
+
+
+def test_a_damaged_metrics_file_is_named(tmp_path):
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    bad = os.path.join(root, "s2", "scratch.random.K30", "eval_near", "metrics.json")
+    for text, words in (('{"near": {"psnr": 1', "not a JSON file"), ('{"near": {"psnr": "16.1"}}', 'near.psnr is "16.1"'),
+                        ('{"near": {"psnr": NaN}}', "near.psnr is NaN")):
+        with open(bad, "w") as f:
+            f.write(text)
+        r = report(root, "--seeds", "1,2,3")
+        assert r.returncode == 1 and "Traceback" not in r.stderr, r.stderr
+        assert r.stderr.strip().splitlines() == [r.stderr.strip()] and bad in r.stderr and words in r.stderr, r.stderr
+
+
+def test_a_seed_given_twice_is_refused(tmp_path):
+    """--seeds 1,1 paired a run with itself: a zero-width interval printed as "separated"."""
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    r = report(root, "--seeds", "1,1")
+    assert r.returncode == 2 and "--seeds 1,1: 1 is given twice" in r.stderr, r.stderr
+    assert not os.path.exists(os.path.join(root, "results.md"))
