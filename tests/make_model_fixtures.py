@@ -180,8 +180,29 @@ def still_mask(frames_values, tol=1e-3, degrees=1.0, log_scale=0.01, opacity=1 /
         still &= np.abs(np.log(s) - np.log(s0)).max(axis=1) <= log_scale
         still &= np.abs(o - o0) <= opacity
         still &= np.abs((r * r0).sum(axis=1)) >= math.cos(math.radians(degrees) / 2)
-        still &= (np.abs(c[:, :3] - c0[:, :3]) * 0.28209479177387814).max(axis=1) <= colour
+        # Colour in any direction: every SH band's change times its basis function's largest
+        # value on the sphere (brute force over directions, not fillgs's table).
+        d = np.abs(c - c0).reshape(c.shape[0], -1, 3)
+        still &= (d * SH_BASIS_MAX[: d.shape[1], None]).sum(axis=1).max(axis=1) <= colour
     return still
+
+
+def sh_basis_max():
+    """max |Y_k| over 200,000 directions of each of the 16 real SH basis functions, as 3DGS's
+    eval_sh evaluates them (a finer net than this only moves the fourth digit)."""
+    d = np.random.default_rng(0).normal(size=(200000, 3))
+    x, y, z = (d / np.linalg.norm(d, axis=1, keepdims=True)).T
+    xx, yy, zz = x * x, y * y, z * z
+    C1, C2 = 0.4886025119029199, [1.0925484305920792, -1.0925484305920792, 0.31539156525252005, -1.0925484305920792, 0.5462742152960396]
+    C3 = [-0.5900435899266435, 2.890611442640554, -0.4570457994644658, 0.3731763325901154, -0.4570457994644658, 1.445305721320277,
+          -0.5900435899266435]
+    Y = [np.full_like(x, 0.28209479177387814), -C1 * y, C1 * z, -C1 * x, C2[0] * x * y, C2[1] * y * z, C2[2] * (2 * zz - xx - yy),
+         C2[3] * x * z, C2[4] * (xx - yy), C3[0] * y * (3 * xx - yy), C3[1] * x * y * z, C3[2] * y * (4 * zz - xx - yy),
+         C3[3] * z * (2 * zz - 3 * xx - 3 * yy), C3[4] * x * (4 * zz - xx - yy), C3[5] * z * (xx - yy), C3[6] * x * (xx - 3 * yy)]
+    return np.array([np.abs(v).max() for v in Y])
+
+
+SH_BASIS_MAX = sh_basis_max()
 
 
 def make_ed3dgs(out, name, seed, iteration, hidden, n=300, frames=12, gdim=8, expect=True, still=0.0):
@@ -366,12 +387,14 @@ def quat_matrix(q):
                         2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1).view(-1, 3, 3)
 
 
-def make_4dgs(out, name, seed, rot_4d, n=300, frames=10, duration=(0.0, 2.0), iteration=7000, expect=True):
+def make_4dgs(out, name, seed, rot_4d, n=300, frames=10, duration=(0.0, 2.0), iteration=7000, expect=True, edit=None):
     gen = torch.Generator().manual_seed(seed)
     xyz, f_dc, f_rest, opacity, scale, rot = random_gaussians(gen, n, sh_coeffs=48)
     t = torch.rand(n, 1, generator=gen) * (duration[1] - duration[0]) + duration[0]
     scaling_t = torch.log(torch.rand(n, 1, generator=gen) * 0.5 + 0.2)
     rot_r = torch.randn(n, 4, generator=gen)
+    if edit:  # set chosen Gaussians' values, in place
+        edit(dict(xyz=xyz, f_dc=f_dc, f_rest=f_rest, opacity=opacity, scale=scale, rot=rot, t=t, scaling_t=scaling_t, rot_r=rot_r))
     params = [nn.Parameter(x.clone()) for x in (xyz, f_dc, f_rest, scale, rot, opacity, t, scaling_t, rot_r)]
     opt = torch.optim.Adam([{"params": [p], "lr": 1e-3, "name": nm} for p, nm in
                             zip(params, ["xyz", "f_dc", "f_rest", "scaling", "rotation", "opacity", "t", "scaling_t", "rotation_r"])], lr=0.0, eps=1e-15)
@@ -419,6 +442,20 @@ def make_4dgs(out, name, seed, rot_4d, n=300, frames=10, duration=(0.0, 2.0), it
 
 
 # ----------------------------------------------------------------------------- Deformable 3D Gaussians
+
+def short_lived_4dgs(v):
+    """4DGS Gaussians each still but for one property (axis-aligned time: positions never move):
+    0, 4, 5 live about a frame (sigma_t half a frame of 30 fps) at frames 75, 107 and 139 of 300,
+    between the still rule's sweep frames (72, 82, ..., 103, 113, 134, 144); 1 and 3 are lit
+    throughout and still; 2 changes colour only in a band above the DC (the time term of SH
+    coefficient 5). Opacity logit 1.96: 0.877 where lit."""
+    v["f_rest"].zero_()
+    v["opacity"].fill_(1.96)
+    v["t"][:, 0] = torch.tensor([75.0, 0.0, 0.0, 0.0, 107.0, 139.0]) / 30.0
+    v["scaling_t"][:, 0] = math.log((0.5 / 30.0) ** 2)  # its code's variance: exp(_scaling_t)
+    v["scaling_t"][1:4, 0] = math.log(1e6)
+    v["f_rest"][2, 15 + 5, 0] = 0.5  # channel 16 + 5: coefficient 5's first time band (f_rest holds channels 1..47)
+
 
 def embed(x, freqs):
     """Its Embedder: the input, then sin and cos of each octave."""
@@ -664,6 +701,7 @@ def main():
     fourdg = make_4dgaussians(out, "4dgaussians", 3)
     fourdgs = make_4dgs(out, "4dgs", 4, rot_4d=True)
     make_4dgs(out, "4dgs_3drot", 5, rot_4d=False)
+    make_4dgs(out, "4dgs_short_lived", 14, rot_4d=False, n=6, frames=300, duration=(0.0, 10.0), expect=False, edit=short_lived_4dgs)
     make_dynamic3dgs(out, "dynamic3dgs", 6)
     make_deformable3dgs(out, "deformable3dgs", 8, is_blender=False)
     make_deformable3dgs(out, "deformable3dgs_blender", 9, is_blender=True)

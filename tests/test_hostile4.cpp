@@ -7,6 +7,8 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <memory>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -19,6 +21,9 @@
 #include "fillgs/base/json_file.hpp"
 #include "fillgs/experiment/experiment.hpp"
 #include "fillgs/io/dataset.hpp"
+#include "fillgs/io/scene_io.hpp"
+#include "fillgs/io/trained_models.hpp"
+#include "fillgs/model/gaussians.hpp"
 #include "fillgs/train/train.hpp"
 #include "io/model_support.hpp"
 
@@ -176,4 +181,87 @@ TEST_CASE("a tensor of negative size is refused, naming it, before any count is 
   const std::string e = round4::error_of([&] { model_io::checked(t, "chkpnt.pth", "entry 3 (_features_rest)", {0, -1, 3}); });
   CHECK(e.find("chkpnt.pth: entry 3 (_features_rest)") != std::string::npos);
   CHECK(e.find("dimension 1 is negative") != std::string::npos);
+}
+
+// ------------------------------------------------------------------ the still rule and the keys
+
+namespace round4 {
+
+/// A model whose Gaussian g (1 to 6) moves in one property only, as a sine of `period` frames
+/// (0: still): position, rotation, log-scale, opacity, the SH DC, one band-3 SH coefficient.
+class OneProperty : public TrainedModel {
+ public:
+  OneProperty(int frame_count, double period) : period_(period) {
+    frames = frame_count;
+    time_first = 0.0, time_last = 1.0;
+    format = "test", source = "one-property";
+  }
+  size_t size() const override { return 7; }
+  ModelState at(double t) const override {
+    const double w = std::sin(2.0 * M_PI * t * double(frames - 1) / period_);
+    ModelState s;
+    s.sh_degree = 3;
+    for (size_t g = 0; g < 7; ++g) {
+      s.means.push_back(Vec3f(0.1f * float(g), 0, 3));
+      s.log_scales.push_back(Vec3f::Constant(-3));
+      s.rotations.push_back(Vec4f(1, 0, 0, 0));
+      s.opacity_logits.push_back(1.0f);
+    }
+    s.sh.assign(7 * 16 * 3, 0.1f);
+    s.means[1].x() += float(0.05 * w);
+    const double half = 0.5 * 10.0 * M_PI / 180.0 * w;  // 10 degrees about z
+    s.rotations[2] = Vec4f(float(std::cos(half)), 0, 0, float(std::sin(half)));
+    s.log_scales[3] += Vec3f::Constant(float(0.1 * w));
+    s.opacity_logits[4] += float(1.0 * w);
+    s.sh[5 * 48 + 0] += float(0.1 * w);       // DC, red
+    s.sh[6 * 48 + 12 * 3] += float(0.1 * w);  // band 3 (coefficient 12), red: all E-D3DGS's colour head deforms
+    return s;
+  }
+
+ private:
+  double period_;
+};
+
+}  // namespace round4
+
+TEST_CASE("the still rule measures every property a model lets vary, every SH band included", "[robust][hostile][trained-models]") {
+  const auto model = std::make_shared<round4::OneProperty>(120, 240.0);
+  const GaussianCloud c = stream_trained_model(model, StillRule{});
+  CHECK(c.dynamic_ids == std::vector<uint32_t>{1, 2, 3, 4, 5, 6});  // 6 was frozen at frame 0 before
+  // The band-3 coefficient follows the model at any time, not frame 0's value.
+  for (double t : {0.25, 0.5, 0.8}) {
+    const FrameGaussians f = frame_at(c, t);
+    CHECK(f.sh[6 * 48 + 36] == Approx(model->at(t).sh[6 * 48 + 36]).margin(1e-6));
+  }
+}
+
+TEST_CASE("training keys keep every keyed property within its tolerance, not positions alone", "[robust][hostile][trained-models]") {
+  // Period 8 frames: positions of Gaussian 1 need keys as dense as rotation's, scale's and
+  // opacity's; a model without position motion (position_only = false) was keyed every 32
+  // frames before, whatever its opacity did.
+  const int F = 97;
+  for (const bool with_position : {true, false}) {
+    const auto model = std::make_shared<round4::OneProperty>(F, 8.0);
+    GaussianCloud c = stream_trained_model(model, StillRule{});
+    if (!with_position) {  // Gaussian 1 made still: no position moves
+      c.dynamic_ids.erase(c.dynamic_ids.begin());
+      c.source_rows.erase(c.source_rows.begin());
+    }
+    KeyChoice kc;
+    const GaussianCloud keyed = keyed_for_training(c, &kc);
+    INFO("with position motion " << with_position << ": " << kc.keys << " keys, limiting " << kc.limiting);
+    CHECK(kc.worst_share <= 1.0);
+    const KeyTolerance tol;
+    for (int f = 0; f < F; ++f) {
+      const double t = double(f) / double(F - 1);
+      const FrameGaussians k = frame_at(keyed, t);
+      const ModelState truth = model->at(t);
+      for (uint32_t g : c.dynamic_ids) {
+        CHECK(k.opacities[g] == Approx(sigmoid(truth.opacity_logits[g])).margin(tol.opacity));
+        CHECK(std::log(k.scales[g].x()) == Approx(truth.log_scales[g].x()).margin(tol.log_scale));
+        const double dot = std::min(1.0, std::fabs(double(k.rotations[g].dot(truth.rotations[g].normalized()))));
+        CHECK(2.0 * std::acos(dot) * 180.0 / M_PI <= tol.rotation_degrees + 1e-4);
+      }
+    }
+  }
 }

@@ -437,6 +437,43 @@ TEST_CASE("the still rule's recheck catches motion between the sweep's frames", 
   CHECK(rechecked.dynamic_ids == full.dynamic_ids);
 }
 
+TEST_CASE("4DGS: a Gaussian living between the sweep's frames, or changing a band above the DC, is not still, and its keys keep it", "[trained-models]") {
+  // tests/make_model_fixtures.py, short_lived_4dgs: Gaussians 0, 4, 5 lit about a frame at
+  // frames 75, 107, 139 of 300 (none of the sweep's 30), 2 changing colour only in SH
+  // coefficient 5, 1 and 3 still. Before, the rule read 0, 4, 5 as still at frame 0's opacity
+  // (about 0) and froze 2's colour; the keys then kept 0 dark at frame 75.
+  const std::string dir = fixtures() + "/4dgs_short_lived";
+  SceneReadOptions o;
+  o.model_frames = 300;
+  o.model_time_range = "0:10";
+  const GaussianCloud streamed = read_scene(dir, o);
+  CHECK(streamed.dynamic_ids == std::vector<uint32_t>{0, 2, 4, 5});
+  o.model_evaluation = ModelEvaluation::Keys;
+  const GaussianCloud keys = read_scene(dir, o);
+  const double lit = 1.0 / (1.0 + std::exp(-1.96));  // 0.877
+  for (const auto& [g, frame] : std::vector<std::pair<uint32_t, int>>{{0, 75}, {4, 107}, {5, 139}}) {
+    const double t = frame / 299.0;
+    INFO("Gaussian " << g << " at frame " << frame);
+    CHECK(frame_at(streamed, t).opacities[g] == Approx(lit).margin(1e-5));
+    CHECK(frame_at(keys, t).opacities[g] == Approx(lit).margin(1e-5));
+    CHECK(frame_at(streamed, (frame + 5) / 299.0).opacities[g] < 1e-6);  // and dark a few frames on
+  }
+  // Gaussian 2's coefficient 5 follows the time band: base + 0.5 cos(2 pi (t_mean - t) / 10).
+  const std::unique_ptr<TrainedModel> m = open_trained_model(dir, "4dgs", o);
+  for (double t : {0.3, 0.7}) {
+    const double model_time = t * 299.0 / 30.0;
+    CHECK(frame_at(streamed, t).sh[2 * 48 + 15] == Approx(m->at(model_time).sh[2 * 48 + 15]).margin(1e-6));
+  }
+  CHECK(std::fabs(frame_at(streamed, 0.3).sh[2 * 48 + 15] - frame_at(streamed, 0.0).sh[2 * 48 + 15]) > 0.1);
+  // Training keys (finetune's): the lit frames are kept within the opacity tolerance.
+  KeyChoice kc;
+  const GaussianCloud trained = keyed_for_training(streamed, &kc);
+  INFO(kc.keys << " keys, " << kc.limiting << " decided");
+  CHECK(kc.limiting == "opacity");
+  for (const auto& [g, frame] : std::vector<std::pair<uint32_t, int>>{{0, 75}, {4, 107}, {5, 139}})
+    CHECK(frame_at(trained, frame / 299.0).opacities[g] == Approx(lit).margin(1.0 / 255.0));
+}
+
 TEST_CASE("streamed observation tables equal those of keys at every frame, byte for byte", "[trained-models]") {
   RingPlacement ring;
   ring.count = 6;

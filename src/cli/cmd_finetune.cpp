@@ -56,7 +56,10 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   const GaussianCloud model = keyed_for_training(read_scene_shown(f.model, f.read, in), &keys);
   if (keys.keys > 0)
     in.out << "keys: " << keys.keys << " for its " << keys.frames << " frames (one every " << fixed(keys.interval, 2)
-           << "), positions within " << keys.worst_error << " world units of its network at every frame (" << keys.sample << " moving Gaussians measured)\n";
+           << "), positions, rotations, scales and opacities within " << fixed(keys.worst_share, 2) << " of their tolerances of its network at every frame ("
+           << keys.sample << " moving Gaussians measured" << (keys.limiting.empty() ? std::string() : "; " + keys.limiting + " decided the interval")
+           << ")" << (keys.colour_change > 1.0 / 255.0 ? "; its colour changes in time by up to " + fixed(keys.colour_change, 3) +
+                                                           ", which the keyed model holds constant" : std::string()) << "\n";
   if (model.size() == 0) throw_error(f.model, ": has no Gaussians; fine-tuning needs a trained model");
   check_trainable(model, f.model);
   // --paper-schedule picks the paper's counts; the flags given override them.

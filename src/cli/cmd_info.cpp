@@ -71,8 +71,8 @@ int info(const InfoFlags& f, const Invocation& in) {
   if (c.motion == MotionModel::Evaluated) {  // what finetune would key it with
     const KeyChoice k = choose_keys(c);
     std::ostringstream os;
-    os << k.keys << " (one every " << k.interval << " frames; positions within " << k.worst_error << " world units of the model on " << k.sample
-       << " moving Gaussians)";
+    os << k.keys << " (one every " << k.interval << " frames; every keyed property within " << k.worst_share << " of its tolerance of the model on "
+       << k.sample << " moving Gaussians" << (k.limiting.empty() ? std::string() : ", " + k.limiting + " decided the interval") << ")";
     j["training_keys"] = os.str();
   }
   if (f.json) {

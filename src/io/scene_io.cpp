@@ -1,6 +1,7 @@
 #include "fillgs/io/scene_io.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <filesystem>
@@ -179,7 +180,22 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
   return out;
 }
 
-KeyChoice choose_keys(const GaussianCloud& cloud, float tolerance, size_t sample) {
+namespace {
+
+/// Shares of the key tolerances by which frame `b` misses frame `a` at Gaussian s, per property
+/// (position, rotation, log-scale, opacity), in the still rule's measures.
+std::array<double, 4> key_misses(const FrameGaussians& a, const FrameGaussians& b, size_t s, const KeyTolerance& t) {
+  auto share = [](double d, float tol) { return d <= 0.0 ? 0.0 : tol > 0.0f ? d / double(tol) : INFINITY; };
+  const double c = std::min(1.0, std::fabs(double(a.rotations[s].dot(b.rotations[s]))));
+  double scale = 0;
+  for (int k = 0; k < 3; ++k) scale = std::max(scale, std::fabs(std::log(double(a.scales[s][k])) - std::log(double(b.scales[s][k]))));
+  return {share((a.means[s] - b.means[s]).norm(), t.position), share(2.0 * std::acos(c) * 180.0 / M_PI, t.rotation_degrees),
+          share(scale, t.log_scale), share(std::fabs(double(a.opacities[s]) - double(b.opacities[s])), t.opacity)};
+}
+
+}  // namespace
+
+KeyChoice choose_keys(const GaussianCloud& cloud, const KeyTolerance& tolerance, size_t sample) {
   KeyChoice kc;
   kc.frames = motion_frames(cloud);
   if (cloud.motion != MotionModel::Evaluated || kc.frames < 2) return kc;
@@ -205,45 +221,70 @@ KeyChoice choose_keys(const GaussianCloud& cloud, float tolerance, size_t sample
   kc.sample = S;
   const int F = kc.frames;
   const FrameGrid grid(F);
-  std::vector<Vec3f> truth(size_t(F) * S);
+  std::vector<FrameGaussians> truth;
+  truth.reserve(size_t(F));
   {
     FrameSampler exact(sub);
-    for (int f = 0; f < F; ++f) {
-      const FrameGaussians& g = exact.at(grid.time(f));
-      std::copy(g.means.begin(), g.means.end(), truth.begin() + ptrdiff_t(size_t(f) * S));
-    }
+    for (int f = 0; f < F; ++f) truth.push_back(exact.at(grid.time(f)));  // a copy: its own SH
   }
+  // The colour the keyed model drops: every band's change from frame 0, in any direction.
+  for (int f = 1; f < F; ++f)
+    for (size_t s = 0; s < S; ++s)
+      for (size_t a = 0; a < 3; ++a) {
+        double change = 0;
+        for (size_t k = 0; k * 3 < row && k < 16; ++k)
+          change += std::fabs(double(truth[size_t(f)].sh[s * row + k * 3 + a]) - double(truth[0].sh[s * row + k * 3 + a])) * kSHBasisMax[k];
+        kc.colour_change = std::max(kc.colour_change, change);
+      }
+  // Interval 1 keys every frame: exact there, whatever the tolerance.
   kc.keys = F;
   kc.interval = 1.0;
-  kc.worst_error = 0.0;
+  static const char* kProperty[4] = {"position", "rotation", "scale", "opacity"};
   for (int interval = 2; interval <= 32; interval *= 2) {
     const int K = (F - 1 + interval - 1) / interval + 1;
     if (K >= kc.keys || K < 2) continue;
     const GaussianCloud keyed = bake_tracks(sub, K);
     FrameSampler approx(keyed);
-    double worst = 0;
+    std::array<double, 4> worst{};
     for (int f = 0; f < F; ++f) {
       const FrameGaussians& g = approx.at(grid.time(f));
-      for (size_t s = 0; s < S; ++s) worst = std::max(worst, double((g.means[s] - truth[size_t(f) * S + s]).norm()));
+      for (size_t s = 0; s < S; ++s) {
+        const std::array<double, 4> miss = key_misses(truth[size_t(f)], g, s, tolerance);
+        for (size_t p = 0; p < 4; ++p) worst[p] = std::max(worst[p], miss[p]);
+      }
     }
-    if (worst > tolerance) break;
+    const size_t over = size_t(std::max_element(worst.begin(), worst.end()) - worst.begin());
+    if (worst[over] > 1.0) {
+      kc.limiting = kProperty[over];
+      break;
+    }
     kc.keys = K;
     kc.interval = double(F - 1) / double(K - 1);
-    kc.worst_error = worst;
+    kc.worst_error = worst[0] * tolerance.position;
+    kc.worst_share = worst[over];
   }
   return kc;
 }
 
-GaussianCloud keyed_for_training(const GaussianCloud& cloud, KeyChoice* choice, float tolerance) {
+GaussianCloud keyed_for_training(const GaussianCloud& cloud, KeyChoice* choice, const KeyTolerance& tolerance) {
   KeyChoice kc = choose_keys(cloud, tolerance);
   if (choice) *choice = kc;
   if (cloud.motion != MotionModel::Evaluated) return cloud;
   GaussianCloud keyed = bake_tracks(cloud, std::max(2, kc.keys));
   std::ostringstream os;
   os << "keyed for training: " << kc.keys << " keys (one every " << kc.interval << " of its " << kc.frames
-     << " frames), Catmull-Rom positions within " << kc.worst_error << " world units of its network at every frame on " << kc.sample
-     << " moving Gaussians (tolerance " << tolerance << ")";
+     << " frames); positions, rotations, scales and opacities within " << kc.worst_share << " of their tolerances (" << tolerance.position
+     << " world units, " << tolerance.rotation_degrees << " degrees, " << tolerance.log_scale << " in log-scale, " << tolerance.opacity
+     << " in opacity) of its network at every frame on " << kc.sample << " moving Gaussians";
+  if (!kc.limiting.empty()) os << " (" << kc.limiting << " decided the interval)";
   keyed.notes.push_back(os.str());
+  if (kc.colour_change > 1.0 / 255.0) {
+    std::ostringstream c;
+    c << "its network's colour changes over the frames by up to " << kc.colour_change
+      << " (any direction and channel); fillgs's trainer keeps colour constant in time, so the keyed model holds each moving Gaussian's mean "
+         "DC and frame-0 higher bands";
+    keyed.notes.push_back(c.str());
+  }
   return keyed;
 }
 

