@@ -260,7 +260,8 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
                             {"moving_gaussians", r.model.dynamic_count()}, {"seconds", {{"train", r.seconds_train}, {"total", seconds}}}};
   if (r.keys.keys > 0)
     j["keys"] = {{"count", r.keys.keys}, {"interval_frames", r.keys.interval}, {"frames", r.keys.frames},
-                 {"worst_position_error", r.keys.worst_error}, {"sample_gaussians", r.keys.sample}};
+                 {"worst_position_error", r.keys.worst_error}, {"worst_share_of_tolerance", r.keys.worst_share},
+                 {"decided_by", r.keys.limiting}, {"colour_change_dropped", r.keys.colour_change}, {"sample_gaussians", r.keys.sample}};
   if (o.pool) {  // real photographs instead of trajectories
     j.erase("trajectories_per_round");
     j["pool_budget"] = o.pool_budget;

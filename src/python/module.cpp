@@ -26,6 +26,7 @@
 #include "fillgs/base/bounds.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/instruction_set.hpp"
+#include "fillgs/io/array_input.hpp"
 #include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/math.hpp"
 #include "fillgs/base/progress.hpp"
@@ -272,30 +273,11 @@ ModelState state_from(const py::handle& frame, const char* what, py::ssize_t n) 
   const FloatArray scales = float_array(d["log_scales"], (w + " log_scales").c_str(), {N, 3});
   const FloatArray quats = float_array(d["quaternions"], (w + " quaternions").c_str(), {N, 4});
   const FloatArray logits = float_array(d["opacity_logits"], (w + " opacity_logits").c_str(), {N});
-  ModelState s;
-  s.means.resize(size_t(N));
-  s.log_scales.resize(size_t(N));
-  s.rotations.resize(size_t(N));
-  s.opacity_logits.assign(logits.data(), logits.data() + N);
-  if (N) {
-    std::memcpy(static_cast<void*>(s.means.data()), means.data(), size_t(N) * 12);
-    std::memcpy(static_cast<void*>(s.log_scales.data()), scales.data(), size_t(N) * 12);
-    std::memcpy(static_cast<void*>(s.rotations.data()), quats.data(), size_t(N) * 16);
-  }
-  for (py::ssize_t i = 0; i < N; ++i)
-    if (s.rotations[size_t(i)].squaredNorm() == 0.0f) throw py::value_error(w + " quaternions: element " + std::to_string(i) + " is zero");
   if (d.contains("sh") && !d["sh"].is_none()) {
     const FloatArray sh = float_array(d["sh"], (w + " sh").c_str(), {N, -1, 3});
-    const py::ssize_t K = sh.shape(1);
-    const int degree = int(std::lround(std::sqrt(double(K)))) - 1;
-    if (K < 1 || (degree + 1) * (degree + 1) != K || degree > 3)
-      throw py::value_error(w + " sh: " + std::to_string(K) + " coefficients per Gaussian, expected 1, 4, 9 or 16");
-    s.sh_degree = degree;
-    s.sh.assign(sh.data(), sh.data() + sh.size());
-  } else {
-    s.sh.assign(size_t(N) * 3, 0.0f);  // grey: SH DC 0 is colour 0.5
+    return gaussians_from_arrays(size_t(N), means.data(), scales.data(), quats.data(), logits.data(), sh.data(), size_t(sh.shape(1)), w);
   }
-  return s;
+  return gaussians_from_arrays(size_t(N), means.data(), scales.data(), quats.data(), logits.data(), nullptr, 0, w);
 }
 
 GaussianCloud cloud_from(const ModelState& s) {
@@ -437,61 +419,29 @@ Cameras cameras_from(const py::handle& K, const py::handle& w2c, const py::handl
   auto sizes = [&](const py::handle& v, const char* name) {
     py::array a = py::array(py::module_::import("numpy").attr("asarray")(v));
     if (a.ndim() == 0) a = py::array(py::module_::import("numpy").attr("full")(C, v));
-    const FloatArray f = float_array(a, name, {C});
-    std::vector<int> out(static_cast<size_t>(C));
-    for (py::ssize_t i = 0; i < C; ++i) {
-      const float x = f.data()[i];
-      if (x < 1 || x > 65536 || x != std::floor(x)) throw py::value_error(std::string(name) + ": element " + std::to_string(i) + " is not a pixel count (" + std::to_string(x) + ")");
-      out[size_t(i)] = int(x);
-    }
-    return out;
+    const py::array_t<double, py::array::c_style | py::array::forcecast> f = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
+    if (!f || f.ndim() != 1 || f.shape(0) != C) throw py::value_error(std::string(name) + ": expected one value or shape [" + std::to_string(C) + "]");
+    return std::vector<double>(f.data(), f.data() + C);
   };
-  const std::vector<int> W = sizes(width, "width"), H = sizes(height, "height");
+  const std::vector<double> W = sizes(width, "width"), H = sizes(height, "height");
   std::vector<double> T(static_cast<size_t>(C), std::numeric_limits<double>::quiet_NaN());
   if (!time.is_none()) {
     const py::array_t<double, py::array::c_style | py::array::forcecast> t = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(time);
     if (!t || t.ndim() != 1 || t.shape(0) != C) throw py::value_error("time: expected shape [" + std::to_string(C) + "]");
-    for (py::ssize_t i = 0; i < C; ++i) {
-      const double x = t.data()[i];
-      if (!std::isnan(x) && (x < 0.0 || x > 1.0 || !std::isfinite(x)))
-        throw py::value_error("time: element " + std::to_string(i) + " is " + std::to_string(x) + ", expected a time in [0, 1] or NaN");
-      T[size_t(i)] = x;
-    }
+    T.assign(t.data(), t.data() + C);
   }
-  std::vector<py::object> name_list;
+  std::vector<std::string> name_list;
   if (!names.is_none()) {
     if (py::isinstance<py::str>(names) || !py::isinstance<py::sequence>(names)) throw py::type_error("names: expected a sequence of " + std::to_string(C) + " strings");
     const py::sequence seq = py::reinterpret_borrow<py::sequence>(names);
     if (py::ssize_t(py::len(seq)) != C)
       throw Error("names: " + std::to_string(py::len(seq)) + " names for " + std::to_string(C) + " cameras");
-    for (const py::handle n : seq) name_list.push_back(py::reinterpret_borrow<py::object>(n));
+    for (const py::handle n : seq) name_list.push_back(py::str(n).cast<std::string>());
   }
   Cameras out;
-  for (py::ssize_t i = 0; i < C; ++i) {
-    Camera c;
-    const float* ki = k.data() + i * 9;
-    const float* mi = m.data() + i * 16;
-    const std::string element = "element " + std::to_string(i);
-    // A pinhole camera has no skew and K's last row is (0, 0, 1); a pose's last row is
-    // (0, 0, 0, 1). fillgs keeps neither term, so a value there is refused, not dropped.
-    if (ki[1] != 0.0f || ki[3] != 0.0f || ki[6] != 0.0f || ki[7] != 0.0f || ki[8] != 1.0f)
-      throw Error("K: " + element + " is not a pinhole matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (skew " + std::to_string(ki[1]) +
-                  ", last row " + std::to_string(ki[6]) + " " + std::to_string(ki[7]) + " " + std::to_string(ki[8]) + ")");
-    if (mi[12] != 0.0f || mi[13] != 0.0f || mi[14] != 0.0f || mi[15] != 1.0f)
-      throw Error("world_to_camera: " + element + " has last row (" + std::to_string(mi[12]) + ", " + std::to_string(mi[13]) + ", " +
-                  std::to_string(mi[14]) + ", " + std::to_string(mi[15]) + "), expected (0, 0, 0, 1)");
-    c.fx = ki[0], c.fy = ki[4], c.cx = ki[2], c.cy = ki[5];
-    for (int r = 0; r < 3; ++r) {
-      for (int q = 0; q < 3; ++q) c.R(r, q) = mi[r * 4 + q];
-      c.t[r] = mi[r * 4 + 3];
-    }
-    c.width = W[size_t(i)];
-    c.height = H[size_t(i)];
-    c.time = T[size_t(i)];
-    c.name = names.is_none() ? "cam" + std::to_string(i) : py::str(name_list[size_t(i)]).cast<std::string>();
-    check_camera("cameras", element, c);  // the bounds every camera file's reader enforces
-    out.list.push_back(c);
-  }
+  for (py::ssize_t i = 0; i < C; ++i)
+    out.list.push_back(camera_from_arrays(k.data() + i * 9, m.data() + i * 16, W[size_t(i)], H[size_t(i)], T[size_t(i)],
+                                          names.is_none() ? "cam" + std::to_string(i) : name_list[size_t(i)], size_t(i)));
   return out;
 }
 

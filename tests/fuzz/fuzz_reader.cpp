@@ -10,13 +10,16 @@
 // string kSplit: part 0 is the first file, part 1 the second, and so on.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <string>
 #include <vector>
 
 #include "fillgs/model/camera.hpp"
+#include "fillgs/io/array_input.hpp"
 #include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/fs_util.hpp"
@@ -127,6 +130,27 @@ void read_one(const std::string& data) {
     read_points(put("points3D.bin", data));
   } else if (r == "colour_correction") {
     read_colour_correction(put("colour_correction.json", data));
+  } else if (r == "python_arrays") {  // what the Python module builds from NumPy arrays (io/array_input.hpp)
+    // Bytes as the arrays: K [9] and world_to_camera [16] float32, width, height, time float64;
+    // then n (a byte, at most 16 Gaussians), the SH coefficients per Gaussian (a byte), and
+    // the Gaussians' float32 values (zeros where the input ends).
+    std::string b = data;
+    const size_t camera_bytes = 25 * 4 + 3 * 8;
+    if (b.size() < camera_bytes + 2) b.resize(camera_bytes + 2, '\0');
+    float K[9], M[16];
+    double size_time[3];
+    std::memcpy(K, b.data(), sizeof K);
+    std::memcpy(M, b.data() + sizeof K, sizeof M);
+    std::memcpy(size_time, b.data() + sizeof K + sizeof M, sizeof size_time);
+    try {
+      camera_from_arrays(K, M, size_time[0], size_time[1], size_time[2], "cam0", 0);
+    } catch (const Error&) {
+    }
+    const size_t n = size_t(uint8_t(b[camera_bytes])) % 17, coefficients = size_t(uint8_t(b[camera_bytes + 1])) % 20;
+    std::vector<float> v((n * (3 + 3 + 4 + 1) + n * coefficients * 3), 0.0f);
+    std::memcpy(v.data(), b.data() + camera_bytes + 2, std::min(v.size() * 4, b.size() - camera_bytes - 2));
+    const float* at = v.data();
+    gaussians_from_arrays(n, at, at + n * 3, at + n * 6, at + n * 10, coefficients ? at + n * 11 : nullptr, coefficients, "arrays");
   } else if (r == "image") {  // what a refiner hands back
     read_image(put("refined.png", data));
   } else if (r == "image_jpeg") {  // what datasets hold (Panoptic's ims/<camera>/<frame>.jpg)
@@ -323,6 +347,19 @@ void make_seeds(const std::string& dir) {
       for (uint8_t v : {uint8_t(200), uint8_t(100), uint8_t(50)}) pod(b, v);
       pod(b, 0.5), pod(b, uint64_t(1)), pod(b, int32_t(1)), pod(b, int32_t(i));
     }
+    seed("seed.bin", b);
+  } else if (r == "python_arrays") {
+    std::string b;
+    auto pod = [&b](auto v) { b.append(reinterpret_cast<const char*>(&v), sizeof v); };
+    for (float v : {100.0f, 0.0f, 32.0f, 0.0f, 100.0f, 24.0f, 0.0f, 0.0f, 1.0f}) pod(v);
+    for (float v : {1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f, 4.0f, 0.0f, 0.0f, 0.0f, 1.0f}) pod(v);
+    for (double v : {64.0, 48.0, 0.5}) pod(v);
+    pod(uint8_t(2)), pod(uint8_t(4));
+    for (float v : {0.0f, 0.0f, 3.0f, 0.1f, 0.0f, 3.0f}) pod(v);                          // means [2,3]
+    for (int k = 0; k < 6; ++k) pod(-3.0f);                                               // log_scales [2,3]
+    for (float v : {1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f}) pod(v);              // quaternions [2,4]
+    for (float v : {0.5f, -0.5f}) pod(v);                                                 // opacity_logits [2]
+    for (int k = 0; k < 2 * 4 * 3; ++k) pod(0.1f * float(k % 5));
     seed("seed.bin", b);
   } else if (r == "colour_correction") {
     seed("seed.json", R"({"cam00": {"gain": [1.1, 0.9, 1.0], "offset": [0.01, 0.0, -0.02]}, "cam01": {"gain": [1, 1, 1], "offset": [0, 0, 0]}})");

@@ -1,0 +1,28 @@
+#pragma once
+// Cameras and Gaussians from plain arrays (what the Python module hands over from NumPy),
+// checked as the file readers check what they read: the module only converts the arrays'
+// types and shapes, and everything else is decided here, where a fuzz harness reaches it
+// too (tests/fuzz, "python_arrays"). Errors are fillgs::Error naming the argument and element.
+#include <cstddef>
+#include <string>
+
+#include "fillgs/model/camera.hpp"
+#include "fillgs/model/gaussians.hpp"
+
+namespace fillgs {
+
+/// Camera `index` from K (3x3, row-major) and world_to_camera (4x4, row-major, OpenCV axes),
+/// a size and a time (NaN: a fixed rig's camera, at every frame). K must be a pinhole matrix
+/// [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] and the pose's last row (0, 0, 0, 1): fillgs keeps
+/// neither skew nor a projective row, so a value there is refused, not dropped. Then the
+/// bounds every camera reader enforces (check_camera, "cameras: element i ...").
+Camera camera_from_arrays(const float* K, const float* world_to_camera, double width, double height, double time, const std::string& name,
+                          size_t index);
+
+/// n Gaussians of one frame: means [n,3], log_scales [n,3], quaternions [n,4] (w, x, y, z),
+/// opacity_logits [n], sh [n, sh_coefficients, 3] (null: grey, degree 0). Every value finite,
+/// no zero quaternion, sh_coefficients 1, 4, 9 or 16. `what` names the arrays in messages.
+ModelState gaussians_from_arrays(size_t n, const float* means, const float* log_scales, const float* quaternions, const float* opacity_logits,
+                                 const float* sh, size_t sh_coefficients, const std::string& what);
+
+}  // namespace fillgs

@@ -1,0 +1,81 @@
+#include "fillgs/io/array_input.hpp"
+
+#include <cmath>
+#include <cstring>
+
+#include "fillgs/base/error.hpp"
+#include "fillgs/io/camera_io.hpp"
+
+namespace fillgs {
+
+namespace {
+
+/// A pixel count: a whole number in [1, 65536].
+int pixel_count(double x, const char* name, size_t index) {
+  if (!(x >= 1 && x <= 65536) || x != std::floor(x)) throw_error(name, ": element ", index, " is not a pixel count (", x, ")");
+  return int(x);
+}
+
+void require_finite(const float* p, size_t n, size_t row, const std::string& name) {
+  for (size_t i = 0; i < n; ++i)
+    if (!std::isfinite(p[i])) throw_error(name, ": element ", i / row, " is not finite (", p[i], ")");
+}
+
+}  // namespace
+
+Camera camera_from_arrays(const float* K, const float* M, double width, double height, double time, const std::string& name, size_t index) {
+  const std::string element = "element " + std::to_string(index);
+  require_finite(K, 9, 9, "K: " + element + " (index within it)");
+  require_finite(M, 16, 16, "world_to_camera: " + element + " (index within it)");
+  if (K[1] != 0.0f || K[3] != 0.0f || K[6] != 0.0f || K[7] != 0.0f || K[8] != 1.0f)
+    throw_error("K: ", element, " is not a pinhole matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (skew ", K[1], ", last row ", K[6], " ", K[7], " ",
+                K[8], ")");
+  if (M[12] != 0.0f || M[13] != 0.0f || M[14] != 0.0f || M[15] != 1.0f)
+    throw_error("world_to_camera: ", element, " has last row (", M[12], ", ", M[13], ", ", M[14], ", ", M[15], "), expected (0, 0, 0, 1)");
+  if (!std::isnan(time) && !(time >= 0.0 && time <= 1.0)) throw_error("time: ", element, " is ", time, ", expected a time in [0, 1] or NaN");
+  Camera c;
+  c.fx = K[0], c.fy = K[4], c.cx = K[2], c.cy = K[5];
+  for (int r = 0; r < 3; ++r) {
+    for (int q = 0; q < 3; ++q) c.R(r, q) = M[r * 4 + q];
+    c.t[r] = M[r * 4 + 3];
+  }
+  c.width = pixel_count(width, "width", index);
+  c.height = pixel_count(height, "height", index);
+  c.time = time;
+  c.name = name;
+  check_camera("cameras", element, c);  // the bounds every camera file's reader enforces
+  return c;
+}
+
+ModelState gaussians_from_arrays(size_t n, const float* means, const float* log_scales, const float* quaternions, const float* opacity_logits,
+                                 const float* sh, size_t sh_coefficients, const std::string& what) {
+  require_finite(means, n * 3, 3, what + " means");
+  require_finite(log_scales, n * 3, 3, what + " log_scales");
+  require_finite(quaternions, n * 4, 4, what + " quaternions");
+  require_finite(opacity_logits, n, 1, what + " opacity_logits");
+  ModelState s;
+  s.means.resize(n);
+  s.log_scales.resize(n);
+  s.rotations.resize(n);
+  s.opacity_logits.assign(opacity_logits, opacity_logits + n);
+  if (n) {
+    std::memcpy(static_cast<void*>(s.means.data()), means, n * 12);
+    std::memcpy(static_cast<void*>(s.log_scales.data()), log_scales, n * 12);
+    std::memcpy(static_cast<void*>(s.rotations.data()), quaternions, n * 16);
+  }
+  for (size_t i = 0; i < n; ++i)
+    if (s.rotations[i].squaredNorm() == 0.0f) throw_error(what, " quaternions: element ", i, " is zero");
+  if (!sh) {
+    s.sh.assign(n * 3, 0.0f);  // grey: SH DC 0 is colour 0.5
+    return s;
+  }
+  const int degree = int(std::lround(std::sqrt(double(sh_coefficients)))) - 1;
+  if (sh_coefficients < 1 || size_t((degree + 1) * (degree + 1)) != sh_coefficients || degree > 3)
+    throw_error(what, " sh: ", sh_coefficients, " coefficients per Gaussian, expected 1, 4, 9 or 16");
+  require_finite(sh, n * sh_coefficients * 3, sh_coefficients * 3, what + " sh");
+  s.sh_degree = degree;
+  s.sh.assign(sh, sh + n * sh_coefficients * 3);
+  return s;
+}
+
+}  // namespace fillgs
