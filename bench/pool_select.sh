@@ -258,7 +258,8 @@ backbone_again() {  # "s<seed>": its backbone trained again where git kept only 
   backbone_command "${1#s}" "$S/backbone.again"
   rm -rf "$S/backbone.again"
   "${BCMD[@]}"
-  if ! (cd "$S/backbone.again" && sha256_covers ../backbone/model.sha256 $(backbone_files) && sha256sum --check --quiet ../backbone/model.sha256); then
+  if ! sha256_covers "$S/backbone/model.sha256" $(cd "$S/backbone.again" && backbone_files) ||
+    ! (cd "$S/backbone.again" && sha256sum --check --quiet ../backbone/model.sha256); then
     echo "pool_select: $S/backbone trained again is not the model its finished rows used (model.sha256); delete $OUT/$1 to run the seed again" >&2
     exit 1
   fi

@@ -14,6 +14,7 @@ test -f "$out/results.md"
 grep -q '^cpu .*, sse4 (a CPU with .*, held to sse4 by FILLGS_INSTRUCTION_SET)$' "$out/s1/backbone/step.txt"
 row=(choose.random.K2/pool_chosen.json scratch.random.K2/eval_near/metrics.json scratch.random.K2/eval_far/metrics.json)
 rm -rf "$out/before" && mkdir -p "$out/before"
+cp "$out/s1/backbone/model.sha256" "$out/before/model.sha256"
 for f in "${row[@]}"; do cp "$out/s1/$f" "$out/before/${f//\//_}"; done
 forget() {  # what a fresh checkout lacks: every model, and one strategy's steps
   find "$out/s1" "$out/dense" -name '*.ply' -delete
@@ -32,6 +33,17 @@ if FILLGS_INSTRUCTION_SET=native FILLGS=$fillgs bash "$script" --smoke "$out" >/
   exit 1
 fi
 grep -q "s1/backbone trained again is not the model its finished rows used (model.sha256)" "$out/resume.err"
+# A record cut to its first line vouches for init_points.ply alone: it is refused, and a
+# backbone trained on another instruction set (another model.ply, the same initial points)
+# does not get through it.
+forget
+head -n 1 "$out/before/model.sha256" >"$out/s1/backbone/model.sha256"
+if FILLGS_INSTRUCTION_SET=native FILLGS=$fillgs bash "$script" --smoke "$out" >/dev/null 2>"$out/resume.err"; then
+  echo "pool_select_resume: a model.sha256 that does not cover model.ply was trusted" >&2
+  exit 1
+fi
+grep -q "s1/backbone/model.sha256 names init_points.ply, not exactly the backbone's init_points.ply model.ply" "$out/resume.err"
+cp "$out/before/model.sha256" "$out/s1/backbone/model.sha256"
 # A backbone that does not come out as the one the finished rows used is refused.
 forget
 awk 'NR == 1 { $0 = (substr($0, 1, 1) == "0" ? "1" : "0") substr($0, 2) } { print }' "$out/s1/backbone/model.sha256" >"$out/sha.tmp"
@@ -42,4 +54,4 @@ if FILLGS=$fillgs bash "$script" --smoke "$out" >/dev/null 2>"$out/resume.err"; 
 fi
 grep -q "s1/backbone trained again is not the model its finished rows used (model.sha256)" "$out/resume.err"
 test ! -e "$out/s1/scratch.random.K2"
-echo "pool_select_resume: resumed from SSE4 records to the same choice and metrics; a backbone of another instruction set or hash refused"
+echo "pool_select_resume: resumed from SSE4 records to the same choice and metrics; a backbone of another instruction set or hash, and a record covering less than the backbone, refused"
