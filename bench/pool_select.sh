@@ -327,8 +327,8 @@ if [ $NO_WARM = 0 ]; then
       done
     done
     # What FillGS's and ExploreGS's weights do to real photographs (FillGS's selection), once:
-    # seed 1 at the smallest budget.
-    if [ "$s" = 1 ] && [[ ",$BUDGETS," == *",$WEIGHTS_K,"* ]]; then
+    # seed 1 at the smallest budget, where FillGS is among the strategies asked for.
+    if [ "$s" = 1 ] && [[ ",$BUDGETS," == *",$WEIGHTS_K,"* ]] && [[ " ${STRATEGIES[*]} " == *" fillgs "* ]]; then
       for w in fillgs exploregs; do
         finetune "$s" "fillgs.K$WEIGHTS_K.w-$w" --pool-cameras $POOL --pool-budget "$WEIGHTS_K" --strategy fillgs --weighting $w
       done
@@ -377,4 +377,5 @@ done
 size=$(oiiotool --info "${tiles[1]}" | sed -n 's/.* \([0-9]*\) x *\([0-9]*\).*/\1x\2/p' | head -n 1)
 tiles=("${tiles[0]}" --resize "$size" "${tiles[@]:1}")
 oiiotool --nosoftwareattrib "${tiles[@]}" --mosaic "$((${#ids[@]} + 1))x1" --resize 200% -o "$OUT/compare.png"
-echo "picture: ground truth | ${ids[*]} at held-out camera $cam, source frame $SRC -> $OUT/compare.png"
+tiles_named=$(printf ' | %s' "${ids[@]}")
+echo "picture: ground truth$tiles_named at held-out camera $cam, source frame $SRC -> $OUT/compare.png"

@@ -148,7 +148,7 @@ void read_one(const std::string& data) {
     }
     const size_t n = size_t(uint8_t(b[camera_bytes])) % 17, coefficients = size_t(uint8_t(b[camera_bytes + 1])) % 20;
     std::vector<float> v((n * (3 + 3 + 4 + 1) + n * coefficients * 3), 0.0f);
-    std::memcpy(v.data(), b.data() + camera_bytes + 2, std::min(v.size() * 4, b.size() - camera_bytes - 2));
+    if (!v.empty()) std::memcpy(v.data(), b.data() + camera_bytes + 2, std::min(v.size() * 4, b.size() - camera_bytes - 2));
     const float* at = v.data();
     gaussians_from_arrays(n, at, at + n * 3, at + n * 6, at + n * 10, coefficients ? at + n * 11 : nullptr, coefficients, "arrays");
   } else if (r == "image") {  // what a refiner hands back
