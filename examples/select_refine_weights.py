@@ -5,7 +5,7 @@ real observations support each pixel, saved as arrays a trainer of your own read
 
     examples/select_refine_weights.py --model MODEL --images DIR --cameras FILE
         [--train-cameras a,b] [--trajectories K] [--strategy fillgs] [--weighting fillgs]
-        [--refiner-command 'oiiotool {in} --median 3x3 -o {out}'] OUT
+        [--refiner-command 'oiiotool --wildcardoff --evaloff {in} --median 3x3 -o {out}'] OUT
 
 The refiner command runs once per rendered view, {in} and {out} PNG paths (the default, a
 3x3 median by OpenImageIO's oiiotool, stands in for a generative model). OUT/weighted_views.npz
@@ -38,7 +38,7 @@ def main():
     ap.add_argument("--strategy", default="fillgs")
     ap.add_argument("--weighting", default="fillgs")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--refiner-command", default="oiiotool {in} --median 3x3 -o {out}")
+    ap.add_argument("--refiner-command", default="oiiotool --wildcardoff --evaloff {in} --median 3x3 -o {out}")
     a = ap.parse_args()
     words = shlex.split(a.refiner_command)
     if not words or any(w in (";", "|", "||", "&", "&&", ">", ">>", "<") for w in words):
