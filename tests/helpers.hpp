@@ -29,6 +29,8 @@
 
 #include <tbb/task_arena.h>
 
+#include "fillgs/base/error.hpp"
+
 #include "fillgs/model/camera.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/model/gaussians.hpp"
@@ -59,6 +61,23 @@ struct EnvOverride {
   EnvOverride(const char* n, const std::string& value) : name(n) { ::setenv(n, value.c_str(), 1); }
   ~EnvOverride() { ::unsetenv(name.c_str()); }
 };
+
+/// Writes `bytes` to `path`, making its folders (a hand-made input file).
+inline void write(const std::string& path, const std::string& bytes) {
+  std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+  std::ofstream(path, std::ios::binary) << bytes;
+}
+
+/// The message of the fillgs::Error `f` throws ("" if none).
+template <typename F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
 
 /// A fresh, empty scratch folder under the system temp directory.
 inline std::string scratch(const std::string& name) {

@@ -610,7 +610,8 @@ def make_hostile(out, prefix, ed3dgs_run, fourdg_run, fourdgs_run):
     """Copies with values that are finite but would become indices out of range: an E-D3DGS
     camera time offset of 3e38 (its grid coordinate 2t - 1 overflows float32 to infinity), a
     4DGaussians aabb of extent 1e-45 (its scale 2 / extent is infinite in float32), 4DGS active
-    SH degrees of NaN and 1e300. Written as prefix + tag (the refusal tests, the fuzz seeds)."""
+    SH degrees of NaN and 1e300 and 2^31 - 1 SH channels. Written as prefix + tag (the refusal
+    tests, the fuzz seeds)."""
     def copy(run, tag):
         dst = os.path.join(out, prefix + tag)
         shutil.copytree(run, dst)
@@ -634,6 +635,16 @@ def make_hostile(out, prefix, ed3dgs_run, fourdg_run, fourdgs_run):
         os.makedirs(dst)
         capture, iteration = torch.load(os.path.join(fourdgs_run, src))
         torch.save(((degree,) + tuple(capture[1:]), iteration), os.path.join(dst, src))
+    # No Gaussians, but 2^31 - 1 SH channels claimed by an empty _features_rest (the count
+    # plus one wrapped to -2^31 in an int).
+    dst = os.path.join(out, prefix + "4dgs_sh_huge")
+    os.makedirs(dst)
+    capture, iteration = torch.load(os.path.join(fourdgs_run, src))
+    capture = list(capture)
+    for i in (1, 2, 4, 5, 6, 13, 14, 15):
+        capture[i] = capture[i][:0]
+    capture[3] = torch.empty(0, 2147483647, 3)
+    torch.save((tuple(capture), iteration), os.path.join(dst, src))
 
 
 BENCH_FORMATS = ("e-d3dgs", "4dgaussians", "4dgs", "dynamic3dgs", "ply-frames", "deformable3dgs", "e-d3dgs-still")

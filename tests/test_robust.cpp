@@ -43,23 +43,7 @@ namespace {
 
 using Result = CliResult;
 
-void write(const std::string& path, const std::string& bytes) {
-  fs::create_directories(fs::path(path).parent_path());
-  std::ofstream(path, std::ios::binary) << bytes;
-}
 
-
-/// One line, exit 1, naming every word; and no message that names nothing.
-void expect_error(const Result& r, const std::vector<std::string>& words) {
-  INFO("stderr: " << r.err);
-  CHECK(r.code == 1);
-  CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
-  for (const std::string& w : words) {
-    INFO("should mention '" << w << "'");
-    CHECK(r.err.find(w) != std::string::npos);
-  }
-  for (const char* nameless : {"error: stod", "error: stoull", "error: out of memory", "error: [json.exception", "error: cannot create std::vector"}) CHECK(r.err.find(nameless) == std::string::npos);
-}
 
 std::string npy_with_header(const std::string& dict) {
   std::string header = dict;

@@ -257,6 +257,7 @@ TEST_CASE("trained models: the bare canonical PLY and broken files are refused w
       {F + "/broken_aabb", "key 'deformation_net.grid.aabb' has an empty or degenerate extent on axis 0"},
       {F + "/broken_4dgs_degree_nan", "entry 0 (active SH degree) nan is not a whole number in [0, 3]"},
       {F + "/broken_4dgs_degree_huge", "entry 0 (active SH degree) 1e+300 is not a whole number in [0, 3]"},
+      {F + "/broken_4dgs_sh_huge", "entry 3 (_features_rest) has 2147483647 SH channels, more than the 47 of 4DGS's largest basis"},
       {F + "/4dgaussians", "give --model-frames"},
       {F + "/4dgs", "--model-time-range"},
       {F + "/deformable3dgs/point_cloud/iteration_40000/point_cloud.ply", "Deformable 3D Gaussians model (a deform/ folder lies beside it)"},

@@ -42,16 +42,6 @@ Dataset load_panoptic(const std::vector<std::string>& cameras, const std::string
   return Dataset::load(panoptic() + "/ims", panoptic() + "/train_meta.json", o);
 }
 
-/// The message of the fillgs::Error `f` throws ("" if none).
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
 
 }  // namespace
 

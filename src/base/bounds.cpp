@@ -26,6 +26,9 @@ std::string bounds_problem(double x, const Bounds& bounds, const std::string& te
 }
 
 void check_within(const std::string& what, double x, const Bounds& bounds) {
+  // As the command line's parser: NaN and infinities are no numbers (`--tau nan` is refused
+  // before its bounds are asked).
+  if (!std::isfinite(x)) throw_error(what, " expects a number, got ", number_text(x));
   const std::string why = bounds_problem(x, bounds);
   if (!why.empty()) throw_error(what, " ", why);
 }

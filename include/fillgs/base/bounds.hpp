@@ -24,7 +24,8 @@ Bounds from_below(double lo, double hi);   ///< [lo, hi)
 /// `text` is how the value was written (the command line's text); empty: x printed.
 std::string bounds_problem(double x, const Bounds& bounds, const std::string& text = "");
 
-/// Throws fillgs::Error "<what> must be ..., got ..." where x is outside the bounds.
+/// Throws fillgs::Error "<what> expects a number, got nan" where x is not finite (the command
+/// line's parser refuses such text), "<what> must be ..., got ..." where it is outside the bounds.
 void check_within(const std::string& what, double x, const Bounds& bounds);
 
 /// x as the messages print it (%g-like: 0.001, 1e+09).
