@@ -99,6 +99,12 @@ FILLGS=${FILLGS:-build/bin/fillgs}
 DATA=${FILLGS_SHARED_DATA:-../shared/data}
 STRATEGIES=(fillgs random negative interpolation fisherrf coverage3d coverage4d)
 [ -n "$ONLY" ] && IFS=, read -r -a STRATEGIES <<<"$ONLY"
+# A list naming an item twice is refused before anything runs (a seed twice would pair a run
+# with itself in the report: a zero-width interval read as "separated").
+for list in "--seeds $SEEDS" "--budgets $BUDGETS" "--strategies $ONLY"; do
+  twice=$(echo "${list#* }" | tr ',' '\n' | sed '/^$/d' | sort | uniq -d | head -n 1)
+  if [ -n "$twice" ]; then echo "pool_select: ${list% *} ${list#* }: $twice is given twice" >&2; exit 1; fi
+done
 BB=(--iterations 2000) DENSE=(--iterations 3000) FT=() INIT=()
 case $SCENE in
   panoptic)

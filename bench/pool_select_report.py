@@ -28,11 +28,13 @@ def load(path):
     """A run's JSON file (read once; callers only read it), or None where the run has not written it."""
     try:
         with open(path) as f:
-            return json.load(f)
+            return checked_record(path, json.load(f))
     except FileNotFoundError:
         return None
     except (ValueError, UnicodeDecodeError) as e:
         raise ReportError(f"{path}: not a JSON file ({e})") from None
+    except IsADirectoryError:
+        raise ReportError(f"{path}: a folder, not a JSON file") from None
 
 
 def number(value, path, where):
@@ -42,6 +44,36 @@ def number(value, path, where):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ReportError(f"{path}: {where} is {json.dumps(value)[:40]}, not a finite number")
     return float(value)
+
+
+def checked_record(path, value):
+    """A summary.json or pool_chosen.json as the pool script's runs write them, checked once
+    where it is read: every field the report uses has its type, or one line names the file."""
+    if value is None:
+        return None
+    def need(ok, what):
+        if not ok:
+            raise ReportError(f"{path}: {what}")
+    need(isinstance(value, dict), "expected a JSON object")
+    name = os.path.basename(path)
+    if name == "pool_chosen.json":
+        need(isinstance(value.get("chosen"), list), "'chosen' is not a list")
+        for i, c in enumerate(value["chosen"]):
+            need(isinstance(c, dict) and all(k in c for k in ("camera", "frame", "score")), f"chosen[{i}] lacks camera, frame or score")
+            need(isinstance(c["camera"], (str, int)) and isinstance(c["frame"], int) and not isinstance(c["frame"], bool),
+                 f"chosen[{i}] has a camera or frame of the wrong type")
+            number(c["score"], path, f"chosen[{i}].score")
+    elif name == "summary.json":
+        if "virtual_views" in value:
+            number(value["virtual_views"], path, "virtual_views")
+        if "rounds" in value:
+            need(isinstance(value["rounds"], list), "'rounds' is not a list")
+            for i, r in enumerate(value["rounds"]):
+                need(isinstance(r, dict) and isinstance(r.get("seconds"), dict), f"rounds[{i}] has no seconds")
+                for key, v in (("views_added", r.get("views_added")), ("mean_weight", r.get("mean_weight")), ("seconds.select", r["seconds"].get("select"))):
+                    need(v is not None, f"rounds[{i}] lacks {key}")
+                    number(v, path, f"rounds[{i}].{key}")
+    return value
 
 
 def gnuplot_text(text):
@@ -190,9 +222,9 @@ def main():
     ap.add_argument("--budgets", default="10,30,90")
     ap.add_argument("--splits", default="near,far")
     a = ap.parse_args()
-    seeds = a.seeds.split(",")
-    budgets = a.budgets.split(",")
-    splits = a.splits.split(",")
+    seeds = [x.strip() for x in a.seeds.split(",")]
+    budgets = [x.strip() for x in a.budgets.split(",")]
+    splits = [x.strip() for x in a.splits.split(",")]
     for flag, given in (("--seeds", seeds), ("--budgets", budgets), ("--splits", splits)):
         twice = sorted({x for x in given if given.count(x) > 1})
         if twice or "" in given:

@@ -131,6 +131,10 @@ TEST_CASE("a kept result.json is checked against the run it is reused for, and a
   CHECK(error_of([&] { load_result(dir + "/n3v_s1/runs/control/result.json", "control", 2); }).find("holds seed 1's result, not seed 2's") !=
         std::string::npos);
   CHECK(load_result(dir + "/n3v_s1/runs/control/result.json", "control", 1).id == "control");
+  control.variant = "technicolor";  // the same run of another scene
+  save_result(dir + "/n3v_s1/runs/control/result.json", control);
+  CHECK(error_of([&] { load_result(dir + "/n3v_s1/runs/control/result.json", "control", 1, "n3v"); })
+            .find("holds the result of scene 'technicolor', not of scene 'n3v'") != std::string::npos);
   write(dir + "/n3v_s1/options.json", "{}");  // the bench's tables refuse the copied record too
   CHECK(error_of([&] { collect_results(dir); }).find("random.w-none") != std::string::npos);
   write(dir + "/summary.json", "[1]");

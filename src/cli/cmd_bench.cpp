@@ -105,7 +105,7 @@ int bench(const BenchFlags& f, const Invocation& in) {
       const bool all_finished = std::none_of(chosen.begin(), chosen.end(), needs_backbone);
       RunResult bb;
       if (fs::exists(bb_path)) {
-        bb = load_result(bb_path, "backbone", seed);
+        bb = load_result(bb_path, "backbone", seed, eo.scene_name());
       } else if (!all_finished) {
         ensure_backbone(p, progress, in.out);
         bb = evaluate_model(p, p.backbone, "backbone", "", progress);

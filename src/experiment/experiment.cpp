@@ -178,8 +178,10 @@ RunResult load_result(const std::string& path) {
   }
 }
 
-RunResult load_result(const std::string& path, const std::string& id, uint64_t seed) {
+RunResult load_result(const std::string& path, const std::string& id, uint64_t seed, const std::string& scene) {
   RunResult r = load_result(path);
+  if (!scene.empty() && r.variant != scene)
+    throw_error(path, ": holds the result of scene '", r.variant, "', not of scene '", scene, "'; delete it to run ", id, " again");
   if (r.id != id)
     throw_error(path, ": holds run '", r.id, "', not '", id, "' whose folder it is in (a copied or moved record); delete it to run ", id, " again");
   if (seed > 0 && r.seed != seed) throw_error(path, ": holds seed ", r.seed, "'s result, not seed ", seed, "'s; delete it to run ", id, " again");
@@ -719,7 +721,7 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
     if (!diff.empty())
       throw_error(identity_path, ": run ", c.id, " was made with other options (", diff, "); use another --out, or delete ", dir,
                   " to run it again");
-    RunResult r = load_result(result_path, c.id, p.options.seed);
+    RunResult r = load_result(result_path, c.id, p.options.seed, p.options.scene_name());
     log << c.id << ": reused " << result_path << "\n";
     return r;
   }

@@ -150,3 +150,27 @@ def test_a_seed_given_twice_is_refused(tmp_path):
     r = report(root, "--seeds", "1,1")
     assert r.returncode == 2 and "--seeds 1,1: 1 is given twice" in r.stderr, r.stderr
     assert not os.path.exists(os.path.join(root, "results.md"))
+
+
+def test_damaged_summaries_and_choices_are_named(tmp_path):
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    cases = ((os.path.join(root, "s1", "scratch.random.K30", "summary.json"), '{"seconds": 100.0, "rounds": 5}', "'rounds' is not a list"),
+             (os.path.join(root, "s1", "scratch.random.K30", "summary.json"), '{"seconds": "a while"}', 'seconds is "a while"'),
+             (os.path.join(root, "s2", "choose.negative.K30", "pool_chosen.json"), '{"chosen": [{"camera": "9"}]}', "chosen[0] lacks camera, frame or score"))
+    for path, text, words in cases:
+        before = open(path).read()
+        with open(path, "w") as f:
+            f.write(text)
+        r = report(root, "--seeds", "1,2,3")
+        assert r.returncode == 1 and "Traceback" not in r.stderr and path in r.stderr and words in r.stderr, r.stderr
+        with open(path, "w") as f:
+            f.write(before)
+
+
+def test_pool_script_refuses_a_list_naming_an_item_twice(tmp_path):
+    for flag, value, twice in (("--seeds", "1,2,1", "1"), ("--strategies", "random,random", "random")):
+        r = subprocess.run(["bash", os.path.join(SOURCE, "bench", "pool_select.sh"), flag, value, "--smoke", str(tmp_path / "pool")],
+                           capture_output=True, text=True, cwd=SOURCE)
+        assert r.returncode == 1 and f"pool_select: {flag} {value}: {twice} is given twice" in r.stderr, r.stderr
+        assert not os.path.exists(tmp_path / "pool")

@@ -157,8 +157,8 @@ RunResult run_config(const PreparedScene& scene, const RunConfig& config, const 
 void save_result(const std::string& path, const RunResult& result);
 RunResult load_result(const std::string& path);
 /// A kept run's result.json, checked against the run it is reused for: its id (and, where
-/// seed > 0, its seed) must be that run's, or one line names the file and both values.
-RunResult load_result(const std::string& path, const std::string& id, uint64_t seed = 0);
+/// given, its seed > 0 and its scene) must be that run's, or one line names the file and both values.
+RunResult load_result(const std::string& path, const std::string& id, uint64_t seed = 0, const std::string& scene = "");
 
 /// Every result stored under a benchmark root: <scene>_s<seed>/backbone/result.json and
 /// <scene>_s<seed>/runs/*/result.json, sorted by scene then configuration order of
