@@ -378,6 +378,7 @@ Model load_model(const std::string& path, const std::string& format, int frames,
   require_file(path);
   SceneReadOptions o;
   o.format = format == "auto" ? format : model_format(format).name;
+  check_within("frames", frames, at_least(0));  // --model-frames' bounds
   o.model_frames = frames;
   o.model_time_range = time_range;
   o.model_evaluation = parse_name<ModelEvaluation>(evaluation);

@@ -109,6 +109,11 @@ def test_still_tolerance_refused_not_defaulted(value, words):
         fillgs.load_model(os.path.join(FIXTURES, "ed3dgs"), still_tolerance=value)
 
 
+def test_model_frames_take_the_flags_bounds():
+    with pytest.raises(fillgs.Error, match="frames must be at least 0, got -5"):  # was read as "from cfg_args"
+        fillgs.load_model(os.path.join(FIXTURES, "ed3dgs"), frames=-5)
+
+
 def test_render_background_and_times(scene):
     m, cams = scene
     with pytest.raises(fillgs.Error, match=r"background\[0\] expects a number, got nan"):
