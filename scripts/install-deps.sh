@@ -28,6 +28,7 @@ packages=(
 python=(
   pybind11-dev python3-dev # the Python module (src/python)
   python3-numpy            # its arrays
+  python3-pip python3-venv python3-setuptools python3-wheel  # `pip install --no-build-isolation .` (pyproject.toml, setup.py) into a venv
 )
 tests=(
   catch2                   # Catch2 2.13

@@ -114,7 +114,7 @@ int run(const std::vector<std::string>& args, std::ostream& out, std::ostream& e
     limit_instruction_set_from_environment();
     if (args[0] == "--version") {
       const std::string& cap = instruction_set_limit();
-      out << "fillgs 0.1.0\nkernels: " << kernel_instruction_set()
+      out << "fillgs " << FILLGS_VERSION << "\nkernels: " << kernel_instruction_set()
           << (cap.empty() ? std::string(" (the CPU's widest)") : " (held to " + cap + " by FILLGS_INSTRUCTION_SET)") << "\n";
       return 0;
     }

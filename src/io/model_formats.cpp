@@ -77,7 +77,7 @@ const ModelFormat* find_model_format(const std::string& path) {
     // format detection asks first: the user says which.
     if (found)
       throw_error(path, ": holds both a ", found->name, " model and a ", f->name, " model; give --scene-format ", found->name, " or ",
-                  f->name, " (Python: format=)");
+                  f->name);
     found = f;
   }
   return found;

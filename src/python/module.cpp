@@ -12,6 +12,7 @@
 #include <pybind11/stl.h>
 
 #include <algorithm>
+#include <cctype>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -118,6 +119,44 @@ void require_file(const std::string& path) {
   }
 }
 
+// ------------------------------------------------------------------ messages
+
+/// A library message with the command line's flags named as this module's keywords:
+/// "--model-frames F" -> "frames=F", "--tau" -> "tau=". Flags without a keyword stay.
+std::string as_keywords(const std::string& message) {
+  static const std::pair<const char*, const char*> kKeywords[] = {
+      {"--model-frames", "frames"}, {"--model-time-range", "time_range"}, {"--scene-format", "format"}, {"--model-evaluation", "evaluation"},
+      {"--still-tolerance", "still_tolerance"}, {"--camera-format", "format"}, {"--train-cameras", "train_cameras"}, {"--downscale", "downscale"},
+      {"--frames", "frames"}, {"--times", "times"}, {"--mode", "mode"}, {"--stride", "stride"}, {"--tau", "tau"}, {"--hit-cache", "hit_cache_mb"},
+      {"--divisions", "divisions"}, {"--strategy", "strategy"}, {"--trajectories", "trajectories"}, {"--weighting", "weighting"},
+      {"--background", "background"}};
+  std::string out;
+  for (size_t i = 0; i < message.size();) {
+    bool replaced = false;
+    if (message.compare(i, 2, "--") == 0 && (i == 0 || !std::isalnum(static_cast<unsigned char>(message[i - 1])))) {
+      size_t end = i + 2;
+      while (end < message.size() && (std::isalnum(static_cast<unsigned char>(message[end])) || message[end] == '-')) ++end;
+      const std::string flag = message.substr(i, end - i);
+      for (const auto& [f, keyword] : kKeywords)
+        if (flag == f) {
+          // "--model-frames F" -> "frames=F": the value the flag names follows without the
+          // space; a word of the sentence ("--tau must be ...") keeps it.
+          size_t word_end = end + 1;
+          while (word_end < message.size() && message[word_end] != ' ' && message[word_end] != ',' && message[word_end] != ')') ++word_end;
+          static const char* kWords[] = {"and", "or", "must", "is", "expects", "takes", "given", "has", "needs", "with", "to", "for", "of", "in", "at"};
+          const std::string next = end < message.size() && message[end] == ' ' ? message.substr(end + 1, word_end - end - 1) : "";
+          const bool value = !next.empty() && std::none_of(std::begin(kWords), std::end(kWords), [&](const char* w) { return next == w; });
+          out += std::string(keyword) + "=";
+          i = end + (value ? 1 : 0);
+          replaced = true;
+          break;
+        }
+    }
+    if (!replaced) out += message[i++];
+  }
+  return out;
+}
+
 // ------------------------------------------------------------------ progress
 
 /// The Python exception that stopped a long call (Ctrl-C's KeyboardInterrupt, or what a
@@ -158,6 +197,9 @@ class PyProgress : public Progress {
         tqdm_ = py::module_::import("tqdm").attr("tqdm");
       } catch (const py::error_already_set&) {
         PyErr_Clear();
+        // Said once, not silently dropped: the caller asked for a bar.
+        if (PyErr_WarnEx(PyExc_RuntimeWarning, "progress=True: tqdm is not installed, so no progress bar is shown (install tqdm, or pass a callable (label, done, total))", 1) != 0)
+          throw py::error_already_set();
       }
       return;
     }
@@ -784,16 +826,22 @@ py::list weights_py(const Model& model, const Cameras& cameras, const py::object
 }  // namespace
 }  // namespace fillgs::python
 
-PYBIND11_MODULE(fillgs, m) {
+PYBIND11_MODULE(_fillgs, m) {
   using namespace fillgs;
   using namespace fillgs::python;
   m.doc() = "fillgs: observation counts, motion-aware deficiency and renders of 4D Gaussian models, as NumPy arrays";
-  py::register_exception<Error>(m, "Error", PyExc_ValueError);
+  m.attr("__version__") = FILLGS_VERSION;  // the project's version (CMakeLists.txt), as `fillgs --version` prints it
+  // fillgs.Error (a ValueError) carries the library's one line, the command line's flags in
+  // it named as this module's keywords ("give frames=F" where the command line says "give
+  // --model-frames F").
+  static py::exception<Error> error_type(m, "Error", PyExc_ValueError);
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
     } catch (const Cancelled&) {
       pending_error().raise();
+    } catch (const Error& e) {
+      PyErr_SetString(error_type.ptr(), as_keywords(e.what()).c_str());
     }
   });
   limit_instruction_set_from_environment();  // FILLGS_INSTRUCTION_SET, as the command line keeps to it

@@ -1,0 +1,74 @@
+"""The package as users of Python packages expect it: __version__ as `fillgs --version` says,
+signatures inspect can read, stubs whose keywords and defaults are the functions' own (read
+from the stub file with ast, compared with the runtime signatures), errors that name the
+Python keyword where the command line names a flag, and progress=True saying when tqdm is
+missing. The install into a fresh venv is CTest's python_install (tests/CMakeLists.txt).
+
+Run by CTest's python_module with test_module.py (same environment)."""
+import ast
+import inspect
+import os
+import subprocess
+import sys
+import warnings
+
+import pytest
+
+import fillgs
+
+CLI = os.environ["FILLGS_BIN"]
+FIXTURES = os.environ["FILLGS_MODEL_FIXTURES"]
+STUBS = os.path.join(os.path.dirname(fillgs.__file__), "__init__.pyi")
+
+
+def test_version_is_the_command_lines():
+    first = subprocess.run([CLI, "--version"], capture_output=True, text=True, check=True).stdout.splitlines()[0]
+    assert first == f"fillgs {fillgs.__version__}"
+
+
+def stub_functions():
+    tree = ast.parse(open(STUBS).read())
+    out = {n.name: n for n in tree.body if isinstance(n, ast.FunctionDef)}
+    for c in (n for n in tree.body if isinstance(n, ast.ClassDef)):
+        for f in (n for n in c.body if isinstance(n, ast.FunctionDef) and n.name == "__init__"):
+            out[c.name] = f
+    return out
+
+
+def test_every_function_has_a_signature_and_a_stub_that_agree():
+    stubs = stub_functions()
+    public = [n for n in dir(fillgs) if not n.startswith("_") and (callable(getattr(fillgs, n)) and n[0].islower() or n == "Cameras")]
+    assert public, dir(fillgs)
+    for name in public:
+        sig = inspect.signature(getattr(fillgs, name))
+        assert name in stubs, f"{name} has no stub"
+        args = stubs[name].args
+        names = [a.arg for a in args.args if a.arg != "self"]
+        assert names == list(sig.parameters), (name, names, list(sig.parameters))
+        defaults = [ast.literal_eval(d) for d in args.defaults]
+        runtime = [p.default for p in sig.parameters.values() if p.default is not inspect.Parameter.empty]
+        assert defaults == runtime, (name, defaults, runtime)
+
+
+def test_errors_name_the_keyword_not_the_flag():
+    with pytest.raises(fillgs.Error) as e:
+        fillgs.load_model(os.path.join(FIXTURES, "4dgs"))
+    assert "give frames=F and time_range=T0:T1" in str(e.value) and "--model-frames" not in str(e.value)
+    r = subprocess.run([CLI, "info", os.path.join(FIXTURES, "4dgs")], capture_output=True, text=True)
+    assert "give --model-frames F and --model-time-range T0:T1" in r.stderr  # the same line, in the command line's words
+
+
+def test_progress_true_without_tqdm_says_so(tmp_path):
+    """A fresh interpreter in which tqdm cannot be imported (a module of that name that fails)."""
+    (tmp_path / "tqdm.py").write_text("raise ImportError('no tqdm here')\n")
+    code = ("import warnings, fillgs, numpy as np\n"
+            "m = fillgs.model_from_arrays(dict(means=np.zeros((1, 3)), log_scales=np.full((1, 3), -2.0), quaternions=[[1, 0, 0, 0]], opacity_logits=[0.0]))\n"
+            "c = fillgs.Cameras(np.array([[[100.0, 0, 32], [0, 100, 24], [0, 0, 1]]]), np.eye(4)[None], 64, 48)\n"
+            "with warnings.catch_warnings(record=True) as w:\n"
+            "    warnings.simplefilter('always')\n"
+            "    fillgs.observe(m, c, frames=2, progress=True)\n"
+            "print([str(x.message) for x in w])\n")
+    env = dict(os.environ, PYTHONPATH=str(tmp_path) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert r.returncode == 0, r.stderr
+    assert "progress=True: tqdm is not installed, so no progress bar is shown" in r.stdout
