@@ -121,8 +121,8 @@ def walkthrough(repo, fillgs):
         cams = json.load(open(os.path.join(scene, "transforms_train.json")))
         cams["frames"] = [f for f in cams["frames"] if "/cam04/" in f["file_path"] or "/cam06/" in f["file_path"]]
         json.dump(cams, open(os.path.join(work, "cameras.json"), "w"))
-        os.symlink(os.path.join(repo, "scripts"), os.path.join(work, "scripts"))
-        env = dict(os.environ, MODEL=os.path.join(scene, "scene.ply"), CAMERAS=os.path.join(work, "cameras.json"),
+        # Run from a folder that is not the checkout: the refiner's path is the checkout's own.
+        env = dict(os.environ, FILLGS_SRC=repo, MODEL=os.path.join(scene, "scene.ply"), CAMERAS=os.path.join(work, "cameras.json"),
                    IMAGES=scene, HELDOUT=os.path.join(scene, "transforms_interpolation.json"), F="3",
                    PATH=os.path.dirname(os.path.abspath(fillgs)) + os.pathsep + os.environ.get("PATH", ""))
         r = subprocess.run(["bash", "-euo", "pipefail", "-c", block], cwd=work, env=env,

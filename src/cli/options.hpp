@@ -68,8 +68,8 @@ struct Invocation {
     const CLI::Option* o = app.get_option_no_throw(flag);
     return o && o->count() > 0;
   }
-  /// The progress bar: on a terminal, unless --quiet.
-  bool progress() const { return !common.quiet && ::isatty(2); }
+  /// Progress on stderr unless --quiet: a bar on a terminal, lines in a log (TerminalProgress).
+  bool progress() const { return !common.quiet; }
   /// Throws the one-line error "fillgs <command>: <parts>".
   template <typename... Parts>
   [[noreturn]] void fail(const Parts&... parts) const {
