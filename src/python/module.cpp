@@ -375,6 +375,7 @@ class CallerFrames : public MotionSource {
     return std::make_shared<ModelState>(all->rows(rows));
   }
   int frame_count() const override { return frames_; }
+  bool one_pass() const override { return true; }  // the caller's network runs once per frame
   /// After the engine returns (GIL held): the frame function's own exception, raised again,
   /// or a check's ValueError.
   void raise_failure() const {

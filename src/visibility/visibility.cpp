@@ -948,8 +948,9 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
   // The static answers keep the hits of the rays in the dynamic proxies' footprints: swept
   // over every frame of this run, or (off) those of the frame that answers.
   std::vector<ProxyBox> swept;
+  // The sweep reads every frame ahead of the walk: not where the motion is to be read once.
   const bool sweep = incremental && tracer && options.keep_at_static_answers && options.sweep_static_answers && options.footprints &&
-                     options.static_hit_cache_bytes > 0;
+                     options.static_hit_cache_bytes > 0 && !(cloud.source && cloud.source->one_pass());
   progress.start("observe", frames.size());
   for (size_t f : frames) {
     if (f != frames[0]) {

@@ -140,12 +140,16 @@ def test_observe_frame_function_equals_model(cameras_file):
         calls.append(f)
         return m.at(f / 9)
 
-    want = fillgs.observe(m, cams)
-    got = fillgs.observe(frame, cams, frames=10)
-    for key in ("counts", "speed", "deficiency", "times"):
-        assert got[key].tobytes() == want[key].tobytes(), key
-    assert sorted(set(calls)) == list(range(10))
-    assert len(calls) <= 12  # each frame once, give or take the kept three
+    for mode in ("frustum", "raytraced"):
+        calls.clear()
+        want = fillgs.observe(m, cams, mode=mode)
+        got = fillgs.observe(frame, cams, frames=10, mode=mode)
+        for key in ("counts", "speed", "deficiency", "times"):
+            assert got[key].tobytes() == want[key].tobytes(), (mode, key)
+        assert sorted(set(calls)) == list(range(10)), mode
+        # Each frame once, give or take the kept three (ray traced, the swept boxes asked for
+        # every frame ahead of the walk: 21 calls for 10 frames).
+        assert len(calls) <= 12, (mode, calls)
 
 
 def test_observe_frame_function_errors(cameras_file):

@@ -48,6 +48,10 @@ class MotionSource {
   virtual std::shared_ptr<const ModelState> evaluate(double t, const std::vector<uint32_t>& rows) const = 0;
   /// Frames the model covers (frame f at t = f / (frames - 1)).
   virtual int frame_count() const = 0;
+  /// Whether each frame should be asked for once only, in order (a caller's own network, run
+  /// for every frame it is asked): commands then skip passes that read every frame ahead of
+  /// their walk (observe's swept boxes of the moving Gaussians), which are shortcuts only.
+  virtual bool one_pass() const { return false; }
 };
 
 /// Spacetime Gaussians motion (polynomial position, linear rotation, temporal RBF opacity).
