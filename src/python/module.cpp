@@ -597,7 +597,7 @@ py::dict observe_py(const Model& model, const std::shared_ptr<const CallerFrames
 
 py::dict render_py(const Model& model, const Cameras& cameras, size_t index, double t, const std::vector<float>& background) {
   if (index >= cameras.list.size()) throw py::index_error("camera " + std::to_string(index) + ": there are " + std::to_string(cameras.list.size()));
-  if (!std::isfinite(t) || t < 0.0 || t > 1.0) throw py::value_error("t: " + std::to_string(t) + ", expected a time in [0, 1]");
+  check_within("t", t, within(0, 1));  // as Model.at
   if (background.size() != 3) throw py::value_error("background: expected three values");
   for (size_t k = 0; k < 3; ++k) check_within("background[" + std::to_string(k) + "]", background[k], within(0, 1));  // --background's range
   RenderOptions o;

@@ -122,6 +122,8 @@ def test_render_background_and_times(scene):
         fillgs.render(m, cams, background=[0, 2, 0])
     with pytest.raises(fillgs.Error, match=r"t must be in \[0, 1\], got 5"):
         m.at(5.0)  # clamped to 1 before, where render refuses
+    with pytest.raises(fillgs.Error, match=r"t expects a number, got nan"):
+        fillgs.render(m, cams, t=float("nan"))  # the same words as Model.at
     assert np.isfinite(fillgs.render(m, cams, background=[0.2, 0.3, 0.4])["colour"]).all()
 
 
