@@ -42,6 +42,7 @@
 #include "fillgs/model/frame_grid.hpp"
 #include "fillgs/model/gaussians.hpp"
 #include "fillgs/render/raster.hpp"
+#include "fillgs/train/train.hpp"
 #include "fillgs/visibility/observe_io.hpp"
 #include "fillgs/visibility/visibility.hpp"
 
@@ -772,7 +773,8 @@ py::dict select_py(const Model& model, const Cameras& cameras, int frames, const
 /// The fine-tuning weights of refined images against `model` and the observed views
 /// (`cameras` with `images`), as `fillgs finetune` computes them for each refined view.
 py::list weights_py(const Model& model, const Cameras& cameras, const py::object& images, const py::object& refined, const Cameras& refined_cameras,
-                    const std::string& weighting, int frames, const py::object& progress) {
+                    const std::string& weighting, int frames, const py::object& mask_sigma, const std::string& mask_method, const std::string& covis,
+                    const std::string& covis_scale, bool normalise, const py::object& progress) {
   const GaussianCloud& cloud = *model.cloud;
   const std::pair<std::vector<ObservedView>, int> viewed = views_of(cloud, cameras, frames);
   const std::vector<ObservedView>& views = viewed.first;
@@ -785,7 +787,14 @@ py::list weights_py(const Model& model, const Cameras& cameras, const py::object
   }
   const std::vector<std::vector<float>> given = images_for(refined, refined_views, "refined");
   const Weighting w = parse_name<Weighting>(weighting);
-  const MaskOptions mask;
+  // finetune's options (--mask-sigma, --mask, --covis, --covis-scale, --normalise-weights),
+  // with its bounds; the background is its training's (black), as finetune's context has it.
+  MaskOptions mask;
+  if (const auto x = number_or_none(mask_sigma, "mask_sigma", positive())) mask.sigma = *x;
+  mask.method = parse_name<MaskMethod>(mask_method);
+  mask.covisibility = parse_name<Covisibility>(covis);
+  mask.scale = parse_name<CovisibilityScale>(covis_scale);
+  mask.normalise = normalise;
   SelectOptions so;
   PyProgress shown(progress);
   std::vector<ViewWeights> out;
@@ -804,10 +813,12 @@ py::list weights_py(const Model& model, const Cameras& cameras, const py::object
     ctx.image = [&](size_t i) { return Image(views[i].camera.width, views[i].camera.height, 3, observed[i]); };
     ctx.deficiency = &field;
     ctx.frames = F;
+    ctx.background = TrainOptions().background;
     shown.start("weights (" + weighting + ")", given.size());
     for (size_t i = 0; i < given.size(); ++i) {
       const Camera& c = refined_cameras.list[i];
       out.push_back(compute_weights(ctx, Image(c.width, c.height, 3, given[i]), c, w, mask));
+      if (mask.normalise) normalise_by_mean(out.back().weight);  // as finetune weighs its loss
       shown.advance(1);
     }
     shown.finish();
@@ -974,11 +985,14 @@ PYBIND11_MODULE(_fillgs, m) {
         "coverage4d). `images`: the observed views' images (their order: load_views) for the priority's error term. Returns a dict: "
         "trajectories (list of Trajectory), deficiency_scale, notes, grid.");
   m.def("weights", &weights_py, py::arg("model"), py::arg("cameras"), py::arg("images"), py::arg("refined"), py::arg("refined_cameras"),
-        py::arg("weighting") = "fillgs", py::arg("frames") = 0, py::arg("progress") = py::none(),
+        py::arg("weighting") = "fillgs", py::arg("frames") = 0, py::arg("mask_sigma") = py::none(),
+        py::arg("mask") = std::string(to_string(MaskOptions().method)), py::arg("covis") = std::string(to_string(MaskOptions().covisibility)),
+        py::arg("covis_scale") = std::string(to_string(MaskOptions().scale)), py::arg("normalise") = false, py::arg("progress") = py::none(),
         "Fine-tuning weights of refined images (float32 [H,W,3] each, at refined_cameras, which carry times) against the model and its observed "
         "views (cameras with their images), as `fillgs finetune` computes them: a list of dicts weight [H,W] (the loss weight), consistency and "
         "covisibility [H,W] (None where the weighting has none). Weightings: fillgs, none, no-consistency, no-covisibility, 3dgs-enhancer, "
-        "exploregs, ua-4dgs.");
+        "exploregs, ua-4dgs. mask_sigma (None: 0.05), mask, covis, covis_scale and normalise are finetune's --mask-sigma, --mask, --covis, "
+        "--covis-scale and --normalise-weights.");
 
   m.def("render", &render_py, py::arg("model"), py::arg("cameras"), py::arg("index") = 0, py::arg("t") = 0.0,
         py::arg("background") = std::vector<float>{0, 0, 0},

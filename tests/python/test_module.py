@@ -389,13 +389,17 @@ def test_select_equals_cli(tmp_path, synth, strategy):
         np.testing.assert_allclose(np.concatenate([g[key] for g in got]), want[key], atol=1e-9, err_msg=key)
 
 
-def test_weights_equal_finetune_maps(tmp_path, synth):
-    """weights() gives the weight maps `fillgs finetune` writes beside each refined image (8-bit)."""
+@pytest.mark.parametrize("flags, keywords", [([], {}),
+                                             (["--mask-sigma", "0.2", "--covis-scale", "global", "--covis", "density"],
+                                              dict(mask_sigma=0.2, covis_scale="global", covis="density"))])
+def test_weights_equal_finetune_maps(tmp_path, synth, flags, keywords):
+    """weights() gives the weight maps `fillgs finetune` writes beside each refined image (8-bit),
+    with finetune's options as keywords."""
     out = str(tmp_path / "ft")
     script = os.path.join(SOURCE, "scripts", "refiners", "median_denoise.sh")
     r = cli("finetune", "--model", f"{synth}/scene.ply", "--images", synth, "--cameras", f"{synth}/transforms_train.json",
             "--train-cameras", "cam04,cam06", "--out", out, "--iterations", "10", "--select-every", "10", "--trajectories", "1",
-            "--refiner", "external", "--refiner-command", f"bash {script} {{in}} {{out}}", "--quiet")
+            "--refiner", "external", "--refiner-command", f"bash {script} {{in}} {{out}}", "--quiet", *flags)
     assert r.returncode == 0, r.stderr
     views = fillgs.load_views(synth, f"{synth}/transforms_train.json", train_cameras=["cam04", "cam06"])
     assert len(views["images"]) == 6 and views["images"][0].shape == (36, 48, 3)
@@ -407,8 +411,20 @@ def test_weights_equal_finetune_maps(tmp_path, synth):
     refined_cams = fillgs.Cameras(K, np.linalg.inv(c2w), 48, 36, time=np.array([im["time"] for im in items]))
     stems = [f"{out}/work/refined/r0_t00/{os.path.splitext(im['file'])[0]}" for im in items]
     refined = [fillgs.read_image(s + ".png") for s in stems]
-    got = fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], views["images"], refined, refined_cams, weighting="fillgs")
+    got = fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], views["images"], refined, refined_cams, weighting="fillgs",
+                         **keywords)
     assert len(got) == len(items)
+    if keywords:  # the options change the maps (else the comparison below proves nothing about them)
+        plain = fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], views["images"], refined, refined_cams)
+        assert any(np.abs(a["weight"] - b["weight"]).max() > 2 / 255 for a, b in zip(got, plain))
+        scaled = fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], views["images"], refined, refined_cams,
+                                normalise=True, **keywords)
+        for a, b in zip(scaled, got):
+            if b["weight"].mean() > 0:
+                assert a["weight"] == pytest.approx(b["weight"] / b["weight"].mean(), rel=1e-5, abs=1e-6)
+        with pytest.raises(fillgs.Error, match="mask_sigma must be positive, got 0"):
+            fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], views["images"], refined, refined_cams, mask_sigma=0)
+        return
     for g, s in zip(got, stems):
         for key, suffix in (("weight", "_weight.png"), ("consistency", "_mask.png"), ("covisibility", "_covis.png")):
             want = fillgs.read_image(s + suffix)[:, :, 0]
