@@ -1,6 +1,7 @@
 #include "fillgs/io/array_input.hpp"
 
 #include <cmath>
+#include <algorithm>
 #include <cstring>
 
 #include "fillgs/base/error.hpp"
@@ -76,6 +77,34 @@ ModelState gaussians_from_arrays(size_t n, const float* means, const float* log_
   s.sh_degree = degree;
   s.sh.assign(sh, sh + n * sh_coefficients * 3);
   return s;
+}
+
+ObservationTables tables_from_arrays(size_t T, size_t N, const uint16_t* counts, const float* speed, const float* deficiency, const double* times,
+                                     size_t M, const uint32_t* dynamic_ids, const GaussianCloud& model) {
+  if (N != model.size()) throw_error("tables: ", N, " Gaussians, the model has ", model.size(), " (another model's tables?)");
+  if (M != model.dynamic_ids.size() || !std::equal(dynamic_ids, dynamic_ids + M, model.dynamic_ids.begin()))
+    throw_error("tables: dynamic_ids are not the model's ", model.dynamic_ids.size(), " moving Gaussians (another model's tables?)");
+  if (T == 0) throw_error("tables: no times");
+  for (size_t f = 0; f < T; ++f)
+    if (!(times[f] >= 0.0 && times[f] <= 1.0) || (f && !(times[f] > times[f - 1])))
+      throw_error("tables: times element ", f, " is ", times[f], ", expected ascending times in [0, 1]");
+  ObservationTables t;
+  t.times.assign(times, times + T);
+  t.gaussians = N;
+  t.dynamic_ids.assign(dynamic_ids, dynamic_ids + M);
+  t.counts.assign(counts, counts + T * N);
+  t.dynamic_speed.resize(T * M);
+  t.dynamic_deficiency.resize(T * M);
+  for (size_t f = 0; f < T; ++f)
+    for (size_t j = 0; j < M; ++j) {
+      const size_t g = f * N + dynamic_ids[j];
+      if (!(speed[g] >= 0.0f && std::isfinite(speed[g]) && deficiency[g] >= 0.0f && std::isfinite(deficiency[g])))
+        throw_error("tables: frame ", f, " Gaussian ", dynamic_ids[j], " has speed ", speed[g], " and deficiency ", deficiency[g],
+                    ", expected finite values >= 0");
+      t.dynamic_speed[f * M + j] = speed[g];
+      t.dynamic_deficiency[f * M + j] = deficiency[g];
+    }
+  return t;
 }
 
 }  // namespace fillgs

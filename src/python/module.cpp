@@ -774,7 +774,7 @@ py::dict select_py(const Model& model, const Cameras& cameras, int frames, const
 /// (`cameras` with `images`), as `fillgs finetune` computes them for each refined view.
 py::list weights_py(const Model& model, const Cameras& cameras, const py::object& images, const py::object& refined, const Cameras& refined_cameras,
                     const std::string& weighting, int frames, const py::object& mask_sigma, const std::string& mask_method, const std::string& covis,
-                    const std::string& covis_scale, bool normalise, const py::object& progress) {
+                    const std::string& covis_scale, bool normalise, const py::object& tables_arg, const py::object& progress) {
   const GaussianCloud& cloud = *model.cloud;
   const std::pair<std::vector<ObservedView>, int> viewed = views_of(cloud, cameras, frames);
   const std::vector<ObservedView>& views = viewed.first;
@@ -789,6 +789,31 @@ py::list weights_py(const Model& model, const Cameras& cameras, const py::object
   const Weighting w = parse_name<Weighting>(weighting);
   // finetune's options (--mask-sigma, --mask, --covis, --covis-scale, --normalise-weights),
   // with its bounds; the background is its training's (black), as finetune's context has it.
+  // observe()'s result, where given: its tables are used, not computed again.
+  std::optional<ObservationTables> given_tables;
+  if (!tables_arg.is_none()) {
+    if (!py::isinstance<py::dict>(tables_arg)) throw py::type_error("tables: expected the dict observe() returns");
+    const py::dict d = py::reinterpret_borrow<py::dict>(tables_arg);
+    for (const char* key : {"counts", "speed", "deficiency", "times", "dynamic_ids"})
+      if (!d.contains(key)) throw py::key_error(std::string("tables: no '") + key + "' (the dict observe() returns)");
+    using U16 = py::array_t<uint16_t, py::array::c_style | py::array::forcecast>;
+    using F64 = py::array_t<double, py::array::c_style | py::array::forcecast>;
+    using U32 = py::array_t<uint32_t, py::array::c_style | py::array::forcecast>;
+    const U16 counts = U16::ensure(d["counts"]);
+    if (!counts || counts.ndim() != 2) throw py::value_error("tables: counts is not a [T, N] array");
+    const py::ssize_t T = counts.shape(0), N = counts.shape(1);
+    const FloatArray speed = float_array(d["speed"], "tables speed", {T, N}), deficiency = float_array(d["deficiency"], "tables deficiency", {T, N});
+    const F64 times = F64::ensure(d["times"]);
+    const U32 ids = U32::ensure(d["dynamic_ids"]);
+    if (!times || times.ndim() != 1 || times.shape(0) != T) throw py::value_error("tables: times is not a [" + std::to_string(T) + "] array");
+    if (!ids || ids.ndim() != 1) throw py::value_error("tables: dynamic_ids is not a 1-D array");
+    given_tables = tables_from_arrays(size_t(T), size_t(N), counts.data(), speed.data(), deficiency.data(), times.data(), size_t(ids.shape(0)),
+                                      ids.data(), cloud);
+    const FrameGrid grid(F);
+    if (given_tables->frames() != F || given_tables->times != grid.times())
+      throw Error("tables: " + std::to_string(given_tables->frames()) + " times, not the " + std::to_string(F) +
+                  " frames of the views (observe the model with frames=" + std::to_string(F) + ")");
+  }
   MaskOptions mask;
   if (const auto x = number_or_none(mask_sigma, "mask_sigma", positive())) mask.sigma = *x;
   mask.method = parse_name<MaskMethod>(mask_method);
@@ -805,7 +830,7 @@ py::list weights_py(const Model& model, const Cameras& cameras, const py::object
     ObservationOptions oo;
     oo.visibility = so.visibility;
     const FrameGrid grid(F);
-    const ObservationTables tables = observation_tables(cloud, cams, grid.times(), grid.step(), oo, nullptr, shown);
+    const ObservationTables tables = given_tables ? std::move(*given_tables) : observation_tables(cloud, cams, grid.times(), grid.step(), oo, nullptr, shown);
     const DeficiencyField field = weight_field(cloud, tables, so.deficiency_quantile, mask);
     WeightContext ctx;
     ctx.model = &cloud;
@@ -987,12 +1012,12 @@ PYBIND11_MODULE(_fillgs, m) {
   m.def("weights", &weights_py, py::arg("model"), py::arg("cameras"), py::arg("images"), py::arg("refined"), py::arg("refined_cameras"),
         py::arg("weighting") = "fillgs", py::arg("frames") = 0, py::arg("mask_sigma") = py::none(),
         py::arg("mask") = std::string(to_string(MaskOptions().method)), py::arg("covis") = std::string(to_string(MaskOptions().covisibility)),
-        py::arg("covis_scale") = std::string(to_string(MaskOptions().scale)), py::arg("normalise") = false, py::arg("progress") = py::none(),
+        py::arg("covis_scale") = std::string(to_string(MaskOptions().scale)), py::arg("normalise") = false, py::arg("tables") = py::none(), py::arg("progress") = py::none(),
         "Fine-tuning weights of refined images (float32 [H,W,3] each, at refined_cameras, which carry times) against the model and its observed "
         "views (cameras with their images), as `fillgs finetune` computes them: a list of dicts weight [H,W] (the loss weight), consistency and "
         "covisibility [H,W] (None where the weighting has none). Weightings: fillgs, none, no-consistency, no-covisibility, 3dgs-enhancer, "
         "exploregs, ua-4dgs. mask_sigma (None: 0.05), mask, covis, covis_scale and normalise are finetune's --mask-sigma, --mask, --covis, "
-        "--covis-scale and --normalise-weights.");
+        "--covis-scale and --normalise-weights. tables: observe()'s result for the model and cameras at the views' frames (not computed again).");
 
   m.def("render", &render_py, py::arg("model"), py::arg("cameras"), py::arg("index") = 0, py::arg("t") = 0.0,
         py::arg("background") = std::vector<float>{0, 0, 0},

@@ -430,6 +430,15 @@ def test_weights_equal_finetune_maps(tmp_path, synth, flags, keywords):
             want = fillgs.read_image(s + suffix)[:, :, 0]
             assert g[key].shape == want.shape
             assert np.abs(g[key] - want).max() <= 0.5 / 255 + 1e-6, f"{s}{suffix}"
+    # observe()'s tables handed over give the same maps, to the bit; another frame count is refused.
+    model = fillgs.load_model(f"{synth}/scene.ply")
+    tables = fillgs.observe(model, views["cameras"], frames=views["frames"])
+    again = fillgs.weights(model, views["cameras"], views["images"], refined, refined_cams, tables=tables)
+    for a, b in zip(again, got):
+        for key in ("weight", "consistency", "covisibility"):
+            assert a[key].tobytes() == b[key].tobytes(), key
+    with pytest.raises(fillgs.Error, match="tables: 2 times, not the 3 frames of the views"):
+        fillgs.weights(model, views["cameras"], views["images"], refined, refined_cams, tables=fillgs.observe(model, views["cameras"], frames=2))
     # No weights: every pixel counts 1.
     none = fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], views["images"], refined[:1],
                           fillgs.Cameras(K[:1], np.linalg.inv(c2w[:1]), 48, 36, time=np.array([items[0]["time"]])), weighting="none")

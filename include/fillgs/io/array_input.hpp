@@ -8,6 +8,7 @@
 
 #include "fillgs/model/camera.hpp"
 #include "fillgs/model/gaussians.hpp"
+#include "fillgs/visibility/visibility.hpp"
 
 namespace fillgs {
 
@@ -24,5 +25,12 @@ Camera camera_from_arrays(const float* K, const float* world_to_camera, double w
 /// no zero quaternion, sh_coefficients 1, 4, 9 or 16. `what` names the arrays in messages.
 ModelState gaussians_from_arrays(size_t n, const float* means, const float* log_scales, const float* quaternions, const float* opacity_logits,
                                  const float* sh, size_t sh_coefficients, const std::string& what);
+
+/// The observation tables `observe` returns, as arrays, for `model`: counts, speed and
+/// deficiency [T, N] (counts widened to uint16), times [T] ascending in [0, 1], dynamic_ids [M]
+/// (which must be the model's: tables of another model are refused). Speeds and deficiencies
+/// finite and >= 0, zero for still Gaussians as observe writes them.
+ObservationTables tables_from_arrays(size_t T, size_t N, const uint16_t* counts, const float* speed, const float* deficiency, const double* times,
+                                     size_t M, const uint32_t* dynamic_ids, const GaussianCloud& model);
 
 }  // namespace fillgs

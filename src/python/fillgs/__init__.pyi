@@ -87,7 +87,7 @@ def select(model: Model, cameras: Cameras, frames: int = 0, strategy: str = 'fil
            progress: Progress = None) -> Dict[str, Any]: ...  # trajectories (list of Trajectory), deficiency_scale, notes, grid
 def weights(model: Model, cameras: Cameras, images: Sequence[Array], refined: Sequence[Array], refined_cameras: Cameras, weighting: str = 'fillgs',
             frames: int = 0, mask_sigma: Optional[float] = None, mask: str = 'depth-warp', covis: str = 'paper', covis_scale: str = 'visible',
-            normalise: bool = False, progress: Progress = None) -> List[Dict[str, Optional[Float32]]]: ...  # weight, consistency, covisibility [H,W]
+            normalise: bool = False, tables: Optional[Dict[str, Any]] = None, progress: Progress = None) -> List[Dict[str, Optional[Float32]]]: ...  # weight, consistency, covisibility [H,W]
 def render(model: Model, cameras: Cameras, index: int = 0, t: float = 0.0,
            background: List[float] = [0.0, 0.0, 0.0]) -> Dict[str, Float32]: ...  # colour [H,W,3], depth [H,W], alpha [H,W]
 def instruction_set() -> Dict[str, str]: ...
