@@ -48,6 +48,25 @@ Camera camera_from_arrays(const float* K, const float* M, double width, double h
   return c;
 }
 
+Camera camera_from_3dgs(const double* R, const double* T, double fov_x, double fov_y, double width, double height, double time,
+                        const std::string& name, size_t index) {
+  const std::string element = "element " + std::to_string(index);
+  for (const double fov : {fov_x, fov_y})
+    if (!(fov > 0.0 && fov < M_PI)) throw_error("fov: ", element, " has a field of view of ", fov, " radians, expected (0, pi)");
+  const int w = pixel_count(width, "width", index), h = pixel_count(height, "height", index);
+  // The pinhole the codes' projection matrix makes: focal length W / (2 tan(FoVx / 2)),
+  // principal point at the image centre.
+  float K[9] = {float(w / (2.0 * std::tan(fov_x / 2.0))), 0.0f, float(w / 2.0), 0.0f, float(h / (2.0 * std::tan(fov_y / 2.0))), float(h / 2.0),
+                0.0f, 0.0f, 1.0f};
+  float M[16] = {0};
+  for (int r = 0; r < 3; ++r) {
+    for (int q = 0; q < 3; ++q) M[r * 4 + q] = float(R[q * 3 + r]);  // world-to-camera rotation: R transposed
+    M[r * 4 + 3] = float(T[r]);
+  }
+  M[15] = 1.0f;
+  return camera_from_arrays(K, M, w, h, time, name, index);
+}
+
 ModelState gaussians_from_arrays(size_t n, const float* means, const float* log_scales, const float* quaternions, const float* opacity_logits,
                                  const float* sh, size_t sh_coefficients, const std::string& what) {
   require_finite(means, n * 3, 3, what + " means");

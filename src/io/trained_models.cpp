@@ -115,6 +115,7 @@ GaussianCloud sample_trained_model(const TrainedModel& model, bool reference, Pr
     std::ostringstream os;
     os << model.time_first << " … " << model.time_last << " (" << model.format << " time of frames 0 … " << F - 1 << ")";
     c.model_times = os.str();
+    c.model_time_first = model.time_first, c.model_time_last = model.time_last;
   }
   c.notes.push_back(std::string("sampled at its ") + std::to_string(F) + " frames (model times " + std::to_string(model.time_first) + " … " +
                     std::to_string(model.time_last) + "); between frames fillgs interpolates");
@@ -296,6 +297,7 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
     std::ostringstream os;
     os << model->time_first << " … " << model->time_last << " (" << model->format << " time of frames 0 … " << F - 1 << ")";
     c.model_times = os.str();
+    c.model_time_first = model->time_first, c.model_time_last = model->time_last;
     std::ostringstream still;
     still << N - c.dynamic_ids.size() << " of " << N << " Gaussians still (evaluated once, at frame 0): at each of " << sweep.size() << " of its "
           << F << " frames";

@@ -353,6 +353,24 @@ FrameGaussians frame_at(const GaussianCloud& cloud, double t) {
   return f;
 }
 
+double model_time(const GaussianCloud& cloud, double t) {
+  if (!(t >= 0.0 && t <= 1.0)) throw_error("t must be in [0, 1], got ", t);
+  return cloud.model_time_first + t * (cloud.model_time_last - cloud.model_time_first);
+}
+
+double normalised_time(const GaussianCloud& cloud, double model_time) {
+  const double a = cloud.model_time_first, b = cloud.model_time_last;
+  if (!std::isfinite(model_time)) throw_error("model time ", model_time, " is not a number");
+  if (a == b) {
+    if (model_time != a) throw_error("model time ", model_time, ": the model covers only its time ", a);
+    return 0.0;
+  }
+  const double t = (model_time - a) / (b - a), slack = 1e-9;
+  if (!(t >= -slack && t <= 1.0 + slack))
+    throw_error("model time ", model_time, " lies outside the times the model covers (", a, " … ", b, ")");
+  return std::clamp(t, 0.0, 1.0);
+}
+
 void dynamic_means_at(const GaussianCloud& cloud, double t, std::vector<Vec3f>& out) {
   t = std::clamp(t, 0.0, 1.0);
   out.resize(cloud.dynamic_ids.size());

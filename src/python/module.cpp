@@ -490,6 +490,39 @@ Cameras cameras_from(const py::handle& K, const py::handle& w2c, const py::handl
   return out;
 }
 
+/// Cameras as the 3DGS family holds them: R [C,3,3] (the transpose of the world-to-camera
+/// rotation), T [C,3], FoVx and FoVy [C] (radians), width and height, time [C] or None.
+Cameras cameras_from_3dgs_py(const py::handle& R, const py::handle& T, const py::handle& fov_x, const py::handle& fov_y, const py::handle& width,
+                             const py::handle& height, const py::handle& time, const py::object& names) {
+  using F64 = py::array_t<double, py::array::c_style | py::array::forcecast>;
+  const F64 r = F64::ensure(R), t = F64::ensure(T);
+  if (!r || r.ndim() != 3 || r.shape(1) != 3 || r.shape(2) != 3) throw py::value_error("R: expected shape [C, 3, 3]");
+  const py::ssize_t C = r.shape(0);
+  if (!t || t.ndim() != 2 || t.shape(0) != C || t.shape(1) != 3) throw py::value_error("T: expected shape [" + std::to_string(C) + ", 3]");
+  auto per_camera = [&](const py::handle& v, const char* name) {
+    py::array a = py::array(py::module_::import("numpy").attr("asarray")(v));
+    if (a.ndim() == 0) a = py::array(py::module_::import("numpy").attr("full")(C, v));
+    const F64 f = F64::ensure(a);
+    if (!f || f.ndim() != 1 || f.shape(0) != C) throw py::value_error(std::string(name) + ": expected one value or shape [" + std::to_string(C) + "]");
+    return std::vector<double>(f.data(), f.data() + C);
+  };
+  const std::vector<double> fx = per_camera(fov_x, "fov_x"), fy = per_camera(fov_y, "fov_y"), W = per_camera(width, "width"),
+                            H = per_camera(height, "height");
+  const std::vector<double> times = time.is_none() ? std::vector<double>(size_t(C), std::numeric_limits<double>::quiet_NaN()) : per_camera(time, "time");
+  const std::vector<std::string> label = names.is_none() ? std::vector<std::string>() : names.cast<std::vector<std::string>>();
+  if (!label.empty() && py::ssize_t(label.size()) != C)
+    throw Error("names: " + std::to_string(label.size()) + " names for " + std::to_string(C) + " cameras");
+  for (py::ssize_t i = 0; i < C * 9; ++i)
+    if (!std::isfinite(r.data()[i])) throw Error("R: element " + std::to_string(i / 9) + " is not finite");
+  for (py::ssize_t i = 0; i < C * 3; ++i)
+    if (!std::isfinite(t.data()[i])) throw Error("T: element " + std::to_string(i / 3) + " is not finite");
+  Cameras out;
+  for (py::ssize_t i = 0; i < C; ++i)
+    out.list.push_back(camera_from_3dgs(r.data() + i * 9, t.data() + i * 3, fx[size_t(i)], fy[size_t(i)], W[size_t(i)], H[size_t(i)], times[size_t(i)],
+                                        label.empty() ? "cam" + std::to_string(i) : label[size_t(i)], size_t(i)));
+  return out;
+}
+
 py::dict cameras_arrays(const Cameras& c) {
   const size_t C = c.list.size();
   std::vector<double> K(C * 9, 0.0), M(C * 16, 0.0), T(C);
@@ -892,6 +925,10 @@ PYBIND11_MODULE(_fillgs, m) {
                              "ascending ids of the moving Gaussians (uint32)")
       .def_property_readonly("static_count", [](const Model& x) { return x.cloud->static_count(); })
       .def_property_readonly("notes", [](const Model& x) { return x.cloud->notes; }, "what the reader decided, as `fillgs info` prints it")
+      .def("model_time", [](const Model& x, double t) { return model_time(*x.cloud, t); }, py::arg("t"),
+           "The model's own time (its training code's: E-D3DGS f / total_num_frames, 4DGaussians f / F, 4DGS seconds, ...) at normalised time t")
+      .def("normalised_time", [](const Model& x, double model_time_value) { return normalised_time(*x.cloud, model_time_value); },
+           py::arg("model_time"), "The normalised time t in [0, 1] fillgs uses (frame f of F at f / (F - 1)) of the model's own time")
       .def("at", &state_at, py::arg("t"),
            "The Gaussians at normalised time t in [0, 1]: a dict of float32 arrays means [N,3], log_scales [N,3], quaternions [N,4] (w, x, y, z, unit), "
            "opacity_logits [N], sh [N,K,3]")
@@ -938,6 +975,11 @@ PYBIND11_MODULE(_fillgs, m) {
         return n;
       })
       .def("arrays", &cameras_arrays, "A dict: K [C,3,3], world_to_camera [C,4,4] float64, width, height [C] int32, time [C] float64 (NaN: none)");
+  m.def("cameras_from_3dgs", &cameras_from_3dgs_py, py::arg("R"), py::arg("T"), py::arg("fov_x"), py::arg("fov_y"), py::arg("width"),
+        py::arg("height"), py::arg("time") = py::none(), py::arg("names") = py::none(),
+        "Cameras as E-D3DGS, 4DGaussians and 3DGS hold them (scene/cameras.py: R the transpose of the world-to-camera rotation, T its translation, "
+        "FoVx, FoVy in radians, a centred principal point): R [C,3,3], T [C,3], fov_x, fov_y, width, height [C] or one value, time [C] normalised "
+        "(Model.normalised_time converts a code's own time) or None.");
   m.def("read_cameras", &read_cameras_py, py::arg("path"), py::arg("format") = "auto", py::arg("width") = 0, py::arg("height") = 0,
         "Reads cameras as the command line does (`--camera-format`, `--width`, `--height`).");
 

@@ -72,3 +72,49 @@ def test_progress_true_without_tqdm_says_so(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert r.returncode == 0, r.stderr
     assert "progress=True: tqdm is not installed, so no progress bar is shown" in r.stdout
+
+
+@pytest.mark.parametrize("name, frames, time_last", [("ed3dgs", 0, 11 / 12), ("4dgaussians", 10, 0.9), ("deformable3dgs", 9, 1.0)])
+def test_model_and_normalised_time(name, frames, time_last):
+    """The codes' own time of frame f (E-D3DGS f / total_num_frames, 4DGaussians f / F,
+    Deformable 3D Gaussians f / (F - 1): the fixtures' generator, tests/make_model_fixtures.py)
+    and back."""
+    m = fillgs.load_model(os.path.join(FIXTURES, name), frames=frames)
+    assert m.model_time(0.0) == pytest.approx(0.0) and m.model_time(1.0) == pytest.approx(time_last, rel=1e-12)
+    for t in (0.0, 0.37, 1.0):
+        assert m.normalised_time(m.model_time(t)) == pytest.approx(t, abs=1e-12)
+    with pytest.raises(fillgs.Error, match="lies outside the times the model covers"):
+        m.normalised_time(time_last + 0.5)
+    plain = fillgs.model_from_arrays(dict(means=[[0.0, 0, 5]], log_scales=[[-2.0, -2, -2]], quaternions=[[1.0, 0, 0, 0]], opacity_logits=[0.0]))
+    assert plain.model_time(0.25) == 0.25 and plain.normalised_time(0.25) == 0.25
+
+
+def test_cameras_from_3dgs_equal_the_cameras_json_3dgs_writes(tmp_path):
+    """Cameras as the 3DGS family holds them (R = world-to-camera rotation transposed, T, FoV) against
+    the same cameras written as 3DGS's camera_to_JSON writes cameras.json (numpy here), read by fillgs."""
+    import json
+    import math
+
+    import numpy as np
+
+    rng = np.random.default_rng(3)
+    C, W, H = 4, 64, 48
+    Rs, Ts, fovx, fovy, entries = [], [], [], [], []
+    for i in range(C):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        w2c = q * np.sign(np.linalg.det(q))  # a rotation
+        R, T = w2c.T, rng.normal(size=3)      # what scene/cameras.py keeps
+        fx_, fy_ = 0.9 + 0.1 * i, 0.7 + 0.05 * i
+        Rt = np.eye(4)
+        Rt[:3, :3], Rt[:3, 3] = R.T, T        # getWorld2View2
+        c2w = np.linalg.inv(Rt)
+        entries.append({"id": i, "img_name": f"v{i}", "width": W, "height": H, "position": c2w[:3, 3].tolist(), "rotation": c2w[:3, :3].tolist(),
+                        "fy": H / (2 * math.tan(fy_ / 2)), "fx": W / (2 * math.tan(fx_ / 2))})  # fov2focal
+        Rs.append(R), Ts.append(T), fovx.append(fx_), fovy.append(fy_)
+    path = tmp_path / "cameras.json"
+    path.write_text(json.dumps(entries))
+    want = fillgs.read_cameras(str(path)).arrays()
+    got = fillgs.cameras_from_3dgs(np.array(Rs), np.array(Ts), fovx, fovy, W, H, names=[f"v{i}" for i in range(C)]).arrays()
+    assert np.allclose(got["K"], want["K"], atol=1e-4) and np.allclose(got["world_to_camera"], want["world_to_camera"], atol=1e-5)
+    with pytest.raises(fillgs.Error, match="fov: element 0 has a field of view of 4 radians"):
+        fillgs.cameras_from_3dgs(np.array(Rs[:1]), np.array(Ts[:1]), 4.0, 1.0, W, H)

@@ -20,6 +20,14 @@ namespace fillgs {
 Camera camera_from_arrays(const float* K, const float* world_to_camera, double width, double height, double time, const std::string& name,
                           size_t index);
 
+/// Camera `index` as the 3DGS family of codes holds one (3DGS, E-D3DGS, 4DGaussians,
+/// Deformable 3D Gaussians: `scene/cameras.py`): R (3x3, row-major) the transpose of the
+/// world-to-camera rotation (their getWorld2View2 takes R.T), T the world-to-camera
+/// translation, FoVx and FoVy in radians, a centred principal point, and a size; `time` is
+/// fillgs's normalised time (NaN: none; Model.normalised_time converts the codes' own).
+Camera camera_from_3dgs(const double* R, const double* T, double fov_x, double fov_y, double width, double height, double time,
+                        const std::string& name, size_t index);
+
 /// n Gaussians of one frame: means [n,3], log_scales [n,3], quaternions [n,4] (w, x, y, z),
 /// opacity_logits [n], sh [n, sh_coefficients, 3] (null: grey, degree 0). Every value finite,
 /// no zero quaternion, sh_coefficients 1, 4, 9 or 16. `what` names the arrays in messages.

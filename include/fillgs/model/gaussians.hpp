@@ -109,6 +109,10 @@ struct GaussianCloud {
 
   std::vector<std::string> notes;     ///< what the reader approximated, for `info`
   std::string model_times;            ///< the model's own time at t = 0 … 1, where it has one (trained models), for `info`
+  /// The model's own time (its training code's) at t = 0 and t = 1: frame f of F at
+  /// model_time_first + f / (F - 1) (model_time_last - model_time_first). 0 and 1 where the
+  /// model has no time of its own (normalised time is its time).
+  double model_time_first = 0.0, model_time_last = 1.0;
 
   size_t size() const { return means.size(); }
   int sh_count() const { return (sh_degree + 1) * (sh_degree + 1); }
@@ -169,6 +173,12 @@ class FrameSampler {
 
 /// The Gaussians at time t, one shot (copies the static set).
 FrameGaussians frame_at(const GaussianCloud& cloud, double t);
+
+/// The model's own time (its training code's, e.g. E-D3DGS's f / total_num_frames, 4DGS's
+/// seconds) at normalised time t in [0, 1], and back: normalised_time() refuses a model time
+/// outside the ones the model covers. Identity for models without a time of their own.
+double model_time(const GaussianCloud& cloud, double t);
+double normalised_time(const GaussianCloud& cloud, double model_time);
 
 /// World-space means of the dynamic set at time t, in `dynamic_ids` order.
 void dynamic_means_at(const GaussianCloud& cloud, double t, std::vector<Vec3f>& out);
