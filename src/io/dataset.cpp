@@ -386,6 +386,8 @@ std::vector<float> Dataset::image(size_t view) const {
   return out;
 }
 
+std::vector<uint8_t> Dataset::take_image8(size_t view) { return pixels_.take(view); }
+
 std::pair<Vec3f, float> Dataset::camera_extent() const {
   Vec3d c = Vec3d::Zero();
   for (const TrainView& v : views_) c += v.camera.centre();

@@ -78,6 +78,13 @@ const std::vector<uint8_t>& PixelStore::get(size_t i, std::vector<uint8_t>& out)
   return out;
 }
 
+std::vector<uint8_t> PixelStore::take(size_t i) {
+  if (!file_) return std::move(memory_.at(i));
+  std::vector<uint8_t> out;
+  get(i, out);
+  return out;
+}
+
 size_t default_image_budget() { return allocation_cap() / 4; }
 
 }  // namespace fillgs

@@ -680,7 +680,8 @@ py::dict load_views(const std::string& images, const std::string& cameras, const
   for (size_t i = 0; i < d->views().size(); ++i) {
     const Camera& cam = d->views()[i].camera;
     c.list.push_back(cam);
-    imgs.append(to_array(d->image(i), {py::ssize_t(cam.height), py::ssize_t(cam.width), 3}));
+    // 8-bit, as the command line holds them, handed over from the dataset (never twice in memory).
+    imgs.append(to_array(d->take_image8(i), {py::ssize_t(cam.height), py::ssize_t(cam.width), 3}));
   }
   py::dict out;
   out["cameras"] = c;
@@ -700,19 +701,52 @@ std::pair<std::vector<ObservedView>, int> views_of(const GaussianCloud& cloud, c
   return {observed_views(timed, frames), frames};
 }
 
-/// Images for `views` from a sequence of [H,W,3] arrays, checked against each view's size.
-std::vector<std::vector<float>> images_for(const py::object& images, const std::vector<ObservedView>& views, const char* name) {
-  const py::sequence seq = py::reinterpret_borrow<py::sequence>(images);
-  if (py::len(seq) != views.size())
-    throw py::value_error(std::string(name) + ": " + std::to_string(py::len(seq)) + " images for " + std::to_string(views.size()) + " views");
-  std::vector<std::vector<float>> out;
-  for (size_t i = 0; i < views.size(); ++i) {
-    const Camera& c = views[i].camera;
-    const FloatArray a = float_array(seq[i], (std::string(name) + " " + std::to_string(i)).c_str(), {c.height, c.width, 3});
-    out.emplace_back(a.data(), a.data() + a.size());
+/// Images for `views` from a sequence of [H,W,3] arrays, checked against each view's size and
+/// held as given, without a copy: uint8 (load_views', 0 … 255) or float32 in [0, 1] (C-contiguous;
+/// any other dtype or layout is converted once). get(i) makes view i's floats when the library
+/// asks for it, with no Python call, so it runs with the GIL released.
+class ViewImages {
+ public:
+  ViewImages() = default;
+  ViewImages(const py::object& images, const std::vector<ObservedView>& views, const char* name) {
+    const py::sequence seq = py::reinterpret_borrow<py::sequence>(images);
+    if (py::len(seq) != views.size())
+      throw py::value_error(std::string(name) + ": " + std::to_string(py::len(seq)) + " images for " + std::to_string(views.size()) + " views");
+    for (size_t i = 0; i < views.size(); ++i) {
+      const Camera& c = views[i].camera;
+      const std::string what = std::string(name) + " " + std::to_string(i);
+      const py::handle item = seq[i];
+      using U8 = py::array_t<uint8_t, py::array::c_style>;
+      if (py::isinstance<py::array>(item) && py::reinterpret_borrow<py::array>(item).dtype().is(py::dtype::of<uint8_t>())) {
+        const U8 a = U8::ensure(item);  // no copy where C-contiguous
+        if (!a || a.ndim() != 3 || a.shape(0) != c.height || a.shape(1) != c.width || a.shape(2) != 3)
+          throw py::value_error(what + ": expected a [" + std::to_string(c.height) + ", " + std::to_string(c.width) + ", 3] image");
+        bytes_.push_back(a);
+        floats_.emplace_back();
+        is_bytes_.push_back(true);
+      } else {
+        floats_.push_back(float_array(item, what.c_str(), {c.height, c.width, 3}));
+        bytes_.emplace_back();
+        is_bytes_.push_back(false);
+      }
+    }
   }
-  return out;
-}
+  size_t size() const { return floats_.size(); }
+  std::vector<float> get(size_t i) const {
+    if (is_bytes_[i]) {
+      const uint8_t* p = bytes_[i].data();
+      std::vector<float> out(size_t(bytes_[i].size()));
+      for (size_t k = 0; k < out.size(); ++k) out[k] = float(p[k]) / 255.0f;  // as Dataset::image
+      return out;
+    }
+    return std::vector<float>(floats_[i].data(), floats_[i].data() + floats_[i].size());
+  }
+
+ private:
+  std::vector<py::array_t<uint8_t, py::array::c_style>> bytes_;  // a default array_t is an empty array, not "none": is_bytes_ says which holds the image
+  std::vector<FloatArray> floats_;
+  std::vector<bool> is_bytes_;
+};
 
 // ------------------------------------------------------------------ exploration and selection
 
@@ -772,10 +806,10 @@ py::dict select_py(const Model& model, const Cameras& cameras, int frames, const
   SelectInput in;
   in.scene = &cloud;
   std::tie(in.views, in.frames) = views_of(cloud, cameras, frames);
-  std::vector<std::vector<float>> pixels;
+  ViewImages pixels;
   if (!images.is_none()) {
-    pixels = images_for(images, in.views, "images");
-    in.image = [&pixels](size_t i) { return pixels[i]; };
+    pixels = ViewImages(images, in.views, "images");
+    in.image = [&pixels](size_t i) { return pixels.get(i); };
   }
   if (!grid.is_none() && !py::isinstance<Grid>(grid))
     throw py::type_error("grid: expected a fillgs.ExplorationGrid (from explore, select or read_grid) or None, got " +
@@ -812,13 +846,13 @@ py::list weights_py(const Model& model, const Cameras& cameras, const py::object
   const std::pair<std::vector<ObservedView>, int> viewed = views_of(cloud, cameras, frames);
   const std::vector<ObservedView>& views = viewed.first;
   const int F = viewed.second;
-  const std::vector<std::vector<float>> observed = images_for(images, views, "images");
+  const ViewImages observed(images, views, "images");
   std::vector<ObservedView> refined_views;
   for (const Camera& c : refined_cameras.list) {
     if (!c.has_time() || c.time < 0 || c.time > 1) throw py::value_error("refined_cameras: " + c.name + " has no time in [0, 1]");
     refined_views.push_back({c, 0});
   }
-  const std::vector<std::vector<float>> given = images_for(refined, refined_views, "refined");
+  const ViewImages given(refined, refined_views, "refined");
   const Weighting w = parse_name<Weighting>(weighting);
   // finetune's options (--mask-sigma, --mask, --covis, --covis-scale, --normalise-weights),
   // with its bounds; the background is its training's (black), as finetune's context has it.
@@ -868,14 +902,14 @@ py::list weights_py(const Model& model, const Cameras& cameras, const py::object
     WeightContext ctx;
     ctx.model = &cloud;
     ctx.views = views;
-    ctx.image = [&](size_t i) { return Image(views[i].camera.width, views[i].camera.height, 3, observed[i]); };
+    ctx.image = [&](size_t i) { return Image(views[i].camera.width, views[i].camera.height, 3, observed.get(i)); };
     ctx.deficiency = &field;
     ctx.frames = F;
     ctx.background = TrainOptions().background;
     shown.start("weights (" + weighting + ")", given.size());
     for (size_t i = 0; i < given.size(); ++i) {
       const Camera& c = refined_cameras.list[i];
-      out.push_back(compute_weights(ctx, Image(c.width, c.height, 3, given[i]), c, w, mask));
+      out.push_back(compute_weights(ctx, Image(c.width, c.height, 3, given.get(i)), c, w, mask));
       if (mask.normalise) normalise_by_mean(out.back().weight);  // as finetune weighs its loss
       shown.advance(1);
     }
@@ -1016,7 +1050,8 @@ PYBIND11_MODULE(_fillgs, m) {
   m.def("load_views", &load_views, py::arg("images"), py::arg("cameras"), py::arg("train_cameras") = std::vector<std::string>(),
         py::arg("frames") = "", py::arg("downscale") = 1, py::arg("progress") = py::none(),
         "A rig's views as `fillgs train` reads them (`--images`, `--cameras`, `--train-cameras`, `--frames`, `--downscale`): a dict with "
-        "cameras (each view at its time), images (float32 [H,W,3] each, in the cameras' order) and frames.");
+        "cameras (each view at its time), images (uint8 [H,W,3] each, as the command line holds them; / 255 for floats in [0, 1]; select and "
+        "weights take them without a copy) and frames.");
 
   py::class_<Grid>(m, "ExplorationGrid", "The exploration space: every voxel free (0), occupied (1) or unexplored (2)")
       .def_property_readonly("dims", [](const Grid& g) { return std::vector<int>{g.grid->dims().x(), g.grid->dims().y(), g.grid->dims().z()}; },

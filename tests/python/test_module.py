@@ -402,7 +402,7 @@ def test_weights_equal_finetune_maps(tmp_path, synth, flags, keywords):
             "--refiner", "external", "--refiner-command", f"bash {script} {{in}} {{out}}", "--quiet", *flags)
     assert r.returncode == 0, r.stderr
     views = fillgs.load_views(synth, f"{synth}/transforms_train.json", train_cameras=["cam04", "cam06"])
-    assert len(views["images"]) == 6 and views["images"][0].shape == (36, 48, 3)
+    assert len(views["images"]) == 6 and views["images"][0].shape == (36, 48, 3) and views["images"][0].dtype == np.uint8  # as held, not copied to float
     patch = json.load(open(f"{out}/work/patches/r0_t00/patch.json"))
     items = [im for im in patch["images"] if not im["observed"]]
     assert items
@@ -430,6 +430,11 @@ def test_weights_equal_finetune_maps(tmp_path, synth, flags, keywords):
             want = fillgs.read_image(s + suffix)[:, :, 0]
             assert g[key].shape == want.shape
             assert np.abs(g[key] - want).max() <= 0.5 / 255 + 1e-6, f"{s}{suffix}"
+    # The views as floats in [0, 1] give the same maps, to the bit, as the 8-bit views.
+    as_float = fillgs.weights(fillgs.load_model(f"{synth}/scene.ply"), views["cameras"], [im.astype(np.float32) / 255 for im in views["images"]],
+                              refined, refined_cams)
+    for a, b in zip(as_float, got):
+        assert a["weight"].tobytes() == b["weight"].tobytes()
     # observe()'s tables handed over give the same maps, to the bit; another frame count is refused.
     model = fillgs.load_model(f"{synth}/scene.ply")
     tables = fillgs.observe(model, views["cameras"], frames=views["frames"])

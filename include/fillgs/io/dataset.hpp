@@ -93,6 +93,10 @@ class Dataset {
   std::vector<uint8_t> mask(size_t view) const { return masks_.empty() ? std::vector<uint8_t>() : masks_.at(view); }
   /// The view's image as float RGB in [0, 1] ([H][W][3]).
   std::vector<float> image(size_t view) const;
+  /// The view's image as held, 8-bit RGB ([H][W][3]; image() is it / 255), handed over: the
+  /// dataset no longer holds it (for a caller done with the dataset, such as Python's
+  /// load_views, so that the images are never in memory twice).
+  std::vector<uint8_t> take_image8(size_t view);
   /// Bytes of the 8-bit images, and whether they are kept on disk (DatasetOptions::image_memory).
   size_t image_bytes() const { return pixels_.bytes(); }
   bool images_spilled() const { return pixels_.spilled(); }

@@ -20,6 +20,8 @@ class PixelStore {
   void put(size_t i, std::vector<uint8_t>&& pixels);
   /// Image i: the one held in memory, or read from the file into `scratch` (and returned).
   const std::vector<uint8_t>& get(size_t i, std::vector<uint8_t>& scratch) const;
+  /// Image i handed over: moved out of memory (the store no longer holds it), or read from the file.
+  std::vector<uint8_t> take(size_t i);
   size_t bytes() const { return total_; }
   bool spilled() const { return file_ != nullptr; }
 
