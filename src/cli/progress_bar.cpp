@@ -24,7 +24,7 @@ void TerminalProgress::start(const std::string& label, size_t total) {
   total_ = total;
   done_ = 0;
   start_ = last_draw_ = std::chrono::steady_clock::now();
-  if (style_ == Style::Lines) line("started");
+  if (style_ == Style::Lines) line(Moment::Started);
   else draw(false);
 }
 
@@ -32,7 +32,7 @@ void TerminalProgress::advance(size_t steps) {
   done_ += steps;
   const auto now = std::chrono::steady_clock::now();
   if (style_ == Style::Lines) {
-    if (std::chrono::duration<double>(now - last_line_).count() >= line_seconds_) line("");
+    if (std::chrono::duration<double>(now - last_line_).count() >= line_seconds_) line(Moment::Running);
     return;
   }
   if (now - last_draw_ > std::chrono::milliseconds(100) || done_ >= total_) {
@@ -44,23 +44,23 @@ void TerminalProgress::advance(size_t steps) {
 void TerminalProgress::finish() {
   if (style_ == Style::Lines) {
     // A step that wrote a line (one that ran long enough) says when it ended.
-    if (any_line_ && std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count() >= line_seconds_) line("done");
+    if (any_line_ && std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count() >= line_seconds_) line(Moment::Done);
     return;
   }
   draw(true);
 }
 
-void TerminalProgress::line(const char* what) {
+void TerminalProgress::line(Moment moment) {
   const auto now = std::chrono::steady_clock::now();
   // A step that starts less than a line interval after the last line waits for the interval:
   // many short steps make no more lines than one long one.
-  if (any_line_ && std::chrono::duration<double>(now - last_line_).count() < line_seconds_ && std::string(what) == "started") return;
+  if (any_line_ && moment == Moment::Started && std::chrono::duration<double>(now - last_line_).count() < line_seconds_) return;
   const double secs = std::chrono::duration<double>(now - start_).count();
   const double frac = total_ ? double(done_) / double(total_) : 1.0;
   char buf[256];
   std::snprintf(buf, sizeof buf, "progress: %s %zu/%zu (%.0f%%) %.0f s", label_.c_str(), done_, total_, 100.0 * frac, secs);
   err_ << buf;
-  if (*what && std::string(what) != "started") err_ << ", " << what;
+  if (moment == Moment::Done) err_ << ", done";
   else if (frac > 0 && frac < 1) err_ << ", about " << int(secs * (1 - frac) / frac + 0.5) << " s left";
   if (!status_.empty()) err_ << "; " << status_;
   err_ << "\n" << std::flush;

@@ -21,8 +21,9 @@ class TerminalProgress : public Progress {
 
  private:
   enum class Style { Off, Bar, Lines };
+  enum class Moment { Started, Running, Done };
   void draw(bool final);
-  void line(const char* what);
+  void line(Moment moment);
   std::ostream& err_;
   Style style_;
   std::string label_, status_;

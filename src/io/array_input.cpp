@@ -17,17 +17,18 @@ int pixel_count(double x, const char* name, size_t index) {
   return int(x);
 }
 
-void require_finite(const float* p, size_t n, size_t row, const std::string& name) {
+/// Every value of rows of `row` values finite; the message names the row (first_row + i / row).
+void require_finite(const float* p, size_t n, size_t row, const std::string& name, size_t first_row = 0) {
   for (size_t i = 0; i < n; ++i)
-    if (!std::isfinite(p[i])) throw_error(name, ": element ", i / row, " is not finite (", p[i], ")");
+    if (!std::isfinite(p[i])) throw_error(name, ": element ", first_row + i / row, " is not finite (", p[i], ")");
 }
 
 }  // namespace
 
 Camera camera_from_arrays(const float* K, const float* M, double width, double height, double time, const std::string& name, size_t index) {
   const std::string element = "element " + std::to_string(index);
-  require_finite(K, 9, 9, "K: " + element + " (index within it)");
-  require_finite(M, 16, 16, "world_to_camera: " + element + " (index within it)");
+  require_finite(K, 9, 9, "K", index);
+  require_finite(M, 16, 16, "world_to_camera", index);
   if (K[1] != 0.0f || K[3] != 0.0f || K[6] != 0.0f || K[7] != 0.0f || K[8] != 1.0f)
     throw_error("K: ", element, " is not a pinhole matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (skew ", K[1], ", last row ", K[6], " ", K[7], " ",
                 K[8], ")");

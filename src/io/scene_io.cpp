@@ -221,21 +221,24 @@ KeyChoice choose_keys(const GaussianCloud& cloud, const KeyTolerance& tolerance,
   kc.sample = S;
   const int F = kc.frames;
   const FrameGrid grid(F);
+  // The network at every frame; its colour is measured here against frame 0's (what the keyed
+  // model drops: every band's change, in any direction) and not kept.
   std::vector<FrameGaussians> truth;
   truth.reserve(size_t(F));
   {
     FrameSampler exact(sub);
-    for (int f = 0; f < F; ++f) truth.push_back(exact.at(grid.time(f)));  // a copy: its own SH
+    std::vector<float> first_sh;
+    for (int f = 0; f < F; ++f) {
+      const FrameGaussians& g = exact.at(grid.time(f));
+      if (f == 0) first_sh.assign(g.sh, g.sh + S * row);
+      for (size_t s = 0; s < S; ++s)
+        for (size_t a = 0; a < 3; ++a)
+          kc.colour_change = std::max(kc.colour_change, double(sh_colour_change(&g.sh[s * row], &first_sh[s * row], row / 3, a)));
+      FrameGaussians kept;
+      kept.means = g.means, kept.scales = g.scales, kept.rotations = g.rotations, kept.opacities = g.opacities;
+      truth.push_back(std::move(kept));
+    }
   }
-  // The colour the keyed model drops: every band's change from frame 0, in any direction.
-  for (int f = 1; f < F; ++f)
-    for (size_t s = 0; s < S; ++s)
-      for (size_t a = 0; a < 3; ++a) {
-        double change = 0;
-        for (size_t k = 0; k * 3 < row && k < 16; ++k)
-          change += std::fabs(double(truth[size_t(f)].sh[s * row + k * 3 + a]) - double(truth[0].sh[s * row + k * 3 + a])) * kSHBasisMax[k];
-        kc.colour_change = std::max(kc.colour_change, change);
-      }
   // Interval 1 keys every frame: exact there, whatever the tolerance.
   kc.keys = F;
   kc.interval = 1.0;

@@ -232,11 +232,7 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
     r = std::max(r, share(float(2.0 * std::acos(c) * 180.0 / M_PI), rule.rotation_degrees));
     // Colour: every SH band, as the largest change of the colour in any direction (bounded by
     // the coefficients' changes times their basis functions' maxima), any channel.
-    for (size_t a = 0; a < 3 && row; ++a) {
-      float colour = 0.0f;
-      for (size_t k = 0; k * 3 < row && k < 16; ++k) colour += std::fabs(s.sh[j * row + k * 3 + a] - first.sh[i * row + k * 3 + a]) * kSHBasisMax[k];
-      r = std::max(r, share(colour, rule.colour));
-    }
+    for (size_t a = 0; a < 3 && row; ++a) r = std::max(r, share(sh_colour_change(&s.sh[j * row], &first.sh[i * row], row / 3, a), rule.colour));
     return r;
   };
   auto sweep_rows = [&](const std::vector<int>& frames, const std::vector<uint32_t>& rows) {

@@ -454,39 +454,45 @@ Cameras read_cameras_py(const std::string& path, const std::string& format, int 
   return c;
 }
 
+/// One value per camera: a scalar for every camera, or an array of shape [C] (float64).
+std::vector<double> per_camera(const py::handle& v, py::ssize_t C, const char* name) {
+  py::array a = py::array(py::module_::import("numpy").attr("asarray")(v));
+  if (a.ndim() == 0) a = py::array(py::module_::import("numpy").attr("full")(C, v));
+  const auto f = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
+  if (!f || f.ndim() != 1 || f.shape(0) != C) throw py::value_error(std::string(name) + ": expected one value or shape [" + std::to_string(C) + "]");
+  return std::vector<double>(f.data(), f.data() + C);
+}
+
+/// The cameras' times (None: NaN, a fixed rig's camera at every frame) and names (None: camI).
+std::vector<double> camera_times(const py::handle& time, py::ssize_t C) {
+  return time.is_none() ? std::vector<double>(size_t(C), std::numeric_limits<double>::quiet_NaN()) : per_camera(time, C, "time");
+}
+std::vector<std::string> camera_names(const py::object& names, py::ssize_t C) {
+  std::vector<std::string> out;
+  if (names.is_none()) {
+    for (py::ssize_t i = 0; i < C; ++i) out.push_back("cam" + std::to_string(i));
+    return out;
+  }
+  if (py::isinstance<py::str>(names) || !py::isinstance<py::sequence>(names)) throw py::type_error("names: expected a sequence of " + std::to_string(C) + " strings");
+  const py::sequence seq = py::reinterpret_borrow<py::sequence>(names);
+  if (py::ssize_t(py::len(seq)) != C) throw Error("names: " + std::to_string(py::len(seq)) + " names for " + std::to_string(C) + " cameras");
+  for (const py::handle n : seq) out.push_back(py::str(n).cast<std::string>());
+  return out;
+}
+
 /// Cameras from arrays: K [C,3,3], world_to_camera [C,4,4], width and height [C] (or one
-/// value), time [C] (NaN: a fixed rig's camera, at every frame) and names.
+/// value), time [C] (NaN: a fixed rig's camera, at every frame) and names; checked by the
+/// library (io/array_input.hpp).
 Cameras cameras_from(const py::handle& K, const py::handle& w2c, const py::handle& width, const py::handle& height, const py::handle& time,
                      const py::object& names) {
   const FloatArray k = float_array(K, "K", {-1, 3, 3});
   const py::ssize_t C = k.shape(0);
   const FloatArray m = float_array(w2c, "world_to_camera", {C, 4, 4});
-  auto sizes = [&](const py::handle& v, const char* name) {
-    py::array a = py::array(py::module_::import("numpy").attr("asarray")(v));
-    if (a.ndim() == 0) a = py::array(py::module_::import("numpy").attr("full")(C, v));
-    const py::array_t<double, py::array::c_style | py::array::forcecast> f = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
-    if (!f || f.ndim() != 1 || f.shape(0) != C) throw py::value_error(std::string(name) + ": expected one value or shape [" + std::to_string(C) + "]");
-    return std::vector<double>(f.data(), f.data() + C);
-  };
-  const std::vector<double> W = sizes(width, "width"), H = sizes(height, "height");
-  std::vector<double> T(static_cast<size_t>(C), std::numeric_limits<double>::quiet_NaN());
-  if (!time.is_none()) {
-    const py::array_t<double, py::array::c_style | py::array::forcecast> t = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(time);
-    if (!t || t.ndim() != 1 || t.shape(0) != C) throw py::value_error("time: expected shape [" + std::to_string(C) + "]");
-    T.assign(t.data(), t.data() + C);
-  }
-  std::vector<std::string> name_list;
-  if (!names.is_none()) {
-    if (py::isinstance<py::str>(names) || !py::isinstance<py::sequence>(names)) throw py::type_error("names: expected a sequence of " + std::to_string(C) + " strings");
-    const py::sequence seq = py::reinterpret_borrow<py::sequence>(names);
-    if (py::ssize_t(py::len(seq)) != C)
-      throw Error("names: " + std::to_string(py::len(seq)) + " names for " + std::to_string(C) + " cameras");
-    for (const py::handle n : seq) name_list.push_back(py::str(n).cast<std::string>());
-  }
+  const std::vector<double> W = per_camera(width, C, "width"), H = per_camera(height, C, "height"), T = camera_times(time, C);
+  const std::vector<std::string> label = camera_names(names, C);
   Cameras out;
   for (py::ssize_t i = 0; i < C; ++i)
-    out.list.push_back(camera_from_arrays(k.data() + i * 9, m.data() + i * 16, W[size_t(i)], H[size_t(i)], T[size_t(i)],
-                                          names.is_none() ? "cam" + std::to_string(i) : name_list[size_t(i)], size_t(i)));
+    out.list.push_back(camera_from_arrays(k.data() + i * 9, m.data() + i * 16, W[size_t(i)], H[size_t(i)], T[size_t(i)], label[size_t(i)], size_t(i)));
   return out;
 }
 
@@ -499,27 +505,13 @@ Cameras cameras_from_3dgs_py(const py::handle& R, const py::handle& T, const py:
   if (!r || r.ndim() != 3 || r.shape(1) != 3 || r.shape(2) != 3) throw py::value_error("R: expected shape [C, 3, 3]");
   const py::ssize_t C = r.shape(0);
   if (!t || t.ndim() != 2 || t.shape(0) != C || t.shape(1) != 3) throw py::value_error("T: expected shape [" + std::to_string(C) + ", 3]");
-  auto per_camera = [&](const py::handle& v, const char* name) {
-    py::array a = py::array(py::module_::import("numpy").attr("asarray")(v));
-    if (a.ndim() == 0) a = py::array(py::module_::import("numpy").attr("full")(C, v));
-    const F64 f = F64::ensure(a);
-    if (!f || f.ndim() != 1 || f.shape(0) != C) throw py::value_error(std::string(name) + ": expected one value or shape [" + std::to_string(C) + "]");
-    return std::vector<double>(f.data(), f.data() + C);
-  };
-  const std::vector<double> fx = per_camera(fov_x, "fov_x"), fy = per_camera(fov_y, "fov_y"), W = per_camera(width, "width"),
-                            H = per_camera(height, "height");
-  const std::vector<double> times = time.is_none() ? std::vector<double>(size_t(C), std::numeric_limits<double>::quiet_NaN()) : per_camera(time, "time");
-  const std::vector<std::string> label = names.is_none() ? std::vector<std::string>() : names.cast<std::vector<std::string>>();
-  if (!label.empty() && py::ssize_t(label.size()) != C)
-    throw Error("names: " + std::to_string(label.size()) + " names for " + std::to_string(C) + " cameras");
-  for (py::ssize_t i = 0; i < C * 9; ++i)
-    if (!std::isfinite(r.data()[i])) throw Error("R: element " + std::to_string(i / 9) + " is not finite");
-  for (py::ssize_t i = 0; i < C * 3; ++i)
-    if (!std::isfinite(t.data()[i])) throw Error("T: element " + std::to_string(i / 3) + " is not finite");
-  Cameras out;
+  const std::vector<double> fx = per_camera(fov_x, C, "fov_x"), fy = per_camera(fov_y, C, "fov_y"), W = per_camera(width, C, "width"),
+                            H = per_camera(height, C, "height"), times = camera_times(time, C);
+  const std::vector<std::string> label = camera_names(names, C);
+  Cameras out;  // non-finite R or T: refused by camera_from_arrays, which camera_from_3dgs ends in
   for (py::ssize_t i = 0; i < C; ++i)
     out.list.push_back(camera_from_3dgs(r.data() + i * 9, t.data() + i * 3, fx[size_t(i)], fy[size_t(i)], W[size_t(i)], H[size_t(i)], times[size_t(i)],
-                                        label.empty() ? "cam" + std::to_string(i) : label[size_t(i)], size_t(i)));
+                                        label[size_t(i)], size_t(i)));
   return out;
 }
 

@@ -1,4 +1,6 @@
 #pragma once
+#include <cmath>
+#include <cstddef>
 // Real spherical harmonics exactly as the 3DGS code evaluates them (utils/sh_utils.py,
 // cuda_rasterizer computeColorFromSH): rgb = Σ_k Y_k(d) sh_k + 0.5, clamped below at 0.
 #include "fillgs/base/math.hpp"
@@ -74,6 +76,15 @@ Vec3f sh_to_rgb(int degree, const float* coeffs, const Vec3f& dir);
 /// 4 sqrt(4/15)/3, ...), checked against 4,000,000 random directions.
 constexpr float kSHBasisMax[16] = {0.28209479f, 0.48860251f, 0.48860251f, 0.48860251f, 0.54627422f, 0.54627422f, 0.63078313f, 0.54627422f,
                                    0.54627422f, 0.59004359f, 0.55629831f, 0.62937030f, 0.74635267f, 0.62937030f, 0.55629831f, 0.59004359f};
+
+/// The largest change of channel `channel`'s colour in any direction between two Gaussians'
+/// SH coefficients a and b ([coefficients][3] each): sum_k |a_k - b_k| kSHBasisMax[k], a bound
+/// that the still rule and the training keys' report share.
+inline float sh_colour_change(const float* a, const float* b, size_t coefficients, size_t channel) {
+  float change = 0.0f;
+  for (size_t k = 0; k < coefficients && k < 16; ++k) change += std::fabs(a[k * 3 + channel] - b[k * 3 + channel]) * kSHBasisMax[k];
+  return change;
+}
 
 inline float rgb_to_sh_dc(float c) { return (c - 0.5f) / kSHC0; }
 
