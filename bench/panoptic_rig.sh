@@ -91,7 +91,7 @@ finetune() {  # id, extra finetune options
   local id=$1
   shift
   step "$OUT/$id" summary.json "$FILLGS" finetune --model "$OUT/backbone/model.ply" "${DS[@]}" "${CYCLE[@]}" --train-cameras $TRAIN \
-    --out "$OUT/$id" --refiner rig --pool-cameras $POOL --rig-max-distance 1.5 --rig-max-angle 30 "${FT[@]}" "$@" --quiet
+    --out "$OUT/$id" --refiner rig --pool-cameras $POOL --rig-max-distance 1.5 --rig-max-angle 30 --motion-rates repair "${FT[@]}" "$@" --quiet
   evaluate "$OUT/$id"
 }
 

@@ -79,6 +79,15 @@ std::string error_of(F&& f) {
   return "";
 }
 
+/// The trained-model fixtures' folder: CTest runs tests/make_model_fixtures.py first and sets
+/// FILLGS_MODEL_FIXTURES to its output.
+inline std::string model_fixtures() {
+  const char* d = std::getenv("FILLGS_MODEL_FIXTURES");
+  REQUIRE(d != nullptr);
+  REQUIRE(std::filesystem::is_directory(d));
+  return d;
+}
+
 /// A fresh, empty scratch folder under the system temp directory.
 inline std::string scratch(const std::string& name) {
   const auto dir = std::filesystem::temp_directory_path() / ("fillgs_test_" + std::to_string(::getpid())) / name;

@@ -717,6 +717,11 @@ def main():
     make_deformable3dgs(out, "deformable3dgs", 8, is_blender=False)
     make_deformable3dgs(out, "deformable3dgs_blender", 9, is_blender=True)
     make_ply_frames(out, "ply_frames", 7)
+    # Models fine-tuning must keep (tests/test_keep_model.cpp): 2,000 Gaussians, 60 frames, the
+    # networks' widths of the benchmark's models halved.
+    keep = dict(width=64, depth=1, min=30, max=150, tdim=64, c2f=10000, deform_from=5000, coarse_emb=True, no_do=False)
+    make_ed3dgs(out, "ed3dgs_keep", 31, 80000, keep, n=2000, frames=60, gdim=32, expect=False)
+    make_4dgaussians(out, "4dgaussians_keep", 32, n=2000, frames=60, iteration=14000, width=64, channels=16, reso=(64, 150), depth=0, expect=False)
     make_broken(out, ed)
     make_hostile(out, "broken_", ed, fourdg, fourdgs)
     make_dtypes(out)

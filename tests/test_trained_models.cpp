@@ -28,12 +28,7 @@ using fillgs::test::run_cli;
 
 namespace {
 
-std::string fixtures() {
-  const char* d = std::getenv("FILLGS_MODEL_FIXTURES");
-  REQUIRE(d != nullptr);  // CTest sets it after running tests/make_model_fixtures.py
-  REQUIRE(fs::is_directory(d));
-  return d;
-}
+std::string fixtures() { return fillgs::test::model_fixtures(); }
 
 struct Expect {
   std::map<std::string, std::vector<double>> arrays;

@@ -56,10 +56,9 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
   const GaussianCloud model = keyed_for_training(read_scene_shown(f.model, f.read, in), &keys);
   if (keys.keys > 0)
     in.out << "keys: " << keys.keys << " for its " << keys.frames << " frames (one every " << fixed(keys.interval, 2)
-           << "), positions, rotations, scales and opacities within " << fixed(keys.worst_share, 2) << " of their tolerances of its network at every frame ("
-           << keys.sample << " moving Gaussians measured" << (keys.limiting.empty() ? std::string() : "; " + keys.limiting + " decided the interval")
-           << ")" << (keys.colour_change > 1.0 / 255.0 ? "; its colour changes in time by up to " + fixed(keys.colour_change, 3) +
-                                                           ", which the keyed model holds constant" : std::string()) << "\n";
+           << "), positions, rotations, scales, opacities and colours (" << (keys.keyed_bands ? "every SH band" : "the SH DC") << ") within "
+           << fixed(keys.worst_share, 2) << " of their tolerances of its network at every frame (" << keys.sample << " moving Gaussians measured"
+           << (keys.limiting.empty() ? std::string() : "; " + keys.limiting + " decided the interval") << ")\n";
   if (model.size() == 0) throw_error(f.model, ": has no Gaussians; fine-tuning needs a trained model");
   check_trainable(model, f.model);
   // --paper-schedule picks the paper's counts; the flags given override them.
@@ -224,6 +223,7 @@ Action declare_finetune(CLI::App& app) {
   add_number(app, "--rig-max-distance", f->rig.max_distance, "rig: how far a pool camera may stand from the virtual view", at_least(0));
   add_number(app, "--rig-max-angle", f->rig.max_angle_degrees, "rig: how far it may look away (degrees)", within(0, 180));
   add_selection_flags(app, o.select);
+  f->rates.preset = RatePreset::Converged;  // a user's model is kept; the benchmark asks for repair
   add_motion_rate_flags(app, f->rates);
   add_dataset_flags(app, f->data, "--train-cameras");
   add_scene_flags(app, f->read);

@@ -324,13 +324,15 @@ void add_grid_flags(CLI::App& app, ExplorationOptions& o) {
 
 void add_motion_rate_flags(CLI::App& app, MotionRateFlags& f) {
   const std::string g = "Fine-tuning rates";
-  add_choice(app, "--motion-rates", f.preset, "repair: training's initial rate, keys x10; gentle: its final rate, keys x3")->group(g);
+  add_choice(app, "--motion-rates", f.preset,
+             "converged: a converged model kept (every rate 1/300 of 3DGS's, sparse Adam, no densification); repair: training's initial "
+             "rate, keys x10 (the benchmark's); gentle: its final rate x10, keys x3")->group(g);
   add_number(app, "--position-lr", f.position_lr, "initial position learning rate (x the scene extent; overrides the preset)")->group(g);
   add_number(app, "--key-lr-scale", f.key_lr_scale, "motion keys' rate as a multiple of it (overrides the preset)")->group(g);
 }
 
 MotionRates motion_rates(const Invocation& in, const MotionRateFlags& f) {
-  MotionRates r = f.preset == RatePreset::Gentle ? MotionRates::gentle() : MotionRates();
+  MotionRates r = f.preset == RatePreset::Gentle ? MotionRates::gentle() : f.preset == RatePreset::Converged ? MotionRates::converged_model() : MotionRates();
   if (in.given("--position-lr")) r.position_lr = f.position_lr;
   if (in.given("--key-lr-scale")) r.key_lr_scale = f.key_lr_scale;
   if (!(r.position_lr > 0) || !(r.key_lr_scale > 0)) in.fail("--position-lr and --key-lr-scale must be positive");

@@ -263,7 +263,7 @@ void add_grid_flags(CLI::App& app, ExplorationOptions& o);
 
 /// --motion-rates repair|gentle, --position-lr LR, --key-lr-scale k: how fast fine-tuning
 /// moves Gaussians (finetune.hpp, MotionRates); the two numbers override the preset.
-enum class RatePreset { Repair, Gentle };
+enum class RatePreset { Repair, Gentle, Converged };
 struct MotionRateFlags {
   RatePreset preset = RatePreset::Repair;
   double position_lr = MotionRates().position_lr, key_lr_scale = MotionRates().key_lr_scale;
@@ -277,5 +277,6 @@ std::string fixed(double x, int digits = 2);
 }  // namespace fillgs::cli
 
 namespace fillgs {
-FILLGS_ENUM_NAMES(cli::RatePreset, "motion rates", {cli::RatePreset::Repair, "repair"}, {cli::RatePreset::Gentle, "gentle"});
+FILLGS_ENUM_NAMES(cli::RatePreset, "motion rates", {cli::RatePreset::Repair, "repair"}, {cli::RatePreset::Gentle, "gentle"},
+                 {cli::RatePreset::Converged, "converged"});
 }  // namespace fillgs

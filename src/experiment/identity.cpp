@@ -25,14 +25,14 @@ json vec3(const Vec3f& v) { return json::array({v.x(), v.y(), v.z()}); }
 // not): the build then stops here until the field's serialiser below has been looked at
 // and these sizes updated (x86-64, the platform fillgs builds on).
 #if defined(__x86_64__)
-static_assert(sizeof(TrainOptions) == 360, "TrainOptions changed: add the new field to identity_json(TrainOptions), then update this size");
+static_assert(sizeof(TrainOptions) == 368, "TrainOptions changed: add the new field to identity_json(TrainOptions), then update this size");
 static_assert(sizeof(SelectOptions) == 112, "SelectOptions changed: add the new field to identity_json(SelectOptions), then update this size");
 static_assert(sizeof(VisibilityOptions) == 20, "VisibilityOptions changed: add the new field to identity_json(SelectOptions), then update this size");
 static_assert(sizeof(MaskOptions) == 104, "MaskOptions changed: add the new field to identity_json(MaskOptions), then update this size");
 static_assert(sizeof(ExplorationOptions) == 32, "ExplorationOptions changed: add the new field to identity_json(ExplorationOptions), then update this size");
 static_assert(sizeof(ArtifactOptions) == 24, "ArtifactOptions changed: add the new field to identity_json(ArtifactOptions), then update this size");
 static_assert(sizeof(ReferenceOptions) == 112, "ReferenceOptions changed: add the new field to identity_json(ReferenceOptions), then update this size");
-static_assert(sizeof(FinetuneOptions) == 704, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
+static_assert(sizeof(FinetuneOptions) == 712, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
 #endif
 
 void differences(const json& was, const json& now, const std::string& path, std::string& first) {
@@ -107,7 +107,8 @@ json identity_json(const TrainOptions& o) {
           // checkpoint_interval: when checkpoints are written, not what is learned.
           {"colour_correction", o.colour_correction},
           {"colour_lr", o.colour_lr},
-          {"refined_share", o.refined_share}};
+          {"refined_share", o.refined_share},
+          {"sparse_adam", o.sparse_adam}};
   // Only where given, so that the identities of runs without them stay as they were.
   if (!o.initial_colour.empty()) {
     json c = json::object();

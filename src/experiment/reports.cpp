@@ -261,7 +261,7 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
   if (r.keys.keys > 0)
     j["keys"] = {{"count", r.keys.keys}, {"interval_frames", r.keys.interval}, {"frames", r.keys.frames},
                  {"worst_position_error", r.keys.worst_error}, {"worst_share_of_tolerance", r.keys.worst_share},
-                 {"decided_by", r.keys.limiting}, {"colour_change_dropped", r.keys.colour_change}, {"sample_gaussians", r.keys.sample}};
+                 {"decided_by", r.keys.limiting}, {"colour_change", r.keys.colour_change}, {"keyed_sh_bands", r.keys.keyed_bands}, {"sample_gaussians", r.keys.sample}};
   if (o.pool) {  // real photographs instead of trajectories
     j.erase("trajectories_per_round");
     j["pool_budget"] = o.pool_budget;

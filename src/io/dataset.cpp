@@ -337,6 +337,7 @@ void Dataset::keep_frames(const FrameRange& range, std::vector<std::string>* per
   }
   views_ = std::move(kept);
   if (per_view) *per_view = std::move(kept_side);
+  source_frames_ = F;
   frames_ = n;
 }
 

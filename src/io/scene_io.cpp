@@ -135,7 +135,7 @@ void write_3dgs_ply(const std::string& path, const GaussianCloud& cloud, double 
   write_ply(path, ply);
 }
 
-GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
+GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames, bool keyed_bands) {
   if (frames < 2) throw_error("baking tracks needs at least 2 frames (got ", frames, ")");
   GaussianCloud out = cloud;
   out.polynomial = PolynomialMotion{};
@@ -155,7 +155,10 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
   if (keyed_scales) km.log_scales.resize(M * K * 3);
   const bool keyed_colours = evaluated || (cloud.motion == MotionModel::Keyframed && !cloud.keyframed.colours.empty());
   if (keyed_colours) km.colours.resize(M * K * 3);
-  const size_t sh_row = size_t(cloud.sh_count()) * 3;
+  const size_t sh_row = size_t(cloud.sh_count()) * 3, W = sh_row - 3;
+  const bool keyed_rest = W > 0 && keyed_colours &&
+                          ((evaluated && keyed_bands) || (cloud.motion == MotionModel::Keyframed && !cloud.keyframed.sh_rest.empty()));
+  if (keyed_rest) km.sh_rest.resize(M * K * W);
   FrameSampler ev(cloud);
   bool opacity_varies = false;
   for (size_t k = 0; k < K; ++k) {
@@ -168,6 +171,7 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
         for (int a = 0; a < 3; ++a) km.log_scales[(j * K + k) * 3 + a] = std::log(f.scales[g][a]);
       if (keyed_colours)
         for (int a = 0; a < 3; ++a) km.colours[(j * K + k) * 3 + a] = f.sh[g * sh_row + a];
+      if (keyed_rest) std::copy_n(&f.sh[g * sh_row + 3], W, &km.sh_rest[(j * K + k) * W]);
       km.opacity_logits[j * K + k] = logit(f.opacities[g]);
       if (std::fabs(f.opacities[g] - sigmoid(cloud.opacity_logits[g])) > 1e-6f) opacity_varies = true;
     }
@@ -183,14 +187,19 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames) {
 namespace {
 
 /// Shares of the key tolerances by which frame `b` misses frame `a` at Gaussian s, per property
-/// (position, rotation, log-scale, opacity), in the still rule's measures.
-std::array<double, 4> key_misses(const FrameGaussians& a, const FrameGaussians& b, size_t s, const KeyTolerance& t) {
+/// (position, rotation, log-scale, opacity, colour), in the still rule's measures. `a_sh` is
+/// frame a's SH row of Gaussian s (the truth keeps its own copy).
+std::array<double, 5> key_misses(const FrameGaussians& a, const float* a_sh, const FrameGaussians& b, size_t s, const KeyTolerance& t) {
   auto share = [](double d, float tol) { return d <= 0.0 ? 0.0 : tol > 0.0f ? d / double(tol) : INFINITY; };
   const double c = std::min(1.0, std::fabs(double(a.rotations[s].dot(b.rotations[s]))));
   double scale = 0;
   for (int k = 0; k < 3; ++k) scale = std::max(scale, std::fabs(std::log(double(a.scales[s][k])) - std::log(double(b.scales[s][k]))));
+  const int C = (a.sh_degree + 1) * (a.sh_degree + 1);
+  double colour = 0;
+  for (int ch = 0; ch < 3; ++ch) colour = std::max(colour, double(sh_colour_change(a_sh, &b.sh[s * size_t(C) * 3], size_t(C), size_t(ch))));
   return {share((a.means[s] - b.means[s]).norm(), t.position), share(2.0 * std::acos(c) * 180.0 / M_PI, t.rotation_degrees),
-          share(scale, t.log_scale), share(std::fabs(double(a.opacities[s]) - double(b.opacities[s])), t.opacity)};
+          share(scale, t.log_scale), share(std::fabs(double(a.opacities[s]) - double(b.opacities[s])), t.opacity),
+          share(colour, t.colour)};
 }
 
 }  // namespace
@@ -221,9 +230,9 @@ KeyChoice choose_keys(const GaussianCloud& cloud, const KeyTolerance& tolerance,
   kc.sample = S;
   const int F = kc.frames;
   const FrameGrid grid(F);
-  // The network at every frame; its colour is measured here against frame 0's (what the keyed
-  // model drops: every band's change, in any direction) and not kept.
+  // The network at every frame (every SH coefficient kept: colour is a keyed property too).
   std::vector<FrameGaussians> truth;
+  std::vector<std::vector<float>> truth_sh;
   truth.reserve(size_t(F));
   {
     FrameSampler exact(sub);
@@ -235,25 +244,36 @@ KeyChoice choose_keys(const GaussianCloud& cloud, const KeyTolerance& tolerance,
         for (size_t a = 0; a < 3; ++a)
           kc.colour_change = std::max(kc.colour_change, double(sh_colour_change(&g.sh[s * row], &first_sh[s * row], row / 3, a)));
       FrameGaussians kept;
+      kept.sh_degree = g.sh_degree;
       kept.means = g.means, kept.scales = g.scales, kept.rotations = g.rotations, kept.opacities = g.opacities;
       truth.push_back(std::move(kept));
+      truth_sh.emplace_back(g.sh, g.sh + S * row);
     }
   }
+  // Higher bands are keyed where they change by more than the colour tolerance over the frames
+  // (E-D3DGS and 4DGaussians deform all 16 coefficients); else the DC alone.
+  for (int f = 1; f < F && !kc.keyed_bands; ++f)
+    for (size_t s = 0; s < S && !kc.keyed_bands; ++s) {
+      std::vector<float> dc_only(truth_sh[0].begin() + ptrdiff_t(s * row), truth_sh[0].begin() + ptrdiff_t((s + 1) * row));
+      std::copy_n(&truth_sh[size_t(f)][s * row], 3, dc_only.data());
+      for (size_t a = 0; a < 3; ++a)
+        if (sh_colour_change(&truth_sh[size_t(f)][s * row], dc_only.data(), row / 3, a) > tolerance.colour) kc.keyed_bands = true;
+    }
   // Interval 1 keys every frame: exact there, whatever the tolerance.
   kc.keys = F;
   kc.interval = 1.0;
-  static const char* kProperty[4] = {"position", "rotation", "scale", "opacity"};
+  static const char* kProperty[5] = {"position", "rotation", "scale", "opacity", "colour"};
   for (int interval = 2; interval <= 32; interval *= 2) {
     const int K = (F - 1 + interval - 1) / interval + 1;
     if (K >= kc.keys || K < 2) continue;
-    const GaussianCloud keyed = bake_tracks(sub, K);
+    const GaussianCloud keyed = bake_tracks(sub, K, kc.keyed_bands);
     FrameSampler approx(keyed);
-    std::array<double, 4> worst{};
+    std::array<double, 5> worst{};
     for (int f = 0; f < F; ++f) {
       const FrameGaussians& g = approx.at(grid.time(f));
       for (size_t s = 0; s < S; ++s) {
-        const std::array<double, 4> miss = key_misses(truth[size_t(f)], g, s, tolerance);
-        for (size_t p = 0; p < 4; ++p) worst[p] = std::max(worst[p], miss[p]);
+        const std::array<double, 5> miss = key_misses(truth[size_t(f)], &truth_sh[size_t(f)][s * row], g, s, tolerance);
+        for (size_t p = 0; p < 5; ++p) worst[p] = std::max(worst[p], miss[p]);
       }
     }
     const size_t over = size_t(std::max_element(worst.begin(), worst.end()) - worst.begin());
@@ -273,21 +293,15 @@ GaussianCloud keyed_for_training(const GaussianCloud& cloud, KeyChoice* choice, 
   KeyChoice kc = choose_keys(cloud, tolerance);
   if (choice) *choice = kc;
   if (cloud.motion != MotionModel::Evaluated) return cloud;
-  GaussianCloud keyed = bake_tracks(cloud, std::max(2, kc.keys));
+  GaussianCloud keyed = bake_tracks(cloud, std::max(2, kc.keys), kc.keyed_bands);
   std::ostringstream os;
   os << "keyed for training: " << kc.keys << " keys (one every " << kc.interval << " of its " << kc.frames
-     << " frames); positions, rotations, scales and opacities within " << kc.worst_share << " of their tolerances (" << tolerance.position
-     << " world units, " << tolerance.rotation_degrees << " degrees, " << tolerance.log_scale << " in log-scale, " << tolerance.opacity
-     << " in opacity) of its network at every frame on " << kc.sample << " moving Gaussians";
+     << " frames); positions, rotations, scales, opacities and colours (" << (kc.keyed_bands ? "every SH band" : "the SH DC")
+     << ") within " << kc.worst_share << " of their tolerances (" << tolerance.position << " world units, " << tolerance.rotation_degrees
+     << " degrees, " << tolerance.log_scale << " in log-scale, " << tolerance.opacity << " in opacity, " << tolerance.colour
+     << " in colour) of its network at every frame on " << kc.sample << " moving Gaussians";
   if (!kc.limiting.empty()) os << " (" << kc.limiting << " decided the interval)";
   keyed.notes.push_back(os.str());
-  if (kc.colour_change > 1.0 / 255.0) {
-    std::ostringstream c;
-    c << "its network's colour changes over the frames by up to " << kc.colour_change
-      << " (any direction and channel); fillgs's trainer keeps colour constant in time, so the keyed model holds each moving Gaussian's mean "
-         "DC and frame-0 higher bands";
-    keyed.notes.push_back(c.str());
-  }
   return keyed;
 }
 
@@ -333,6 +347,12 @@ void write_fillgs_ply(const std::string& path, const GaussianCloud& cloud_in, in
     if (!km.colours.empty())
       for (int k = 0; k < K; ++k)
         for (int a = 0; a < 3; ++a) add_column(tr, "motion_dc_" + std::to_string(k) + "_" + std::to_string(a), col(km.colours, 3, k, a));
+    if (!km.sh_rest.empty()) {  // motion_rest_<k>_<i>: f_rest_<i>'s order (channel-major) at key k
+      const int R = c.sh_count() - 1;
+      for (int k = 0; k < K; ++k)
+        for (int a = 0; a < 3; ++a)
+          for (int i = 0; i < R; ++i) add_column(tr, "motion_rest_" + std::to_string(k) + "_" + std::to_string(a * R + i), col(km.sh_rest, 3 * R, k, 3 * i + a));
+    }
     ply.elements.push_back(std::move(tr));
   }
   write_ply(path, ply);

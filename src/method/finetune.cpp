@@ -51,6 +51,15 @@ TrainOptions fine_tune_schedule(int iterations, const MotionRates& rates) {
   t.time_ramp = 0.0;  // the model already covers the whole video
   t.densify_from = std::max(1, iterations / 20);
   t.densify_until = iterations * 6 / 10;
+  if (rates.converged) {  // a converged model: small steps, only where a view reaches, its own Gaussians and partition
+    t.feature_lr *= kConvergedRate;
+    t.opacity_lr *= kConvergedRate;
+    t.scaling_lr *= kConvergedRate;
+    t.rotation_lr *= kConvergedRate;
+    t.sparse_adam = true;
+    t.densify_until = 0;
+    t.motion = MotionLearning::Promote;
+  }
   return t;
 }
 

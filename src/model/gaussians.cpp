@@ -95,6 +95,10 @@ void GaussianCloud::validate(const std::string& source) const {
     if (!k.temporal_opacity.empty() && k.temporal_opacity.size() != m * 4) throw_error(source, ": temporal opacity does not match");
     if (!k.colours.empty() && k.colours.size() != m * K * 3) throw_error(source, ": keyframe colours do not match");
     check_finite_array(source, "keyframe colour", k.colours.data(), k.colours.size(), 3 * K);
+    const size_t rest = size_t(sh_count() - 1) * 3;
+    if (!k.sh_rest.empty() && (k.colours.empty() || k.sh_rest.size() != m * K * rest))
+      throw_error(source, ": keyframe SH bands do not match");
+    check_finite_array(source, "keyframe SH band", k.sh_rest.data(), k.sh_rest.size(), rest * K);
     check_finite_array(source, "keyframe position", k.positions.data(), k.positions.size(), 3 * K);
     check_finite_array(source, "keyframe rotation", k.rotations.data(), k.rotations.size(), 4 * K);
     check_finite_array(source, "keyframe scale", k.log_scales.data(), k.log_scales.size(), 3 * K);
@@ -230,6 +234,16 @@ DynamicState keyframed_at(const GaussianCloud& c, size_t j, double t) {
   return st;
 }
 
+/// The higher SH bands of keyed Gaussian j at t (KeyframedMotion::sh_rest), linearly.
+void keyed_rest_at(const GaussianCloud& c, size_t j, double t, float* out) {
+  const KeyframedMotion& k = c.keyframed;
+  const size_t K = size_t(k.key_count), W = size_t(c.sh_count() - 1) * 3;
+  const KeyPosition kp = locate_key(k, t);
+  const size_t i0 = size_t(kp.i), i1 = size_t(std::min(kp.i + 1, int(K) - 1));
+  const float* R = &k.sh_rest[j * K * W];
+  for (size_t a = 0; a < W; ++a) out[a] = R[i0 * W + a] + kp.s * (R[i1 * W + a] - R[i0 * W + a]);
+}
+
 DynamicState polynomial_at(const GaussianCloud& c, size_t j, double t) {
   const PolynomialMotion& p = c.polynomial;
   const uint32_t g = c.dynamic_ids[j];
@@ -341,6 +355,7 @@ const FrameGaussians& FrameSampler::at(double t) {
                         frame_.opacities[g] = sigmoid(st.opacity_logit) * st.opacity_factor;
                         if (!frame_.sh_storage.empty())
                           for (int a = 0; a < 3; ++a) frame_.sh_storage[size_t(g) * size_t(c.sh_count()) * 3 + size_t(a)] = st.dc[a];
+                        if (!c.keyframed.sh_rest.empty()) keyed_rest_at(c, j, t, &frame_.sh_storage[size_t(g) * size_t(c.sh_count()) * 3 + 3]);
                       }
                     });
   return frame_;
@@ -437,7 +452,7 @@ size_t partition_static_dynamic(GaussianCloud& c, const PartitionOptions& opt) {
       }
       const bool still = max_speed <= opt.static_speed_threshold && rows_constant(k.rotations, j, K, 4) &&
                          rows_constant(k.log_scales, j, K, 3) && rows_constant(k.opacity_logits, j, K, 1) &&
-                         rows_constant(k.colours, j, K, 3) &&
+                         rows_constant(k.colours, j, K, 3) && rows_constant(k.sh_rest, j, K, size_t(c.sh_count() - 1) * 3) &&
                          k.temporal_opacity.empty();
       if (still) {
         keep[j] = 0;
@@ -485,6 +500,9 @@ size_t partition_static_dynamic(GaussianCloud& c, const PartitionOptions& opt) {
       if (!c.keyframed.opacity_logits.empty()) c.opacity_logits[g] = c.keyframed.opacity_logits[j * K];
       if (!c.keyframed.colours.empty())
         for (int a = 0; a < 3; ++a) c.sh[size_t(g) * size_t(c.sh_count()) * 3 + size_t(a)] = c.keyframed.colours[j * K * 3 + size_t(a)];
+      const size_t W = size_t(c.sh_count() - 1) * 3;
+      if (!c.keyframed.sh_rest.empty())
+        std::copy_n(&c.keyframed.sh_rest[j * K * W], W, &c.sh[size_t(g) * size_t(c.sh_count()) * 3 + 3]);
     }
     ++moved;
   }
@@ -496,6 +514,7 @@ size_t partition_static_dynamic(GaussianCloud& c, const PartitionOptions& opt) {
     keep_rows(k.log_scales, K * 3, keep);
     keep_rows(k.opacity_logits, K, keep);
     keep_rows(k.colours, K * 3, keep);
+    keep_rows(k.sh_rest, K * size_t(c.sh_count() - 1) * 3, keep);
     keep_rows(k.temporal_opacity, 4, keep);
   } else {
     auto& p = c.polynomial;

@@ -669,8 +669,14 @@ py::dict load_views(const std::string& images, const std::string& cameras, const
   }
   Cameras c;
   py::list imgs;
+  std::vector<int32_t> source_frame;
+  // A frame range keeps the video's times (frame f of the source's F at f / (F - 1), the model's
+  // frames), not the chosen frames renumbered as a video of their own.
+  const int F = d->source_frames();
   for (size_t i = 0; i < d->views().size(); ++i) {
-    const Camera& cam = d->views()[i].camera;
+    Camera cam = d->views()[i].camera;
+    source_frame.push_back(d->views()[i].source_frame);
+    if (F != d->frames()) cam.time = FrameGrid(F).time(d->views()[i].source_frame);
     c.list.push_back(cam);
     // 8-bit, as the command line holds them, handed over from the dataset (never twice in memory).
     imgs.append(to_array(d->take_image8(i), {py::ssize_t(cam.height), py::ssize_t(cam.width), 3}));
@@ -678,7 +684,8 @@ py::dict load_views(const std::string& images, const std::string& cameras, const
   py::dict out;
   out["cameras"] = c;
   out["images"] = imgs;
-  out["frames"] = d->frames();
+  out["frames"] = F;
+  out["source_frames"] = to_array(std::move(source_frame), {py::ssize_t(c.list.size())});
   return out;
 }
 
@@ -1043,7 +1050,9 @@ PYBIND11_MODULE(_fillgs, m) {
         py::arg("frames") = "", py::arg("downscale") = 1, py::arg("progress") = py::none(),
         "A rig's views as `fillgs train` reads them (`--images`, `--cameras`, `--train-cameras`, `--frames`, `--downscale`): a dict with "
         "cameras (each view at its time), images (uint8 [H,W,3] each, as the command line holds them; / 255 for floats in [0, 1]; select and "
-        "weights take them without a copy) and frames.");
+        "weights take them without a copy), frames and source_frames (int32, each view's frame in the video). A frame range "
+        "(`frames='0:300:10'`) keeps the video's times and frame count (frame f of F at f / (F - 1), the model's), not the chosen "
+        "frames renumbered as a video of their own.");
 
   py::class_<Grid>(m, "ExplorationGrid", "The exploration space: every voxel free (0), occupied (1) or unexplored (2)")
       .def_property_readonly("dims", [](const Grid& g) { return std::vector<int>{g.grid->dims().x(), g.grid->dims().y(), g.grid->dims().z()}; },

@@ -30,7 +30,7 @@ namespace fillgs {
 
 namespace {
 constexpr char kMagic[8] = {'F', 'I', 'L', 'L', 'G', 'S', 'C', 'K'};
-constexpr uint32_t kVersion = 4;  // 2: keyed-opacity flag; 3: Gaussians on changing pixels; 4: the dataset's fingerprint
+constexpr uint32_t kVersion = 5;  // 2: keyed-opacity flag; 3: Gaussians on changing pixels; 4: the dataset's fingerprint; 5: colour keys
 
 struct Writer {
   std::string bytes;
@@ -105,6 +105,7 @@ ModelParams<float> read_params(Reader& r) {
   shape(p.key_rotations, m * K * 4, "key_rotations");
   if (!p.key_log_scales.empty()) shape(p.key_log_scales, m * K * 3, "key_log_scales");
   if (p.keyed_opacity || !p.key_opacity_logits.empty()) shape(p.key_opacity_logits, m * K, "key_opacity_logits");
+  if (!p.key_sh.empty()) shape(p.key_sh, m * K * size_t(p.sh_count()) * 3, "key_sh");
   for (size_t i = 0; i < m; ++i)
     if (p.dynamic_ids[i] >= n || (i > 0 && p.dynamic_ids[i] <= p.dynamic_ids[i - 1]))
       throw_error(r.path, ": checkpoint moving Gaussian ", i, " has id ", p.dynamic_ids[i], " (ids must ascend below ", n, ")");

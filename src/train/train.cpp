@@ -613,6 +613,8 @@ void Trainer::restart_key_moments(int from, bool positions_only) {
       if (positions_only) continue;
       std::fill(m->key_rotations.begin() + (j * K + k0) * 4, m->key_rotations.begin() + (j + 1) * K * 4, 0.0f);
       if (m->keyed_opacity) std::fill(m->key_opacity_logits.begin() + j * K + k0, m->key_opacity_logits.begin() + (j + 1) * K, 0.0f);
+      const size_t S = size_t(m->sh_count()) * 3;
+      if (!m->key_sh.empty()) std::fill(m->key_sh.begin() + ptrdiff_t((j * K + k0) * S), m->key_sh.begin() + ptrdiff_t((j + 1) * K * S), 0.0f);
     }
 }
 
@@ -796,12 +798,14 @@ void Trainer::adam_step() {
   const int K = params_.sh_count();
   // Element-wise Adam in float (vectorisable); lr / c1 and 1 / √c2 fold the bias corrections.
   const float fb1 = float(b1), fb2 = float(b2), s2 = float(1.0 / std::sqrt(c2)), feps = float(eps);
+  const bool sparse = options_.sparse_adam;
   auto update = [&](std::vector<float>& x, const std::vector<float>& g, std::vector<float>& m, std::vector<float>& v, double lr) {
     const float a = float(lr / c1);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, x.size(), 16384), [&](const tbb::blocked_range<size_t>& r) {
       float *X = x.data(), *M = m.data(), *Vv = v.data();
       const float* G = g.data();
       for (size_t i = r.begin(); i < r.end(); ++i) {
+        if (sparse && G[i] == 0.0f) continue;
         M[i] = fb1 * M[i] + (1 - fb1) * G[i];
         Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
         X[i] -= a * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
@@ -824,6 +828,20 @@ void Trainer::adam_step() {
       float *X = &params_.sh[gi * block], *M = &adam_m_.sh[gi * block], *Vv = &adam_v_.sh[gi * block];
       const float* G = &grad_.sh[gi * block];
       for (size_t i = 0; i < block; ++i) {
+        if (sparse && G[i] == 0.0f) continue;
+        M[i] = fb1 * M[i] + (1 - fb1) * G[i];
+        Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
+        X[i] -= (i < 3 ? a_dc : a_rest) * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
+      }
+    }
+  });
+  // Colour keys: the same rates per coefficient (DC, then the rest at 1/20).
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, params_.key_sh.size() / std::max<size_t>(block, 1), 2048), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t row = r.begin(); row < r.end(); ++row) {
+      float *X = &params_.key_sh[row * block], *M = &adam_m_.key_sh[row * block], *Vv = &adam_v_.key_sh[row * block];
+      const float* G = &grad_.key_sh[row * block];
+      for (size_t i = 0; i < block; ++i) {
+        if (sparse && G[i] == 0.0f) continue;
         M[i] = fb1 * M[i] + (1 - fb1) * G[i];
         Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
         X[i] -= (i < 3 ? a_dc : a_rest) * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
@@ -893,6 +911,12 @@ ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Ro
     put(q.opacity_logits, &p.opacity_logits[s], 1, zero);
     put(q.sh, &p.sh[s * S], S, zero);
     const int64_t j = dyn_index[s];
+    if (j >= 0 && r.make_static && !p.key_sh.empty())  // frozen colour: its keys' mean
+      for (size_t a = 0; a < S; ++a) {
+        double sum = 0;
+        for (size_t k = 0; k < K; ++k) sum += p.key_sh[(size_t(j) * K + k) * S + a];
+        q.sh[size_t(id) * S + a] = moments ? 0.0f : float(sum / double(K));
+      }
     if (j >= 0 && r.make_static) {
       // Frozen: its own values become the keys' mean (moments start at zero).
       Vec3f pm;
@@ -918,12 +942,14 @@ ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Ro
             put(q.key_log_scales, kls, 3, zero);
           }
           if (keyed_opacity) put(q.key_opacity_logits, &p.key_opacity_logits[size_t(j) * K + k], 1, zero);
+          if (!p.key_sh.empty()) put(q.key_sh, &p.key_sh[(size_t(j) * K + k) * S], S, zero);
         } else {
           // Promoted: keys at the current pose (moments start at zero).
           put(q.key_positions, mean.data(), 3, moments);
           put(q.key_rotations, &p.rotations[4 * s], 4, moments);
           if (keyed_scale) put(q.key_log_scales, ls, 3, moments);
           if (keyed_opacity) put(q.key_opacity_logits, &p.opacity_logits[s], 1, moments);
+          if (!p.key_sh.empty()) put(q.key_sh, &p.sh[s * S], S, moments);
         }
       }
     }
@@ -1123,6 +1149,13 @@ void Trainer::raise_sh_degree() {
     for (size_t g = 0; g < p.size(); ++g)
       std::copy(p.sh.begin() + g * from * 3, p.sh.begin() + (g + 1) * from * 3, sh.begin() + g * to * 3);
     p.sh = std::move(sh);
+    if (!p.key_sh.empty()) {
+      const size_t rows = p.key_sh.size() / (size_t(from) * 3);
+      std::vector<float> ksh(rows * size_t(to) * 3, 0.0f);
+      for (size_t r = 0; r < rows; ++r)
+        std::copy(p.key_sh.begin() + r * from * 3, p.key_sh.begin() + (r + 1) * from * 3, ksh.begin() + r * to * 3);
+      p.key_sh = std::move(ksh);
+    }
     p.sh_degree += 1;
   };
   widen(params_);

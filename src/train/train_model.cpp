@@ -35,13 +35,13 @@ void ModelParams<Real>::set_zeros_like(const ModelParams& shape) {
 template <typename Real>
 std::vector<std::vector<Real>*> ModelParams<Real>::arrays() {
   return {&means, &log_scales, &rotations, &opacity_logits, &sh, &key_positions, &key_rotations, &key_log_scales,
-          &key_opacity_logits};
+          &key_opacity_logits, &key_sh};
 }
 
 template <typename Real>
 std::vector<const std::vector<Real>*> ModelParams<Real>::arrays() const {
   return {&means, &log_scales, &rotations, &opacity_logits, &sh, &key_positions, &key_rotations, &key_log_scales,
-          &key_opacity_logits};
+          &key_opacity_logits, &key_sh};
 }
 
 namespace {
@@ -112,20 +112,6 @@ ModelParams<Real> params_from_cloud(const GaussianCloud& cloud_in, int bake_fram
       cloud_in.motion == MotionModel::Static ||
       (cloud_in.motion == MotionModel::Keyframed && !km.ex4dgs_edges && km.position_interp == KeyInterp::CatmullRom &&
        km.temporal_opacity.empty() && !km.rotations.empty());
-  GaussianCloud uncoloured;
-  if (trainable_as_is && !km.colours.empty()) {
-    // The trainer keeps colour constant in time: each moving Gaussian starts from its keys' mean.
-    uncoloured = cloud_in;
-    const size_t K = size_t(km.key_count), row = size_t(cloud_in.sh_count()) * 3;
-    for (size_t j = 0; j < cloud_in.dynamic_ids.size(); ++j)
-      for (size_t a = 0; a < 3; ++a) {
-        double sum = 0;
-        for (size_t k = 0; k < K; ++k) sum += km.colours[(j * K + k) * 3 + a];
-        uncoloured.sh[cloud_in.dynamic_ids[j] * row + a] = float(sum / double(K));
-      }
-    uncoloured.keyframed.colours.clear();
-    cloud = &uncoloured;
-  }
   if (cloud_in.motion == MotionModel::Evaluated) {  // a network's model: keys as dense as its motion needs
     baked = keyed_for_training(cloud_in);
     cloud = &baked;
@@ -157,6 +143,17 @@ ModelParams<Real> params_from_cloud(const GaussianCloud& cloud_in, int bake_fram
     copy(k.log_scales.data(), k.log_scales.size(), p.key_log_scales);
     copy(k.opacity_logits.data(), k.opacity_logits.size(), p.key_opacity_logits);
     p.keyed_opacity = !k.opacity_logits.empty();
+    if (!k.colours.empty()) {  // colour in time: every coefficient per key (the constant bands repeated)
+      const size_t M = c.dynamic_ids.size(), C = size_t(c.sh_count()), W = (C - 1) * 3;
+      p.key_sh.resize(M * K * C * 3);
+      for (size_t j = 0; j < M; ++j)
+        for (size_t k2 = 0; k2 < K; ++k2) {
+          Real* dst = &p.key_sh[(j * K + k2) * C * 3];
+          for (size_t a = 0; a < 3; ++a) dst[a] = k.colours[(j * K + k2) * 3 + a];
+          const float* rest = k.sh_rest.empty() ? &c.sh[size_t(c.dynamic_ids[j]) * C * 3 + 3] : &k.sh_rest[(j * K + k2) * W];
+          for (size_t a = 0; a < W; ++a) dst[3 + a] = rest[a];
+        }
+    }
   }
   return p;
 }
@@ -195,6 +192,8 @@ size_t key_every_gaussian(ModelParams<Real>& p) {
   q.key_rotations.assign(N * K * 4, Real(0));
   if (keyed_scale) q.key_log_scales.assign(N * K * 3, Real(0));
   if (p.keyed_opacity) q.key_opacity_logits.assign(N * K, Real(0));
+  const size_t S = size_t(p.sh_count()) * 3;
+  if (!p.key_sh.empty()) q.key_sh.assign(N * K * S, Real(0));
   size_t j = 0;  // row of g among p's moving Gaussians
   for (uint32_t g = 0; g < N; ++g) {
     const bool moving = j < M && p.dynamic_ids[j] == g;
@@ -205,6 +204,8 @@ size_t key_every_gaussian(ModelParams<Real>& p) {
       if (keyed_scale)
         for (int a = 0; a < 3; ++a) q.key_log_scales[(g * K + k) * 3 + a] = moving ? p.key_log_scales[src * 3 + a] : p.log_scales[3 * g + a];
       if (p.keyed_opacity) q.key_opacity_logits[g * K + k] = moving ? p.key_opacity_logits[src] : p.opacity_logits[g];
+      if (!p.key_sh.empty())
+        std::copy_n(moving ? &p.key_sh[src * S] : &p.sh[g * S], S, &q.key_sh[(g * K + k) * S]);
     }
     if (moving) ++j;
   }
@@ -216,7 +217,10 @@ void extrapolate_keys(ModelParams<float>& p, int from, float min_step) {
   const int K = p.key_count;
   FILLGS_CHECK(from >= 2);
   if (from >= K) return;
-  const size_t M = p.dynamic_count();
+  const size_t M = p.dynamic_count(), S = size_t(p.sh_count()) * 3;
+  auto hold_key_sh = [&](size_t j, int k) {  // colour keys hold the last one
+    if (!p.key_sh.empty()) std::copy_n(&p.key_sh[(j * size_t(K) + size_t(k - 1)) * S], S, &p.key_sh[(j * size_t(K) + size_t(k)) * S]);
+  };
   tbb::parallel_for(tbb::blocked_range<size_t>(0, M, 1024), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t j = r.begin(); j < r.end(); ++j) {
       float* P = &p.key_positions[j * size_t(K) * 3];
@@ -232,6 +236,7 @@ void extrapolate_keys(ModelParams<float>& p, int from, float min_step) {
           if (!p.key_log_scales.empty())
             for (int a = 0; a < 3; ++a) p.key_log_scales[(j * size_t(K) + size_t(k)) * 3 + a] = p.key_log_scales[(j * size_t(K) + size_t(k - 1)) * 3 + a];
           if (p.keyed_opacity) p.key_opacity_logits[j * size_t(K) + size_t(k)] = p.key_opacity_logits[j * size_t(K) + size_t(k - 1)];
+          hold_key_sh(j, k);
         }
         continue;
       }
@@ -249,6 +254,7 @@ void extrapolate_keys(ModelParams<float>& p, int from, float min_step) {
         if (!p.key_log_scales.empty())
           for (int a = 0; a < 3; ++a) p.key_log_scales[(j * size_t(K) + size_t(k)) * 3 + a] = p.key_log_scales[(j * size_t(K) + size_t(k - 1)) * 3 + a];
         if (p.keyed_opacity) p.key_opacity_logits[j * size_t(K) + size_t(k)] = p.key_opacity_logits[j * size_t(K) + size_t(k - 1)];
+        hold_key_sh(j, k);
       }
     }
   });
@@ -277,6 +283,17 @@ GaussianCloud cloud_from_params(const ModelParams<float>& p) {
     k.rotations = p.key_rotations;
     k.log_scales = p.key_log_scales;
     k.opacity_logits = p.keyed_opacity ? p.key_opacity_logits : std::vector<float>{};
+    if (!p.key_sh.empty()) {  // colour keys: the DC per key, and the higher bands per key where there are any
+      const size_t M = p.dynamic_count(), K = size_t(p.key_count), C = size_t(p.sh_count()), W = (C - 1) * 3;
+      k.colours.resize(M * K * 3);
+      k.sh_rest.resize(M * K * W);
+      for (size_t r = 0; r < M * K; ++r) {
+        std::copy_n(&p.key_sh[r * C * 3], 3, &k.colours[r * 3]);
+        std::copy_n(&p.key_sh[r * C * 3 + 3], W, k.sh_rest.data() + r * W);
+      }
+      for (size_t j = 0; j < M; ++j)  // the Gaussian's own SH: its first key's
+        std::copy_n(&p.key_sh[j * K * C * 3], C * 3, &c.sh[size_t(p.dynamic_ids[j]) * C * 3]);
+    }
     canonical_from_first_key(c);
   }
   return c;
@@ -301,6 +318,11 @@ void params_at(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
   if (f->size() != N) f->resize(N);
   f->sh_degree = p.sh_degree;
   f->sh = p.sh.data();
+  const size_t S = size_t(p.sh_count()) * 3;
+  if (!p.key_sh.empty()) {  // moving Gaussians' SH at t, in the frame's own copy
+    f->sh_storage = p.sh;
+    f->sh = f->sh_storage.data();
+  }
   // Every Gaussian's own values first; moving ones are overwritten below.
   tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t g = r.begin(); g < r.end(); ++g) {
@@ -335,6 +357,11 @@ void params_at(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
       const Real* O = &p.key_opacity_logits[j * K];
       f->opacities[g] = sigmoid(O[ks.i] + Real(ks.s) * (O[i1] - O[ks.i]));
     }
+    if (!p.key_sh.empty()) {
+      const Real *A = &p.key_sh[(j * K + size_t(ks.i)) * S], *B = &p.key_sh[(j * K + size_t(i1)) * S];
+      Real* out = &f->sh_storage[g * S];
+      for (size_t a = 0; a < S; ++a) out[a] = A[a] + Real(ks.s) * (B[a] - A[a]);
+    }
   });
 }
 
@@ -343,10 +370,17 @@ void params_at_backward(const ModelParams<Real>& p, double t, const DiffFrameGra
   t = std::clamp(t, 0.0, 1.0);
   const size_t N = p.size();
   const int K = p.key_count;
-  for (size_t i = 0; i < gf.sh.size(); ++i) d->sh[i] += gf.sh[i];
   // Own values (static Gaussians; for moving ones only what keys do not replace).
   std::vector<uint8_t> keyed(N, 0);
   for (uint32_t g : p.dynamic_ids) keyed[g] = 1;
+  const size_t S = size_t(p.sh_count()) * 3;
+  if (p.key_sh.empty()) {
+    for (size_t i = 0; i < gf.sh.size(); ++i) d->sh[i] += gf.sh[i];
+  } else {
+    for (size_t g = 0; g < N; ++g)
+      if (!keyed[g])
+        for (size_t a = 0; a < S; ++a) d->sh[g * S + a] += gf.sh[g * S + a];
+  }
   const bool keyed_scale = !p.key_log_scales.empty(), keyed_opacity = p.keyed_opacity;
   tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t g = r.begin(); g < r.end(); ++g) {
@@ -400,6 +434,11 @@ void params_at_backward(const ModelParams<Real>& p, double t, const DiffFrameGra
       const Real gx = gf.opacities[g] * o * (Real(1) - o);
       dO[ks.i] += (Real(1) - s) * gx;
       dO[i1] += s * gx;
+    }
+    if (!p.key_sh.empty()) {
+      Real *dA = &d->key_sh[(j * K + size_t(ks.i)) * S], *dB = &d->key_sh[(j * K + size_t(i1)) * S];
+      const Real* gs = &gf.sh[g * S];
+      for (size_t a = 0; a < S; ++a) dA[a] += (Real(1) - s) * gs[a], dB[a] += s * gs[a];
     }
   });
 }

@@ -389,6 +389,21 @@ def test_select_equals_cli(tmp_path, synth, strategy):
         np.testing.assert_allclose(np.concatenate([g[key] for g in got]), want[key], atol=1e-9, err_msg=key)
 
 
+def test_load_views_frame_range_keeps_the_videos_times(synth):
+    """A frame range keeps each view's time in the whole video (the model's frames), its frame
+    count and each view's frame in it, instead of re-timing the kept frames as a video of their own."""
+    full = fillgs.load_views(synth, f"{synth}/transforms_train.json")
+    some = fillgs.load_views(synth, f"{synth}/transforms_train.json", frames="1::2")
+    assert some["frames"] == full["frames"] and full["frames"] >= 3
+    times = {}
+    for name, t, f in zip(full["cameras"].names, full["cameras"].arrays()["time"], full["source_frames"]):
+        assert t == pytest.approx(f / (full["frames"] - 1))
+        times[(name, int(f))] = t
+    assert len(some["images"]) and set(some["source_frames"].tolist()) == set(range(1, full["frames"], 2))
+    for name, t, f in zip(some["cameras"].names, some["cameras"].arrays()["time"], some["source_frames"]):
+        assert t == times[(name, int(f))]
+
+
 @pytest.mark.parametrize("flags, keywords", [([], {}),
                                              (["--mask-sigma", "0.2", "--covis-scale", "global", "--covis", "density"],
                                               dict(mask_sigma=0.2, covis_scale="global", covis="density"))])

@@ -88,6 +88,9 @@ class Dataset {
   const std::vector<TrainView>& views() const { return views_; }
   const std::vector<std::string>& rigs() const { return rigs_; }
   int frames() const { return frames_; }
+  /// Frames of the source video before DatasetOptions::frames chose some (TrainView::source_frame
+  /// counts in it).
+  int source_frames() const { return source_frames_ ? source_frames_ : frames_; }
   bool has_masks() const { return !masks_.empty(); }
   /// The view's foreground mask, 1 = foreground ([H][W]); empty without masks.
   std::vector<uint8_t> mask(size_t view) const { return masks_.empty() ? std::vector<uint8_t>() : masks_.at(view); }
@@ -107,6 +110,7 @@ class Dataset {
   std::vector<TrainView> views_;
   std::vector<std::string> rigs_;
   int frames_ = 1;
+  int source_frames_ = 0;  ///< 0: frames_ (no frame range applied)
   PixelStore pixels_;
   std::vector<std::vector<uint8_t>> masks_;
   /// Keeps the views of the frames `range` chooses, renumbered with their times; `per_view`

@@ -80,8 +80,10 @@ void write_3dgs_ply(const std::string& path, const GaussianCloud& cloud, double 
 
 /// Samples any motion model into the fillgs convention: one key per frame,
 /// t_f = f / (frames - 1), Catmull-Rom positions, shortest-arc slerp rotations, and
-/// per-key opacities where opacity changes in time.
-GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames);
+/// per-key opacities where opacity changes in time. A network's model gets per-key log-scales
+/// and SH DC, and with `keyed_bands` its higher SH bands per key too (KeyframedMotion::sh_rest;
+/// (C - 1) × 3 more floats per Gaussian and key); a keyed cloud keeps the bands it keys.
+GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames, bool keyed_bands = false);
 
 /// How close the keys a network's model is given for training (choose_keys) must stay to the
 /// network at every frame: each property the keys carry, with the still rule's tolerances.
@@ -90,23 +92,24 @@ struct KeyTolerance {
   float rotation_degrees = 1.0f;  ///< angle of the normalised rotation
   float log_scale = 0.01f;        ///< any axis (1 %)
   float opacity = 1.0f / 255.0f;  ///< activated opacity, temporal factor included
+  float colour = 1.0f / 255.0f;   ///< largest colour change in any direction and channel, every SH band (sh_colour_change)
 };
 
 /// The keys a model evaluated by its network (MotionModel::Evaluated) needs where a command
 /// trains fillgs's own keyed model: the fewest, K keys at t = k / (K - 1), whose Catmull-Rom
-/// positions, slerped rotations and interpolated log-scales and opacities stay within the
+/// positions, slerped rotations and interpolated log-scales, opacities and colours (the SH DC,
+/// and every band where the higher bands change beyond the colour tolerance) stay within the
 /// tolerances of the network at every frame, measured on up to `sample` moving Gaussians
 /// (evenly spread over them); intervals tried: 1, 2, 4, ... 32 frames (at most 32: no interval
-/// is chosen on fewer than 8 keys' evidence). Colour is not keyed by fillgs's trainer (each
-/// moving Gaussian keeps its keys' mean SH DC and the network's frame-0 higher bands): how far
-/// the network's colour moves from that over the frames is measured and reported, not hidden.
+/// is chosen on fewer than 8 keys' evidence).
 struct KeyChoice {
   int keys = 0;             ///< K
   double interval = 1.0;    ///< frames between keys, (frames - 1) / (K - 1)
   double worst_error = 0;   ///< largest position error at a frame over the sample, world units
   double worst_share = 0;   ///< largest error of any property, as a share of its tolerance (<= 1 but where interval 1 cannot reach it)
   std::string limiting;     ///< the property whose error stopped a longer interval ("" where 32 frames fit)
-  double colour_change = 0; ///< largest change of the network's colour over the frames, any direction and channel (what the keyed model drops)
+  double colour_change = 0; ///< largest change of the network's colour over the frames from frame 0's, any direction and channel
+  bool keyed_bands = false; ///< the higher SH bands are keyed too (they change beyond the colour tolerance)
   size_t sample = 0;        ///< Gaussians measured
   int frames = 0;
 };

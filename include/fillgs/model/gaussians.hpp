@@ -82,8 +82,11 @@ struct KeyframedMotion {
   std::vector<float> log_scales;      ///< [M][K][3]; empty: constant
   std::vector<float> opacity_logits;  ///< [M][K]; empty: constant
   /// [M][K][3] the SH DC coefficients (colour) per key, linearly interpolated; empty: the
-  /// cloud's constant SH. Higher SH bands stay constant in time.
+  /// cloud's constant SH DC.
   std::vector<float> colours;
+  /// [M][K][C-1][3] the higher SH bands per key (C = the cloud's sh_count()), linearly
+  /// interpolated; empty: the cloud's constant higher bands. Only with `colours`.
+  std::vector<float> sh_rest;
   /// Ex4DGS temporal opacity, [M][4]: c0, c1, v0, v1 in key units; empty: none.
   std::vector<float> temporal_opacity;
   double temporal_width_pad = 0.0;  ///< Ex4DGS var_pad / (2.36 * I)

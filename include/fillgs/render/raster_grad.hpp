@@ -38,6 +38,7 @@ struct DiffFrame {
   std::vector<Real> rotations;  ///< [N][4] unit quaternions (w, x, y, z)
   std::vector<Real> opacities;  ///< [N] in (0, 1), temporal factors included
   const Real* sh = nullptr;     ///< [N][(degree+1)²][3], coefficient-major per Gaussian
+  std::vector<Real> sh_storage; ///< the frame's own SH where it differs from the model's (keyed colour), else empty
   size_t size() const { return opacities.size(); }
   void resize(size_t n) {
     means.assign(3 * n, Real(0));

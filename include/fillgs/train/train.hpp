@@ -157,6 +157,11 @@ struct TrainOptions {
   /// added) instead of a real one. Refined views would otherwise outnumber real ones on a
   /// sparse rig (20 trajectories × 9 views against 2 cameras × 30 frames).
   double refined_share = 0.3;
+  /// Adam leaves a value and its moments as they are in an iteration where its gradient is
+  /// exactly zero: the keys of other frames, Gaussians the view does not reach. Without it,
+  /// momentum keeps moving them after every view that touched them (about 30 × the learning
+  /// rate per touch at β1 0.9, β2 0.999), which a converged model does not survive.
+  bool sparse_adam = false;
   /// The 3DGS schedule (defined for 30,000 iterations) scaled to `iterations`.
   static TrainOptions scaled(int iterations);
 };

@@ -8,7 +8,7 @@
 // positions with repeated end keys, shortest-arc slerp of normalised key quaternions —
 // fillgs' KeyframedMotion convention, evaluated by the same code as frame_at(t):
 // src/model/motion_keys.hpp — so a model converts to and from GaussianCloud without change),
-// and optionally keyed log-scales and opacity logits (linear).
+// and optionally keyed log-scales, opacity logits and SH coefficients (linear).
 // The same struct holds gradients and Adam moments (same layout).
 #include <cstdint>
 #include <vector>
@@ -36,6 +36,10 @@ struct ModelParams {
   /// disappears); key_opacity_logits is then [M][K], else empty and the own logit rules.
   bool keyed_opacity = false;
   std::vector<Real> key_opacity_logits;  ///< [M][K] or empty
+  /// Every SH coefficient of moving Gaussians per key, linearly interpolated ([M][K][C][3],
+  /// C = sh_count()), or empty (each Gaussian's own `sh`): a model whose colour changes in time
+  /// (a network's, keyed by keyed_for_training) keeps it while it trains.
+  std::vector<Real> key_sh;
 
   size_t size() const { return opacity_logits.size(); }
   size_t dynamic_count() const { return dynamic_ids.size(); }

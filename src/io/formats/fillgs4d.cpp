@@ -107,6 +107,17 @@ GaussianCloud read_fillgs(const std::string& path, const SceneReadOptions&) {
         for (size_t r = 0; r < M; ++r) km.colours[(r * K + k) * 3 + a] = col[r];
       }
   }
+  if (tr->has("motion_rest_0_0")) {
+    const int R = c.sh_count() - 1;
+    if (km.colours.empty() || R < 1) throw_error(path, ": track properties motion_rest_* need motion_dc_* and SH bands above the DC (f_rest_*)");
+    km.sh_rest.resize(M * size_t(K) * size_t(R) * 3);
+    for (int k = 0; k < K; ++k)
+      for (int a = 0; a < 3; ++a)
+        for (int i = 0; i < R; ++i) {
+          const auto& col = tr->finite_column("motion_rest_" + std::to_string(k) + "_" + std::to_string(a * R + i));
+          for (size_t r = 0; r < M; ++r) km.sh_rest[((r * size_t(K) + size_t(k)) * size_t(R) + size_t(i)) * 3 + size_t(a)] = col[r];
+        }
+  }
   c.motion = MotionModel::Keyframed;
   c.dynamic_ids = iota_ids(M, uint32_t(v.count - M));
   return c;
