@@ -207,6 +207,20 @@ std::vector<int> sweep_frames(int frames, int wanted) {
   return out;
 }
 
+float still_departure(const ModelState& s, size_t j, const ModelState& first, size_t i, const StillRule& rule) {
+  auto share = [](float d, float tolerance) { return d <= 0.0f ? 0.0f : tolerance > 0.0f ? d / tolerance : INFINITY; };
+  const size_t row = first.size() ? first.sh.size() / first.size() : 0;
+  float r = share((s.means[j] - first.means[i]).norm(), rule.position);
+  r = std::max(r, share((s.log_scales[j] - first.log_scales[i]).cwiseAbs().maxCoeff(), rule.log_scale));
+  r = std::max(r, share(std::fabs(activated_opacity(s, j) - activated_opacity(first, i)), rule.opacity));
+  const double c = std::min(1.0, double(std::fabs(normalize_quat(s.rotations[j]).dot(normalize_quat(first.rotations[i])))));
+  r = std::max(r, share(float(2.0 * std::acos(c) * 180.0 / M_PI), rule.rotation_degrees));
+  // Colour: every SH band, as the largest change of the colour in any direction (bounded by
+  // the coefficients' changes times their basis functions' maxima), any channel.
+  for (size_t a = 0; a < 3 && row; ++a) r = std::max(r, share(sh_colour_change(&s.sh[j * row], &first.sh[i * row], row / 3, a), rule.colour));
+  return r;
+}
+
 GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, const StillRule& rule, bool reference, Progress& progress) {
   const size_t N = model->size();
   const int F = model->frames;
@@ -220,21 +234,8 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
   // tolerance any of a Gaussian's departures reaches (> 1: moving).
   const std::vector<int> sweep = sweep_frames(F, rule.sweep_frames);
   std::vector<float> departure(N, 0.0f);
-  const size_t row = first.size() ? first.sh.size() / first.size() : 0;
-  // Departure of row j of s (Gaussian i) from frame 0, in shares of the tolerances; a zero
-  // tolerance counts any departure as infinitely many shares.
   auto share = [](float d, float tolerance) { return d <= 0.0f ? 0.0f : tolerance > 0.0f ? d / tolerance : INFINITY; };
-  auto depart = [&](const ModelState& s, size_t j, size_t i) {
-    float r = share((s.means[j] - first.means[i]).norm(), rule.position);
-    r = std::max(r, share((s.log_scales[j] - first.log_scales[i]).cwiseAbs().maxCoeff(), rule.log_scale));
-    r = std::max(r, share(std::fabs(activated_opacity(s, j) - activated_opacity(first, i)), rule.opacity));
-    const double c = std::min(1.0, double(std::fabs(normalize_quat(s.rotations[j]).dot(normalize_quat(first.rotations[i])))));
-    r = std::max(r, share(float(2.0 * std::acos(c) * 180.0 / M_PI), rule.rotation_degrees));
-    // Colour: every SH band, as the largest change of the colour in any direction (bounded by
-    // the coefficients' changes times their basis functions' maxima), any channel.
-    for (size_t a = 0; a < 3 && row; ++a) r = std::max(r, share(sh_colour_change(&s.sh[j * row], &first.sh[i * row], row / 3, a), rule.colour));
-    return r;
-  };
+  auto depart = [&](const ModelState& s, size_t j, size_t i) { return still_departure(s, j, first, i, rule); };
   auto sweep_rows = [&](const std::vector<int>& frames, const std::vector<uint32_t>& rows) {
     for (const int f : frames) {
       if (f == 0) continue;

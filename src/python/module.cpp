@@ -36,6 +36,7 @@
 #include "fillgs/io/image_io.hpp"
 #include "fillgs/io/model_formats.hpp"
 #include "fillgs/io/scene_io.hpp"
+#include "fillgs/io/trained_models.hpp"
 #include "fillgs/method/select.hpp"
 #include "fillgs/method/weights.hpp"
 #include "fillgs/model/camera.hpp"
@@ -339,7 +340,9 @@ GaussianCloud cloud_from(const ModelState& s) {
 /// are kept (three).
 class CallerFrames : public MotionSource {
  public:
-  CallerFrames(py::object fn, int frames, py::ssize_t n, int sh_degree) : fn_(std::move(fn)), frames_(frames), n_(n), sh_degree_(sh_degree) {}
+  CallerFrames(py::object fn, int frames, ModelState first, const StillRule& rule)
+      : fn_(std::move(fn)), frames_(frames), n_(py::ssize_t(first.size())), sh_degree_(first.sh_degree), rule_(rule),
+        departure_(first.size(), 0.0f), first_(std::move(first)) {}
   ~CallerFrames() override {
     py::gil_scoped_acquire gil;
     fn_ = py::object();
@@ -357,6 +360,8 @@ class CallerFrames : public MotionSource {
       try {
         auto s = std::make_shared<ModelState>(state_from(fn_(f), ("frame " + std::to_string(f)).c_str(), n_));
         if (s->sh_degree != sh_degree_) throw py::value_error("frame " + std::to_string(f) + " sh: degree " + std::to_string(s->sh_degree) + ", frame 0 had " + std::to_string(sh_degree_));
+        // The still rule as it sees each frame once: every Gaussian's largest departure from frame 0.
+        for (size_t i = 0; i < s->size(); ++i) departure_[i] = std::max(departure_[i], still_departure(*s, i, first_, i, rule_));
         all = s;
       } catch (py::error_already_set& e) {
         failed_ = true;
@@ -377,6 +382,9 @@ class CallerFrames : public MotionSource {
   }
   int frame_count() const override { return frames_; }
   bool one_pass() const override { return true; }  // the caller's network runs once per frame
+  /// After a pass over every frame: whether Gaussian i stayed within the still rule's
+  /// tolerances of frame 0 at all of them.
+  bool still(size_t i) const { return departure_[i] <= 1.0f; }
   /// After the engine returns (GIL held): the frame function's own exception, raised again,
   /// or a check's ValueError.
   void raise_failure() const {
@@ -393,6 +401,9 @@ class CallerFrames : public MotionSource {
   int frames_;
   py::ssize_t n_;
   int sh_degree_;
+  StillRule rule_;
+  mutable std::vector<float> departure_;
+  ModelState first_;
   mutable std::mutex mutex_;
   mutable std::vector<std::pair<int, std::shared_ptr<const ModelState>>> kept_;
   mutable bool failed_ = false;
@@ -401,12 +412,12 @@ class CallerFrames : public MotionSource {
 };
 
 /// A model from a caller's frame function: frame 0 read now; every Gaussian moves.
-std::pair<Model, std::shared_ptr<const CallerFrames>> model_from_frames(const py::object& fn, int frames) {
+std::pair<Model, std::shared_ptr<const CallerFrames>> model_from_frames(const py::object& fn, int frames, const StillRule& rule) {
   if (!PyCallable_Check(fn.ptr())) throw py::type_error("frames: expected a callable f -> dict of arrays");
   if (frames < 1) throw py::value_error("frame_count: " + std::to_string(frames) + ", expected at least 1");
-  const ModelState first = state_from(fn(0), "frame 0", -1);
+  ModelState first = state_from(fn(0), "frame 0", -1);
   auto c = std::make_shared<GaussianCloud>(cloud_from(first));
-  auto source = std::make_shared<CallerFrames>(fn, frames, py::ssize_t(first.size()), first.sh_degree);
+  auto source = std::make_shared<CallerFrames>(fn, frames, std::move(first), rule);
   if (frames > 1) {
     c->motion = MotionModel::Evaluated;
     c->dynamic_ids.resize(c->size());
@@ -612,8 +623,18 @@ py::dict observe_py(const Model& model, const std::shared_ptr<const CallerFrames
   d["speed"] = speed;
   d["deficiency"] = deficiency;
   d["times"] = py::array_t<double>(py::ssize_t(T), times.data());
-  std::vector<uint32_t> ids = cloud.dynamic_ids;
-  d["dynamic_ids"] = to_array(std::move(ids), {py::ssize_t(cloud.dynamic_count())});
+  std::vector<uint32_t> ids;
+  for (uint32_t g : cloud.dynamic_ids) {
+    // A frame function's Gaussians the still rule found still over the pass are static: no
+    // speed, no deficiency (deficiency = speed / (1 + count), so nothing else changes).
+    if (caller && caller->still(g)) {
+      for (size_t f = 0; f < T; ++f) sp[f * N + g] = dp[f * N + g] = 0.0f;
+      continue;
+    }
+    ids.push_back(g);
+  }
+  const py::ssize_t M = py::ssize_t(ids.size());
+  d["dynamic_ids"] = to_array(std::move(ids), {M});
   d["views"] = py::int_(summary.views);
   d["seconds"] = py::float_(summary.seconds_total);
   return d;
@@ -1019,19 +1040,26 @@ PYBIND11_MODULE(_fillgs, m) {
   m.def(
       "observe",
       [](const py::object& model, const Cameras& cameras, int frames, const py::object& times, const std::string& mode, int stride, const py::object& tau,
-         const py::object& hit_cache_mb, const py::object& progress) {
-        if (py::isinstance<Model>(model)) return observe_py(model.cast<const Model&>(), nullptr, cameras, frames, times, mode, stride, tau, hit_cache_mb, progress);
+         const py::object& hit_cache_mb, const py::object& progress, const py::object& still_tolerance) {
+        if (py::isinstance<Model>(model)) {
+          if (!still_tolerance.is_none()) throw py::value_error("still_tolerance: a frame function's; a model's is load_model's");
+          return observe_py(model.cast<const Model&>(), nullptr, cameras, frames, times, mode, stride, tau, hit_cache_mb, progress);
+        }
         if (!PyCallable_Check(model.ptr())) throw py::type_error("model: expected a fillgs.Model or a frame function f -> dict of arrays");
         if (frames < 1) throw py::value_error("frames: give the frame count with a frame function");
-        const auto made = model_from_frames(model, frames);
+        StillRule rule;
+        if (const auto x = number_or_none(still_tolerance, "still_tolerance", at_least(0))) rule.position = float(*x);
+        const auto made = model_from_frames(model, frames, rule);
         return observe_py(made.first, made.second, cameras, frames, times, mode, stride, tau, hit_cache_mb, progress);
       },
       py::arg("model"), py::arg("cameras"), py::arg("frames") = 0, py::arg("times") = py::none(), py::arg("mode") = "frustum", py::arg("stride") = 4,
-      py::arg("tau") = py::none(), py::arg("hit_cache_mb") = py::none(), py::arg("progress") = py::none(),
+      py::arg("tau") = py::none(), py::arg("hit_cache_mb") = py::none(), py::arg("progress") = py::none(), py::arg("still_tolerance") = py::none(),
       "Observation counts, speeds and the motion-aware deficiency for every Gaussian and frame, as `fillgs observe` writes them. `model`: a "
       "fillgs.Model, or a frame function f -> dict of arrays (means, log_scales, quaternions, opacity_logits[, sh]) for f = 0 … frames-1, "
-      "called with the GIL held (e.g. your own deformation network). Returns a dict: counts [T,N] uint8 (uint16 above 255 views a frame), "
-      "speed and deficiency [T,N] float32, times [T], dynamic_ids [M], views, seconds.");
+      "called with the GIL held (e.g. your own deformation network), once per frame; its Gaussians that stay within the still rule's "
+      "tolerances of frame 0 at every frame (`still_tolerance` world units, default 1e-3, 1 degree, 1 % of scale, 1/255 of opacity and "
+      "colour: load_model's rule) are static, with no speed or deficiency. Returns a dict: counts [T,N] uint8 (uint16 above 255 views a "
+      "frame), speed and deficiency [T,N] float32, times [T], dynamic_ids [M], views, seconds.");
 
   m.def("read_image", &read_image_py, py::arg("path"), "An image file as fillgs reads it: float32 [H,W,C] in [0, 1], C the file's channels (3 for RGB, 1 for a grey map).");
   m.def(

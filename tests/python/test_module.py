@@ -143,13 +143,33 @@ def test_observe_frame_function_equals_model(cameras_file):
     for mode in ("frustum", "raytraced"):
         calls.clear()
         want = fillgs.observe(m, cams, mode=mode)
-        got = fillgs.observe(frame, cams, frames=10, mode=mode)
+        got = fillgs.observe(frame, cams, frames=10, mode=mode, still_tolerance=0.0)
         for key in ("counts", "speed", "deficiency", "times"):
             assert got[key].tobytes() == want[key].tobytes(), (mode, key)
         assert sorted(set(calls)) == list(range(10)), mode
         # Each frame once, give or take the kept three (ray traced, the swept boxes asked for
         # every frame ahead of the walk: 21 calls for 10 frames).
         assert len(calls) <= 12, (mode, calls)
+
+
+def test_observe_frame_function_still_rule(cameras_file):
+    """A frame function's Gaussians go through load_model's still rule, seen once per frame: the
+    network's raw frames (every Gaussian handed over moving) give the moving set, speeds and
+    deficiency of the model read with the rule, the still ones static with zero speed."""
+    raw = fillgs.load_model(fixture("ed3dgs_still"), still_tolerance=0.0)
+    ruled = fillgs.load_model(fixture("ed3dgs_still"))
+    F = raw.frames
+    assert 0 < ruled.static_count < raw.size  # the fixture has both: the comparison is not vacuous
+    cams = fillgs.read_cameras(cameras_file)
+    got = fillgs.observe(lambda f: raw.at(f / (F - 1)), cams, frames=F)
+    want = fillgs.observe(ruled, cams, frames=F)
+    assert got["dynamic_ids"].tolist() == want["dynamic_ids"].tolist()
+    for key in ("speed", "deficiency"):
+        assert got[key].tobytes() == want[key].tobytes(), key
+    everything = fillgs.observe(lambda f: raw.at(f / (F - 1)), cams, frames=F, still_tolerance=0.0)
+    assert len(everything["dynamic_ids"]) == raw.size
+    with pytest.raises(ValueError, match="still_tolerance"):
+        fillgs.observe(ruled, cams, still_tolerance=1e-3)
 
 
 def test_observe_frame_function_errors(cameras_file):

@@ -70,6 +70,11 @@ GaussianCloud sample_trained_model(const TrainedModel& model, bool reference = t
 GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, const StillRule& rule, bool reference = false,
                                    Progress& progress = null_progress());
 
+/// How far row j of `s` departs from row i of `first` (frame 0), as the largest share of a
+/// still-rule tolerance any property reaches (> 1: moving; a zero tolerance makes any departure
+/// infinite): position, log-scale, activated opacity, rotation angle, colour (every SH band).
+float still_departure(const ModelState& s, size_t j, const ModelState& first, size_t i, const StillRule& rule);
+
 /// The frames of the sweep (ascending, frame 0 and frames-1 among them).
 std::vector<int> sweep_frames(int frames, int wanted);
 

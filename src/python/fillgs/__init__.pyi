@@ -79,7 +79,7 @@ def cameras_from_3dgs(R: Array, T: Array, fov_x: Union[float, Array], fov_y: Uni
 def read_cameras(path: str, format: str = 'auto', width: int = 0, height: int = 0) -> Cameras: ...
 def observe(model: Union[Model, Callable[[int], Dict[str, Array]]], cameras: Cameras, frames: int = 0, times: Optional[Array] = None,
             mode: str = 'frustum', stride: int = 4, tau: Optional[float] = None, hit_cache_mb: Optional[float] = None,
-            progress: Progress = None) -> Dict[str, Any]: ...  # counts [T,N] uint8/uint16, speed, deficiency [T,N] float32, times [T], dynamic_ids [M]
+            progress: Progress = None, still_tolerance: Optional[float] = None) -> Dict[str, Any]: ...  # counts [T,N] uint8/uint16, speed, deficiency [T,N] float32, times [T], dynamic_ids [M]
 def read_image(path: str) -> Float32: ...  # [H,W,C] in [0, 1]
 def write_image(path: str, pixels: Array) -> None: ...
 def load_views(images: str, cameras: str, train_cameras: List[str] = [], frames: str = '', downscale: int = 1,
