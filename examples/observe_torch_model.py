@@ -92,7 +92,7 @@ def main():
     subprocess.run([sys.executable, os.path.join(here, "..", "bench", "ring_cameras.py"), str(a.cameras), cams_path, "--wave"], check=True)
     cams = fillgs.read_cameras(cams_path)
 
-    tables = fillgs.observe(frame, cams, frames=a.frames)
+    tables = fillgs.observe(frame, cams, frames=a.frames, still_tolerance=0.0)  # every Gaussian moving, as step 4
     D = tables["deficiency"]
     print(f"{n} Gaussians x {a.frames} frames x {len(cams)} cameras: deficiency sum {D.sum():.6g}, "
           f"most deficient Gaussian {int(D.sum(0).argmax())}, least observed frame {int(tables['counts'].sum(1).argmin())}")
