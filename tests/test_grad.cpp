@@ -2,6 +2,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <iterator>
 #include <random>
 
 #include "fillgs/render/loss.hpp"
@@ -178,6 +179,17 @@ TEST_CASE("frame gradients match finite differences for every value (double)", "
 TEST_CASE("parameter gradients through frame_at(t), motion included, match finite differences", "[grad]") {
   const GaussianCloud cloud = random_scene(6, 3, 21);
   ModelParams<double> params = params_from_cloud<double>(cloud);
+  REQUIRE(params.dynamic_count() > 0);
+  REQUIRE(params.key_count >= 4);
+  const bool colour_keys = GENERATE(false, true);
+  if (colour_keys) {  // every SH coefficient of the moving Gaussians per key, each key different
+    const size_t K = size_t(params.key_count), S = size_t(params.sh_count()) * 3;
+    params.key_sh.resize(params.dynamic_count() * K * S);
+    for (size_t j = 0; j < params.dynamic_count(); ++j)
+      for (size_t k = 0; k < K; ++k)
+        for (size_t a = 0; a < S; ++a)
+          params.key_sh[(j * K + k) * S + a] = params.sh[params.dynamic_ids[j] * S + a] + 0.3 * std::sin(double(1 + j + 3 * k + 7 * a));
+  }
   const Camera cam = test_camera();
   const size_t P = size_t(cam.width) * cam.height;
   const LinearLoss loss(P, 0, 8);
@@ -185,7 +197,7 @@ TEST_CASE("parameter gradients through frame_at(t), motion included, match finit
   opt.background = Vec3f(0.1f, 0.1f, 0.1f);
   // t inside an interior interval (Catmull-Rom uses four keys) and at both ends.
   for (const double t : {0.0, 0.45, 1.0}) {
-    DYNAMIC_SECTION("t = " << t) {
+    DYNAMIC_SECTION("t = " << t << (colour_keys ? ", colour keys" : "")) {
       DiffFrame<double> frame;
       auto eval_loss = [&] {
         DiffFrame<double> f;
@@ -204,9 +216,11 @@ TEST_CASE("parameter gradients through frame_at(t), motion included, match finit
       params_at_backward(params, t, fg, &grad);
 
       const char* names[] = {"mean", "log-scale", "rotation", "opacity logit", "SH",
-                             "key position", "key rotation", "key log-scale", "key opacity logit"};
+                             "key position", "key rotation", "key log-scale", "key opacity logit", "key SH"};
       auto values = params.arrays();
       auto analytic = grad.arrays();
+      REQUIRE(values.size() == std::size(names));
+      CHECK(params.key_sh.empty() != colour_keys);
       for (size_t a = 0; a < values.size(); ++a) {
         std::vector<double>& v = *values[a];
         std::vector<double> fd(v.size());

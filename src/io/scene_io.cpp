@@ -187,16 +187,16 @@ GaussianCloud bake_tracks(const GaussianCloud& cloud, int frames, bool keyed_ban
 namespace {
 
 /// Shares of the key tolerances by which frame `b` misses frame `a` at Gaussian s, per property
-/// (position, rotation, log-scale, opacity, colour), in the still rule's measures. `a_sh` is
-/// frame a's SH row of Gaussian s (the truth keeps its own copy).
-std::array<double, 5> key_misses(const FrameGaussians& a, const float* a_sh, const FrameGaussians& b, size_t s, const KeyTolerance& t) {
+/// (position, rotation, log-scale, opacity, colour), in the still rule's measures.
+std::array<double, 5> key_misses(const FrameGaussians& a, const FrameGaussians& b, size_t s, const KeyTolerance& t) {
   auto share = [](double d, float tol) { return d <= 0.0 ? 0.0 : tol > 0.0f ? d / double(tol) : INFINITY; };
   const double c = std::min(1.0, std::fabs(double(a.rotations[s].dot(b.rotations[s]))));
   double scale = 0;
   for (int k = 0; k < 3; ++k) scale = std::max(scale, std::fabs(std::log(double(a.scales[s][k])) - std::log(double(b.scales[s][k]))));
   const int C = (a.sh_degree + 1) * (a.sh_degree + 1);
   double colour = 0;
-  for (int ch = 0; ch < 3; ++ch) colour = std::max(colour, double(sh_colour_change(a_sh, &b.sh[s * size_t(C) * 3], size_t(C), size_t(ch))));
+  for (int ch = 0; ch < 3; ++ch)
+    colour = std::max(colour, double(sh_colour_change(&a.sh[s * size_t(C) * 3], &b.sh[s * size_t(C) * 3], size_t(C), size_t(ch))));
   return {share((a.means[s] - b.means[s]).norm(), t.position), share(2.0 * std::acos(c) * 180.0 / M_PI, t.rotation_degrees),
           share(scale, t.log_scale), share(std::fabs(double(a.opacities[s]) - double(b.opacities[s])), t.opacity),
           share(colour, t.colour)};
@@ -230,35 +230,29 @@ KeyChoice choose_keys(const GaussianCloud& cloud, const KeyTolerance& tolerance,
   kc.sample = S;
   const int F = kc.frames;
   const FrameGrid grid(F);
-  // The network at every frame (every SH coefficient kept: colour is a keyed property too).
+  // The network at every frame, every SH coefficient kept (colour is a keyed property too). The
+  // higher bands are keyed where they alone change by more than the colour tolerance from
+  // frame 0's (E-D3DGS and 4DGaussians deform all 16 coefficients); else the DC alone.
   std::vector<FrameGaussians> truth;
-  std::vector<std::vector<float>> truth_sh;
   truth.reserve(size_t(F));
   {
     FrameSampler exact(sub);
-    std::vector<float> first_sh;
     for (int f = 0; f < F; ++f) {
       const FrameGaussians& g = exact.at(grid.time(f));
-      if (f == 0) first_sh.assign(g.sh, g.sh + S * row);
-      for (size_t s = 0; s < S; ++s)
-        for (size_t a = 0; a < 3; ++a)
-          kc.colour_change = std::max(kc.colour_change, double(sh_colour_change(&g.sh[s * row], &first_sh[s * row], row / 3, a)));
       FrameGaussians kept;
       kept.sh_degree = g.sh_degree;
       kept.means = g.means, kept.scales = g.scales, kept.rotations = g.rotations, kept.opacities = g.opacities;
+      kept.sh_storage.assign(g.sh, g.sh + S * row);
+      kept.sh = kept.sh_storage.data();  // the vector's buffer moves with it
+      const float* first = f == 0 ? kept.sh : truth[0].sh;
+      for (size_t s = 0; s < S; ++s)
+        for (size_t a = 0; a < 3; ++a) {
+          kc.colour_change = std::max(kc.colour_change, double(sh_colour_change(&kept.sh[s * row], &first[s * row], row / 3, a)));
+          kc.keyed_bands = kc.keyed_bands || sh_colour_change(&kept.sh[s * row], &first[s * row], row / 3, a, 1) > tolerance.colour;
+        }
       truth.push_back(std::move(kept));
-      truth_sh.emplace_back(g.sh, g.sh + S * row);
     }
   }
-  // Higher bands are keyed where they change by more than the colour tolerance over the frames
-  // (E-D3DGS and 4DGaussians deform all 16 coefficients); else the DC alone.
-  for (int f = 1; f < F && !kc.keyed_bands; ++f)
-    for (size_t s = 0; s < S && !kc.keyed_bands; ++s) {
-      std::vector<float> dc_only(truth_sh[0].begin() + ptrdiff_t(s * row), truth_sh[0].begin() + ptrdiff_t((s + 1) * row));
-      std::copy_n(&truth_sh[size_t(f)][s * row], 3, dc_only.data());
-      for (size_t a = 0; a < 3; ++a)
-        if (sh_colour_change(&truth_sh[size_t(f)][s * row], dc_only.data(), row / 3, a) > tolerance.colour) kc.keyed_bands = true;
-    }
   // Interval 1 keys every frame: exact there, whatever the tolerance.
   kc.keys = F;
   kc.interval = 1.0;
@@ -272,7 +266,7 @@ KeyChoice choose_keys(const GaussianCloud& cloud, const KeyTolerance& tolerance,
     for (int f = 0; f < F; ++f) {
       const FrameGaussians& g = approx.at(grid.time(f));
       for (size_t s = 0; s < S; ++s) {
-        const std::array<double, 5> miss = key_misses(truth[size_t(f)], &truth_sh[size_t(f)][s * row], g, s, tolerance);
+        const std::array<double, 5> miss = key_misses(truth[size_t(f)], g, s, tolerance);
         for (size_t p = 0; p < 5; ++p) worst[p] = std::max(worst[p], miss[p]);
       }
     }

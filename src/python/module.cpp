@@ -10,6 +10,8 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cctype>
@@ -356,22 +358,28 @@ class CallerFrames : public MotionSource {
       if (k.first == f) all = k.second;
     if (!all) {
       if (failed_) throw Error("the frame function failed before");
-      py::gil_scoped_acquire gil;
-      try {
-        auto s = std::make_shared<ModelState>(state_from(fn_(f), ("frame " + std::to_string(f)).c_str(), n_));
-        if (s->sh_degree != sh_degree_) throw py::value_error("frame " + std::to_string(f) + " sh: degree " + std::to_string(s->sh_degree) + ", frame 0 had " + std::to_string(sh_degree_));
-        // The still rule as it sees each frame once: every Gaussian's largest departure from frame 0.
-        for (size_t i = 0; i < s->size(); ++i) departure_[i] = std::max(departure_[i], still_departure(*s, i, first_, i, rule_));
-        all = s;
-      } catch (py::error_already_set& e) {
-        failed_ = true;
-        failure_ = {e.type(), e.value(), e.trace()};
-        throw Error("the frame function raised at frame " + std::to_string(f));
-      } catch (const std::exception& e) {
-        failed_ = true;
-        message_ = e.what();
-        throw Error(message_);
+      {  // the caller's function, with the GIL
+        py::gil_scoped_acquire gil;
+        try {
+          auto s = std::make_shared<ModelState>(state_from(fn_(f), ("frame " + std::to_string(f)).c_str(), n_));
+          if (s->sh_degree != sh_degree_) throw py::value_error("frame " + std::to_string(f) + " sh: degree " + std::to_string(s->sh_degree) + ", frame 0 had " + std::to_string(sh_degree_));
+          all = s;
+        } catch (py::error_already_set& e) {
+          failed_ = true;
+          failure_ = {e.type(), e.value(), e.trace()};
+          throw Error("the frame function raised at frame " + std::to_string(f));
+        } catch (const std::exception& e) {
+          failed_ = true;
+          message_ = e.what();
+          throw Error(message_);
+        }
       }
+      // The still rule as it sees each frame once (the GIL released): every Gaussian's largest
+      // departure from frame 0, not measured again once it moves.
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, all->size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+        for (size_t i = r.begin(); i < r.end(); ++i)
+          if (departure_[i] <= 1.0f) departure_[i] = std::max(departure_[i], still_departure(*all, i, first_, i, rule_));
+      });
       if (kept_.size() == 3) kept_.erase(kept_.begin());
       kept_.emplace_back(f, all);
     }

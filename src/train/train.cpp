@@ -820,34 +820,26 @@ void Trainer::adam_step() {
   update(params_.key_rotations, grad_.key_rotations, adam_m_.key_rotations, adam_v_.key_rotations, options_.rotation_lr);
   update(params_.opacity_logits, grad_.opacity_logits, adam_m_.opacity_logits, adam_v_.opacity_logits, options_.opacity_lr);
   update(params_.key_opacity_logits, grad_.key_opacity_logits, adam_m_.key_opacity_logits, adam_v_.key_opacity_logits, options_.opacity_lr);
-  // SH: the DC coefficients (the first 3 values of each Gaussian's block) at feature_lr, the rest at 1/20 of it.
+  // SH, per block of one Gaussian's (or one colour key's) coefficients: the DC (its first 3
+  // values) at feature_lr, the rest at 1/20 of it.
   const size_t block = size_t(K) * 3;
   const float a_dc = float(options_.feature_lr / c1), a_rest = float(options_.feature_lr / 20.0 / c1);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, params_.size(), 2048), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t gi = r.begin(); gi < r.end(); ++gi) {
-      float *X = &params_.sh[gi * block], *M = &adam_m_.sh[gi * block], *Vv = &adam_v_.sh[gi * block];
-      const float* G = &grad_.sh[gi * block];
-      for (size_t i = 0; i < block; ++i) {
-        if (sparse && G[i] == 0.0f) continue;
-        M[i] = fb1 * M[i] + (1 - fb1) * G[i];
-        Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
-        X[i] -= (i < 3 ? a_dc : a_rest) * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
+  auto update_sh = [&](std::vector<float>& x, const std::vector<float>& g, std::vector<float>& m, std::vector<float>& v) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, x.size() / block, 2048), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t row = r.begin(); row < r.end(); ++row) {
+        float *X = &x[row * block], *M = &m[row * block], *Vv = &v[row * block];
+        const float* G = &g[row * block];
+        for (size_t i = 0; i < block; ++i) {
+          if (sparse && G[i] == 0.0f) continue;
+          M[i] = fb1 * M[i] + (1 - fb1) * G[i];
+          Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
+          X[i] -= (i < 3 ? a_dc : a_rest) * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
+        }
       }
-    }
-  });
-  // Colour keys: the same rates per coefficient (DC, then the rest at 1/20).
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, params_.key_sh.size() / std::max<size_t>(block, 1), 2048), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t row = r.begin(); row < r.end(); ++row) {
-      float *X = &params_.key_sh[row * block], *M = &adam_m_.key_sh[row * block], *Vv = &adam_v_.key_sh[row * block];
-      const float* G = &grad_.key_sh[row * block];
-      for (size_t i = 0; i < block; ++i) {
-        if (sparse && G[i] == 0.0f) continue;
-        M[i] = fb1 * M[i] + (1 - fb1) * G[i];
-        Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
-        X[i] -= (i < 3 ? a_dc : a_rest) * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
-      }
-    }
-  });
+    });
+  };
+  update_sh(params_.sh, grad_.sh, adam_m_.sh, adam_v_.sh);
+  update_sh(params_.key_sh, grad_.key_sh, adam_m_.key_sh, adam_v_.key_sh);
   motion_sparsity_step(key_lr);
 }
 
@@ -911,12 +903,6 @@ ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Ro
     put(q.opacity_logits, &p.opacity_logits[s], 1, zero);
     put(q.sh, &p.sh[s * S], S, zero);
     const int64_t j = dyn_index[s];
-    if (j >= 0 && r.make_static && !p.key_sh.empty())  // frozen colour: its keys' mean
-      for (size_t a = 0; a < S; ++a) {
-        double sum = 0;
-        for (size_t k = 0; k < K; ++k) sum += p.key_sh[(size_t(j) * K + k) * S + a];
-        q.sh[size_t(id) * S + a] = moments ? 0.0f : float(sum / double(K));
-      }
     if (j >= 0 && r.make_static) {
       // Frozen: its own values become the keys' mean (moments start at zero).
       Vec3f pm;
@@ -926,6 +912,12 @@ ModelParams<float> gather_rows(const ModelParams<float>& p, const std::vector<Ro
       for (int a = 0; a < 3; ++a) q.means[3 * id + a] = moments ? 0.0f : pm[a];
       for (int a = 0; a < 4; ++a) q.rotations[4 * id + a] = moments ? 0.0f : qm[a];
       q.opacity_logits[id] = moments ? 0.0f : om;
+      if (!p.key_sh.empty())  // colour keys: their mean
+        for (size_t a = 0; a < S; ++a) {
+          double sum = 0;
+          for (size_t k = 0; k < K; ++k) sum += p.key_sh[(size_t(j) * K + k) * S + a];
+          q.sh[size_t(id) * S + a] = moments ? 0.0f : float(sum / double(K));
+        }
       continue;
     }
     if (j >= 0 || r.make_dynamic) {

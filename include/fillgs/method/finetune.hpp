@@ -64,12 +64,12 @@ struct FinetuneOptions {
 ///    the model's own moving / static partition kept (`promote` with no densification step,
 ///    so no static Gaussian gains keys). Why so small: at convergence the photometric gradient
 ///    is residual noise, and Adam moves every value by about its rate per step whatever the
-///    gradient's size; tests/test_keep_model.cpp measures 600 iterations with no generated
-///    views on the E-D3DGS and 4DGaussians fixtures rendered by the model itself (~60 dB,
-///    held-out cameras): the benchmark's repair rates lose 42 and 30 dB, 1/100 of 3DGS's rates
-///    0.70 dB (4DGaussians), 1/300 0.04 and 0.40 dB. The trade: over the paper's 30,000 iterations a value can still move by
-///    100 × 3DGS's per-step rate (SH DC 0.25, opacity 5 logits), 300× more slowly than at
-///    3DGS's rates.
+///    gradient's size. tests/test_keep_model.cpp measures 600 iterations with no generated
+///    views on the E-D3DGS and 4DGaussians fixtures rendered by the model itself (~60 dB;
+///    `bin/fillgs_model_tests "[keep-model]" -s` prints the figures): held-out PSNR falls by
+///    0.04 and 0.40 dB, and by 42 and 30 dB at the benchmark's repair rates. The trade: a value
+///    moves 300× more slowly than at 3DGS's rates (over the paper's 30,000 iterations, by up to
+///    100 × 3DGS's per-step rate: SH DC 0.25, opacity 5 logits).
 constexpr double kConvergedRate = 1.0 / 300.0;
 struct MotionRates {
   double position_lr = 1.6e-4;

@@ -79,10 +79,11 @@ constexpr float kSHBasisMax[16] = {0.28209479f, 0.48860251f, 0.48860251f, 0.4886
 
 /// The largest change of channel `channel`'s colour in any direction between two Gaussians'
 /// SH coefficients a and b ([coefficients][3] each): sum_k |a_k - b_k| kSHBasisMax[k], a bound
-/// that the still rule and the training keys' report share.
-inline float sh_colour_change(const float* a, const float* b, size_t coefficients, size_t channel) {
+/// that the still rule and the training keys share; from coefficient `from` on (1: the bands
+/// above the DC alone).
+inline float sh_colour_change(const float* a, const float* b, size_t coefficients, size_t channel, size_t from = 0) {
   float change = 0.0f;
-  for (size_t k = 0; k < coefficients && k < 16; ++k) change += std::fabs(a[k * 3 + channel] - b[k * 3 + channel]) * kSHBasisMax[k];
+  for (size_t k = from; k < coefficients && k < 16; ++k) change += std::fabs(a[k * 3 + channel] - b[k * 3 + channel]) * kSHBasisMax[k];
   return change;
 }
 
