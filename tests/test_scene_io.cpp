@@ -7,6 +7,7 @@
 #include "fillgs/base/error.hpp"
 #include "fillgs/io/ply.hpp"
 #include "fillgs/io/scene_io.hpp"
+#include "fillgs/train/train_model.hpp"
 #include "fillgs/experiment/synth.hpp"
 #include "helpers.hpp"
 
@@ -318,4 +319,59 @@ TEST_CASE("a scene with no motion has an empty dynamic set", "[io][motion]") {
   CHECK(c.motion == MotionModel::Static);
   CHECK(c.dynamic_count() == 0);
   CHECK(frame_at(c, 1.0).means[0] == Vec3f(0, 0, 1));
+}
+
+TEST_CASE("colour keys: every SH band linear between keys, the same in the cloud, the trainer and the 4D PLY", "[io][motion]") {
+  // Two Gaussians of degree 1, both keyed (3 keys over t = 0, 0.5, 1); Gaussian 1's colour keys
+  // are all equal (still colour), Gaussian 0's change in the DC and in the band above it.
+  GaussianCloud c;
+  c.sh_degree = 1;
+  c.resize(2);
+  for (size_t g = 0; g < 2; ++g) {
+    c.means[g] = Vec3f(float(g), 0, 5);
+    c.log_scales[g] = Vec3f(-2, -2, -2);
+    c.rotations[g] = Vec4f(1, 0, 0, 0);
+  }
+  c.motion = MotionModel::Keyframed;
+  c.dynamic_ids = {0, 1};
+  KeyframedMotion& k = c.keyframed;
+  k.key_count = 3;
+  k.key_spacing = 0.5;
+  k.positions.assign(2 * 3 * 3, 0.0f);
+  k.rotations.assign(2 * 3 * 4, 0.0f);
+  for (size_t j = 0; j < 2; ++j)
+    for (size_t key = 0; key < 3; ++key) {
+      for (int a = 0; a < 3; ++a) k.positions[(j * 3 + key) * 3 + a] = c.means[j][a];
+      k.rotations[(j * 3 + key) * 4] = 1.0f;
+    }
+  k.colours.resize(2 * 3 * 3);
+  k.sh_rest.resize(2 * 3 * 9);
+  for (size_t key = 0; key < 3; ++key) {
+    for (size_t a = 0; a < 3; ++a) k.colours[key * 3 + a] = 0.1f * float(key) + 0.01f * float(a), k.colours[(3 + key) * 3 + a] = 0.2f;
+    for (size_t a = 0; a < 9; ++a) k.sh_rest[key * 9 + a] = key == 1 ? 0.4f : -0.2f * float(a % 3), k.sh_rest[(3 + key) * 9 + a] = 0.3f;
+  }
+  c.validate("test");
+  // At t = 0.25 (between keys 0 and 1, halfway): the DC and each band halfway.
+  const FrameGaussians f = frame_at(c, 0.25);
+  for (size_t a = 0; a < 3; ++a) CHECK(f.sh[a] == Approx(0.05 + 0.01 * double(a)));
+  for (size_t a = 0; a < 9; ++a) CHECK(f.sh[3 + a] == Approx(0.5 * (-0.2 * double(a % 3) + 0.4)));
+  // The trainer's parameters give the same SH at t (params_at interpolates key_sh).
+  const ModelParams<float> p = params_from_cloud<float>(c);
+  DiffFrame<float> d;
+  params_at(p, 0.25, &d);
+  for (size_t a = 0; a < 12; ++a) CHECK(d.sh[a] == Approx(f.sh[a]));
+  // Back to a cloud and through the 4D PLY (which the reader partitions): every band at every
+  // key of the Gaussian whose colour moves; the one whose colour keys never change (nor
+  // anything else) is static, with its keys' colour.
+  const GaussianCloud back = cloud_from_params(p);
+  REQUIRE(back.keyframed.sh_rest == k.sh_rest);
+  const std::string path = fillgs::test::scratch("colour_keys") + "/keys.ply";
+  write_fillgs_ply(path, back);
+  const GaussianCloud read = read_scene(path);
+  REQUIRE(read.dynamic_count() == 1);
+  const uint32_t moving = read.dynamic_ids[0], still = 1 - moving;
+  CHECK(read.means[moving].x() == 0.0f);  // Gaussian 0
+  REQUIRE(read.keyframed.sh_rest.size() == 27);
+  for (size_t i = 0; i < 27; ++i) CHECK(read.keyframed.sh_rest[i] == k.sh_rest[i]);
+  for (size_t a = 0; a < 9; ++a) CHECK(read.sh[size_t(still) * 12 + 3 + a] == 0.3f);
 }

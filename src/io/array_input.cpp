@@ -68,6 +68,20 @@ Camera camera_from_3dgs(const double* R, const double* T, double fov_x, double f
   return camera_from_arrays(K, M, w, h, time, name, index);
 }
 
+Camera3dgs camera_to_3dgs(const Camera& c, size_t index) {
+  if (std::fabs(c.cx - c.width / 2.0) > 0.5 || std::fabs(c.cy - c.height / 2.0) > 0.5)
+    throw_error("cameras: element ", index, " (", c.name, ") has its principal point at (", c.cx, ", ", c.cy, "), the 3DGS codes' at the image centre (",
+                c.width / 2.0, ", ", c.height / 2.0, "): crop the image to centre it first");
+  Camera3dgs o;
+  for (int r = 0; r < 3; ++r) {
+    for (int q = 0; q < 3; ++q) o.R[q * 3 + r] = c.R(r, q);  // R transposed, as camera_from_3dgs reads it
+    o.T[r] = c.t[r];
+  }
+  o.fov_x = 2.0 * std::atan(c.width / (2.0 * c.fx));
+  o.fov_y = 2.0 * std::atan(c.height / (2.0 * c.fy));
+  return o;
+}
+
 ModelState gaussians_from_arrays(size_t n, const float* means, const float* log_scales, const float* quaternions, const float* opacity_logits,
                                  const float* sh, size_t sh_coefficients, const std::string& what) {
   require_finite(means, n * 3, 3, what + " means");

@@ -343,8 +343,7 @@ GaussianCloud cloud_from(const ModelState& s) {
 class CallerFrames : public MotionSource {
  public:
   CallerFrames(py::object fn, int frames, ModelState first, const StillRule& rule)
-      : fn_(std::move(fn)), frames_(frames), n_(py::ssize_t(first.size())), sh_degree_(first.sh_degree), rule_(rule),
-        departure_(first.size(), 0.0f), first_(std::move(first)) {}
+      : fn_(std::move(fn)), frames_(frames), rule_(rule), departure_(first.size(), 0.0f), first_(std::move(first)) {}
   ~CallerFrames() override {
     py::gil_scoped_acquire gil;
     fn_ = py::object();
@@ -361,8 +360,9 @@ class CallerFrames : public MotionSource {
       {  // the caller's function, with the GIL
         py::gil_scoped_acquire gil;
         try {
-          auto s = std::make_shared<ModelState>(state_from(fn_(f), ("frame " + std::to_string(f)).c_str(), n_));
-          if (s->sh_degree != sh_degree_) throw py::value_error("frame " + std::to_string(f) + " sh: degree " + std::to_string(s->sh_degree) + ", frame 0 had " + std::to_string(sh_degree_));
+          auto s = std::make_shared<ModelState>(state_from(fn_(f), ("frame " + std::to_string(f)).c_str(), py::ssize_t(first_.size())));
+          if (s->sh_degree != first_.sh_degree)
+            throw py::value_error("frame " + std::to_string(f) + " sh: degree " + std::to_string(s->sh_degree) + ", frame 0 had " + std::to_string(first_.sh_degree));
           all = s;
         } catch (py::error_already_set& e) {
           failed_ = true;
@@ -407,8 +407,6 @@ class CallerFrames : public MotionSource {
  private:
   py::object fn_;
   int frames_;
-  py::ssize_t n_;
-  int sh_degree_;
   StillRule rule_;
   mutable std::vector<float> departure_;
   ModelState first_;
@@ -532,6 +530,30 @@ Cameras cameras_from_3dgs_py(const py::handle& R, const py::handle& T, const py:
     out.list.push_back(camera_from_3dgs(r.data() + i * 9, t.data() + i * 3, fx[size_t(i)], fy[size_t(i)], W[size_t(i)], H[size_t(i)], times[size_t(i)],
                                         label[size_t(i)], size_t(i)));
   return out;
+}
+
+/// The cameras as the 3DGS family holds them (camera_to_3dgs): what E-D3DGS's and
+/// 4DGaussians' scene/cameras.py Camera takes.
+py::dict cameras_to_3dgs(const Cameras& c) {
+  const size_t C = c.list.size();
+  std::vector<double> R(C * 9), T(C * 3), fx(C), fy(C), time(C);
+  std::vector<int32_t> W(C), H(C);
+  for (size_t i = 0; i < C; ++i) {
+    const Camera& x = c.list[i];
+    const Camera3dgs g = camera_to_3dgs(x, i);
+    std::copy_n(g.R, 9, &R[i * 9]);
+    std::copy_n(g.T, 3, &T[i * 3]);
+    fx[i] = g.fov_x, fy[i] = g.fov_y, W[i] = x.width, H[i] = x.height, time[i] = x.time;
+  }
+  py::dict d;
+  d["R"] = to_array(std::move(R), {py::ssize_t(C), 3, 3});
+  d["T"] = to_array(std::move(T), {py::ssize_t(C), 3});
+  d["fov_x"] = to_array(std::move(fx), {py::ssize_t(C)});
+  d["fov_y"] = to_array(std::move(fy), {py::ssize_t(C)});
+  d["width"] = to_array(std::move(W), {py::ssize_t(C)});
+  d["height"] = to_array(std::move(H), {py::ssize_t(C)});
+  d["time"] = to_array(std::move(time), {py::ssize_t(C)});
+  return d;
 }
 
 py::dict cameras_arrays(const Cameras& c) {
@@ -1036,7 +1058,12 @@ PYBIND11_MODULE(_fillgs, m) {
         for (const Camera& x : c.list) n.push_back(x.name);
         return n;
       })
-      .def("arrays", &cameras_arrays, "A dict: K [C,3,3], world_to_camera [C,4,4] float64, width, height [C] int32, time [C] float64 (NaN: none)");
+      .def("arrays", &cameras_arrays, "A dict: K [C,3,3], world_to_camera [C,4,4] float64, width, height [C] int32, time [C] float64 (NaN: none)")
+      .def("to_3dgs", &cameras_to_3dgs,
+           "The cameras as E-D3DGS, 4DGaussians and 3DGS hold them (cameras_from_3dgs's inverse; their scene/cameras.py Camera takes "
+           "R, T, FoVx, FoVy): a dict R [C,3,3] (the world-to-camera rotation transposed), T [C,3], fov_x, fov_y [C] radians, width, height "
+           "[C] int32, time [C] normalised (Model.model_time gives a code's own; NaN: none). A camera whose principal point is more than half "
+           "a pixel off the image centre is refused: those codes have none of their own.");
   m.def("cameras_from_3dgs", &cameras_from_3dgs_py, py::arg("R"), py::arg("T"), py::arg("fov_x"), py::arg("fov_y"), py::arg("width"),
         py::arg("height"), py::arg("time") = py::none(), py::arg("names") = py::none(),
         "Cameras as E-D3DGS, 4DGaussians and 3DGS hold them (scene/cameras.py: R the transpose of the world-to-camera rotation, T its translation, "

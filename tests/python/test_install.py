@@ -118,3 +118,14 @@ def test_cameras_from_3dgs_equal_the_cameras_json_3dgs_writes(tmp_path):
     assert np.allclose(got["K"], want["K"], atol=1e-4) and np.allclose(got["world_to_camera"], want["world_to_camera"], atol=1e-5)
     with pytest.raises(fillgs.Error, match="fov: element 0 has a field of view of 4 radians"):
         fillgs.cameras_from_3dgs(np.array(Rs[:1]), np.array(Ts[:1]), 4.0, 1.0, W, H)
+    # And back: the cameras fillgs read from that cameras.json, as the codes hold them.
+    back = fillgs.read_cameras(str(path)).to_3dgs()
+    np.testing.assert_allclose(back["R"], np.array(Rs), atol=1e-6)
+    np.testing.assert_allclose(back["T"], np.array(Ts), atol=1e-6)
+    np.testing.assert_allclose(back["fov_x"], fovx, atol=1e-6)
+    np.testing.assert_allclose(back["fov_y"], fovy, atol=1e-6)
+    assert back["width"].tolist() == [W] * C and back["height"].tolist() == [H] * C
+    K = want["K"].copy()
+    K[1, 0, 2] += 3.0  # camera 1's principal point 3 px right of the centre: the codes have none of their own
+    with pytest.raises(fillgs.Error, match=r"element 1 \(v1\) has its principal point at \(35, 24\)"):
+        fillgs.Cameras(K, want["world_to_camera"], W, H, names=[f"v{i}" for i in range(C)]).to_3dgs()

@@ -28,6 +28,16 @@ Camera camera_from_arrays(const float* K, const float* world_to_camera, double w
 Camera camera_from_3dgs(const double* R, const double* T, double fov_x, double fov_y, double width, double height, double time,
                         const std::string& name, size_t index);
 
+/// camera_from_3dgs's inverse: a camera as the 3DGS family of codes holds one, R (row-major,
+/// the world-to-camera rotation transposed), T, FoVx = 2 atan(W / 2fx), FoVy = 2 atan(H / 2fy).
+/// Those codes have no principal point of their own (theirs is the image centre): a camera
+/// whose principal point lies more than half a pixel off the centre is refused, one line
+/// naming element `index` and both points, not handed over to project elsewhere.
+struct Camera3dgs {
+  double R[9], T[3], fov_x, fov_y;
+};
+Camera3dgs camera_to_3dgs(const Camera& c, size_t index);
+
 /// n Gaussians of one frame: means [n,3], log_scales [n,3], quaternions [n,4] (w, x, y, z),
 /// opacity_logits [n], sh [n, sh_coefficients, 3] (null: grey, degree 0). Every value finite,
 /// no zero quaternion, sh_coefficients 1, 4, 9 or 16. `what` names the arrays in messages.

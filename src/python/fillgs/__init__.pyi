@@ -42,6 +42,7 @@ class Cameras:
     @property
     def names(self) -> List[str]: ...
     def arrays(self) -> Dict[str, np.ndarray]: ...  # K [C,3,3], world_to_camera [C,4,4] float64, width, height [C] int32, time [C] float64
+    def to_3dgs(self) -> Dict[str, np.ndarray]: ...  # R [C,3,3], T [C,3], fov_x, fov_y [C] float64, width, height [C] int32, time [C]
 
 class ExplorationGrid:
     @property
