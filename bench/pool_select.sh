@@ -3,26 +3,45 @@
 # photographs of a pool of a rig's cameras (`fillgs finetune --pool-budget K`: no generative
 # model), and every model is judged on held-out cameras read from a camera file that
 # training, the initial points, the pool and the selection never see (`--held-out`).
-# Two protocols, each its own table:
-#  * trained from scratch (the main one): each strategy chooses the K camera-times on the
-#    seed's backbone in one greedy round (`finetune --pool-budget K --iterations 1
-#    --select-every 1`: every chosen one counted as an observation before the next; the one
-#    training step is discarded), then a model is trained on the training cameras plus those
-#    photographs (`fillgs train --camera-times`) with exactly the dense reference's settings
-#    — its iterations, SH degree, colour correction — from the same initial points (the
-#    seed's backbone's) and the run's seed. Its window is the backbone-to-dense gap, and K =
-#    every pool photograph is the dense reference. The control: the training cameras alone.
-#    Every seed's main protocol runs before any warm start.
-#  * warm start (labelled as such; after the main protocol, or not with --no-warm-start): the
-#    backbone fine-tuned for 2,400 iterations with the photographs added at their real
-#    poses, chosen in three rounds, each from the current model.
+#
+# The protocol (bench/results/README.md, "Which camera-times help most: the exposure
+# protocol", fixed before its runs):
+#  * every model trains with every photograph equally likely at every stage (`--time-ramp 0`,
+#    a fresh permutation of the views each epoch) for a fixed number of draws per photograph
+#    (`--draws-per-view D`: the iterations follow the number of views), so neither a
+#    photograph's frame nor the budget decides how often it is trained on. D is the earlier
+#    control's (3,000 iterations over its training views): 25 on Panoptic (120 views), 750
+#    on the static N3V frame (4 views). Each run's summary.json records every photograph's
+#    draws;
+#  * per seed: the backbone (the training cameras, the model every strategy chooses on), the
+#    control (the training cameras alone, from the backbone's initial points) and the dense
+#    reference (training and every pool photograph, the same points) — the window is dense
+#    minus control, per seed;
+#  * each strategy chooses K camera-times on the seed's backbone in one greedy round
+#    (`finetune --pool-budget K --iterations 1 --select-every 1`: each chosen one counted as
+#    an observation before the next; the one training step is discarded), then a model
+#    trains on the training cameras plus those photographs (`fillgs train --camera-times`)
+#    by the same rule, from the backbone's initial points, with the seed;
+#  * the positive control `positive` knows the judged cameras: the pool photographs nearest
+#    them, spread over the clip (bench/pool_positive.py); `negative` is the negative one;
+#  * judged on every camera that is neither training nor pool, each view's metrics kept
+#    (`fillgs eval --affine-fit`): the primary metric is PSNR after a per-image affine colour
+#    fit; raw PSNR, foreground PSNR and SSIM are secondary; FillGS is compared with each of
+#    the six other strategies, every interval printed.
+#  * seed 1 also trains the backbone with the time curriculum (`--time-ramp 0.7`, fillgs
+#    train's default) at the same draws: what the uniform rule costs motion learning on the
+#    training cameras.
+# With --warm-start, a second protocol (labelled as such, after the main one): the backbone
+# fine-tuned for 2,400 iterations with the photographs added at their real poses, chosen in
+# three rounds, each from the current model.
 #
 #   bench/pool_select.sh [--scene panoptic|n3v-static] [--smoke] [--test-cameras FILE]
-#                        [--seeds 1,2,3,4,5] [--budgets ...] [--strategies a,b,..] [--no-scratch] [--no-warm-start] [OUT]
-#       (default OUT: bench/results/video/panoptic_pool or bench/results/video/n3v_static_pool)
+#                        [--seeds 1,2,3] [--budgets ...] [--strategies a,b,..] [--no-scratch] [--warm-start] [OUT]
+#       (default OUT: bench/results/video/panoptic_pool_exposure or bench/results/video/n3v_static_pool_exposure)
 #
-# Both splits were fixed from the cameras' geometry before any run (bench/results/README.md,
-# "Which camera-times help most").
+# Seeds: without --seeds and --budgets, Panoptic runs K = 30 over seeds 1-10 first (every
+# seed's rows before the next seed), then K = 10 and 90 over seeds 1-5; the static N3V frame
+# runs K = 2, 4, 8 over seeds 1-5. --seeds or --budgets: those budgets over those seeds.
 #
 # --scene panoptic (the default): CMU Panoptic "basketball", 30 frames at 160x90. Azimuth and
 # height about the dome's vertical (the mean of the cameras' up directions) from the mean
@@ -31,34 +50,28 @@
 #    heights (-52, -26, -23, 0 degrees): a forward-facing group, as the paper's rigs are;
 #  * pool: the rest of that side of the dome, 19, 23, 1, 9, 4, 5, 26, 28, 24, 21, 13
 #    (-128 to +87 degrees) at every frame: 11 cameras x 30 frames = 330 camera-times;
-#  * held out among the pool ("near"): 18 (-72), 2 (+12), 20 (+48), one inside each stretch
-#    of pool cameras and one beside the training group; beyond it ("far"): 29 (+123),
-#    11 (+149), 27 (-166), the far side;
-#  * unused: 14, 16, 25, 6, 8, 17 (the rest of the far side: neither pool nor judged).
-#  Budgets K = 10, 30, 90 camera-times. Backbone: 2,000 iterations, points carved from the
-#  training cameras' masks only. The held-out cameras go to OUT/test_meta.json (the dataset's
-#  own format, its masks linked beside it).
+#  * judged among the pool ("near"): 18 (-72), 2 (+12), 20 (+48), one inside each stretch
+#    of pool cameras and one beside the training group (every other camera on that side is
+#    training or pool); beyond it ("far"): 29 (+123), 11 (+149), 27 (-166) and the rest of
+#    the far side, 14, 16, 25, 6, 8, 17.
+#  Budgets K = 10, 30, 90 camera-times. Points carved from the training cameras' masks only.
+#  The judged cameras go to OUT/test_meta.json (the dataset's own format, its masks linked
+#  beside it).
 # --scene n3v-static: Neural 3D Video flame_steak, frame 0 of its 21 cameras (two rows of a
 #  forward-facing arc), at 1/8 size (336x252): the static case, where the pool is the
 #  cameras themselves. Along the arc (x of the centres about their mean, lower row cam00-10,
 #  upper row cam11-20):
 #  * training: cam00, cam06 (lower, x +0.04, -1.03) and cam15, cam16 (upper, +0.52, -0.61):
 #    the four middle cameras, two of each row;
-#  * held out among the pool ("near"): cam05 (+1.14), cam17 (-1.75), cam08 (-3.19); beyond it
+#  * judged among the pool ("near"): cam05 (+1.14), cam17 (-1.75), cam08 (-3.19); beyond it
 #    ("far"): cam20 (-5.77) and cam11 (+5.64), the two ends of the arc;
 #  * pool: the other 12 (cam01-04, 07, 09, 10, 12-14, 18, 19): 12 camera-times.
-#  Budgets K = 2, 4, 8. Backbone: 2,000 iterations from COLMAP points triangulated from the
-#  four training cameras only (scripts/colmap-points.sh --train-cameras, images at most
-#  1,344 px), as is every model trained from scratch, the dense reference's included. The
-#  held-out cameras go to OUT/test_cameras.json (transforms, from sparse/0).
+#  Budgets K = 2, 4, 8. Initial points from COLMAP points triangulated from the four training
+#  cameras only (scripts/colmap-points.sh --train-cameras, images at most 1,344 px), for
+#  every model. The judged cameras go to OUT/test_cameras.json (transforms, from sparse/0).
 #
-# Both: seeds 1-5 (the backbone's initialisation, `random` and the training's draws),
-# `--sh-degree 0 --colour-correction` (fine-tuning keeps both); the dense reference trains on
-# the training and pool cameras, 3,000 iterations, seed 1, from seed 1's backbone's initial
-# points; every strategy's photographs are real, so they weigh 1
-# (`--weighting none`); FillGS's and ExploreGS's weights run once each (FillGS's selection,
-# seed 1, the smallest budget) to show what they do to real photographs; the control fine-tunes on the
-# training cameras alone. A --test-cameras FILE of the same rig replaces the held-out
+# Both: `--sh-degree 0 --colour-correction`; every strategy's photographs are real, so they
+# weigh 1 (`--weighting none`). A --test-cameras FILE of the same rig replaces the judged
 # cameras: every camera in it is one split, "held-out", and it guards training and the pool.
 #
 # Resumable (bench/lib.sh, step): rerun the same command and every finished step is reused;
@@ -72,13 +85,15 @@
 # holding fillgs's kernels there (an AVX-512 machine continues AVX2 records). Every path in a
 # command line is relative to the repository (the data at ../shared/data unless
 # FILLGS_SHARED_DATA is set), so the records carry no machine's path.
-# Writes OUT/results.md (a table per budget, mean +- standard deviation over the seeds, and
-# FillGS's paired 95 % intervals, drawn in OUT/intervals_K<k>.png), OUT/chosen_K<k>_s<seed>.png
-# (what each strategy chose, camera x frame) and OUT/compare.png. --smoke: small images, K = 2, seed 1, a few iterations (CI).
+# Writes OUT/results.md (bench/pool_select_report.py: per budget the positive control's
+# verdict, the table, FillGS minus each other strategy paired by seed with 95 % intervals,
+# drawn in OUT/intervals_K<k>.png, the per-camera table, the window per seed, the draws per
+# chosen photograph), OUT/chosen_K<k>_s<seed>.png (what each strategy chose, camera x frame)
+# and OUT/compare.png. --smoke: small images, K = 2, seed 1, a few iterations (CI).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source bench/lib.sh
-SMOKE=0 TEST= SEEDS=1,2,3,4,5 BUDGETS= SCENE=panoptic ONLY= NO_SCRATCH=0 NO_WARM=0
+SMOKE=0 TEST= SEEDS= BUDGETS= SCENE=panoptic ONLY= NO_SCRATCH=0 WARM=0
 while [ $# -gt 0 ]; do
   case $1 in
     --scene) SCENE=$2; shift ;;
@@ -88,7 +103,7 @@ while [ $# -gt 0 ]; do
     --budgets) BUDGETS=$2; shift ;;
     --strategies) ONLY=$2; shift ;;
     --no-scratch) NO_SCRATCH=1 ;;
-    --no-warm-start) NO_WARM=1 ;;
+    --warm-start) WARM=1 ;;
     -h|--help) sed -n '2,/^set -euo/p' "$0" | sed '$d'; exit 0 ;;
     -*) echo "pool_select: unknown option $1" >&2; exit 1 ;;
     *) break ;;
@@ -97,7 +112,7 @@ while [ $# -gt 0 ]; do
 done
 FILLGS=${FILLGS:-build/bin/fillgs}
 DATA=${FILLGS_SHARED_DATA:-../shared/data}
-STRATEGIES=(fillgs random negative interpolation fisherrf coverage3d coverage4d)
+STRATEGIES=(fillgs random negative interpolation fisherrf coverage3d coverage4d positive)
 [ -n "$ONLY" ] && IFS=, read -r -a STRATEGIES <<<"$ONLY"
 # A list naming an item twice is refused before anything runs (a seed twice would pair a run
 # with itself in the report: a zero-width interval read as "separated").
@@ -105,38 +120,51 @@ for list in "--seeds $SEEDS" "--budgets $BUDGETS" "--strategies $ONLY"; do
   twice=$(echo "${list#* }" | tr ',' '\n' | sed '/^$/d' | sort | uniq -d | head -n 1)
   if [ -n "$twice" ]; then echo "pool_select: ${list% *} ${list#* }: $twice is given twice" >&2; exit 1; fi
 done
-BB=(--iterations 2000) DENSE=(--iterations 3000) FT=() INIT=()
+FT=() INIT=()
 case $SCENE in
   panoptic)
     P=$DATA/video/panoptic_basketball TITLE="Panoptic basketball"
-    OUT=${1:-bench/results/video/panoptic_pool}
+    OUT=${1:-bench/results/video/panoptic_pool_exposure}
     TRAIN=3,22,7,12
     POOL=19,23,1,9,4,5,26,28,24,21,13
-    NEAR=18,2,20 FAR=29,11,27
-    BUDGETS=${BUDGETS:-10,30,90} WEIGHTS_K=10 PICTURE_K=30
-    FRAMES=0:150:5 DOWN=4
+    NEAR=18,2,20 FAR=29,11,27,14,16,25,6,8,17
+    PLAN="30:1,2,3,4,5,6,7,8,9,10 10:1,2,3,4,5 90:1,2,3,4,5" WEIGHTS_K=10 PICTURE_K=30
+    FRAMES=0:150:5 DOWN=4 DRAWS=25
     if [ $SMOKE = 1 ]; then
-      FRAMES=0:150:75 DOWN=8 BB=(--iterations 40) DENSE=(--iterations 40) FT=(--iterations 30 --select-every 15) SEEDS=1 BUDGETS=2 WEIGHTS_K=2 PICTURE_K=2
+      FRAMES=0:150:75 DOWN=8 DRAWS=5 FT=(--iterations 30 --select-every 15) PLAN=2:1 WEIGHTS_K=2 PICTURE_K=2
     fi
     DS=(--images "$P/ims" --frames "$FRAMES" --downscale "$DOWN")
     CAMERAS=$P/train_meta.json
     ;;
   n3v-static)
     P=$DATA/video/n3v_flame_steak_frame0 TITLE="Neural 3D Video flame_steak, frame 0 (static)"
-    OUT=${1:-bench/results/video/n3v_static_pool}
+    OUT=${1:-bench/results/video/n3v_static_pool_exposure}
     TRAIN=cam00,cam06,cam15,cam16
     POOL=cam01,cam02,cam03,cam04,cam07,cam09,cam10,cam12,cam13,cam14,cam18,cam19
     NEAR=cam05,cam17,cam08 FAR=cam20,cam11
-    BUDGETS=${BUDGETS:-2,4,8} WEIGHTS_K=2 PICTURE_K=4
-    DOWN=8 MAXSIDE=1344
+    PLAN="2:1,2,3,4,5 4:1,2,3,4,5 8:1,2,3,4,5" WEIGHTS_K=2 PICTURE_K=4
+    DOWN=8 MAXSIDE=1344 DRAWS=750
     if [ $SMOKE = 1 ]; then
-      DOWN=32 MAXSIDE=400 BB=(--iterations 40) DENSE=(--iterations 40) FT=(--iterations 30 --select-every 15) SEEDS=1 BUDGETS=2 PICTURE_K=2
+      DOWN=32 MAXSIDE=400 DRAWS=10 FT=(--iterations 30 --select-every 15) PLAN=2:1 PICTURE_K=2
     fi
     DS=(--images "$P/images" --downscale "$DOWN")
     CAMERAS=$P/sparse/0
     ;;
   *) echo "pool_select: unknown --scene $SCENE (panoptic or n3v-static)" >&2; exit 1 ;;
 esac
+# --seeds or --budgets: those budgets over those seeds (the plan's others where one is not given).
+if [ -n "$SEEDS$BUDGETS" ]; then
+  all_budgets=$(for e in $PLAN; do printf '%s,' "${e%%:*}"; done)
+  all_seeds=$(for e in $PLAN; do echo "${e#*:}" | tr ',' '\n'; done | sort -n | uniq | paste -sd,)
+  B=${BUDGETS:-${all_budgets%,}} S=${SEEDS:-$all_seeds}
+  PLAN=$(IFS=,; for k in $B; do printf '%s:%s ' "$k" "$S"; done)
+fi
+# Every seed and budget of the plan, for the report.
+BUDGETS=$(for e in $PLAN; do printf '%s\n' "${e%%:*}"; done | paste -sd,)
+SEEDS=$(for e in $PLAN; do echo "${e#*:}" | tr ',' '\n'; done | sort -n | uniq | paste -sd,)
+# The training rule of every model: each photograph equally likely at every stage, DRAWS
+# draws each (the iterations follow the number of views).
+RULE=(--draws-per-view "$DRAWS" --time-ramp 0)
 mkdir -p "$OUT"
 if [ -z "$TEST" ]; then
   # The held-out cameras in a camera file of their own.
@@ -207,7 +235,7 @@ evaluate() {  # model folder
   for k in "${!SPLITS[@]}"; do
     local sel=()
     [ "${SPLIT_CAMS[$k]}" = all ] || sel=(--select-cameras "${SPLIT_CAMS[$k]}")
-    local cmd=("$FILLGS" eval --model "$m" "${DS[@]}" --cameras "$TEST" "${sel[@]}" --splits "${SPLITS[$k]}" --no-renders --ls-gain
+    local cmd=("$FILLGS" eval --model "$m" "${DS[@]}" --cameras "$TEST" "${sel[@]}" --splits "${SPLITS[$k]}" --no-renders --affine-fit
       --out "$1/eval_${SPLITS[$k]}" --quiet)
     finished "$1/eval_${SPLITS[$k]}" metrics.json "${cmd[@]}" || have_model "$1"
     step "$1/eval_${SPLITS[$k]}" metrics.json "${cmd[@]}" >/dev/null
@@ -235,7 +263,7 @@ IFS=, read -r -a budgets <<<"$BUDGETS"
 # first step every run makes (bench/lib.sh, hold_instruction_set).
 hold_instruction_set "$OUT/s1/backbone/step.txt"
 backbone_command() {  # seed, output folder -> BCMD
-  BCMD=("$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "${BB[@]}" "${INIT[@]}" "${OPTS[@]}" --seed "$1" --out "$2" --quiet)
+  BCMD=("$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "${RULE[@]}" "${INIT[@]}" "${OPTS[@]}" --seed "$1" --out "$2" --quiet)
 }
 backbone_files() { ls model.ply init_points.ply 2>/dev/null; }  # what model.sha256 records (in the folder)
 # A record vouches for exactly the files named after it: one line each, no other (a record
@@ -285,21 +313,66 @@ bstep() {  # seed, step's arguments
 scratch_points() {  # seed
   if [ ${#INIT[@]} -gt 0 ]; then echo "${INIT[1]}"; else echo "$OUT/s$1/backbone/init_points.ply"; fi
 }
-backbone 1
-bstep 1 "$OUT/dense" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN,$POOL "${DENSE[@]}" --points "$(scratch_points 1)" "${OPTS[@]}" \
-  --seed 1 --out "$OUT/dense" --quiet
-evaluate "$OUT/dense"
-# Trained from scratch with the dense reference's settings on the training cameras and the
-# photographs a selection chose (none: the training cameras alone).
-scratch() {  # seed, id, extra train options
-  local s=$1 id=scratch.$2
-  shift 2
-  bstep "$s" "$OUT/s$s/$id" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN "$@" "${DENSE[@]}" --points "$(scratch_points "$s")" "${OPTS[@]}" \
+# Trained from scratch by the rule on the training cameras and the photographs a selection
+# chose (none: the training cameras alone).
+scratch() {  # seed, id, cameras, extra train options
+  local s=$1 id=$2 cams=$3
+  shift 3
+  bstep "$s" "$OUT/s$s/$id" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras "$cams" "$@" "${RULE[@]}" --points "$(scratch_points "$s")" "${OPTS[@]}" \
     --seed "$s" --out "$OUT/s$s/$id" --quiet
   evaluate "$OUT/s$s/$id"
 }
+# The cameras as transforms.json, for the positive control's geometry.
+for f in "$CAMERAS:rig_cameras" "$TEST:judged_cameras"; do
+  [ -f "$OUT/${f##*:}.json" ] || { "$FILLGS" cameras --cameras "${f%:*}" --out "$OUT/${f##*:}.tmp.json" >/dev/null && mv "$OUT/${f##*:}.tmp.json" "$OUT/${f##*:}.json"; }
+done
+JUDGED=$(IFS=:; echo "${SPLIT_CAMS[*]}")
+# Per seed, once: the backbone, the control, the dense reference; seed 1 also the backbone
+# trained with the time curriculum, and both judged on the training cameras.
+seed_references() {  # seed
+  local s=$1
+  backbone "$s"
+  scratch "$s" scratch.control $TRAIN
+  scratch "$s" dense $TRAIN,$POOL
+  if [ "$s" = 1 ]; then
+    bstep 1 "$OUT/s1/backbone.curriculum" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN --draws-per-view "$DRAWS" \
+      --time-ramp 0.7 --points "$(scratch_points 1)" "${OPTS[@]}" --seed 1 --out "$OUT/s1/backbone.curriculum" --quiet
+    evaluate "$OUT/s1/backbone.curriculum"
+    for m in scratch.control backbone.curriculum; do
+      local cmd=("$FILLGS" eval --model "$OUT/s1/$m/model.ply" "${DS[@]}" --cameras "$CAMERAS" --select-cameras $TRAIN --splits train
+        --no-renders --affine-fit --out "$OUT/s1/$m/eval_train" --quiet)
+      finished "$OUT/s1/$m/eval_train" metrics.json "${cmd[@]}" || have_model "$OUT/s1/$m"
+      step "$OUT/s1/$m/eval_train" metrics.json "${cmd[@]}" >/dev/null
+    done
+  fi
+}
+# The main protocol: budget by budget as the plan lists them, every seed's rows before the next seed.
+if [ $NO_SCRATCH = 0 ]; then
+  for entry in $PLAN; do
+    K=${entry%%:*}
+    IFS=, read -r -a plan_seeds <<<"${entry#*:}"
+    for s in "${plan_seeds[@]}"; do
+      seed_references "$s"
+      for st in "${STRATEGIES[@]}"; do
+        if [ "$st" = positive ]; then
+          # Allowed to know the judged cameras: the pool photographs nearest them, spread over the clip.
+          frames=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['frames'])" "$OUT/s$s/backbone/summary.json")
+          step "$OUT/s$s/choose.positive.K$K" pool_chosen.json python3 bench/pool_positive.py --rig "$OUT/rig_cameras.json" \
+            --held-out "$OUT/judged_cameras.json" --splits "$JUDGED" --pool $POOL --frames "$frames" --budget "$K" \
+            --out "$OUT/s$s/choose.positive.K$K/pool_chosen.json"
+        else
+          # K camera-times chosen on the backbone in one greedy round.
+          bstep "$s" "$OUT/s$s/choose.$st.K$K" summary.json "$FILLGS" finetune --model "$OUT/s$s/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
+            --seed "$s" --out "$OUT/s$s/choose.$st.K$K" --iterations 1 --select-every 1 --pool-cameras $POOL --pool-budget "$K" --strategy "$st" \
+            --weighting none --quiet
+        fi
+        scratch "$s" "scratch.$st.K$K" $TRAIN --camera-times "$OUT/s$s/choose.$st.K$K/pool_chosen.json"
+      done
+    done
+  done
+fi
 # The backbone fine-tuned (the warm start; with --pool-budget the selection runs in its rounds), at
-# the rates the benchmark was calibrated with (repair: fillgs's own 3,000-iteration backbones).
+# the rates the benchmark was calibrated with (repair: fillgs's own backbones).
 finetune() {  # seed, id, extra finetune options
   local s=$1 id=$2
   shift 2
@@ -307,43 +380,30 @@ finetune() {  # seed, id, extra finetune options
     --seed "$s" --out "$OUT/s$s/$id" --motion-rates repair "${FT[@]}" "$@" --quiet
   evaluate "$OUT/s$s/$id"
 }
-# The main protocol, every seed first.
-if [ $NO_SCRATCH = 0 ]; then
-  for s in "${seeds[@]}"; do
-    backbone "$s"
-    scratch "$s" control
-    for K in "${budgets[@]}"; do
+if [ $WARM = 1 ]; then
+  for entry in $PLAN; do
+    K=${entry%%:*}
+    IFS=, read -r -a plan_seeds <<<"${entry#*:}"
+    for s in "${plan_seeds[@]}"; do
+      backbone "$s"
+      finetune "$s" control --trajectories 0
       for st in "${STRATEGIES[@]}"; do
-        # K camera-times chosen on the backbone in one greedy round.
-        bstep "$s" "$OUT/s$s/choose.$st.K$K" summary.json "$FILLGS" finetune --model "$OUT/s$s/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
-          --seed "$s" --out "$OUT/s$s/choose.$st.K$K" --iterations 1 --select-every 1 --pool-cameras $POOL --pool-budget "$K" --strategy "$st" \
-          --weighting none --quiet
-        scratch "$s" "$st.K$K" --camera-times "$OUT/s$s/choose.$st.K$K/pool_chosen.json"
-      done
-    done
-  done
-fi
-# The warm start.
-if [ $NO_WARM = 0 ]; then
-  for s in "${seeds[@]}"; do
-    backbone "$s"
-    finetune "$s" control --trajectories 0
-    for K in "${budgets[@]}"; do
-      for st in "${STRATEGIES[@]}"; do
+        [ "$st" = positive ] && continue  # the warm start selects in its own rounds, on the library's strategies
         finetune "$s" "$st.K$K" --pool-cameras $POOL --pool-budget "$K" --strategy "$st" --weighting none
       done
+      # What FillGS's and ExploreGS's weights do to real photographs (FillGS's selection), once:
+      # seed 1 at the smallest budget, where FillGS is among the strategies asked for.
+      if [ "$s" = 1 ] && [ "$K" = "$WEIGHTS_K" ] && [[ " ${STRATEGIES[*]} " == *" fillgs "* ]]; then
+        for w in fillgs exploregs; do
+          finetune "$s" "fillgs.K$WEIGHTS_K.w-$w" --pool-cameras $POOL --pool-budget "$WEIGHTS_K" --strategy fillgs --weighting $w
+        done
+      fi
     done
-    # What FillGS's and ExploreGS's weights do to real photographs (FillGS's selection), once:
-    # seed 1 at the smallest budget, where FillGS is among the strategies asked for.
-    if [ "$s" = 1 ] && [[ ",$BUDGETS," == *",$WEIGHTS_K,"* ]] && [[ " ${STRATEGIES[*]} " == *" fillgs "* ]]; then
-      for w in fillgs exploregs; do
-        finetune "$s" "fillgs.K$WEIGHTS_K.w-$w" --pool-cameras $POOL --pool-budget "$WEIGHTS_K" --strategy fillgs --weighting $w
-      done
-    fi
   done
 fi
 
-python3 bench/pool_select_report.py "$OUT" --title "$TITLE" --seeds "$SEEDS" --budgets "$BUDGETS" --splits "$(IFS=,; echo "${SPLITS[*]}")" >/dev/null
+python3 bench/pool_select_report.py "$OUT" --title "$TITLE" --seeds "$SEEDS" --budgets "$BUDGETS" --splits "$(IFS=,; echo "${SPLITS[*]}")" \
+  --strategies "$(IFS=,; echo "${STRATEGIES[*]}")" >/dev/null
 # What every strategy chose, side by side (camera x frame, first seed).
 for K in "${budgets[@]}"; do
   pics=()
@@ -359,23 +419,21 @@ for K in "${budgets[@]}"; do
 done
 cat "$OUT/results.md"
 
-# The picture: ground truth | backbone | the best strategy at PICTURE_K (the middle default budget) | FillGS
-# (trained from scratch where those runs exist),
-# at the first near (or held-out) camera, the clip's middle frame, seed 1 (fixed before any run).
+# The picture (fixed before any run): ground truth | the control | the positive control |
+# random | FillGS, trained from scratch at PICTURE_K (the middle default budget), at the first
+# near (or held-out) camera, the clip's middle frame, the first seed; a row that did not run
+# is left out.
 K=$PICTURE_K
-best=$(sed -n 's/^best at K='"$K"': //p' "$OUT/results.md" | head -n 1)
-if [ -z "$best" ]; then
-  echo "picture: no table at K = $K among these budgets; $OUT/compare.png left as it was"
-  exit 0
-fi
 S=$OUT/s${seeds[0]}
 tiles=("$truth")
-ids=(backbone "$best")
-fill=
-for d in "scratch.fillgs.K$K" "fillgs.K$K"; do  # the main protocol's model where it ran; none where FillGS did not run
-  if [ -z "$fill" ] && [ -f "$S/$d/summary.json" ]; then fill=$d; fi
+ids=()
+for id in scratch.control "scratch.positive.K$K" "scratch.random.K$K" "scratch.fillgs.K$K"; do
+  [ -f "$S/$id/summary.json" ] && ids+=("$id")
 done
-[ -n "$fill" ] && [ "$fill" != "$best" ] && ids+=("$fill")
+if [ ${#ids[@]} -lt 2 ]; then
+  echo "picture: no table at K = $K among these runs; $OUT/compare.png left as it was"
+  exit 0
+fi
 for id in "${ids[@]}"; do
   evaluate "$S/$id"  # its picture, where an older run did not render one
   tiles+=("$S/$id/picture/renders/picture/$render")

@@ -1,8 +1,18 @@
 #!/usr/bin/env python3
-"""The tables of bench/pool_select.sh: OUT/results.md from the runs' metrics.json and
-summary.json, a table per budget (mean +- standard deviation over the seeds), the share of
-camera-times each pair of strategies chose alike, and the spread between the strategies
-against the seeds' spread. Every number comes from a file a run wrote; a missing run is "-".
+"""The tables of bench/pool_select.sh: OUT/results.md from the runs' metrics.json,
+summary.json and pool_chosen.json. Every number comes from a file a run wrote; a missing run
+is "-". The criteria (bench/results/README.md, "the exposure protocol"), fixed before the
+runs:
+
+  * primary metric: PSNR after a per-image affine colour fit to the truth (psnr_affine);
+    secondary: raw PSNR, foreground PSNR, SSIM;
+  * first, per budget and split, the positive control minus random (paired by seed, 95 %
+    interval): where it does not exclude 0 the instrument cannot judge a selection there,
+    and the report says so instead of ranking;
+  * FillGS minus each of the six other strategies, paired by seed, every interval printed
+    (none chosen as "the best"), on the primary metric, then on raw PSNR;
+  * per judged camera, every row's primary metric; per seed, the window (dense minus
+    control); per run, how often its chosen photographs were drawn.
 
     python3 bench/pool_select_report.py OUT --title "Panoptic basketball" --seeds 1,2,3 --budgets 10,30,90 --splits near,far
 """
@@ -16,7 +26,10 @@ import statistics
 import subprocess
 import sys
 
-STRATEGIES = ["fillgs", "random", "negative", "interpolation", "fisherrf", "coverage3d", "coverage4d"]
+STRATEGIES = ["fillgs", "random", "negative", "interpolation", "fisherrf", "coverage3d", "coverage4d", "positive"]
+# FillGS's comparators, fixed before the runs: every other strategy but the positive control.
+COMPARATORS = ["negative", "random", "interpolation", "fisherrf", "coverage3d", "coverage4d"]
+PRIMARY, TARGET = "psnr_affine", 0.25  # the primary metric, and the half-width the seeds aim at (dB)
 
 
 class ReportError(Exception):
@@ -118,13 +131,13 @@ def t975(df):
 
 
 def interval(diffs):
-    """Paired differences -> (mean, SD, 95 % half-width, seeds the SD needs for +-0.5 dB), the
+    """Paired differences -> (mean, SD, 95 % half-width, seeds the SD needs for +-TARGET dB), the
     half-width t(0.975, n - 1) SD / sqrt(n); None where fewer than 2 seeds."""
     n = len(diffs)
     if n < 2:
         return None
     sd = statistics.stdev(diffs)
-    need = next((m for m in range(2, 1000) if t975(m - 1) * sd / math.sqrt(m) <= 0.5), None)
+    need = next((m for m in range(2, 1000) if t975(m - 1) * sd / math.sqrt(m) <= TARGET), None)
     return statistics.mean(diffs), sd, t975(n - 1) * sd / math.sqrt(n), need
 
 
@@ -221,11 +234,13 @@ def main():
     ap.add_argument("--seeds", default="1,2,3")
     ap.add_argument("--budgets", default="10,30,90")
     ap.add_argument("--splits", default="near,far")
+    ap.add_argument("--strategies", default=",".join(STRATEGIES), help="the strategies the script ran (their rows, in this order)")
     a = ap.parse_args()
     seeds = [x.strip() for x in a.seeds.split(",")]
     budgets = [x.strip() for x in a.budgets.split(",")]
     splits = [x.strip() for x in a.splits.split(",")]
-    for flag, given in (("--seeds", seeds), ("--budgets", budgets), ("--splits", splits)):
+    strategies = [x.strip() for x in a.strategies.split(",")]
+    for flag, given in (("--seeds", seeds), ("--budgets", budgets), ("--splits", splits), ("--strategies", strategies)):
         twice = sorted({x for x in given if given.count(x) > 1})
         if twice or "" in given:
             # A seed counted twice would pair a run with itself: a zero-width "separated" interval.
@@ -233,27 +248,39 @@ def main():
     out = a.out
 
     def run_dir(seed, run_id):
-        return os.path.join(out, "dense") if run_id == "dense" else os.path.join(out, f"s{seed}", run_id)
+        return os.path.join(out, f"s{seed}", run_id)
 
-    def metric(seed, run_id, split, key):
+    def metrics(seed, run_id, split):
+        """The split's metrics object of a run, or None where the run has not written it."""
         path = os.path.join(run_dir(seed, run_id), f"eval_{split}", "metrics.json")
         m = load(path)
         if m is None:
-            return None
+            return None, path
         if not isinstance(m, dict) or (split in m and not isinstance(m[split], dict)):
             raise ReportError(f"{path}: expected an object with a '{split}' object of metrics")
-        if split not in m:
-            return None
-        return number(m[split].get(key), path, f"{split}.{key}")
+        return m.get(split), path
 
-    def psnr_by_seed(run_id, seed_list):
-        """{seed: mean PSNR over the splits} for the seeds whose run has every split evaluated."""
-        found = {}
-        for s in seed_list:
-            vals = [metric(s, run_id, sp, "psnr") for sp in splits]
-            if all(v is not None for v in vals):
-                found[s] = statistics.mean(vals)
-        return found
+    def metric(seed, run_id, split, key):
+        m, path = metrics(seed, run_id, split)
+        return None if m is None else number(m.get(key), path, f"{split}.{key}")
+
+    def per_camera(seed, run_id, split, key):
+        """{camera: the mean of `key` over its views} from the run's per-view rows."""
+        m, path = metrics(seed, run_id, split)
+        if m is None or "per_view" not in m:
+            return {}
+        cols = m.get("per_view_columns")
+        if not isinstance(cols, list) or "camera" not in cols or key not in cols or not isinstance(m["per_view"], list):
+            raise ReportError(f"{path}: {split}.per_view has no '{key}' column")
+        ci, ki = cols.index("camera"), cols.index(key)
+        by = {}
+        for r, row in enumerate(m["per_view"]):
+            if not isinstance(row, list) or len(row) != len(cols):
+                raise ReportError(f"{path}: {split}.per_view[{r}] is not a row of {len(cols)} values")
+            v = number(row[ki], path, f"{split}.per_view[{r}].{key}")
+            if v is not None:
+                by.setdefault(str(row[ci]), []).append(v)
+        return {c: statistics.mean(v) for c, v in by.items()}
 
     def summary(seed, run_id):
         return load(os.path.join(run_dir(seed, run_id), "summary.json"))
@@ -271,214 +298,231 @@ def main():
         except (KeyError, TypeError) as e:
             raise ReportError(f"{path}: not a run summary (no {e})") from None
 
-    lines = [f"# Which camera-times help most: {a.title}, real pool photographs", ""]
-    lines.append(f"Seeds {a.seeds}; PSNR in dB on the held-out cameras ({', '.join(splits)}), mean ± standard deviation over the seeds; "
-                 "foreground: inside the dataset's foreground masks (– without masks); gain: after a least-squares gain per image. Seconds: selection / training / total of "
-                 "the fine-tuning (training alone for the backbone and the dense reference). Seeds: those a row's numbers come from.")
-    header = "| run |"
-    rule = "|---|"
-    for sp in splits:
-        header += f" {sp} PSNR | SSIM | foreground | gain |"
-        rule += "---|---|---|---|"
-    header += " photographs | mean weight | seconds | seeds |"
-    rule += "---|---|---|---|"
+    def chosen(seed, st, K):
+        return load(os.path.join(out, f"s{seed}", f"choose.{st}.K{K}", "pool_chosen.json"))
 
-    def row(run_id, seed_list, label=None):
-        cells = f"| {label or run_id} |"
+    def draws_of_chosen(seed, st, K):
+        """The mean number of draws of the photographs a strategy chose, in the model trained on
+        them (its summary.json's per-view draws), or None where either record is missing."""
+        s, p = summary(seed, f"scratch.{st}.K{K}"), chosen(seed, st, K)
+        if not s or not p or "draws" not in s:
+            return None
+        path = os.path.join(run_dir(seed, f"scratch.{st}.K{K}"), "summary.json")
+        d = s["draws"]
+        if not isinstance(d, dict) or not isinstance(d.get("per_view"), list):
+            raise ReportError(f"{path}: draws.per_view is not a list")
+        table = {}
+        for r, row in enumerate(d["per_view"]):
+            if not isinstance(row, list) or len(row) != 3:
+                raise ReportError(f"{path}: draws.per_view[{r}] is not [camera, frame, draws]")
+            table[(str(row[0]), row[1])] = number(row[2], path, f"draws.per_view[{r}]")
+        got = [table.get((str(c["camera"]), c["frame"])) for c in p["chosen"]]
+        if None in got:
+            raise ReportError(f"{path}: a chosen photograph is not among the views it trained on")
+        return statistics.mean(got) if got else None
+
+    def values(run_id, key, split, seed_list):
+        return [metric(s, run_id, split, key) for s in seed_list]
+
+    def seeds_with(run_id, seed_list):
+        return [s for s in seed_list if all(metric(s, run_id, sp, PRIMARY) is not None for sp in splits)]
+
+    def paired(x, y, sp, key=PRIMARY):
+        return [metric(s, x, sp, key) - metric(s, y, sp, key) for s in seeds
+                if metric(s, x, sp, key) is not None and metric(s, y, sp, key) is not None]
+
+    lines = [f"# Which camera-times help most: {a.title}, real pool photographs (the exposure protocol)", ""]
+    lines.append(f"Seeds {a.seeds}. Primary metric: PSNR after a per-image affine colour fit to the truth (\"affine\"); secondary: raw PSNR, "
+                 "foreground PSNR (inside the dataset's foreground masks; – without masks) and SSIM; each on the judged cameras "
+                 f"({', '.join(splits)}), mean ± standard deviation over the seeds a row's numbers come from (its last column). "
+                 "Every model trained with every photograph equally likely at every stage and a fixed number of draws per photograph "
+                 "(draws: the mean over its chosen photographs of how often the model trained on each). Seconds: the training.")
+
+    # The references: the window per seed, and what the time curriculum does on the training cameras.
+    ref_seeds = [s for s in seeds if summary(s, "dense") or summary(s, "scratch.control")]
+    if ref_seeds:
+        lines += ["", "## The window: dense reference minus the training cameras alone, per seed (affine PSNR, dB)", "",
+                  "| seed | " + " | ".join(f"{sp}: dense | control | window" for sp in splits) + " |", "|---|" + "---|---|---|" * len(splits)]
+        for s in ref_seeds:
+            cells = []
+            for sp in splits:
+                d, c = metric(s, "dense", sp, PRIMARY), metric(s, "scratch.control", sp, PRIMARY)
+                cells += ["–" if d is None else f"{d:.2f}", "–" if c is None else f"{c:.2f}", "–" if d is None or c is None else f"{d - c:+.2f}"]
+            lines.append(f"| {s} | " + " | ".join(cells) + " |")
+    cur, ctl = summary("1", "backbone.curriculum"), summary("1", "scratch.control")
+    if cur and ctl:
+        lines += ["", "## What the time curriculum does (seed 1, the same draws per photograph)", "",
+                  "The training cameras alone, trained with every photograph equally likely (the rule) and with the time curriculum "
+                  "(`--time-ramp 0.7`, fillgs train's default), judged on the training cameras themselves and on the judged cameras:", "",
+                  "| training | " + " | ".join(f"{sp}: affine | PSNR | foreground" for sp in ["train"] + splits) + " | Gaussians (moving) |",
+                  "|---|" + "---|---|---|" * (len(splits) + 1) + "---|"]
+        for rid, label in (("scratch.control", "every photograph equally likely"), ("backbone.curriculum", "time curriculum")):
+            cells = []
+            for sp in ["train"] + splits:
+                for key in (PRIMARY, "psnr", "psnr_moving"):
+                    v = metric("1", rid, sp, key)
+                    cells.append("–" if v is None else f"{v:.2f}")
+            sm = summary("1", rid)
+            lines.append(f"| {label} | " + " | ".join(cells) + f" | {sm.get('gaussians', '–')} ({sm.get('moving_gaussians', '–')}) |")
+
+    header = "| run |" + "".join(f" {sp} affine | PSNR | foreground | SSIM |" for sp in splits) + " photographs | draws | seconds | seeds |"
+    rule = "|---|" + "---|---|---|---|" * len(splits) + "---|---|---|---|"
+
+    def row(run_id, label, K=None, st=None):
+        cells = f"| {label} |"
         for sp in splits:
-            for key, d in (("psnr", 2), ("ssim", 3), ("psnr_moving", 2), ("psnr_ls_gain", 2)):
-                cells += f" {fmt([metric(s, run_id, sp, key) for s in seed_list], d)} |"
-        sums = [summary(s, run_id) for s in seed_list]
-        views = [float(x["virtual_views"]) for x in sums if x and "virtual_views" in x]
-        if run_id.startswith("scratch.") and run_id != "scratch.control":  # trained on the photographs its choice lists
-            picks = [load(os.path.join(out, f"s{s}", "choose." + run_id[len("scratch."):], "pool_chosen.json"))
-                     for s in seed_list if summary(s, run_id)]
-            views = [float(len(p["chosen"])) for p in picks if p]
-        weights = [statistics.mean(r["mean_weight"] for r in x["rounds"] if r["views_added"]) for x in sums
-                   if x and "rounds" in x and any(r["views_added"] for r in x["rounds"])]
-        secs = [seconds(s, run_id) for s in seed_list]
-        secs = [x for x in secs if x]
-        sel = fmt([x["select"] for x in secs], 0)
-        cells += f" {fmt(views, 0)} | {fmt(weights, 3)} | {sel} / {fmt([x['train'] for x in secs], 0)} / {fmt([x['total'] for x in secs], 0)} |"
-        cells += f" {','.join(psnr_by_seed(run_id, seed_list)) or '–'} |"
-        return cells
+            for key, d in ((PRIMARY, 2), ("psnr", 2), ("psnr_moving", 2), ("ssim", 3)):
+                cells += f" {fmt(values(run_id, key, sp, seeds), d)} |"
+        photos = [float(len(chosen(s, st, K)["chosen"])) for s in seeds if st and summary(s, run_id) and chosen(s, st, K)]
+        draws = [draws_of_chosen(s, st, K) for s in seeds] if st else []
+        secs = [x for x in (seconds(s, run_id) for s in seeds) if x]
+        cells += f" {fmt(photos, 0)} | {fmt([d for d in draws if d is not None], 1)} | {fmt([x['train'] for x in secs], 0)} |"
+        return cells + f" {','.join(seeds_with(run_id, seeds)) or '–'} |"
 
-    # A strategy whose every pick scored 0 (on a static scene no Gaussian moves, so FillGS's
-    # and negative's scores are all 0) was chosen by the pool's order, not by its score.
-    def chosen_id(prefix, st, K):
-        """Where a protocol's selection is: the main protocol's on the backbone (choose.*), the
-        warm start's in its own rounds."""
-        return f"choose.{st}.K{K}" if prefix == "scratch." else f"{st}.K{K}"
-
-    def tied(prefix, st, K):
-        if st == "random":  # chosen by its draws, not by a score
+    def tied(st, K):
+        """A strategy whose every pick scored 0 (on a static scene no Gaussian moves, so FillGS's and
+        negative's scores are all 0) was chosen by the pool's order, not by its score."""
+        if st in ("random", "positive"):
             return False
         scores = set()
         for s in seeds:
-            p = load(os.path.join(out, f"s{s}", chosen_id(prefix, st, K), "pool_chosen.json"))
+            p = chosen(s, st, K)
             if p:
                 scores |= {c["score"] for c in p["chosen"]}
         return scores == {0.0}
 
-    def diffs(x, y, sp):
-        return [metric(s, x, sp, "psnr") - metric(s, y, sp, "psnr") for s in seeds
-                if metric(s, x, sp, "psnr") is not None and metric(s, y, sp, "psnr") is not None]
-
-    def criterion(prefix, K, means, ties, collect=None, protocol=""):
-        """FillGS against negative, random and the best baseline: the paired difference per split
-        with its 95 % interval (bench/results/README.md, "Criteria, fixed before the runs")."""
-        baselines = [b for b in ("random", "interpolation", "fisherrf", "coverage3d", "coverage4d") if b in means and b not in ties]
-        common = [s for s in seeds if all(s in means[b] for b in baselines)]
-        best = max(baselines, key=lambda b: statistics.mean(means[b][s] for s in common)) if baselines and common else None
-        if "fillgs" in ties:
-            return ["", "FillGS's picks all scored 0 (no Gaussian moves): its selection is the pool's order, so its differences are not applicable."]
-        out_lines = ["", f"FillGS minus each, paired by seed (PSNR, dB): mean ± SD over the seeds, [95 % interval]; **separated** where the "
-                         "interval excludes 0. Best baseline (highest mean over the splits and seeds among random, interpolation, FisherRF, "
-                         f"coverage3d, coverage4d): {best or '–'}.", "",
-                     "| FillGS minus | " + " | ".join(f"{sp}: mean ± SD | 95 % interval" for sp in splits) + " | seeds | seeds for ±0.5 dB |",
-                     "|---|" + "---|---|" * len(splits) + "---|---|"]
-        for other in ["negative", "random"] + ([best] if best and best != "random" else []):
-            label = other + (" (best baseline)" if other == best else "")
-            if other in ties:
-                out_lines.append(f"| {label} | " + " | ".join("not applicable (every score 0) | –" for _ in splits) + " | – | – |")
-                continue
+    def interval_rows(pairs, key, collect=None):
+        """Rows of 'x minus y' differences per split: mean ± SD, 95 % interval (bold where it excludes 0)."""
+        rows = ["| difference | " + " | ".join(f"{sp}: mean ± SD | 95 % interval" for sp in splits) + f" | seeds | seeds for ±{TARGET} dB |",
+                "|---|" + "---|---|" * len(splits) + "---|---|"]
+        verdict = {}
+        for x, y, label in pairs:
             cells, n, need = [], 0, []
             for sp in splits:
-                d = diffs(f"{prefix}fillgs.K{K}", f"{prefix}{other}.K{K}", sp)
+                d = paired(f"scratch.{x}", f"scratch.{y}", sp, key)
                 iv = interval(d)
                 n = max(n, len(d))
                 if iv is None:
                     cells += [fmt(d), "–"]
                     continue
                 m, sd, h, nd = iv
+                verdict[(label, sp)] = abs(m) > h
                 if collect is not None:
-                    key = f"{label} ({protocol})"
-                    if not collect or collect[-1][0] != key:
-                        collect.append((key, {}))
+                    if not collect or collect[-1][0] != label:
+                        collect.append((label, {}))
                     collect[-1][1][sp] = (m, m - h, m + h)
                 text = f"[{m - h:.2f}, {m + h:.2f}]"
                 cells += [f"{m:.2f} ± {sd:.2f}", f"**{text}**" if abs(m) > h else text]
-                need.append(nd if h > 0.5 else n)
-            out_lines.append(f"| {label} | " + " | ".join(cells) + f" | {n} | {max(need) if need and None not in need else '–'} |")
-        return out_lines
-
-    def table(prefix, K, reference_rows, ties):
-        """The rows of one protocol at budget K, and each strategy's per-seed mean PSNR over the splits."""
-        rows = [header, rule] + reference_rows
-        means = {}
-        for st in STRATEGIES:
-            rid = f"{prefix}{st}.K{K}"
-            label = f"{st}.K{K}" + (" (every score 0, pool order)" if st in ties else "")
-            rows.append(row(rid, seeds, label))
-            per_seed = psnr_by_seed(rid, seeds)
-            if per_seed and st not in ties:
-                means[st] = per_seed
-        return rows, means
-
-    def spread_line(K, means):
-        """(the line comparing the best and worst strategy, the best's name), or None without common seeds."""
-        common = [s for s in seeds if all(s in v for v in means.values())]
-        if not means or not common:
-            return None
-        m = {k: [v[s] for s in common] for k, v in means.items()}
-        best = max(m, key=lambda k: statistics.mean(m[k]))
-        worst = min(m, key=lambda k: statistics.mean(m[k]))
-        spread = statistics.mean(m[best]) - statistics.mean(m[worst])
-        seed_sd = [statistics.stdev(v) for v in m.values() if len(v) > 1]
-        sd = statistics.mean(seed_sd) if seed_sd else float("nan")
-        return (f"Mean PSNR over the splits, seeds {','.join(common)} (those every strategy has): best {best} "
-                f"{statistics.mean(m[best]):.2f} dB, worst {worst} {statistics.mean(m[worst]):.2f} dB, spread {spread:.2f} dB "
-                f"against a mean seed spread of {sd:.2f} dB."), best
+                need.append(nd if h > TARGET else n)
+            rows.append(f"| {label} | " + " | ".join(cells) + f" | {n} | {max(need) if need and None not in need else '–'} |")
+        return rows, verdict
 
     chart = []  # (strategy, K, mean gain over the control, its seed spread)
-
-    def chart_gains(prefix, control, K):
-        """Each strategy's gain over `control` (mean PSNR over the splits, paired within each seed) onto the chart."""
-        for st in STRATEGIES:
+    for K in budgets:
+        ran = [st for st in strategies if any(summary(s, f"scratch.{st}.K{K}") for s in seeds)]
+        if not ran:
+            continue
+        lines += ["", f"## K = {K} camera-times"]
+        ties = {st for st in ran if tied(st, K)}
+        intervals = []
+        # 1. Can the instrument separate a better selection at this budget?
+        if "positive" in ran and "random" in ran:
+            rows, verdict = interval_rows([(f"positive.K{K}", f"random.K{K}", "positive control minus random")], PRIMARY, intervals)
+            lines += ["", "### The positive control", "", "The positive control (the pool photographs nearest the judged cameras, spread over "
+                      "the clip) minus random, paired by seed (affine PSNR, dB):", ""] + rows
+            blind = [sp for sp in splits if not verdict.get(("positive control minus random", sp), False)]
+            lines += [""]
+            if blind:
+                lines.append(f"**At K = {K} the positive control does not separate from random on the {', '.join(blind)} split"
+                             f"{'s' if len(blind) > 1 else ''}: there the instrument cannot judge a selection at this budget, and FillGS's "
+                             "differences below are printed, not ranked.**")
+            else:
+                lines.append(f"At K = {K} the positive control separates from random on every split: the instrument can tell a better selection here.")
+        else:
+            lines += ["", f"No positive control at K = {K}: nothing shows the instrument can separate a better selection here; the "
+                      "differences below are printed, not ranked."]
+        # 2. The table.
+        lines += ["", "### Every run", "", header, rule,
+                  row("dense", "dense reference (training + every pool photograph)"),
+                  row("backbone", "backbone (the model every strategy chooses on)"),
+                  row("scratch.control", "training cameras alone (control)")]
+        for st in ran:
+            lines.append(row(f"scratch.{st}.K{K}", f"{st}.K{K}" + (" (every score 0, pool order)" if st in ties else ""), K, st))
+        # 3. FillGS against each other strategy, fixed in advance.
+        if "fillgs" in ran and "fillgs" in ties:
+            lines += ["", "FillGS's picks all scored 0 (no Gaussian moves): its selection is the pool's order, so its differences are not applicable."]
+        elif "fillgs" in ran:
+            pairs = [(f"fillgs.K{K}", f"{o}.K{K}", f"FillGS minus {o}") for o in COMPARATORS if o in ran and o not in ties]
+            rows, _ = interval_rows(pairs, PRIMARY, intervals)
+            raw, _ = interval_rows(pairs, "psnr")
+            lines += ["", "### FillGS minus each other strategy", "",
+                      "Paired by seed, mean ± SD over the seeds and the 95 % interval (t with n − 1 degrees of freedom), **bold** where it "
+                      f"excludes 0; seeds for ±{TARGET} dB: how many seeds the measured SD needs for that half-width. Primary metric (affine PSNR, dB):",
+                      ""] + rows + ["", "Raw PSNR (secondary, dB):", ""] + raw
+            for o in COMPARATORS:
+                if o in ties:
+                    lines.append(f"FillGS minus {o}: not applicable ({o}'s picks all scored 0).")
+        if intervals and write_interval_chart(out, f"intervals_K{K}", intervals, splits,
+                                              f"{a.title}, K = {K}: 95 % intervals, affine PSNR (filled: excludes 0)"):
+            lines += ["", f"![FillGS minus each and the positive control minus random, K = {K}, 95 % intervals](intervals_K{K}.png)"]
+        # 4. Per judged camera.
+        cams = {}
+        for sp in splits:
+            for rid in ["scratch.control"] + [f"scratch.{st}.K{K}" for st in ran]:
+                for s in seeds:
+                    for c in per_camera(s, rid, sp, PRIMARY):
+                        cams.setdefault(sp, [])
+                        if c not in cams[sp]:
+                            cams[sp].append(c)
+        if cams:
+            cols = [(sp, c) for sp in splits for c in sorted(cams.get(sp, []), key=lambda x: (len(x), x))]
+            lines += ["", f"### Per judged camera (affine PSNR over the camera's frames, mean over the seeds, dB)", "",
+                      "| run | " + " | ".join(f"{sp} {c}" for sp, c in cols) + " |", "|---|" + "---|" * len(cols)]
+            for rid, label in [("dense", "dense reference"), ("scratch.control", "control")] + [(f"scratch.{st}.K{K}", st) for st in ran]:
+                cells = []
+                for sp, c in cols:
+                    v = [per_camera(s, rid, sp, PRIMARY).get(c) for s in seeds]
+                    v = [x for x in v if x is not None]
+                    cells.append(f"{statistics.mean(v):.2f}" if v else "–")
+                lines.append(f"| {label} | " + " | ".join(cells) + " |")
+        # 5. Each strategy's gain over the control, for the chart.
+        for st in ran:
             gains = []
             for s in seeds:
-                v = [metric(s, f"{prefix}{st}.K{K}", sp, "psnr") for sp in splits]
-                c = [metric(s, control, sp, "psnr") for sp in splits]
+                v = [metric(s, f"scratch.{st}.K{K}", sp, PRIMARY) for sp in splits]
+                c = [metric(s, "scratch.control", sp, PRIMARY) for sp in splits]
                 if all(x is not None for x in v + c):
                     gains.append(statistics.mean(v) - statistics.mean(c))
             if gains:
                 chart.append((st, K, statistics.mean(gains), statistics.stdev(gains) if len(gains) > 1 else 0.0))
-
-    for K in budgets:
-        lines += ["", f"## K = {K} camera-times"]
-        intervals = []  # FillGS minus negative, random and the best baseline, both protocols
-        scratch_rows = any(summary(s, f"scratch.{st}.K{K}") for s in seeds for st in STRATEGIES)
-        best_id = None
-        if scratch_rows:
-            ties = {st for st in STRATEGIES if tied("scratch.", st, K)}
-            rows, means = table("scratch.", K, [row("dense", ["1"], "dense reference (training + every pool photograph)"),
-                                                row("backbone", seeds, "backbone (the model every strategy chooses on)"),
-                                                row("scratch.control", seeds, "training cameras alone")], ties)
-            lines += ["", "### Trained from scratch (the main protocol)", "",
-                      "Each strategy chooses the K camera-times on the seed's backbone in one greedy round (each chosen one counted as an "
-                      "observation before the next); a model is then trained on the training cameras and the chosen photographs with the "
-                      "dense reference's settings, from the seed's backbone's initial points.", ""] + rows + criterion("scratch.", K, means, ties, intervals, "from scratch")
-            sl = spread_line(K, means)
-            if sl:
-                lines += ["", sl[0]]
-                best_id = f"scratch.{sl[1]}.K{K}"
-            chart_gains("scratch.", "scratch.control", K)
-        # The warm start's control alone (made for another budget) is no table at this budget.
-        warm_rows = any(summary(s, f"{st}.K{K}") for s in seeds for st in STRATEGIES)
-        if not warm_rows:
-            lines += ["", f"### Warm start (second protocol)", "", f"No warm-start run at K = {K} for these seeds."]
-        else:
-            ties = {st for st in STRATEGIES if tied("", st, K)}
-            rows, means = table("", K, [row("backbone", seeds), row("control", seeds, "control (no photographs added)")], ties)
-            for w in ("fillgs", "exploregs"):
-                rid = f"fillgs.K{K}.w-{w}"
-                if any(summary(s, rid) for s in seeds):
-                    rows.append(row(rid, seeds))
-            lines += ["", "### Warm start: the backbone fine-tuned with the photographs (second protocol)", "",
-                      "The selection runs here, in three rounds, each choosing from the current model; the photographs are added at their real poses.",
-                      ""] + rows + criterion("", K, means, ties, intervals, "warm start")
-            sl = spread_line(K, means)
-            if sl:
-                lines += ["", sl[0]]
-                best_id = best_id or f"{sl[1]}.K{K}"
-            if not scratch_rows:
-                chart_gains("", "control", K)
-        if intervals and write_interval_chart(out, f"intervals_K{K}", intervals, splits,
-                                              f"{a.title}, K = {K}: FillGS minus each, 95 % intervals (filled: excludes 0)"):
-            lines += ["", f"![FillGS minus each, K = {K}, 95 % intervals](intervals_K{K}.png)"]
-        if best_id:
-            lines += ["", f"best at K={K}: {best_id}"]
-        # What each strategy chose, per seed: its (camera, frame) pairs (the main protocol's
-        # selection where it ran, else the warm start's).
-        pick = "scratch." if scratch_rows else ""
-        chosen = {}
-        for st in STRATEGIES:
+        # 6. What each chose.
+        picks = {}
+        for st in ran:
             for s in seeds:
-                p = load(os.path.join(out, f"s{s}", chosen_id(pick, st, K), "pool_chosen.json"))
+                p = chosen(s, st, K)
                 if p:
-                    chosen.setdefault(st, {})[s] = {(c["camera"], c["frame"]) for c in p["chosen"]}
-        # How spread each strategy's choices are: distinct cameras and frames (mean over the seeds).
-        if chosen:
+                    picks.setdefault(st, {})[s] = {(str(c["camera"]), c["frame"]) for c in p["chosen"]}
+        if picks:
             def distinct(st, part):
-                return statistics.mean(len({pair[part] for pair in picks}) for picks in chosen[st].values())
+                return statistics.mean(len({pair[part] for pair in v}) for v in picks[st].values())
             lines += ["", f"Distinct pool cameras / frames among the {K} camera-times chosen (mean over the seeds): " +
-                      "; ".join(f"{st} {distinct(st, 0):.1f} / {distinct(st, 1):.1f}" for st in STRATEGIES if st in chosen) + "."]
-        if len(chosen) > 1:
-            names = [st for st in STRATEGIES if st in chosen]
+                      "; ".join(f"{st} {distinct(st, 0):.1f} / {distinct(st, 1):.1f}" for st in ran if st in picks) + "."]
+        if len(picks) > 1:
+            names = [st for st in ran if st in picks]
             lines += ["", f"Share of camera-times two strategies both chose at K = {K} (|A ∩ B| / K, mean over the seeds):", "",
                       "| | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
             for x in names:
                 cells = []
                 for y in names:
-                    share = [len(chosen[x][s] & chosen[y][s]) / max(1, len(chosen[x][s])) for s in seeds if s in chosen[x] and s in chosen[y]]
+                    share = [len(picks[x][s] & picks[y][s]) / max(1, len(picks[x][s])) for s in seeds if s in picks[x] and s in picks[y]]
                     cells.append(f"{statistics.mean(share):.2f}" if share else "–")
                 lines.append(f"| {x} | " + " | ".join(cells) + " |")
             lines += ["", f"What each strategy chose (camera × frame, seed {seeds[0]}; each run's own picture and list are "
-                          f"s{seeds[0]}/{chosen_id(pick, '<strategy>', K)}/pool_chosen.png and .json): ![chosen](chosen_K{K}_s{seeds[0]}.png)"]
+                          f"s{seeds[0]}/choose.<strategy>.K{K}/pool_chosen.png and .json): ![chosen](chosen_K{K}_s{seeds[0]}.png)"]
     if chart and write_chart(out, chart, budgets, a.title):
-        lines += ["", "Gain over the control of the main protocol (mean PSNR over the splits, paired within each seed; bars: mean, "
+        lines += ["", "Gain over the control (affine PSNR, mean over the splits, paired within each seed; bars: mean, "
                       "whiskers: ± standard deviation over the seeds):", "", "![gain over the control](gain.png)"]
-    lines += ["", "![ground truth | backbone | best strategy | FillGS (the main protocol's models)](compare.png)", ""]
+    lines += ["", "![ground truth | control | positive control | random | FillGS, the first seed](compare.png)", ""]
     write_atomic(os.path.join(out, "results.md"), "\n".join(lines))
     sys.stdout.write("\n".join(lines))
     return 0

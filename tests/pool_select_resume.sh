@@ -17,7 +17,7 @@ rm -rf "$out/before" && mkdir -p "$out/before"
 cp "$out/s1/backbone/model.sha256" "$out/before/model.sha256"
 for f in "${row[@]}"; do cp "$out/s1/$f" "$out/before/${f//\//_}"; done
 forget() {  # what a fresh checkout lacks: every model, and one strategy's steps
-  find "$out/s1" "$out/dense" -name '*.ply' -delete
+  find "$out/s1" -name '*.ply' -delete
   rm -rf "$out/s1/choose.random.K2" "$out/s1/scratch.random.K2"
 }
 forget
@@ -29,9 +29,10 @@ for f in "${row[@]}"; do cmp "$out/s1/$f" "$out/before/${f//\//_}"; done
 # A run of some strategies only (here random, FillGS's runs absent) finishes, its picture
 # without a FillGS tile, instead of asking for a FillGS run that was never requested.
 rm -rf "$out/aside" && mkdir -p "$out/aside"
-for d in choose.fillgs.K2 scratch.fillgs.K2 fillgs.K2 fillgs.K2.w-exploregs fillgs.K2.w-fillgs; do mv "$out/s1/$d" "$out/aside/"; done
+for d in choose.fillgs.K2 scratch.fillgs.K2; do mv "$out/s1/$d" "$out/aside/"; done
 FILLGS=$fillgs bash "$script" --strategies random --smoke "$out" >"$out/random.out" 2>"$out/resume.err"
-grep -q "^picture: ground truth | backbone | [^ ]* at held-out camera" "$out/random.out"
+grep -q "^picture: ground truth | scratch.control | .*scratch.random.K2 at held-out camera" "$out/random.out"
+! grep -q "^picture: .*fillgs" "$out/random.out"
 for d in "$out"/aside/*; do mv "$d" "$out/s1/"; done
 # Held to the CPU's widest instead of the recorded SSE4, the backbone is another model.
 forget

@@ -634,6 +634,61 @@ TEST_CASE("eval: the truth scores its own images, a model without the moving obj
   CHECK_THROWS_WITH(evaluate_split(s.scene, split, "interpolation", eo), Catch::Contains("cannot load the LPIPS network"));
 }
 
+TEST_CASE("eval: least-squares gain and affine colour fits, worked by hand", "[eval]") {
+  // Three pixels. Red: the image is 2r + 0.1 (the affine fit is exact; the gain alone is
+  // Σrt / Σr² = 0.49 / 0.21 = 7/3). Green: 0.5 g (both exact). Blue: a flat render under a
+  // flat image (no variance: gain 1, and the affine offset takes the image's mean).
+  const std::vector<float> render = {0.1f, 0.2f, 0.6f, 0.2f, 0.4f, 0.6f, 0.4f, 0.8f, 0.6f};
+  const std::vector<float> target = {0.3f, 0.1f, 0.3f, 0.5f, 0.2f, 0.3f, 0.9f, 0.4f, 0.3f};
+  const std::vector<float> affine = fit_colours(render, target, ColourFit::Affine);
+  for (size_t i = 0; i < target.size(); ++i) CHECK(affine[i] == Approx(target[i]).margin(1e-6));
+  const std::vector<float> gain = fit_colours(render, target, ColourFit::Gain);
+  for (int p = 0; p < 3; ++p) {
+    CHECK(gain[size_t(p) * 3] == Approx(render[size_t(p) * 3] * 7.0 / 3.0).epsilon(1e-6));
+    CHECK(gain[size_t(p) * 3 + 1] == Approx(0.5 * render[size_t(p) * 3 + 1]).epsilon(1e-6));
+    // Blue: Σrt / Σr² = (3 · 0.18) / (3 · 0.36) = 0.5, so 0.6 becomes 0.3.
+    CHECK(gain[size_t(p) * 3 + 2] == Approx(0.3).epsilon(1e-6));
+  }
+  const std::vector<float> flat(9, 0.25f);
+  const std::vector<float> f = fit_colours(flat, target, ColourFit::Affine);
+  CHECK(f[0] == Approx((0.3 + 0.5 + 0.9) / 3).epsilon(1e-6));  // the image's mean: no slope to fit
+  CHECK_THROWS_WITH(fit_colours(render, std::vector<float>(6, 0.f), ColourFit::Gain), Catch::Contains("render values for 6 image values"));
+}
+
+TEST_CASE("eval: every view's metrics make up the split's, affine fit included", "[eval]") {
+  const std::string dir = scratch("eval_views");
+  const SynthScene s = small_synth(3, 48, 36, 0.06);
+  write_synthetic_scene(s, join_path(dir, "scene"), null_progress());
+  const Dataset split = Dataset::load(join_path(dir, "scene"), join_path(dir, "scene/transforms_interpolation.json"));
+  // A model whose colours are off: the truth with every SH DC coefficient scaled.
+  GaussianCloud dim = s.scene;
+  for (size_t g = 0; g < dim.size(); ++g)
+    for (int c = 0; c < 3; ++c) dim.sh[g * size_t(dim.sh_count()) * 3 + size_t(c)] *= 0.6f;
+  EvalOptions eo;
+  eo.truth = &s.scene;
+  eo.ls_gain = eo.affine_fit = true;
+  const SplitMetrics m = evaluate_split(dim, split, "interpolation", eo);
+  REQUIRE(m.per_view.size() == m.views);
+  double psnr = 0, affine = 0, gain = 0, se = 0;
+  size_t pixels = 0;
+  for (size_t v = 0; v < m.per_view.size(); ++v) {
+    const ViewMetrics& r = m.per_view[v];
+    CHECK(r.camera == split.views()[v].rig);
+    CHECK(r.frame == split.views()[v].frame);
+    psnr += r.psnr, affine += r.psnr_affine, gain += r.psnr_ls_gain, se += r.moving_squared_error, pixels += r.moving_pixels;
+    // The affine map includes the identity (and the gain), so it fits at least as well.
+    CHECK(r.psnr_affine >= r.psnr_ls_gain - 1e-9);
+    CHECK(r.psnr_ls_gain >= r.psnr - 1e-9);
+  }
+  const double n = double(m.views);
+  CHECK(psnr / n == Approx(m.psnr).epsilon(1e-12));
+  CHECK(affine / n == Approx(m.psnr_affine).epsilon(1e-12));
+  CHECK(gain / n == Approx(m.psnr_ls_gain).epsilon(1e-12));
+  REQUIRE(pixels == m.moving_pixels);
+  CHECK(psnr_of_mse(se / (3.0 * double(pixels))) == Approx(m.psnr_moving).epsilon(1e-12));
+  CHECK(m.psnr_affine > m.psnr + 1.0);  // the dimmed colours are mostly an affine change
+}
+
 TEST_CASE("cli: finetune with the example refiner, eval, and bad input", "[refine][cli]") {
   const std::string dir = scratch("cli_finetune");
   std::ostringstream out, err;

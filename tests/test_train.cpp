@@ -3,12 +3,14 @@
 
 #include <filesystem>
 #include <fstream>
+#include <numeric>
 #include <sstream>
 
 #include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/io/camera_io.hpp"
 #include "fillgs/cli.hpp"
 #include "fillgs/base/fs_util.hpp"
+#include "fillgs/base/json_file.hpp"
 #include "fillgs/io/image_io.hpp"
 #include "fillgs/train/train.hpp"
 #include "fillgs/train/train_model.hpp"
@@ -310,5 +312,59 @@ TEST_CASE("colour correction: a camera whose images were scaled and shifted gets
   for (int ch = 0; ch < 3; ++ch) {  // relative to the mean camera again
     CHECK(after[0].gain[ch] + after[1].gain[ch] == Approx(2.0));
     CHECK(after[0].offset[ch] + after[1].offset[ch] == Approx(0.0).margin(1e-6));
+  }
+}
+
+TEST_CASE("exposure: without the time curriculum every view is drawn iterations / views times, with it the first frames more", "[train]") {
+  const std::string dir = tiny_synth_dir();
+  const Dataset data = Dataset::load(dir + "/images", dir + "/transforms_train.json");
+  const size_t V = data.views().size();
+  REQUIRE(V == 64);
+  const ModelParams<float> init = init_from_points(read_points(dir + "/points.ply"));
+  // Uniform: a fresh permutation each epoch, so 3 epochs draw every view exactly 3 times.
+  TrainOptions o = TrainOptions::scaled(int(3 * V));
+  o.time_ramp = 0;
+  Trainer uniform(data, init, o);
+  uniform.run(int(3 * V), null_progress());
+  REQUIRE(uniform.view_draws().size() == V);
+  for (uint32_t d : uniform.view_draws()) REQUIRE(d == 3);
+  // The curriculum (time_ramp 0.7 over 4 frames): frame 0 is in the window from the start, the
+  // last frame only after 0.7 · 3/4 of the run, so frame 0's views are drawn more.
+  o.time_ramp = 0.7;
+  Trainer ramp(data, init, o);
+  ramp.run(int(3 * V), null_progress());
+  std::vector<double> by_frame(size_t(data.frames()), 0.0);
+  for (size_t v = 0; v < V; ++v) by_frame[size_t(data.views()[v].frame)] += ramp.view_draws()[v];
+  INFO("draws per frame with the curriculum: " << by_frame[0] << " " << by_frame[1] << " " << by_frame[2] << " " << by_frame[3]);
+  CHECK(std::accumulate(by_frame.begin(), by_frame.end(), 0.0) == double(3 * V));
+  CHECK(by_frame[0] > 1.5 * by_frame[3]);
+}
+
+TEST_CASE("fillgs train --draws-per-view: iterations follow the views, each view's draws in summary.json", "[train][cli]") {
+  const std::string src = tiny_synth_dir(), d = scratch("train_draws");
+  const std::string out = d + "/out";
+  const std::vector<std::string> base = {"train", "--images", src + "/images", "--cameras", src + "/transforms_train.json", "--train-cameras",
+                                         "cam00,cam08", "--time-ramp", "0", "--out", out, "--quiet"};
+  auto with = [&](std::vector<std::string> extra) {
+    std::vector<std::string> a = base;
+    a.insert(a.end(), extra.begin(), extra.end());
+    return a;
+  };
+  const test::CliResult both = test::run_cli(with({"--draws-per-view", "2", "--iterations", "5"}));
+  REQUIRE(both.code != 0);
+  REQUIRE(both.err.find("--draws-per-view sets the iterations; give it or --iterations, not both") != std::string::npos);
+  REQUIRE(!fs::exists(out));
+  // 2 cameras × 4 frames = 8 views, 3 draws each: 24 iterations.
+  const test::CliResult good = test::run_cli(with({"--draws-per-view", "3"}));
+  INFO(good.err);
+  REQUIRE(good.code == 0);
+  const nlohmann::json s = read_json_file(out + "/summary.json");
+  CHECK(s.at("iterations") == 24);
+  CHECK(s.at("draws").at("min") == 3);
+  CHECK(s.at("draws").at("max") == 3);
+  REQUIRE(s.at("draws").at("per_view").size() == 8);
+  for (const auto& row : s.at("draws").at("per_view")) {
+    CHECK((row.at(0) == "cam00" || row.at(0) == "cam08"));
+    CHECK(row.at(2) == 3);
   }
 }

@@ -29,7 +29,7 @@ struct EvalFlags {
   std::string model, images, out, truth, lpips, colour_correction;
   std::vector<std::string> cameras, splits;
   int view_stride = 1;
-  bool no_renders = false, ls_gain = false;
+  bool no_renders = false, ls_gain = false, affine_fit = false;
   DatasetOptions data;
   SceneReadOptions read;
 };
@@ -52,19 +52,21 @@ int eval(const EvalFlags& f, const Invocation& in) {
   eo.lpips_onnx = f.lpips;
   if (in.given("--colour-correction")) eo.colour = read_colour_correction(f.colour_correction);
   eo.ls_gain = f.ls_gain;
+  eo.affine_fit = f.affine_fit;
   if (!eo.lpips_onnx.empty() && !fs::exists(eo.lpips_onnx)) in.fail("--lpips ", eo.lpips_onnx, " does not exist");
   std::optional<OutputFolder> folder;  // a failed or killed run leaves the folder as it was
   if (!f.out.empty()) folder.emplace(f.out);
   TerminalProgress progress(in.err, in.progress());
   std::vector<SplitMetrics> metrics;
   in.out << "split            views   PSNR    SSIM   moving PSNR" << (eo.lpips_onnx.empty() ? "" : "   LPIPS")
-      << (eo.ls_gain ? "   PSNR (least-squares gain per image)" : "") << "\n";
+      << (eo.ls_gain ? "   PSNR (least-squares gain per image)" : "") << (eo.affine_fit ? "   PSNR (affine colour fit per image)" : "") << "\n";
   for (size_t k = 0; k < splits.size(); ++k) {
     eo.save_dir = !folder || f.no_renders ? "" : join_path(join_path(folder->path(), "renders"), names[k]);
     const SplitMetrics m = evaluate_split(model, splits[k], names[k], eo, progress);
     char line[200];
     std::snprintf(line, sizeof line, "%-16s %5zu  %6.2f  %6.4f  %11s", names[k].c_str(), m.views, m.psnr, m.ssim, fixed(m.psnr_moving).c_str());
-    in.out << line << (eo.lpips_onnx.empty() ? "" : "   " + fixed(m.lpips, 4)) << (eo.ls_gain ? "   " + fixed(m.psnr_ls_gain) : "") << "\n";
+    in.out << line << (eo.lpips_onnx.empty() ? "" : "   " + fixed(m.lpips, 4)) << (eo.ls_gain ? "   " + fixed(m.psnr_ls_gain) : "")
+           << (eo.affine_fit ? "   " + fixed(m.psnr_affine) : "") << "\n";
     metrics.push_back(m);
   }
   if (folder) {
@@ -88,6 +90,7 @@ Action declare_eval(CLI::App& app) {
   add_text(app, "--lpips", f->lpips, "LPIPS network (ONNX)", "PATH");
   add_text(app, "--colour-correction", f->colour_correction, "a colour_correction.json from train --colour-correction", "PATH");
   add_flag(app, "--ls-gain", f->ls_gain, "also PSNR after a least-squares gain per image");
+  add_flag(app, "--affine-fit", f->affine_fit, "also PSNR after a least-squares affine colour map per image and channel");
   add_text(app, "--out", f->out, "the folder for metrics.json and renders", "DIR");
   add_flag(app, "--no-renders", f->no_renders, "no renders in --out");
   add_number(app, "--view-stride", f->view_stride, "every k-th view of each split", at_least(1));

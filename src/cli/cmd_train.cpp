@@ -37,6 +37,7 @@ namespace {
 struct TrainFlags {
   std::string images, cameras, out, points, resume, init, test_images, test_cameras, camera_times;
   int iterations = 3000;
+  int draws_per_view = 0;  ///< > 0: iterations = this × the training views
   int checkpoint_every = 0;
   uint64_t seed = 1;
   bool static_only = false, colour_correction = false;
@@ -75,7 +76,12 @@ int train(const TrainFlags& f, const Invocation& in) {
     dopt.camera_times = read_camera_times(f.camera_times);
   }
   const Dataset data = Dataset::load(f.images, f.cameras, dopt, loading);
-  const int iterations = f.iterations;
+  if (in.given("--draws-per-view") && in.given("--iterations")) in.fail("--draws-per-view sets the iterations; give it or --iterations, not both");
+  // A fixed number of draws per photograph: the run's length follows the number of views.
+  const size_t scaled = size_t(f.draws_per_view) * data.views().size();
+  if (in.given("--draws-per-view") && scaled > size_t(std::numeric_limits<int>::max()))
+    in.fail("--draws-per-view ", f.draws_per_view, " x ", data.views().size(), " views is more iterations than a run can count");
+  const int iterations = in.given("--draws-per-view") ? int(scaled) : f.iterations;
   // The schedule scales with the iteration count; the flags given override it.
   TrainOptions o = TrainOptions::scaled(iterations);
   o.seed = f.seed;
@@ -109,7 +115,7 @@ int train(const TrainFlags& f, const Invocation& in) {
   job.out = f.out;
   job.options = o;
   job.iterations = iterations;
-  job.iterations_name = "--iterations";
+  job.iterations_name = in.given("--draws-per-view") ? "--draws-per-view " + std::to_string(f.draws_per_view) + " gives --iterations" : "--iterations";
   if (in.given("--resume")) job.resume = f.resume;
   // Initial points: --points, else points.ply beside the cameras, else from the views
   // (init.hpp: random points the first frame's cameras see, plus the foreground's visual
@@ -157,6 +163,9 @@ Action declare_train(CLI::App& app) {
   add_text(app, "--out", f->out, "the folder for model.ply, checkpoints and summary.json", "DIR")->required();
   add_text(app, "--points", f->points, "initial points (PLY; default: points.ply beside the cameras)", "PATH");
   add_number(app, "--iterations", f->iterations, "training iterations (the schedule scales with them)", at_least(1));
+  add_number(app, "--draws-per-view", f->draws_per_view,
+             "iterations = this x the training views (each photograph drawn this often with --time-ramp 0); instead of --iterations", at_least(1))
+      ->default_str("");
   add_text(app, "--resume", f->resume, "continue from this checkpoint", "CKPT");
   add_number(app, "--checkpoint-every", f->checkpoint_every, "iterations between checkpoints (default: a fifth of the run)", at_least(1))->default_str("");
   add_number(app, "--seed", f->seed, "random seed");

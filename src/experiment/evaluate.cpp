@@ -61,6 +61,28 @@ double LpipsNetwork::distance(const float* a, const float* b, int W, int H) {
   return double(out.ptr<float>()[0]);
 }
 
+std::vector<float> fit_colours(const std::vector<float>& render, const std::vector<float>& target, ColourFit fit) {
+  if (render.size() != target.size() || render.size() % 3) throw_error("fit_colours: ", render.size(), " render values for ", target.size(), " image values");
+  std::vector<float> out = render;
+  const double P = double(render.size() / 3);
+  if (P == 0) return out;
+  for (int ch = 0; ch < 3; ++ch) {
+    double r = 0, t = 0, rt = 0, rr = 0;
+    for (size_t p = size_t(ch); p < out.size(); p += 3) r += render[p], t += target[p], rt += double(render[p]) * target[p], rr += double(render[p]) * render[p];
+    double g = 1, b = 0;
+    if (fit == ColourFit::Gain) {
+      if (rr > 0) g = rt / rr;
+    } else {
+      // Centred sums: g = cov(r, t) / var(r), b = mean(t) − g·mean(r).
+      const double var = rr - r * r / P, cov = rt - r * t / P;
+      if (var > 1e-12 * std::max(1.0, rr)) g = cov / var;
+      b = (t - g * r) / P;
+    }
+    for (size_t p = size_t(ch); p < out.size(); p += 3) out[p] = float(g * render[p] + b);
+  }
+  return out;
+}
+
 SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, const std::string& name, const EvalOptions& o,
                             Progress& progress) {
   const auto t0 = Clock::now();
@@ -82,32 +104,36 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
     const std::vector<float> target = split.image(v);
     for (const ColourCorrection& c : o.colour)
       if (c.rig == view.rig) apply_colour_correction(c, out.rgb);
+    ViewMetrics vm;
+    vm.camera = view.rig, vm.frame = view.frame;
     if (o.ls_gain) {
-      // Per channel, the gain that best maps the render onto the image (least squares).
-      std::vector<float> gained = out.rgb;
-      for (int ch = 0; ch < 3; ++ch) {
-        double rt = 0, rr = 0;
-        for (size_t p = size_t(ch); p < gained.size(); p += 3) rt += double(gained[p]) * target[p], rr += double(gained[p]) * gained[p];
-        const float g = rr > 0 ? float(rt / rr) : 1.0f;
-        for (size_t p = size_t(ch); p < gained.size(); p += 3) gained[p] *= g;
-      }
-      m.psnr_ls_gain = (m.views ? m.psnr_ls_gain : 0.0) + psnr(gained.data(), target.data(), W, H, 3);
+      vm.psnr_ls_gain = psnr(fit_colours(out.rgb, target, ColourFit::Gain).data(), target.data(), W, H, 3);
+      m.psnr_ls_gain = (m.views ? m.psnr_ls_gain : 0.0) + vm.psnr_ls_gain;
     }
-    m.psnr += psnr(out.rgb.data(), target.data(), W, H, 3);
-    m.ssim += ssim(out.rgb.data(), target.data(), W, H, 3);
+    if (o.affine_fit) {
+      vm.psnr_affine = psnr(fit_colours(out.rgb, target, ColourFit::Affine).data(), target.data(), W, H, 3);
+      m.psnr_affine = (m.views ? m.psnr_affine : 0.0) + vm.psnr_affine;
+    }
+    vm.psnr = psnr(out.rgb.data(), target.data(), W, H, 3);
+    vm.ssim = ssim(out.rgb.data(), target.data(), W, H, 3);
+    m.psnr += vm.psnr;
+    m.ssim += vm.ssim;
     if (lpips) m.lpips += lpips->distance(out.rgb.data(), target.data(), W, H);
     if (o.moving && (o.truth || split.has_masks())) {
       // The moving region: the truth's moving Gaussians, else the dataset's foreground masks.
       const std::vector<unsigned char> mask = o.truth ? moving_region(*o.truth, view.camera) : split.mask(v);
       for (size_t p = 0; p < mask.size(); ++p) {
         if (!mask[p]) continue;
-        ++m.moving_pixels;
+        ++vm.moving_pixels;
         for (int c = 0; c < 3; ++c) {
           const double d = std::clamp(out.rgb[p * 3 + c], 0.0f, 1.0f) - std::clamp(target[p * 3 + c], 0.0f, 1.0f);
-          moving_se += d * d;
+          vm.moving_squared_error += d * d;
         }
       }
+      m.moving_pixels += vm.moving_pixels;
+      moving_se += vm.moving_squared_error;
     }
+    m.per_view.push_back(std::move(vm));
     if (!o.save_dir.empty()) {
       const Image im(W, H, 3, out.rgb);
       std::string file = view.camera.name;
@@ -122,6 +148,7 @@ SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, co
   if (m.views) {
     m.psnr /= double(m.views), m.ssim /= double(m.views);
     if (o.ls_gain) m.psnr_ls_gain /= double(m.views);
+    if (o.affine_fit) m.psnr_affine /= double(m.views);
     if (lpips) m.lpips /= double(m.views);
   }
   if (m.moving_pixels > 0) {

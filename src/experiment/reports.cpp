@@ -28,9 +28,18 @@ void write_loss_png(const std::string& path, const std::vector<float>& history, 
 void write_metrics_json(const std::string& path, const std::vector<SplitMetrics>& splits) {
   nlohmann::json j = nlohmann::json::object();
   auto num = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nlohmann::json(nullptr); };
-  for (const SplitMetrics& m : splits)
+  for (const SplitMetrics& m : splits) {
+    // Every view's metrics, as rows (a per-camera table pools them; the moving region's
+    // squared error and pixels add up to the split's).
+    nlohmann::json rows = nlohmann::json::array();
+    for (const ViewMetrics& v : m.per_view)
+      rows.push_back({v.camera, v.frame, v.psnr, v.ssim, num(v.psnr_ls_gain), num(v.psnr_affine), v.moving_squared_error, v.moving_pixels});
     j[m.split] = {{"views", m.views}, {"psnr", m.psnr}, {"ssim", m.ssim}, {"psnr_moving", num(m.psnr_moving)},
-                  {"moving_pixels", m.moving_pixels}, {"lpips", num(m.lpips)}, {"psnr_ls_gain", num(m.psnr_ls_gain)}};
+                  {"moving_pixels", m.moving_pixels}, {"lpips", num(m.lpips)}, {"psnr_ls_gain", num(m.psnr_ls_gain)},
+                  {"psnr_affine", num(m.psnr_affine)},
+                  {"per_view_columns", {"camera", "frame", "psnr", "ssim", "psnr_ls_gain", "psnr_affine", "moving_squared_error", "moving_pixels"}},
+                  {"per_view", rows}};
+  }
   write_file_atomically(path, j.dump(2) + "\n");
 }
 
@@ -210,6 +219,18 @@ TrainingReport write_training_report(const std::string& dir, const Trainer& trai
     dens.push_back({{"iteration", r.iteration}, {"gaussians", r.gaussians}, {"keyed", r.dynamic}, {"promoted", r.promoted},
                     {"cloned", r.cloned}, {"split", r.split}, {"pruned", r.pruned}});
   j["densification"] = dens;
+  // How often each real photograph was drawn: what a time curriculum or a view count does to
+  // a photograph's exposure (the pool benchmark reads the chosen photographs' from here).
+  const std::vector<uint32_t>& draws = trainer.view_draws();
+  if (draws.size() == data.views().size() && !draws.empty()) {
+    nlohmann::json per = nlohmann::json::array();
+    for (size_t v = 0; v < draws.size(); ++v) per.push_back({data.views()[v].rig, data.views()[v].frame, draws[v]});
+    const auto [lo, hi] = std::minmax_element(draws.begin(), draws.end());
+    double sum = 0;
+    for (uint32_t d : draws) sum += d;
+    j["draws"] = {{"min", *lo}, {"max", *hi}, {"mean", sum / double(draws.size())}, {"per_view", per},
+                  {"per_view_columns", {"camera", "frame", "draws"}}};
+  }
   report.train = evaluate_training_sample(model, data, o.background);
   j["train_psnr"] = report.train.psnr;
   j["train_ssim"] = report.train.ssim;

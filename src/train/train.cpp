@@ -514,6 +514,10 @@ void Trainer::step() {
   if (!refined_.empty() && uniform(options_.seed ^ 0x5eed, uint64_t(iteration_), 0) < options_.refined_share)
     refined = &refined_[size_t(uniform(options_.seed ^ 0x5eed, uint64_t(iteration_), 1) * double(refined_.size())) % refined_.size()];
   const size_t v = refined ? 0 : pick_view();
+  if (!refined) {
+    if (view_draws_.size() != data_->views().size()) view_draws_.assign(data_->views().size(), 0);
+    ++view_draws_[v];
+  }
   TrainView refined_view;
   if (refined) refined_view.camera = refined->camera;
   const TrainView& view = refined ? refined_view : data_->views()[v];

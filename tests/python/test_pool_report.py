@@ -1,7 +1,9 @@
 """bench/pool_select_report.py on a folder of runs with known PSNRs: the paired differences'
 means, SDs and 95 % intervals against values worked out by hand (t(0.975, 2) = 4.302653,
-the printed table's), the "separated" mark only where the interval excludes 0, and the
-interval chart's CSV. Needs no fillgs build; run by CTest with the module's tests."""
+the printed table's), the "separated" mark only where the interval excludes 0, the positive
+control's verdict per split, the per-camera table, the window per seed, the draws per chosen
+photograph and the interval chart's CSV; and bench/pool_positive.py's choice on a rig laid out
+by hand. Needs no fillgs build; run by CTest with the module's tests."""
 import json
 import math
 import os
@@ -9,8 +11,9 @@ import subprocess
 import sys
 
 SOURCE = os.environ.get("FILLGS_SOURCE", os.path.join(os.path.dirname(__file__), "..", ".."))
-STRATEGIES = ["fillgs", "random", "negative", "interpolation", "fisherrf", "coverage3d", "coverage4d"]
+STRATEGIES = ["fillgs", "random", "negative", "interpolation", "fisherrf", "coverage3d", "coverage4d", "positive"]
 T975_DF2 = 4.302653
+COLUMNS = ["camera", "frame", "psnr", "ssim", "psnr_ls_gain", "psnr_affine", "moving_squared_error", "moving_pixels"]
 
 
 def write(path, obj):
@@ -19,99 +22,159 @@ def write(path, obj):
         json.dump(obj, f)
 
 
+def split_metrics(affine, cameras):
+    """A split's metrics.json object: affine PSNR `affine` (raw 2 dB lower), its per-view rows two
+    frames per camera, the first camera 0.5 dB above the split's mean and the second 0.5 below."""
+    rows = []
+    for k, c in enumerate(cameras):
+        v = affine + (0.5 if k == 0 else -0.5)
+        rows += [[c, f, v - 2, 0.5, None, v, 1.0, 10] for f in (0, 1)]
+    return {"psnr": affine - 2, "ssim": 0.5, "psnr_moving": affine - 3, "psnr_affine": affine, "views": len(rows),
+            "per_view_columns": COLUMNS, "per_view": rows}
+
+
+def run(root, seed, rid, near, far, draws=None):
+    d = os.path.join(root, f"s{seed}", rid)
+    write(os.path.join(d, "summary.json"), {"seconds": 100.0, "gaussians": 1000, "moving_gaussians": 10,
+                                            "draws": {"per_view": draws or [["3", 0, 25]]}})
+    write(os.path.join(d, "eval_near", "metrics.json"), {"near": split_metrics(near, ["18", "2"])})
+    write(os.path.join(d, "eval_far", "metrics.json"), {"far": split_metrics(far, ["29", "11"])})
+
+
 def make_folder(root):
-    """Three seeds of the main protocol at K = 30: FillGS - negative is 0.1, 0.2, 0.3 dB at the
-    near cameras and 0 far; FillGS - random 1.0, 1.1, 1.2 near; every other strategy 2 dB below
-    FillGS (so random is the best baseline)."""
+    """Three seeds at K = 30 (affine PSNR; raw PSNR 2 dB lower everywhere):
+    FillGS - negative near 0.1, 0.2, 0.3, far 0; FillGS - random near 1.0, 1.1, 1.2, far 0.5
+    each seed; the other four strategies 2 dB below FillGS; the positive control above random
+    by 0.5, 0.7, 0.9 near (separated) and 0.1, -0.1, 0 far (not); the dense reference 1 dB above
+    FillGS's base and the control 1 dB below (a window of 2 dB)."""
     base = {1: 16.0, 2: 16.5, 3: 15.5}
-    offset = {"fillgs": 0.0, "interpolation": -2.0, "fisherrf": -2.0, "coverage3d": -2.0, "coverage4d": -2.0}
     for s, b in base.items():
-        k = s - 1  # seed index
+        k = s - 1
         near = {"fillgs": b, "negative": b - (0.1, 0.2, 0.3)[k], "random": b - (1.0, 1.1, 1.2)[k]}
+        far = {"fillgs": b, "negative": b, "random": b - 0.5}
+        near["positive"] = near["random"] + (0.5, 0.7, 0.9)[k]
+        far["positive"] = far["random"] + (0.1, -0.1, 0.0)[k]
         for st in STRATEGIES:
-            n = near.get(st, b + offset.get(st, 0.0))
-            f = b + (0.0 if st in ("fillgs", "negative", "random") else -2.0)
-            d = os.path.join(root, f"s{s}", f"scratch.{st}.K30")
-            write(os.path.join(d, "summary.json"), {"seconds": 100.0})
-            write(os.path.join(d, "eval_near", "metrics.json"), {"near": {"psnr": n, "ssim": 0.5, "psnr_ls_gain": n}})
-            write(os.path.join(d, "eval_far", "metrics.json"), {"far": {"psnr": f, "ssim": 0.5, "psnr_ls_gain": f}})
-            write(os.path.join(root, f"s{s}", f"choose.{st}.K30", "pool_chosen.json"),
-                  {"chosen": [{"camera": "9", "frame": j, "score": 0.5 if st != "random" else 0.0} for j in range(30)]})
-        for rid in ("scratch.control", "backbone"):
-            d = os.path.join(root, f"s{s}", rid)
-            write(os.path.join(d, "summary.json"), {"seconds": 100.0})
-            for sp in ("near", "far"):
-                write(os.path.join(d, f"eval_{sp}", "metrics.json"), {sp: {"psnr": b - 1, "ssim": 0.5, "psnr_ls_gain": b}})
-
-
-def test_intervals_equal_hand_worked_values(tmp_path):
-    root = str(tmp_path / "pool")
-    make_folder(root)
-    r = subprocess.run([sys.executable, os.path.join(SOURCE, "bench", "pool_select_report.py"), root, "--seeds", "1,2,3", "--budgets", "30",
-                        "--splits", "near,far"], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    md = open(os.path.join(root, "results.md")).read()
-    h = T975_DF2 * 0.1 / math.sqrt(3)  # SD 0.1 over three seeds
-    # FillGS - negative near: 0.20 +- 0.10, [0.20 - h, 0.20 + h] = [-0.05, 0.45]: not separated.
-    neg = next(line for line in md.splitlines() if line.startswith("| negative |"))
-    assert "0.20 ± 0.10" in neg and f"[{0.2 - h:.2f}, {0.2 + h:.2f}]" in neg and "**[" not in neg.split("|")[3]
-    # FillGS - random near: 1.10 +- 0.10, separated; far 0.00 +- 0.00.
-    rnd = next(line for line in md.splitlines() if line.startswith("| random (best baseline) |"))
-    assert "1.10 ± 0.10" in rnd and f"**[{1.1 - h:.2f}, {1.1 + h:.2f}]**" in rnd
-    # The chart's CSV holds the same intervals, separated only for random at the near cameras.
-    rows = [line.split(",") for line in open(os.path.join(root, "intervals_K30.csv")).read().splitlines()[1:]]
-    got = {(row[6].strip('"'), row[7]): (float(row[2]), float(row[3]), float(row[4]), int(row[5])) for row in rows}
-    m, lo, hi, sep = got[("negative (from scratch)", "near")]
-    assert math.isclose(m, 0.2, abs_tol=1e-6) and math.isclose(lo, 0.2 - h, abs_tol=1e-5) and math.isclose(hi, 0.2 + h, abs_tol=1e-5) and sep == 0
-    m, lo, hi, sep = got[("random (best baseline) (from scratch)", "near")]
-    assert math.isclose(m, 1.1, abs_tol=1e-6) and sep == 1
-    assert got[("random (best baseline) (from scratch)", "far")][3] == 0
-    assert "![FillGS minus each, K = 30, 95 % intervals](intervals_K30.png)" in md or not os.path.exists(os.path.join(root, "intervals_K30.png"))
-
-
-def test_main_protocol_rows_without_a_warm_start(tmp_path):
-    """The main protocol's table carries the backbone (mean of 15.0, 15.5, 14.5 = 15.00 dB) and
-    each strategy's photographs from its choice (30); with no warm-start run the second protocol
-    is one line, not a table of dashes."""
-    root = str(tmp_path / "pool")
-    make_folder(root)
-    r = subprocess.run([sys.executable, os.path.join(SOURCE, "bench", "pool_select_report.py"), root, "--seeds", "1,2,3", "--budgets", "30",
-                        "--splits", "near,far"], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    md = open(os.path.join(root, "results.md")).read().splitlines()
-    backbone = next(line for line in md if line.startswith("| backbone (the model every strategy chooses on) |"))
-    assert backbone.split("|")[2].strip() == "15.00 ± 0.50"
-    fillgs = next(line for line in md if line.startswith("| fillgs.K30 |"))
-    assert fillgs.split("|")[10].strip() == "30 ± 0"
-    assert "No warm-start run at K = 30 for these seeds." in md
-    assert not any(line.startswith("| control (no photographs added) |") for line in md)
-
-
-def test_warm_start_control_alone_is_no_table(tmp_path):
-    """A warm-start control (it serves every budget) with warm-start runs at K = 30 only: K = 30
-    gets the warm-start table, K = 10 one line, not a table of dashes under a control row."""
-    root = str(tmp_path / "pool")
-    make_folder(root)
-    for s in (1, 2, 3):
-        for rid in ("control", "fillgs.K30", "random.K30"):
-            d = os.path.join(root, f"s{s}", rid)
-            write(os.path.join(d, "summary.json"), {"seconds": 100.0, "pool_added": 0 if rid == "control" else 30})
-            for sp in ("near", "far"):
-                write(os.path.join(d, f"eval_{sp}", "metrics.json"), {sp: {"psnr": 15.0, "ssim": 0.5, "psnr_ls_gain": 15.0}})
-    r = subprocess.run([sys.executable, os.path.join(SOURCE, "bench", "pool_select_report.py"), root, "--seeds", "1,2,3", "--budgets", "10,30",
-                        "--splits", "near,far"], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    md = open(os.path.join(root, "results.md")).read().splitlines()
-    assert "No warm-start run at K = 10 for these seeds." in md
-    assert "No warm-start run at K = 30 for these seeds." not in md
-    assert not any(line.startswith("| fillgs.K10 |") for line in md)
-    assert sum(line.startswith("| control (no photographs added) |") for line in md) == 1
-    assert any(line.startswith("| fillgs.K30 | 15.00 ± 0.00 |") for line in md)
+            picks = [{"camera": "9", "frame": j, "score": 0.5 if st != "random" else 0.0} for j in range(30)]
+            write(os.path.join(root, f"s{s}", f"choose.{st}.K30", "pool_chosen.json"), {"chosen": picks})
+            draws = [["9", j, 25] for j in range(30)] + [["3", 0, 25]]
+            run(root, s, f"scratch.{st}.K30", near.get(st, b - 2), far.get(st, b - 2), draws)
+        run(root, s, "scratch.control", b - 1, b - 1)
+        run(root, s, "backbone", b - 1, b - 1)
+        run(root, s, "dense", b + 1, b + 1)
+    for rid, v in (("scratch.control", 20.0), ("backbone.curriculum", 20.5)):
+        write(os.path.join(root, "s1", rid, "eval_train", "metrics.json"), {"train": split_metrics(v, ["3", "22"])})
+    run(root, 1, "backbone.curriculum", 14.0, 14.0)
 
 
 def report(root, *args):
     return subprocess.run([sys.executable, os.path.join(SOURCE, "bench", "pool_select_report.py"), root, "--budgets", "30", "--splits", "near,far",
                            *args], capture_output=True, text=True)
+
+
+def line(md, start):
+    return next(x for x in md.splitlines() if x.startswith(start))
+
+
+def test_intervals_equal_hand_worked_values(tmp_path):
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    r = report(root, "--seeds", "1,2,3")
+    assert r.returncode == 0, r.stderr
+    md = open(os.path.join(root, "results.md")).read()
+    h = T975_DF2 * 0.1 / math.sqrt(3)  # SD 0.1 over three seeds
+    # FillGS - negative near: 0.20 +- 0.10, [0.20 - h, 0.20 + h] = [-0.05, 0.45]: not separated.
+    neg = line(md, "| FillGS minus negative |")
+    assert "0.20 ± 0.10" in neg and f"[{0.2 - h:.2f}, {0.2 + h:.2f}]" in neg and "**[" not in neg.split("|")[3]
+    # FillGS - random near: 1.10 +- 0.10, separated; far 0.50 +- 0.00, separated.
+    rnd = line(md, "| FillGS minus random |")
+    assert "1.10 ± 0.10" in rnd and f"**[{1.1 - h:.2f}, {1.1 + h:.2f}]**" in rnd and "**[0.50, 0.50]**" in rnd
+    # Every one of the six comparators printed, twice (affine, then raw PSNR: the same differences here).
+    for other in ("negative", "random", "interpolation", "fisherrf", "coverage3d", "coverage4d"):
+        assert sum(x.startswith(f"| FillGS minus {other} |") for x in md.splitlines()) == 2
+    assert "best" not in md.lower()
+    # The chart's CSV holds the same intervals.
+    rows = [x.split(",") for x in open(os.path.join(root, "intervals_K30.csv")).read().splitlines()[1:]]
+    got = {(row[6].strip('"'), row[7]): (float(row[2]), float(row[3]), float(row[4]), int(row[5])) for row in rows}
+    m, lo, hi, sep = got[("FillGS minus negative", "near")]
+    assert math.isclose(m, 0.2, abs_tol=1e-6) and math.isclose(lo, 0.2 - h, abs_tol=1e-5) and math.isclose(hi, 0.2 + h, abs_tol=1e-5) and sep == 0
+    assert got[("FillGS minus random", "near")][3] == 1
+
+
+def test_positive_control_verdict_per_split(tmp_path):
+    """positive - random near: 0.70 +- 0.20, h = 4.302653 * 0.2 / sqrt(3) = 0.497: separated; far
+    0.00 +- 0.10: not, and the report says the instrument cannot judge there."""
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    r = report(root, "--seeds", "1,2,3")
+    assert r.returncode == 0, r.stderr
+    md = open(os.path.join(root, "results.md")).read()
+    pos = line(md, "| positive control minus random |")
+    h = T975_DF2 * 0.2 / math.sqrt(3)
+    assert "0.70 ± 0.20" in pos and f"**[{0.7 - h:.2f}, {0.7 + h:.2f}]**" in pos and "0.00 ± 0.10" in pos
+    assert "does not separate from random on the far split: there the instrument cannot judge" in md
+    # Without a positive control run, the report says nothing can be ranked.
+    import shutil
+    for s in (1, 2, 3):
+        shutil.rmtree(os.path.join(root, f"s{s}", "scratch.positive.K30"))
+    r = report(root, "--seeds", "1,2,3")
+    assert r.returncode == 0, r.stderr
+    assert "No positive control at K = 30" in open(os.path.join(root, "results.md")).read()
+
+
+def test_per_camera_window_draws_and_curriculum(tmp_path):
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    r = report(root, "--seeds", "1,2,3")
+    assert r.returncode == 0, r.stderr
+    md = open(os.path.join(root, "results.md")).read()
+    # Per camera: FillGS's near camera 18 is 0.5 above its split (16.5 over the seeds' 16.0, 16.5, 15.5 + 0.5).
+    header = line(md, "| run | near 2 | near 18 | far 11 | far 29 |")
+    assert header
+    fill = line(md, "| fillgs |").split("|")
+    assert [c.strip() for c in fill[1:6]] == ["fillgs", "15.50", "16.50", "15.50", "16.50"]
+    # The window per seed: dense (b + 1) minus control (b - 1).
+    for s, b in ((1, 16.0), (2, 16.5), (3, 15.5)):
+        assert line(md, f"| {s} | {b + 1:.2f} | {b - 1:.2f} | +2.00 |")
+    # Every chosen photograph drawn 25 times; 30 photographs.
+    row = line(md, "| fillgs.K30 |").split("|")
+    assert row[10].strip() == "30 ± 0" and row[11].strip() == "25.0 ± 0.0"
+    # The curriculum's table: the training cameras' affine PSNR of both runs.
+    assert line(md, "| every photograph equally likely | 20.00 |") and line(md, "| time curriculum | 20.50 |")
+
+
+def test_a_chosen_photograph_missing_from_the_draws_is_named(tmp_path):
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    path = os.path.join(root, "s2", "scratch.random.K30", "summary.json")
+    write(path, {"seconds": 100.0, "draws": {"per_view": [["3", 0, 25]]}})
+    r = report(root, "--seeds", "1,2,3")
+    assert r.returncode == 1 and path in r.stderr and "a chosen photograph is not among the views it trained on" in r.stderr, r.stderr
+
+
+def test_positive_control_choice_by_hand(tmp_path):
+    """Pool cameras on a line at x = 0, 1, 2, 3; judged: near n at x = 0.9, far f at x = 3.2.
+    K = 4 over 4 frames: near, far, near, far at frames 0, 1, 2, 3 -> pool 1, 3, 1, 3."""
+    def transforms(path, cams):
+        write(path, {"frames": [{"file_path": f"{c}/000000.jpg", "transform_matrix": [[1, 0, 0, x], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}
+                                for c, x in cams]})
+    rig, held, out = str(tmp_path / "rig.json"), str(tmp_path / "held.json"), str(tmp_path / "c" / "pool_chosen.json")
+    transforms(rig, [("p0", 0.0), ("p1", 1.0), ("p2", 2.0), ("p3", 3.0)])
+    transforms(held, [("n", 0.9), ("f", 3.2)])
+    cmd = [sys.executable, os.path.join(SOURCE, "bench", "pool_positive.py"), "--rig", rig, "--held-out", held, "--splits", "n:f",
+           "--pool", "p0,p1,p2,p3", "--frames", "4"]
+    r = subprocess.run(cmd + ["--budget", "4", "--out", out], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    got = [(c["camera"], c["frame"]) for c in json.load(open(out))["chosen"]]
+    assert got == [("p1", 0), ("p3", 1), ("p1", 2), ("p3", 3)]
+    # K = 8 over 2 frames: frames floor((2i + 1) * 2 / 16) = 0,0,0,0,1,1,1,1; each judged camera's
+    # nearest free pool camera at that frame: n -> p1, p0; f -> p3, p2.
+    r = subprocess.run(cmd[:-1] + ["2", "--budget", "8", "--out", out], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    got = [(c["camera"], c["frame"]) for c in json.load(open(out))["chosen"]]
+    assert got == [("p1", 0), ("p3", 0), ("p0", 0), ("p2", 0), ("p1", 1), ("p3", 1), ("p0", 1), ("p2", 1)]
+    r = subprocess.run(cmd + ["--budget", "17", "--out", out], capture_output=True, text=True)
+    assert r.returncode == 1 and "--budget 17 camera-times from 4 pool cameras x 4 frames" in r.stderr
 
 
 def test_a_title_with_quotes_and_commands_stays_a_title(tmp_path):

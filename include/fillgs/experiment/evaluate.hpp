@@ -35,8 +35,23 @@ struct EvalOptions {
   /// Also the PSNR after a per-image, per-channel least-squares gain g = Σ r·t / Σ r² on the
   /// render (how some papers evaluate held-out cameras of a real rig): psnr_ls_gain.
   bool ls_gain = false;
+  /// Also the PSNR after a per-image, per-channel least-squares affine map a·r + b of the
+  /// render onto the image: exposure and white balance fitted away (psnr_affine).
+  bool affine_fit = false;
   /// The moving region's PSNR where `truth` or the split's foreground masks allow.
   bool moving = true;
+};
+
+/// One evaluated view: its camera and frame, its metrics, and its moving region's squared
+/// error and pixels (summed, so that a group of views pools them as the split does).
+struct ViewMetrics {
+  std::string camera;
+  int frame = 0;
+  double psnr = 0, ssim = 0;
+  double psnr_ls_gain = std::numeric_limits<double>::quiet_NaN();
+  double psnr_affine = std::numeric_limits<double>::quiet_NaN();
+  double moving_squared_error = 0;
+  size_t moving_pixels = 0;
 };
 
 struct SplitMetrics {
@@ -47,8 +62,17 @@ struct SplitMetrics {
   size_t moving_pixels = 0;
   double lpips = std::numeric_limits<double>::quiet_NaN();
   double psnr_ls_gain = std::numeric_limits<double>::quiet_NaN();  ///< EvalOptions::ls_gain
+  double psnr_affine = std::numeric_limits<double>::quiet_NaN();   ///< EvalOptions::affine_fit
   double seconds = 0;
+  std::vector<ViewMetrics> per_view;  ///< every evaluated view, in the split's order
 };
+
+/// How a render's colours are fitted to its image before a PSNR: per image and channel, the
+/// least-squares gain g·r or affine map g·r + b.
+enum class ColourFit { Gain, Affine };
+/// `render` ([P][3]) mapped per channel onto `target` by the least-squares fit (a channel
+/// with no variance in the render keeps its gain 1 and, affine, takes the target's mean).
+std::vector<float> fit_colours(const std::vector<float>& render, const std::vector<float>& target, ColourFit fit);
 
 /// Metrics of `model` on every view of a split.
 SplitMetrics evaluate_split(const GaussianCloud& model, const Dataset& split, const std::string& name, const EvalOptions& options = {},

@@ -229,6 +229,9 @@ class Trainer {
   const std::vector<float>& loss_history() const { return loss_history_; }
   /// Every densification step of this session (not stored in checkpoints).
   const std::vector<DensifyRecord>& densify_log() const { return densify_log_; }
+  /// How many iterations of this session drew each real view (indexed as Dataset::views;
+  /// refined views not counted; not stored in checkpoints).
+  const std::vector<uint32_t>& view_draws() const { return view_draws_; }
   /// The last frame of the trained time window at an iteration (time curriculum).
   int window_last_frame(int iteration) const;
   /// How many Gaussians were made static again when the window reached the whole video.
@@ -283,6 +286,7 @@ class Trainer {
   TrainStatus status_;
   std::vector<float> loss_history_;
   std::vector<DensifyRecord> densify_log_;
+  std::vector<uint32_t> view_draws_;
   size_t frozen_ = 0;
   size_t flow_placed_ = 0, flow_tried_ = 0;
   // Per rig camera that keeps one pose, its view at every frame (−1: none).
