@@ -1,31 +1,17 @@
 // fillgs bench: the paper's comparison, resumable.
-#include <optional>
 #include <algorithm>
-#include <filesystem>
-#include <fstream>
-#include <iostream>
 
-#include "commands.hpp"
-#include "options.hpp"
-#include "progress_bar.hpp"
 #include "bench_setup.hpp"
-#include "fillgs/base/limits.hpp"
-#include "fillgs/experiment/evaluate.hpp"
+#include "commands.hpp"
+#include "fillgs/base/fs_util.hpp"
 #include "fillgs/experiment/experiment.hpp"
 #include "fillgs/method/refiners.hpp"
-#include "fillgs/method/finetune.hpp"
-#include "fillgs/base/fs_util.hpp"
-#include "fillgs/experiment/reports.hpp"
-#include "fillgs/io/scene_io.hpp"
-
-
-namespace fs = std::filesystem;
+#include "options.hpp"
+#include "progress_bar.hpp"
 
 namespace fillgs::cli {
 
 namespace {
-
-// ------------------------------------------------------------------ bench
 
 struct BenchFlags {
   std::string out = "fillgs_bench";
@@ -39,96 +25,40 @@ struct BenchFlags {
 };
 
 int bench(const BenchFlags& f, const Invocation& in) {
-  const bool smoke = f.setup.smoke;
   const std::string& root = f.out;
-  if (in.given("--merge")) {
-    // Tables over finished runs only: bench folders or results.csv files, nothing run.
+  if (in.given("--merge")) {  // tables over finished runs only: bench folders or results.csv files, nothing run
     if (!in.given("--out")) in.fail("--merge needs --out DIR (the folder for the merged tables)");
-    for (const char* k : {"--scenes", "--seeds", "--only", "--configs", "--iterations", "--select-every", "--backbone-iterations", "--width",
-                          "--height", "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--refiner", "--reference-angle",
-                          "--reference-hallucination", "--reference-fill-blur", "--reference-fill-strength", "--motion-rates",
-                          "--position-lr", "--key-lr-scale", "--smoke"})
+    for (const char* k : {"--scenes", "--seeds", "--only", "--configs", "--iterations", "--select-every", "--backbone-iterations", "--width", "--height",
+                          "--frames", "--artifact-strength", "--baseline-weighting", "--time-stride", "--refiner", "--reference-angle",
+                          "--reference-hallucination", "--reference-fill-blur", "--reference-fill-strength", "--motion-rates", "--position-lr",
+                          "--key-lr-scale", "--smoke"})
       if (in.given(k)) in.fail("--merge runs nothing, so ", k, " has no meaning with it");
     const std::vector<RunResult> all = merge_results(f.merge);
     make_directories(root);
     write_bench_report(root, all);
     in.out << "fillgs bench: " << all.size() << " runs from " << f.merge.size() << " inputs -> " << join_path(root, "results.md") << ", "
-        << join_path(root, "results.csv") << "\n";
+           << join_path(root, "results.csv") << "\n";
     return 0;
   }
-  BenchSetup setup = bench_setup(f.setup, in);
-  for (const std::string& sc : f.scenes) parse_scene(sc);  // unknown names fail before any work
-  std::vector<uint64_t> seeds;
-  for (const std::string& s : in.given("--seeds") ? f.seeds : std::vector<std::string>(smoke ? std::vector<std::string>{"1"} : std::vector<std::string>{"1", "2", "3"}))
-    seeds.push_back(uint64_t(parse_count(s, size_t(1) << 62, "fillgs bench", "--seeds value")));
+  const BenchSetup setup = bench_setup(f.setup, in);
+  BenchPlan plan{root, f.scenes, {}, {}, setup.scene, setup.finetune};
+  for (const std::string& s : in.given("--seeds") ? f.seeds : std::vector<std::string>(f.setup.smoke ? 1 : 3, ""))
+    plan.seeds.push_back(s.empty() ? plan.seeds.size() + 1 : uint64_t(parse_count(s, size_t(1) << 62, "fillgs bench", "--seeds value")));
   for (size_t i = 0; i < f.refiners.size(); ++i) {
     try {
       bench_refiner(f.refiners[i]);
     } catch (const Error& e) {
       in.fail("--refiner: ", e.what());
     }
-    for (size_t j = 0; j < i; ++j)
-      if (f.refiners[i] == f.refiners[j]) in.fail("--refiner names ", f.refiners[i], " twice");
+    if (std::count(f.refiners.begin(), f.refiners.begin() + long(i), f.refiners[i])) in.fail("--refiner names ", f.refiners[i], " twice");
   }
   std::vector<RunConfig> configs = standard_configs(f.baseline_weighting, f.artifact_strength, f.refiners);
   for (RunConfig& c : configs) c.reference = f.reference;
-  const std::vector<ConfigGroup>& only = f.only;
-  const std::vector<std::string>& ids = f.configs;
-  std::vector<RunConfig> chosen;
-  for (const RunConfig& c : configs) {
-    const bool by_group = only.empty() || std::count(only.begin(), only.end(), c.group);
-    const bool by_id = ids.empty() || std::count(ids.begin(), ids.end(), c.id);
-    const bool in_smoke = c.group == ConfigGroup::Control || c.group == ConfigGroup::Calibration || c.group == ConfigGroup::Strategy ||
-                          c.group == ConfigGroup::Upper;
-    if (by_group && by_id && (!smoke || in_smoke)) chosen.push_back(c);
-  }
-  if (chosen.empty()) in.fail("--only/--configs select no configuration");
-  make_directories(root);
-  remove_stale_temporaries(root);  // a chart's PNG or log a killed bench left
+  plan.configs = choose_configs(configs, f.only, f.configs, f.setup.smoke);
   TerminalProgress progress(in.err, in.progress());
-  std::vector<RunResult> results;
-  in.out << "fillgs bench: " << f.scenes.size() << " scene(s) x " << seeds.size() << " seed(s) x " << chosen.size() << " configurations -> " << root
-      << " (resumable: finished runs are reused)\n";
-  for (const std::string& sc : f.scenes)
-    for (uint64_t seed : seeds) {
-      ExperimentOptions eo = setup.scene;
-      const SceneChoice choice = parse_scene(sc);
-      eo.rig = choice.rig;
-      eo.variant = choice.variant;
-      eo.seed = seed;
-      // The backbone is read or trained only where something still needs it: a seed whose
-      // runs are all finished trains none.
-      PreparedScene p = prepare_scene(root, eo, progress, in.out, false);
-      const std::string bb_path = join_path(join_path(p.dir, "backbone"), "result.json");
-      // A run still to make that fine-tunes the backbone (the dense model trains its own).
-      const auto needs_backbone = [&](const RunConfig& c) { return c.kind != RunKind::Dense && !fs::exists(p.result_path(c.id)); };
-      const bool all_finished = std::none_of(chosen.begin(), chosen.end(), needs_backbone);
-      RunResult bb;
-      if (fs::exists(bb_path)) {
-        bb = load_result(bb_path, "backbone", seed, eo.scene_name());
-      } else if (!all_finished) {
-        ensure_backbone(p, progress, in.out);
-        bb = evaluate_model(p, p.backbone, "backbone", "", progress);
-        bb.group = ConfigGroup::Control;
-        save_result(bb_path, bb);
-      }
-      if (fs::exists(bb_path))
-        in.out << sc << " seed " << seed << " backbone: interpolation " << fixed(bb.interpolation.psnr) << " dB, extrapolation "
-            << fixed(bb.extrapolation.psnr) << " dB, train " << fixed(bb.train.psnr) << " dB\n";
-      else
-        in.out << sc << " seed " << seed << ": every run is finished and the backbone's own row was not kept; it is not trained again for it\n";
-      for (const RunConfig& c : chosen) {
-        FinetuneOptions fo = setup.finetune;
-        if (needs_backbone(c)) ensure_backbone(p, progress, in.out);
-        results.push_back(run_config(p, c, fo, progress, in.out));
-        // After every run, over everything the folder holds (earlier invocations included):
-        // an interrupted bench still has its tables.
-        write_bench_report(root, collect_results(root));
-      }
-    }
-  write_bench_report(root, collect_results(root));
+  const std::vector<RunResult> results = run_bench_plan(plan, progress, in.out);
   in.out << "fillgs bench: " << results.size() << " runs here, tables over every run in the folder: " << join_path(root, "results.md") << ", "
-      << join_path(root, "results.csv") << "\n";
+         << join_path(root, "results.csv") << "\n";
   return 0;
 }
 

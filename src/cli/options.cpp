@@ -8,6 +8,7 @@
 #include <set>
 
 #include "fillgs/model/frame_grid.hpp"
+#include "fillgs/experiment/experiment.hpp"
 #include "fillgs/io/model_formats.hpp"
 #include "fillgs/visibility/visibility.hpp"
 
@@ -298,6 +299,29 @@ std::vector<double> observe_times(const Invocation& in, const TimeFlags& tf, con
 
 namespace fillgs::cli {
 
+void add_refiner_flags(CLI::App& app, std::string& refiner, std::string& truth, RefinerInputs& ri) {
+  ri.reference = bench_reference_options(0.5, 1);  // reference/warp: the calibrated refiner, --reference-angle sets θ0
+  {
+    std::vector<std::string> names;
+    std::string help = "the refiner:";
+    for (const RefinerKind* k : refiner_kinds()) {
+      names.push_back(k->name);
+      help += " " + k->name + ", " + k->description + (k->needs_truth ? " (needs --truth)" : k->needs_pool ? " (needs --pool-cameras)" : "") + ";";
+    }
+    help.back() = '.';
+    add_row_choice(app, "--refiner", refiner, names, [](const std::string& v) { return refiner_kind(v).name; }, help);
+  }
+  add_number(app, "--reference-angle", ri.reference.angle_scale_degrees, "reference/warp: the parallax angle (degrees) at which confidence falls to 1/e",
+             positive());
+  add_text(app, "--refiner-command", ri.command, "external: the command, with {in} and {out}", "CMD");
+  add_number(app, "--refiner-timeout", ri.timeout_seconds, "external: seconds per patch", positive());
+  add_text(app, "--truth", truth, "oracle/reference: the ground-truth scene (warp: only for its records)", "PATH");
+  add_number(app, "--artifact-strength", ri.oracle.artifacts.strength, "oracle/reference/warp: strength of the simulated refiner artifacts", at_least(0));
+  add_number(app, "--support-window", ri.oracle.window, "oracle: frames either side that count as observed", at_least(0));
+  add_number(app, "--rig-max-distance", ri.rig.max_distance, "rig: how far a pool camera may stand from the virtual view", at_least(0));
+  add_number(app, "--rig-max-angle", ri.rig.max_angle_degrees, "rig: how far it may look away (degrees)", within(0, 180));
+}
+
 void add_selection_flags(CLI::App& app, SelectOptions& o) {
   const std::string g = "Selection options";
   add_choice(app, "--strategy", o.strategy, "how virtual viewpoints are chosen (fillgs: the paper's; the others: baselines)")->group(g);
@@ -332,7 +356,7 @@ void add_motion_rate_flags(CLI::App& app, MotionRateFlags& f) {
 }
 
 MotionRates motion_rates(const Invocation& in, const MotionRateFlags& f) {
-  MotionRates r = f.preset == RatePreset::Gentle ? MotionRates::gentle() : f.preset == RatePreset::Converged ? MotionRates::converged_model() : MotionRates();
+  MotionRates r = motion_rates_of(f.preset);
   if (in.given("--position-lr")) r.position_lr = f.position_lr;
   if (in.given("--key-lr-scale")) r.key_lr_scale = f.key_lr_scale;
   if (!(r.position_lr > 0) || !(r.key_lr_scale > 0)) in.fail("--position-lr and --key-lr-scale must be positive");

@@ -247,6 +247,7 @@ Action bind(std::shared_ptr<Flags> flags, int (*run)(const Flags&, const Invocat
 
 #include "fillgs/explore/exploration.hpp"
 #include "fillgs/method/finetune.hpp"
+#include "fillgs/method/refiners.hpp"
 #include "fillgs/method/select.hpp"
 
 namespace fillgs::cli {
@@ -255,6 +256,8 @@ namespace fillgs::cli {
 /// --time-stride, --no-start-selection, --no-error-term, --no-sensitivity-term,
 /// --no-candidate-scoring, --no-global, --count-only | --speed-only.
 void add_selection_flags(CLI::App& app, SelectOptions& o);
+/// finetune's refiner: --refiner (the table's rows), the truth's path, and each row's knobs.
+void add_refiner_flags(CLI::App& app, std::string& refiner, std::string& truth, RefinerInputs& inputs);
 /// What the flags cannot say alone: the two terms switched off together.
 void check_selection(const Invocation& in, const SelectOptions& o);
 
@@ -263,7 +266,6 @@ void add_grid_flags(CLI::App& app, ExplorationOptions& o);
 
 /// --motion-rates repair|gentle, --position-lr LR, --key-lr-scale k: how fast fine-tuning
 /// moves Gaussians (finetune.hpp, MotionRates); the two numbers override the preset.
-enum class RatePreset { Repair, Gentle, Converged };
 struct MotionRateFlags {
   RatePreset preset = RatePreset::Repair;
   double position_lr = MotionRates().position_lr, key_lr_scale = MotionRates().key_lr_scale;
@@ -276,7 +278,3 @@ std::string fixed(double x, int digits = 2);
 
 }  // namespace fillgs::cli
 
-namespace fillgs {
-FILLGS_ENUM_NAMES(cli::RatePreset, "motion rates", {cli::RatePreset::Repair, "repair"}, {cli::RatePreset::Gentle, "gentle"},
-                 {cli::RatePreset::Converged, "converged"});
-}  // namespace fillgs

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -663,6 +664,69 @@ RunResult evaluate_model(const PreparedScene& p, const GaussianCloud& model, con
   return r;
 }
 
+std::vector<RunConfig> choose_configs(const std::vector<RunConfig>& all, const std::vector<ConfigGroup>& groups,
+                                      const std::vector<std::string>& ids, bool smoke) {
+  std::vector<RunConfig> chosen;
+  for (const RunConfig& c : all) {
+    const bool by_group = groups.empty() || std::count(groups.begin(), groups.end(), c.group);
+    const bool by_id = ids.empty() || std::count(ids.begin(), ids.end(), c.id);
+    const bool in_smoke = c.group == ConfigGroup::Control || c.group == ConfigGroup::Calibration || c.group == ConfigGroup::Strategy ||
+                          c.group == ConfigGroup::Upper;
+    if (by_group && by_id && (!smoke || in_smoke)) chosen.push_back(c);
+  }
+  if (chosen.empty()) throw_error("--only/--configs select no configuration");
+  return chosen;
+}
+
+std::vector<RunResult> run_bench_plan(const BenchPlan& plan, Progress& progress, std::ostream& log) {
+  for (const std::string& sc : plan.scenes) parse_scene(sc);  // unknown names fail before any work
+  make_directories(plan.root);
+  remove_stale_temporaries(plan.root);  // a chart's PNG or log a killed bench left
+  std::vector<RunResult> results;
+  log << "fillgs bench: " << plan.scenes.size() << " scene(s) x " << plan.seeds.size() << " seed(s) x " << plan.configs.size()
+      << " configurations -> " << plan.root << " (resumable: finished runs are reused)\n";
+  for (const std::string& sc : plan.scenes)
+    for (uint64_t seed : plan.seeds) {
+      ExperimentOptions eo = plan.scene;
+      const SceneChoice choice = parse_scene(sc);
+      eo.rig = choice.rig;
+      eo.variant = choice.variant;
+      eo.seed = seed;
+      // The backbone is read or trained only where something still needs it: a seed whose
+      // runs are all finished trains none.
+      PreparedScene p = prepare_scene(plan.root, eo, progress, log, false);
+      const std::string bb_path = join_path(join_path(p.dir, "backbone"), "result.json");
+      // A run still to make that fine-tunes the backbone (the dense model trains its own).
+      const auto needs_backbone = [&](const RunConfig& c) { return c.kind != RunKind::Dense && !fs::exists(p.result_path(c.id)); };
+      const bool all_finished = std::none_of(plan.configs.begin(), plan.configs.end(), needs_backbone);
+      RunResult bb;
+      if (fs::exists(bb_path)) {
+        bb = load_result(bb_path, "backbone", seed, eo.scene_name());
+      } else if (!all_finished) {
+        ensure_backbone(p, progress, log);
+        bb = evaluate_model(p, p.backbone, "backbone", "", progress);
+        bb.group = ConfigGroup::Control;
+        save_result(bb_path, bb);
+      }
+      if (fs::exists(bb_path)) {
+        char line[200];
+        std::snprintf(line, sizeof line, " backbone: interpolation %.2f dB, extrapolation %.2f dB, train %.2f dB\n", bb.interpolation.psnr,
+                      bb.extrapolation.psnr, bb.train.psnr);
+        log << sc << " seed " << seed << line;
+      } else
+        log << sc << " seed " << seed << ": every run is finished and the backbone's own row was not kept; it is not trained again for it\n";
+      for (const RunConfig& c : plan.configs) {
+        if (needs_backbone(c)) ensure_backbone(p, progress, log);
+        results.push_back(run_config(p, c, plan.finetune, progress, log));
+        // After every run, over everything the folder holds (earlier invocations included):
+        // an interrupted bench still has its tables.
+        write_bench_report(plan.root, collect_results(plan.root));
+      }
+    }
+  write_bench_report(plan.root, collect_results(plan.root));
+  return results;
+}
+
 RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneOptions& base, Progress& progress, std::ostream& log) {
   const std::string dir = join_path(join_path(p.dir, "runs"), c.id);
   const std::string result_path = p.result_path(c.id), identity_path = join_path(dir, "identity.json");
@@ -694,13 +758,9 @@ RunResult run_config(const PreparedScene& p, const RunConfig& c, const FinetuneO
   RefinerInputs ri;
   ri.truth = &p.synth.scene;
   ri.oracle.artifacts.strength = c.artifact_strength;
-  ri.oracle.artifacts.seed = p.options.seed;
-  for (const TrainView& v : p.train->views()) ri.observers.push_back(v.camera);
-  ri.frames = F;
   ri.reference = c.reference;
-  ri.reference.artifacts.strength = c.artifact_strength;
-  ri.reference.artifacts.seed = p.options.seed;
   ri.stats = &stats;
+  complete_refiner_inputs(ri, *p.train, p.options.seed);
   const RefinerKind& refiner_row = refiner_kind(bench_refiner(c.refiner));
   json identity = {{"id", c.id}, {"scene", options_json(p.options)}};
   if (c.kind == RunKind::Dense) {
@@ -1230,7 +1290,7 @@ void write_run_report(const std::string& dir, const RunReportInput& in) {
   for (size_t k = 0; k < in.scene->options.train_cameras.size(); ++k) md << (k ? ", " : "") << in.scene->options.train_cameras[k];
   md << ") for " << o.backbone_iterations << " iterations; each fine-tuning: " << in.finetune.iterations << " iterations, "
      << in.finetune.trajectories << " trajectories every " << in.finetune.select_every << " iterations, refiner `" << in.refiner << "` ("
-     << refiner_kind(in.refiner).description << (in.refiner == "reference" ? "; calibrated before any strategy ran with it, see the calibration below" : "")
+     << refiner_kind(in.refiner).description << (refiner_kind(in.refiner).calibrated ? "; calibrated before any strategy ran with it, see the calibration below" : "")
      << ") with artifacts (strength " << in.artifact_strength << "). Baselines use ExploreGS weights (the paper's protocol); FillGS its own.\n\n";
   // The result as measured, in one sentence.
   auto find = [&](const std::string& id) -> const RunResult* {

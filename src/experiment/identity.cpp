@@ -162,24 +162,6 @@ json identity_json(const ExplorationOptions& o) {
           {"label_unexplored", o.label_unexplored}};
 }
 
-json identity_json(const ArtifactOptions& o) {
-  return {{"strength", o.strength}, {"seed", o.seed}, {"region_fraction", o.region_fraction}};
-}
-
-json identity_json(const ReferenceOptions& o) {
-  return {{"name", "reference"},
-          {"angle_scale_degrees", o.angle_scale_degrees},
-          {"shift_per_degree", o.shift_per_degree},
-          {"blur_per_degree", o.blur_per_degree},
-          {"flicker", o.flicker},
-          {"artifacts", identity_json(o.artifacts)},
-          {"fill_strength", o.fill_strength},
-          {"hallucination", o.hallucination},
-          {"fill_blur", o.fill_blur},
-          {"background", vec3(o.background)},
-          {"depth_tolerance", o.depth_tolerance},
-          {"placement_tolerance", o.placement_tolerance}};
-}
 
 json identity_json(const FinetuneOptions& o) {
   json j = {{"iterations", o.iterations},

@@ -292,6 +292,12 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
   return report;
 }
 
+FinetuneReport write_finetune_job_report(const std::string& dir, const FinetuneJobResult& r, const Dataset& data) {
+  const FinetuneReport report = write_finetune_report(dir, r.result, data, r.options, r.refiner, r.seconds);
+  if (r.pool && r.options.pool_budget > 0) write_pool_report(dir, r.result, *r.pool, to_string(r.options.select.strategy));
+  return report;
+}
+
 void write_pool_report(const std::string& dir, const FinetuneResult& r, const Dataset& pool, const std::string& strategy) {
   std::vector<std::string> rigs;  // pool cameras in first-seen order
   auto row_of = [&](const std::string& rig) {

@@ -30,6 +30,10 @@ std::string stem(const std::string& file) { return file.substr(0, file.rfind('.'
 
 }  // namespace
 
+MotionRates motion_rates_of(RatePreset preset) {
+  return preset == RatePreset::Gentle ? MotionRates::gentle() : preset == RatePreset::Converged ? MotionRates::converged_model() : MotionRates();
+}
+
 FinetuneOptions FinetuneOptions::paper() {
   FinetuneOptions o;
   o.iterations = 30000;
@@ -96,21 +100,14 @@ FinetuneResult finetune(const Dataset& data, const GaussianCloud& model, Refiner
   auto weigh_and_add = [&](const std::vector<NewView>& items, const GaussianCloud& current, const ObservationTables& tables,
                            float quantile, FinetuneRound& r) {
     const auto t0 = Clock::now();
-    const DeficiencyField field = weight_field(current, tables, quantile, o.mask);
-    WeightContext ctx;
-    ctx.model = &current;
-    ctx.views = views;
-    ctx.image = image_as;
-    ctx.deficiency = &field;
-    ctx.frames = F;
-    ctx.background = to.background;
+    const RefinedViewWeigher weigh(current, tables, quantile, o.mask, o.weighting, views, image_as, F, to.background);
     std::vector<RefinedView> added;
     double weight_sum = 0;
     size_t weight_count = 0;
     progress.start("weights (" + std::string(to_string(o.weighting)) + ")", items.size());
     for (const NewView& v : items) {
       const Camera& cam = v.camera;
-      ViewWeights w = compute_weights(ctx, v.rgb, cam, o.weighting, o.mask, v.name);
+      ViewWeights w = weigh(v.rgb, cam, v.name);
       if (!w.consistency.empty()) write_image(v.base + "_mask.png", grey(w.consistency, cam.width, cam.height));
       if (!w.covisibility.empty()) write_image(v.base + "_covis.png", grey(w.covisibility, cam.width, cam.height));
       write_image(v.base + "_weight.png", grey(w.weight, cam.width, cam.height));

@@ -33,6 +33,34 @@ const RefinerKind& refiner_kind(const std::string& name) {
   throw_error("unknown refiner '", name.substr(0, 40), "' (expected ", refiner_names(), ")");
 }
 
+nlohmann::json identity_json(const ArtifactOptions& o) {
+  return {{"strength", o.strength}, {"seed", o.seed}, {"region_fraction", o.region_fraction}};
+}
+
+nlohmann::json identity_json(const ReferenceOptions& o) {
+  return {{"name", "reference"},
+          {"angle_scale_degrees", o.angle_scale_degrees},
+          {"shift_per_degree", o.shift_per_degree},
+          {"blur_per_degree", o.blur_per_degree},
+          {"flicker", o.flicker},
+          {"artifacts", identity_json(o.artifacts)},
+          {"fill_strength", o.fill_strength},
+          {"hallucination", o.hallucination},
+          {"fill_blur", o.fill_blur},
+          {"background", nlohmann::json::array({o.background.x(), o.background.y(), o.background.z()})},
+          {"depth_tolerance", o.depth_tolerance},
+          {"placement_tolerance", o.placement_tolerance}};
+}
+
+void complete_refiner_inputs(RefinerInputs& in, const Dataset& data, uint64_t seed) {
+  in.observers.clear();
+  for (const TrainView& v : data.views()) in.observers.push_back(v.camera);
+  in.frames = data.frames();
+  in.oracle.artifacts.seed = seed;
+  in.reference.artifacts.strength = in.oracle.artifacts.strength;
+  in.reference.artifacts.seed = seed;
+}
+
 std::unique_ptr<Refiner> make_refiner(const std::string& name, const RefinerInputs& in) {
   const RefinerKind& k = refiner_kind(name);
   if (k.needs_truth && !in.truth) throw_error("the ", k.name, " refiner needs the ground-truth scene (synthetic data)");

@@ -449,3 +449,23 @@ double roc_auc(const std::vector<float>& score, const std::vector<uint8_t>& labe
 }
 
 }  // namespace fillgs
+
+namespace fillgs {
+
+RefinedViewWeigher::RefinedViewWeigher(const GaussianCloud& model, const ObservationTables& tables, float quantile, const MaskOptions& mask,
+                                       Weighting weighting, std::vector<ObservedView> views, std::function<Image(size_t)> image, int frames,
+                                       const Vec3f& background)
+    : field_(weight_field(model, tables, quantile, mask)), mask_(mask), weighting_(weighting) {
+  context_.model = &model;
+  context_.views = std::move(views);
+  context_.image = std::move(image);
+  context_.deficiency = &field_;
+  context_.frames = frames;
+  context_.background = background;
+}
+
+ViewWeights RefinedViewWeigher::operator()(const Image& refined, const Camera& camera, const std::string& external_name) const {
+  return compute_weights(context_, refined, camera, weighting_, mask_, external_name);
+}
+
+}  // namespace fillgs

@@ -28,6 +28,7 @@
 
 #include "fillgs/base/bounds.hpp"
 #include "fillgs/base/error.hpp"
+#include "fillgs/base/fs_util.hpp"
 #include "fillgs/base/instruction_set.hpp"
 #include "fillgs/io/array_input.hpp"
 #include "fillgs/io/camera_io.hpp"
@@ -39,6 +40,9 @@
 #include "fillgs/io/model_formats.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/io/trained_models.hpp"
+#include "fillgs/experiment/experiment.hpp"
+#include "fillgs/experiment/reports.hpp"
+#include "fillgs/method/finetune_job.hpp"
 #include "fillgs/method/select.hpp"
 #include "fillgs/method/weights.hpp"
 #include "fillgs/model/camera.hpp"
@@ -887,6 +891,48 @@ py::dict select_py(const Model& model, const Cameras& cameras, int frames, const
 
 // ------------------------------------------------------------------ weights
 
+// ------------------------------------------------------------------ finetune
+
+/// `fillgs finetune` as a function: the same job (method/finetune_job.hpp), checked in this
+/// module's keywords, writing the same folder; returns its summary.json as a dict.
+py::dict finetune_py(const Model& model, const std::string& images, const std::string& cameras, const std::string& out,
+                     const std::vector<std::string>& train_cameras, const std::string& frames, int downscale, int iterations, int select_every,
+                     const py::object& trajectories, uint64_t seed, const std::string& strategy, const std::string& weighting,
+                     const py::object& refiner, const std::string& refiner_command, const py::object& truth, const std::vector<std::string>& pool_cameras,
+                     int pool_budget, const std::string& motion_rates, const py::object& refined_share, const py::object& progress) {
+  require_file(images);
+  require_file(cameras);
+  FinetuneJob job;
+  job.images = images, job.cameras = cameras, job.out = out, job.seed = seed;
+  job.data_options.cameras = train_cameras;
+  job.data_options.frames = FrameRange::parse(frames);
+  job.data_options.downscale = downscale;
+  job.options.iterations = iterations;
+  job.options.select_every = select_every;
+  if (!trajectories.is_none()) job.options.trajectories = trajectories.cast<int>(), job.trajectories_given = true;
+  job.options.select.strategy = parse_name<Strategy>(strategy);
+  job.options.weighting = parse_name<Weighting>(weighting);
+  if (!refiner.is_none()) job.refiner = refiner.cast<std::string>();
+  job.refiner_inputs.command = refiner_command;
+  job.refiner_inputs.reference = bench_reference_options(0.5, 1);  // as --reference-angle's default
+  if (!truth.is_none()) job.refiner_inputs.truth = truth.cast<const Model&>().cloud.get();
+  job.pool_cameras = pool_cameras;
+  job.options.pool_budget = pool_budget;
+  job.rates = motion_rates_of(parse_name<RatePreset>(motion_rates));
+  if (const auto x = number_or_none(refined_share, "refined_share", within(0, 1))) job.refined_share = *x;
+  job.model = *model.cloud;
+  job.model_path = model.source;
+  PyProgress shown(progress);
+  {
+    py::gil_scoped_release release;
+    const Dataset data = Dataset::load(images, cameras, job.data_options, shown);
+    job.data = &data;
+    std::ostringstream log;
+    run_finetune_job(std::move(job), Spelling{false}, log, shown, [&](const FinetuneJobResult& r) { write_finetune_job_report(out, r, data); });
+  }
+  return py::module_::import("json").attr("loads")(read_file(join_path(out, "summary.json")));
+}
+
 /// The fine-tuning weights of refined images against `model` and the observed views
 /// (`cameras` with `images`), as `fillgs finetune` computes them for each refined view.
 py::list weights_py(const Model& model, const Cameras& cameras, const py::object& images, const py::object& refined, const Cameras& refined_cameras,
@@ -948,18 +994,14 @@ py::list weights_py(const Model& model, const Cameras& cameras, const py::object
     oo.visibility = so.visibility;
     const FrameGrid grid(F);
     const ObservationTables tables = given_tables ? std::move(*given_tables) : observation_tables(cloud, cams, grid.times(), grid.step(), oo, nullptr, shown);
-    const DeficiencyField field = weight_field(cloud, tables, so.deficiency_quantile, mask);
-    WeightContext ctx;
-    ctx.model = &cloud;
-    ctx.views = views;
-    ctx.image = [&](size_t i) { return Image(views[i].camera.width, views[i].camera.height, 3, observed.get(i)); };
-    ctx.deficiency = &field;
-    ctx.frames = F;
-    ctx.background = TrainOptions().background;
+    // finetune's weigher, with its training's background (fine_tune_schedule's).
+    const RefinedViewWeigher weigh(cloud, tables, so.deficiency_quantile, mask, w, views,
+                                   [&](size_t i) { return Image(views[i].camera.width, views[i].camera.height, 3, observed.get(i)); }, F,
+                                   fine_tune_schedule(1).background);
     shown.start("weights (" + weighting + ")", given.size());
     for (size_t i = 0; i < given.size(); ++i) {
       const Camera& c = refined_cameras.list[i];
-      out.push_back(compute_weights(ctx, Image(c.width, c.height, 3, given.get(i)), c, w, mask));
+      out.push_back(weigh(Image(c.width, c.height, 3, given.get(i)), c));
       if (mask.normalise) normalise_by_mean(out.back().weight);  // as finetune weighs its loss
       shown.advance(1);
     }
@@ -1150,6 +1192,17 @@ PYBIND11_MODULE(_fillgs, m) {
         "Viewpoint-time selection as `fillgs select` runs it, by any strategy (fillgs, random, negative, interpolation, fisherrf, coverage3d, "
         "coverage4d). `images`: the observed views' images (their order: load_views) for the priority's error term. Returns a dict: "
         "trajectories (list of Trajectory), deficiency_scale, notes, grid.");
+  m.def("finetune", &finetune_py, py::arg("model"), py::arg("images"), py::arg("cameras"), py::arg("out"),
+        py::arg("train_cameras") = std::vector<std::string>(), py::arg("frames") = "", py::arg("downscale") = 1, py::arg("iterations") = 2400,
+        py::arg("select_every") = 800, py::arg("trajectories") = py::none(), py::arg("seed") = 1, py::arg("strategy") = "fillgs",
+        py::arg("weighting") = "fillgs", py::arg("refiner") = py::none(), py::arg("refiner_command") = "", py::arg("truth") = py::none(),
+        py::arg("pool_cameras") = std::vector<std::string>(), py::arg("pool_budget") = 0, py::arg("motion_rates") = "converged",
+        py::arg("refined_share") = py::none(), py::arg("progress") = py::none(),
+        "Fine-tunes a loaded model as `fillgs finetune` does, the same job with the same checks (each problem named by its keyword), "
+        "writing the same folder `out` (model.ply, virtual_views.json, summary.json, pool_chosen.json with a pool budget); returns "
+        "summary.json as a dict. images, cameras, train_cameras, frames, downscale: the training views as load_views reads them; "
+        "trajectories None: 5 (a pool budget takes none); refiner None: identity (a pool budget takes none); truth: a loaded "
+        "ground-truth scene (oracle, reference); motion_rates: converged, repair or gentle (--motion-rates).");
   m.def("weights", &weights_py, py::arg("model"), py::arg("cameras"), py::arg("images"), py::arg("refined"), py::arg("refined_cameras"),
         py::arg("weighting") = "fillgs", py::arg("frames") = 0, py::arg("mask_sigma") = py::none(),
         py::arg("mask") = std::string(to_string(MaskOptions().method)), py::arg("covis") = std::string(to_string(MaskOptions().covisibility)),

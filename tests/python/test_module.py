@@ -507,3 +507,32 @@ def test_instruction_set_read_at_import():
     bad = run("avx9", "import fillgs")
     assert bad.returncode != 0
     assert "FILLGS_INSTRUCTION_SET: 'avx9' is not an instruction set fillgs can be held to (avx512, avx2, sse4 or native)" in bad.stderr
+
+
+def test_finetune_is_the_command_lines_job(tmp_path, synth):
+    """fillgs.finetune runs `fillgs finetune`'s job: on the same scene, views and options it
+    chooses the same pool photographs and writes the same model, byte for byte; a bad
+    combination gets the command line's sentence with the keywords' names."""
+    common = ["--model", f"{synth}/scene.ply", "--images", synth, "--cameras", f"{synth}/transforms_train.json", "--train-cameras", "cam04,cam06",
+              "--iterations", "20", "--select-every", "10", "--pool-cameras", "cam05,cam07", "--pool-budget", "4", "--strategy", "coverage4d",
+              "--weighting", "none", "--quiet"]
+    out_cli, out_py = str(tmp_path / "cli"), str(tmp_path / "py")
+    r = cli("finetune", *common, "--out", out_cli)
+    assert r.returncode == 0, r.stderr
+    kw = dict(train_cameras=["cam04", "cam06"], iterations=20, select_every=10, pool_cameras=["cam05", "cam07"], pool_budget=4,
+              strategy="coverage4d", weighting="none")
+    model = fillgs.load_model(f"{synth}/scene.ply")
+    summary = fillgs.finetune(model, synth, f"{synth}/transforms_train.json", out_py, **kw)
+    assert summary == json.load(open(os.path.join(out_py, "summary.json")))
+    assert summary["refiner"] == "pool" and summary["virtual_views"] == 4
+    chosen = [json.load(open(os.path.join(d, "pool_chosen.json")))["chosen"] for d in (out_cli, out_py)]
+    assert [(c["camera"], c["frame"]) for c in chosen[0]] == [(c["camera"], c["frame"]) for c in chosen[1]]
+    assert open(os.path.join(out_cli, "model.ply"), "rb").read() == open(os.path.join(out_py, "model.ply"), "rb").read()
+    # The same check, each face's spelling of the options.
+    bad = cli("finetune", *common, "--refiner", "identity", "--out", str(tmp_path / "bad_cli"))
+    assert bad.returncode != 0 and "--pool-budget adds the pool's own photographs: it takes no --refiner" in bad.stderr, bad.stderr
+    with pytest.raises(Exception, match="pool_budget adds the pool's own photographs: it takes no refiner"):
+        fillgs.finetune(model, synth, f"{synth}/transforms_train.json", str(tmp_path / "bad_py"), refiner="identity", **kw)
+    assert not os.path.exists(tmp_path / "bad_cli") and not os.path.exists(tmp_path / "bad_py")
+    with pytest.raises(Exception, match="refined_share must be in"):
+        fillgs.finetune(model, synth, f"{synth}/transforms_train.json", str(tmp_path / "bad_py"), refined_share=2.0, **kw)

@@ -153,6 +153,28 @@ RunResult evaluate_model(const PreparedScene& scene, const GaussianCloud& model,
 RunResult run_config(const PreparedScene& scene, const RunConfig& config, const FinetuneOptions& base, Progress& progress,
                      std::ostream& log);
 
+/// A benchmark to run: every configuration over every scene and seed, in one folder.
+struct BenchPlan {
+  std::string root;                  ///< the folder (resumable: finished runs are reused)
+  std::vector<std::string> scenes;   ///< parse_scene's names
+  std::vector<uint64_t> seeds;
+  std::vector<RunConfig> configs;    ///< in order
+  ExperimentOptions scene;           ///< the built-in scene's size and backbone (rig, variant and seed set per run)
+  FinetuneOptions finetune;          ///< the fine-tuning's counts and rates
+};
+
+/// The configurations of `all` a bench runs: those in `groups` (all when empty) and in `ids`
+/// (all when empty), and with `smoke` only the control, calibration, strategy and upper
+/// groups. One line where none is left.
+std::vector<RunConfig> choose_configs(const std::vector<RunConfig>& all, const std::vector<ConfigGroup>& groups,
+                                      const std::vector<std::string>& ids, bool smoke);
+
+/// Runs `plan`: for every scene and seed, the backbone read or trained only where a run still
+/// to make needs it, each configuration run (or its finished result reused), the tables
+/// rewritten after every run over everything the folder holds. Returns the results of the
+/// runs made or reused here.
+std::vector<RunResult> run_bench_plan(const BenchPlan& plan, Progress& progress, std::ostream& log);
+
 /// A result as JSON on disk (atomic) and back.
 void save_result(const std::string& path, const RunResult& result);
 RunResult load_result(const std::string& path);

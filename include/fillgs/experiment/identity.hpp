@@ -11,6 +11,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "fillgs/method/refiners.hpp"  // the refiners' options' identities, beside them
+
 #include "fillgs/method/finetune.hpp"
 #include "fillgs/method/refine.hpp"
 
@@ -23,8 +25,6 @@ nlohmann::json identity_json(const ExplorationOptions& o);
 /// All but `work_dir` (where, not what) and `extra_views` (images: the caller names what
 /// they are).
 nlohmann::json identity_json(const FinetuneOptions& o);
-nlohmann::json identity_json(const ArtifactOptions& o);
-nlohmann::json identity_json(const ReferenceOptions& o);  ///< with "name": "reference"
 
 /// "" when equal; else the first differing key as a path with both values, e.g.
 /// "finetune.weighting: was \"explore-gs\", now \"fillgs\"" (a key only one side has: "absent").

@@ -11,6 +11,7 @@
 #include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/explore/exploration.hpp"
 #include "fillgs/method/finetune.hpp"
+#include "fillgs/method/finetune_job.hpp"
 #include "fillgs/method/select.hpp"
 #include "fillgs/base/timing.hpp"
 #include "fillgs/train/train.hpp"
@@ -76,5 +77,8 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
 /// pool_chosen.png, the camera × frame picture of what was chosen (the round it was chosen
 /// in + 1; 0: not chosen), rows in the pool's camera order.
 void write_pool_report(const std::string& dir, const FinetuneResult& result, const Dataset& pool, const std::string& strategy);
+/// What a finished fine-tuning job writes into `dir` (every face's): write_finetune_report,
+/// and write_pool_report where it chose pool photographs.
+FinetuneReport write_finetune_job_report(const std::string& dir, const FinetuneJobResult& result, const Dataset& data);
 
 }  // namespace fillgs

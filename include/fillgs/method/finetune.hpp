@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/base/names.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/explore/exploration.hpp"
 #include "fillgs/model/gaussians.hpp"
@@ -78,6 +79,11 @@ struct MotionRates {
   static MotionRates gentle() { return {1.6e-5, 3.0, false}; }
   static MotionRates converged_model() { return {1.6e-4 * kConvergedRate, 1.0, true}; }
 };
+
+/// The presets by name (`--motion-rates`, the module's `motion_rates`).
+enum class RatePreset { Repair, Gentle, Converged };
+FILLGS_ENUM_NAMES(RatePreset, "motion rates", {RatePreset::Repair, "repair"}, {RatePreset::Gentle, "gentle"}, {RatePreset::Converged, "converged"});
+MotionRates motion_rates_of(RatePreset preset);
 
 /// The training schedule for fine-tuning a trained model for `iterations`: the 3DGS one
 /// scaled, positions and keys at `rates`, no opacity reset (it would erase the trained

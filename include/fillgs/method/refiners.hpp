@@ -1,9 +1,9 @@
 #pragma once
 // The refiners fillgs drives, one table: each is one file under src/method/refiners/ that
-// defines its row {name, what it needs, make(inputs)}, and the build collects every file
-// there into the table (CMakeLists.txt, src/row_table.cpp.in). `finetune --refiner`, the
-// benchmark's `--refiner` and the Python module all make refiners here; adding a refiner is
-// adding its file (and its test).
+// defines its row (its fields named: name, what it needs, make(inputs), identity(inputs)), and
+// the build collects every file there into the table (CMakeLists.txt, src/row_table.cpp.in).
+// The fine-tuning job (`fillgs finetune`, the module's `finetune`) and the benchmark's runs
+// make refiners here; adding a refiner is adding its file (and its test).
 #include <functional>
 #include <memory>
 #include <string>
@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "fillgs/io/dataset.hpp"
 #include "fillgs/method/refine.hpp"
 
 namespace fillgs {
@@ -39,11 +40,25 @@ struct RefinerKind {
   /// Made from the truth and the training cameras alone, so the benchmark (synthetic scenes)
   /// can run it.
   bool benchmark = false;
+  /// The benchmark calibrated it before any strategy ran with it (its calibration rows).
+  bool calibrated = false;
+  /// Where it needs the truth: the refiner to name for real data instead ("" : none).
+  std::string on_real_data;
   std::function<std::unique_ptr<Refiner>(const RefinerInputs&)> make;
   /// What of the inputs decides its output, as JSON: a benchmark run's identity
   /// (experiment/identity.hpp).
   std::function<nlohmann::json(const RefinerInputs&)> identity;
 };
+
+/// Completes `inputs` for a run on `data` with `seed`: the training cameras as observers, the
+/// video's frame count, and the artifacts' seed (the reference refiners' strength is the
+/// oracle's). The fine-tuning job and the benchmark's runs both make their refiners so.
+void complete_refiner_inputs(RefinerInputs& inputs, const Dataset& data, uint64_t seed);
+
+/// What of a refiner's options decides its output, as JSON: a benchmark run's identity
+/// (experiment/identity.hpp), kept beside the refiners that read them.
+nlohmann::json identity_json(const ArtifactOptions& o);
+nlohmann::json identity_json(const ReferenceOptions& o);  ///< with "name": "reference"
 
 /// Every refiner, in listing order.
 const std::vector<const RefinerKind*>& refiner_kinds();

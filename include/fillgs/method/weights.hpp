@@ -134,6 +134,26 @@ DeficiencyField weight_field(const GaussianCloud& model, const ObservationTables
 ViewWeights compute_weights(const WeightContext& context, const Image& refined, const Camera& camera, Weighting weighting,
                             const MaskOptions& options, const std::string& external_name = "");
 
+/// How fine-tuning weighs a round's refined views, in one place for every face (`fillgs
+/// finetune`, the module's `weights`): the round's model, the deficiency field of its tables,
+/// the real views and their images as the context, the training background.
+class RefinedViewWeigher {
+ public:
+  RefinedViewWeigher(const GaussianCloud& model, const ObservationTables& tables, float quantile, const MaskOptions& mask, Weighting weighting,
+                     std::vector<ObservedView> views, std::function<Image(size_t)> image, int frames, const Vec3f& background);
+  RefinedViewWeigher(const RefinedViewWeigher&) = delete;
+  RefinedViewWeigher& operator=(const RefinedViewWeigher&) = delete;
+  /// The weights of one refined image, before normalisation (MaskOptions::normalise is the
+  /// trainer's: normalise_by_mean of `weight`).
+  ViewWeights operator()(const Image& refined, const Camera& camera, const std::string& external_name = "") const;
+
+ private:
+  DeficiencyField field_;
+  WeightContext context_;
+  MaskOptions mask_;
+  Weighting weighting_;
+};
+
 /// The two observed views nearest (camera centre) to `camera` at `frame`, distinct poses.
 std::vector<int> adjacent_observed(const std::vector<ObservedView>& views, const Camera& camera, int frame);
 

@@ -1,6 +1,6 @@
 #pragma once
 // Dense layers (nn.Linear) on a block of Gaussians, for the deformation networks of trained
-// models (io/trained_models.cpp). Activations are feature-major: row k of a block holds
+// models (io/trained_models.cpp, io/model_support.hpp). Activations are feature-major: row k of a block holds
 // feature k of every Gaussian of the block, so one weight is broadcast against a vector of
 // Gaussians and a layer of any width, 1 output or 256, runs at full vector width. The kernel
 // is compiled for each instruction set by Google Highway and chosen at run time.

@@ -5,11 +5,18 @@
 namespace fillgs::refiner_rows {
 
 const RefinerKind& row_external() {
-  static const RefinerKind row{"external", "a program through the folder protocol ({in} -> {out})", 60, false, false, true, false,
-                               [](const RefinerInputs& in) { return make_external_refiner(in.command, in.timeout_seconds); },
-                               [](const RefinerInputs& in) {
-                                 return nlohmann::json{{"name", "external"}, {"command", in.command}, {"timeout_seconds", in.timeout_seconds}};
-                               }};
+  static const RefinerKind row = [] {
+    RefinerKind k;
+    k.name = "external";
+    k.description = "a program through the folder protocol ({in} -> {out})";
+    k.order = 60;
+    k.needs_command = true;
+    k.make = [](const RefinerInputs& in) { return make_external_refiner(in.command, in.timeout_seconds); };
+    k.identity = [](const RefinerInputs& in) {
+      return nlohmann::json{{"name", "external"}, {"command", in.command}, {"timeout_seconds", in.timeout_seconds}};
+    };
+    return k;
+  }();
   return row;
 }
 

@@ -4,9 +4,15 @@
 namespace fillgs::refiner_rows {
 
 const RefinerKind& row_identity() {
-  static const RefinerKind row{"identity", "the render itself, unrefined", 70, false, false, false, false,
-                               [](const RefinerInputs&) { return make_identity_refiner(); },
-                               [](const RefinerInputs&) { return nlohmann::json{{"name", "identity"}}; }};
+  static const RefinerKind row = [] {
+    RefinerKind k;
+    k.name = "identity";
+    k.description = "the render itself, unrefined";
+    k.order = 70;
+    k.make = [](const RefinerInputs&) { return make_identity_refiner(); };
+    k.identity = [](const RefinerInputs&) { return nlohmann::json{{"name", "identity"}}; };
+    return k;
+  }();
   return row;
 }
 

@@ -2,7 +2,6 @@
 // at any frame, a moving one within +-window frames), the model's render degraded as
 // diffusion models fail elsewhere: a bound on what a refiner conditioned on the capture can
 // restore, not a generator (synthetic scenes).
-#include "fillgs/experiment/identity.hpp"
 #include "fillgs/method/refiners.hpp"
 
 namespace fillgs::refiner_rows {
@@ -17,12 +16,18 @@ RefinerKind oracle_kind(std::string name, std::string description, int order, Or
     o.frames = in.frames;
     return o;
   };
-  return RefinerKind{std::move(name), std::move(description), order, true, false, false, true,
-                     [options](const RefinerInputs& in) { return make_oracle_refiner(*in.truth, options(in), in.stats); },
-                     [options](const RefinerInputs& in) {
-                       const OracleOptions o = options(in);
-                       return nlohmann::json{{"name", "oracle"}, {"artifacts", identity_json(o.artifacts)}, {"support", to_string(o.support)}, {"window", o.window}};
-                     }};
+  RefinerKind k;
+  k.name = std::move(name);
+  k.description = std::move(description);
+  k.order = order;
+  k.needs_truth = true;
+  k.benchmark = true;
+  k.make = [options](const RefinerInputs& in) { return make_oracle_refiner(*in.truth, options(in), in.stats); };
+  k.identity = [options](const RefinerInputs& in) {
+    const OracleOptions o = options(in);
+    return nlohmann::json{{"name", "oracle"}, {"artifacts", identity_json(o.artifacts)}, {"support", to_string(o.support)}, {"window", o.window}};
+  };
+  return k;
 }
 
 const RefinerKind& row_oracle() {

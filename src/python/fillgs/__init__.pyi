@@ -93,6 +93,11 @@ def select(model: Model, cameras: Cameras, frames: int = 0, strategy: str = 'fil
 def weights(model: Model, cameras: Cameras, images: Sequence[Array], refined: Sequence[Array], refined_cameras: Cameras, weighting: str = 'fillgs',
             frames: int = 0, mask_sigma: Optional[float] = None, mask: str = 'depth-warp', covis: str = 'paper', covis_scale: str = 'visible',
             normalise: bool = False, tables: Optional[Dict[str, Any]] = None, progress: Progress = None) -> List[Dict[str, Optional[Float32]]]: ...  # weight, consistency, covisibility [H,W]
+def finetune(model: Model, images: str, cameras: str, out: str, train_cameras: List[str] = [], frames: str = '', downscale: int = 1,
+             iterations: int = 2400, select_every: int = 800, trajectories: Optional[int] = None, seed: int = 1, strategy: str = 'fillgs',
+             weighting: str = 'fillgs', refiner: Optional[str] = None, refiner_command: str = '', truth: Optional[Model] = None,
+             pool_cameras: List[str] = [], pool_budget: int = 0, motion_rates: str = 'converged', refined_share: Optional[float] = None,
+             progress: Progress = None) -> Dict[str, Any]: ...  # summary.json; the folder `out` as fillgs finetune writes it
 def render(model: Model, cameras: Cameras, index: int = 0, t: float = 0.0,
            background: List[float] = [0.0, 0.0, 0.0]) -> Dict[str, Float32]: ...  # colour [H,W,3], depth [H,W], alpha [H,W]
 def instruction_set() -> Dict[str, str]: ...
