@@ -432,7 +432,9 @@ def main():
                       "the clip) minus random, paired by seed (affine PSNR, dB):", ""] + rows
             blind = [sp for sp in splits if not verdict.get(("positive control minus random", sp), False)]
             lines += [""]
-            if blind:
+            if len(paired(f"scratch.positive.K{K}", f"scratch.random.K{K}", splits[0])) < 2:
+                lines.append(f"At K = {K} fewer than two seeds have both runs: no interval yet, so nothing here is ranked.")
+            elif blind:
                 lines.append(f"**At K = {K} the positive control does not separate from random on the {', '.join(blind)} split"
                              f"{'s' if len(blind) > 1 else ''}: there the instrument cannot judge a selection at this budget, and FillGS's "
                              "differences below are printed, not ranked.**")
