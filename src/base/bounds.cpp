@@ -34,3 +34,15 @@ void check_within(const std::string& what, double x, const Bounds& bounds) {
 }
 
 }  // namespace fillgs
+
+namespace fillgs {
+
+std::string Spelling::operator()(const std::string& key) const {
+  if (!flags) return key;
+  std::string s = "--" + key;
+  for (char& c : s)
+    if (c == '_') c = '-';
+  return s;
+}
+
+}  // namespace fillgs

@@ -261,12 +261,10 @@ void add_time_flags(CLI::App& app, TimeFlags& f, bool times) {
            while (std::getline(in, tok, ',')) {
              char* end = nullptr;
              const double t = std::strtod(tok.c_str(), &end);
-             if (end == tok.c_str() || *end != '\0' || !(t >= 0.0 && t <= 1.0))
-               throw_error(name, ": --times expects comma-separated times in [0, 1], got '", tok, "'");
+             // A number each; which times are allowed is the library's one check (observe_times).
+             if (end == tok.c_str() || *end != '\0') throw_error(name, ": --times expects comma-separated times in [0, 1], got '", tok, "'");
              f.times.push_back(t);
            }
-           std::sort(f.times.begin(), f.times.end());
-           f.times.erase(std::unique(f.times.begin(), f.times.end()), f.times.end());
            if (f.times.empty()) throw_error(name, ": --times is empty");
            return true;
          },
@@ -276,23 +274,9 @@ void add_time_flags(CLI::App& app, TimeFlags& f, bool times) {
 
 std::vector<double> observe_times(const Invocation& in, const TimeFlags& tf, const GaussianCloud& cloud, const std::vector<Camera>& cams,
                                   double* frame_step, bool tables_in_memory) {
-  const int frames = tf.frames ? tf.frames : observation_frames(cloud, cams);
-  if (!frames) in.fail("cannot tell the frame count from the scene or the cameras; give --frames F");
-  // The work asked for, before any of it is done: a view per camera and time, and, where the
-  // command keeps them, the observation tables of every Gaussian at every time.
-  {
-    const std::string what = std::to_string(cams.size()) + " camera(s) at " + std::to_string(frames) + " frames";
-    const size_t views = checked_mul(cams.size(), size_t(frames), "--frames", what);
-    size_t bytes = checked_mul(views, sizeof(Camera) + 64, "--frames", what);
-    if (tables_in_memory) bytes += checked_mul(checked_mul(cloud.size(), size_t(frames), "--frames", what), 10, "--frames", what);
-    check_allocation(bytes, "--frames " + std::to_string(frames), what + (tables_in_memory ? " with the tables of " + std::to_string(cloud.size()) + " Gaussians" : ""));
-  }
-  *frame_step = FrameGrid(frames).step();  // the speeds' Δt
-  if (in.given("--times")) {
-    if (frames < 2) in.fail("give --frames F with --times (the speed's Δt is one frame, 1/(F-1))");
-    return tf.times;
-  }
-  return FrameGrid(frames).times();
+  const ObserveTimes r = observe_times(cloud, cams, tf.frames, in.given("--times") ? &tf.times : nullptr, tables_in_memory, Spelling{});
+  *frame_step = r.frame_step;
+  return r.times;
 }
 
 }  // namespace fillgs::cli

@@ -14,14 +14,6 @@ namespace fs = std::filesystem;
 
 namespace fillgs {
 
-std::string Spelling::operator()(const std::string& key) const {
-  if (!flags) return key;
-  std::string s = "--" + key;
-  for (char& c : s)
-    if (c == '_') c = '-';
-  return s;
-}
-
 namespace {
 
 /// The refiner the job runs: the one asked for, else `identity` (none with a pool budget).

@@ -594,24 +594,22 @@ py::dict observe_py(const Model& model, const std::shared_ptr<const CallerFrames
                     const py::object& progress) {
   const GaussianCloud& cloud = *model.cloud;
   if (cameras.list.empty()) throw py::value_error("cameras: none");
-  if (frames < 0) throw py::value_error("frames: " + std::to_string(frames) + ", expected at least 1");
-  if (!frames) frames = observation_frames(cloud, cameras.list);
-  if (!frames) throw py::value_error("cannot tell the frame count from the model or the cameras; give frames=F");
-  std::vector<double> times = FrameGrid(frames).times();
-  const double frame_step = FrameGrid(frames).step();
+  // The command line's check of --frames and --times (visibility.hpp), with the tables'
+  // memory: this call holds them as arrays.
+  std::optional<std::vector<double>> asked;
   if (!times_arg.is_none()) {
     if (caller) throw py::value_error("times: a frame function gives whole frames only; leave times out");
-    if (frames < 2) throw py::value_error("times: give frames=F >= 2 with times (the speed's step is one frame, 1/(F-1))");
     const auto t = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(times_arg);
     if (!t || t.ndim() != 1 || t.size() == 0) throw py::value_error("times: expected a non-empty 1-D array of times in [0, 1]");
-    times.assign(t.data(), t.data() + t.size());
-    for (size_t i = 0; i < times.size(); ++i)
-      if (!(times[i] >= 0.0 && times[i] <= 1.0) || (i && !(times[i] > times[i - 1])))
-        throw py::value_error("times: element " + std::to_string(i) + " is " + std::to_string(times[i]) + ", expected ascending times in [0, 1]");
+    asked.emplace(t.data(), t.data() + t.size());
   }
+  const ObserveTimes requested = observe_times(cloud, cameras.list, frames, asked ? &*asked : nullptr, true, Spelling{false});
+  frames = requested.frames;
+  const std::vector<double>& times = requested.times;
+  const double frame_step = requested.frame_step;
   ObservationOptions o;
   o.visibility.mode = parse_name<VisibilityMode>(mode);
-  if (stride < 1) throw py::value_error("stride: " + std::to_string(stride) + ", expected at least 1");
+  check_within("stride", stride, at_least(1));  // --stride's bounds
   o.visibility.stride = stride;
   if (const auto x = number_or_none(tau, "tau", within_open(0, 1))) o.visibility.min_weight = float(*x);
   if (const auto x = number_or_none(hit_cache_mb, "hit_cache_mb", from_below(0, 1e9))) o.static_hit_cache_bytes = size_t(*x * 1048576.0);
@@ -1136,7 +1134,9 @@ PYBIND11_MODULE(_fillgs, m) {
       "called with the GIL held (e.g. your own deformation network), once per frame; its Gaussians that stay within the still rule's "
       "tolerances of frame 0 at every frame (`still_tolerance` world units, default 1e-3, 1 degree, 1 % of scale, 1/255 of opacity and "
       "colour: load_model's rule) are static, with no speed or deficiency. Returns a dict: counts [T,N] uint8 (uint16 above 255 views a "
-      "frame), speed and deficiency [T,N] float32, times [T], dynamic_ids [M], views, seconds.");
+      "frame), speed and deficiency [T,N] float32, times [T], dynamic_ids [M], views, seconds. `times`: observe at these times instead "
+      "of every frame (as --times: in [0, 1], sorted, repeats dropped; frames=F >= 2 gives the speeds' step); frames, times and stride are "
+      "checked by the command line's own check, the tables' memory included.");
 
   m.def("read_image", &read_image_py, py::arg("path"), "An image file as fillgs reads it: float32 [H,W,C] in [0, 1], C the file's channels (3 for RGB, 1 for a grey map).");
   m.def(

@@ -14,7 +14,9 @@
 #include <numeric>
 
 #include "fillgs/base/error.hpp"
+#include "fillgs/base/limits.hpp"
 #include "fillgs/base/timing.hpp"
+#include "fillgs/model/frame_grid.hpp"
 #include "fillgs/visibility/gaussian_tracer.hpp"
 
 namespace fillgs {
@@ -498,6 +500,39 @@ int observation_frames(const GaussianCloud& cloud, const std::vector<Camera>& ca
     if (c.has_time()) distinct.insert(std::llround(c.time * 1e6));
   if (distinct.size() >= 2) return int(distinct.size());
   return cloud.dynamic_count() == 0 ? 1 : 0;  // a static scene has one time
+}
+
+ObserveTimes observe_times(const GaussianCloud& cloud, const std::vector<Camera>& cams, int frames, const std::vector<double>* times,
+                           bool tables_in_memory, const Spelling& s) {
+  if (cams.empty()) throw_error("no cameras");
+  if (frames < 0) throw_error(s("frames"), " must be at least 0, got ", frames);
+  ObserveTimes r;
+  r.frames = frames ? frames : observation_frames(cloud, cams);
+  if (!r.frames) throw_error("cannot tell the frame count from the scene or the cameras; give ", s("frames"), " F");
+  // The work asked for, before any of it is done: a view per camera and time, and, where the
+  // caller keeps them, the observation tables of every Gaussian at every time.
+  {
+    const std::string what = std::to_string(cams.size()) + " camera(s) at " + std::to_string(r.frames) + " frames";
+    const std::string source = s("frames") + " " + std::to_string(r.frames);
+    const size_t views = checked_mul(cams.size(), size_t(r.frames), s("frames"), what);
+    size_t bytes = checked_mul(views, sizeof(Camera) + 64, s("frames"), what);
+    if (tables_in_memory) bytes += checked_mul(checked_mul(cloud.size(), size_t(r.frames), s("frames"), what), 10, s("frames"), what);
+    check_allocation(bytes, source, what + (tables_in_memory ? " with the tables of " + std::to_string(cloud.size()) + " Gaussians" : ""));
+  }
+  r.frame_step = FrameGrid(r.frames).step();
+  if (!times) {
+    r.times = FrameGrid(r.frames).times();
+    return r;
+  }
+  if (r.frames < 2) throw_error("give ", s("frames"), " F with ", s("times"), " (the speed's step is one frame, 1/(F-1))");
+  for (size_t i = 0; i < times->size(); ++i)
+    if (!((*times)[i] >= 0.0 && (*times)[i] <= 1.0))
+      throw_error(s("times"), ": element ", i, " is ", number_text((*times)[i]), ", not a time in [0, 1]");
+  r.times = *times;
+  std::sort(r.times.begin(), r.times.end());
+  r.times.erase(std::unique(r.times.begin(), r.times.end()), r.times.end());
+  if (r.times.empty()) throw_error(s("times"), " is empty");
+  return r;
 }
 
 std::vector<std::vector<uint32_t>> views_per_frame(const std::vector<Camera>& cameras, const std::vector<double>& times,

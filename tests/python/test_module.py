@@ -536,3 +536,25 @@ def test_finetune_is_the_command_lines_job(tmp_path, synth):
     assert not os.path.exists(tmp_path / "bad_cli") and not os.path.exists(tmp_path / "bad_py")
     with pytest.raises(Exception, match="refined_share must be in"):
         fillgs.finetune(model, synth, f"{synth}/transforms_train.json", str(tmp_path / "bad_py"), refined_share=2.0, **kw)
+
+
+def test_observe_options_get_the_command_lines_check(tmp_path, cameras_file):
+    """frames and times are checked once, in the library (observe_times): the command line and
+    the module say the same sentence, each naming the option its own way; unsorted times with
+    a repeat are taken as the command line takes them (sorted, once each)."""
+    scene = fixture("ed3dgs")
+    r = cli("observe", "--scene", scene, "--cameras", cameras_file, "--frames", "5", "--times", "0.5,2", "--out", str(tmp_path / "o1"), "--quiet")
+    assert r.returncode != 0 and "--times: element 1 is 2, not a time in [0, 1]" in r.stderr, r.stderr
+    m, cams = fillgs.load_model(scene), fillgs.read_cameras(cameras_file)
+    with pytest.raises(fillgs.Error, match=r"^times: element 1 is 2, not a time in \[0, 1\]$"):
+        fillgs.observe(m, cams, frames=5, times=[0.5, 2.0])
+    r = cli("observe", "--scene", scene, "--cameras", cameras_file, "--frames", "1", "--times", "0.5", "--out", str(tmp_path / "o2"), "--quiet")
+    assert r.returncode != 0 and "give --frames F with --times (the speed's step is one frame, 1/(F-1))" in r.stderr, r.stderr
+    with pytest.raises(fillgs.Error, match=r"give frames F with times \(the speed's step is one frame"):
+        fillgs.observe(m, cams, frames=1, times=[0.5])
+    got = fillgs.observe(m, cams, frames=5, times=[0.75, 0.25, 0.75])
+    out = str(tmp_path / "o3")
+    r = cli("observe", "--scene", scene, "--cameras", cameras_file, "--frames", "5", "--times", "0.75,0.25,0.75", "--out", out, "--no-plots", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert list(got["times"]) == [0.25, 0.75] and np.array_equal(np.load(os.path.join(out, "times.npy")), got["times"])
+    assert np.array_equal(np.load(os.path.join(out, "count.npy")), got["counts"])

@@ -28,6 +28,14 @@ std::string bounds_problem(double x, const Bounds& bounds, const std::string& te
 /// line's parser refuses such text), "<what> must be ..., got ..." where it is outside the bounds.
 void check_within(const std::string& what, double x, const Bounds& bounds);
 
+/// How a face spells an option in the library's messages: the command line "--pool-budget",
+/// the Python module "pool_budget" (the library's key, the module's keyword). A check made
+/// once in the library words its sentence for whichever face asked.
+struct Spelling {
+  bool flags = true;
+  std::string operator()(const std::string& key) const;
+};
+
 /// x as the messages print it (%g-like: 0.001, 1e+09).
 std::string number_text(double x);
 

@@ -12,19 +12,13 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/base/bounds.hpp"
 #include "fillgs/base/progress.hpp"
 #include "fillgs/io/dataset.hpp"
 #include "fillgs/method/finetune.hpp"
 #include "fillgs/method/refiners.hpp"
 
 namespace fillgs {
-
-/// How a face spells an option in its messages: the command line "--pool-budget", the
-/// Python module "pool_budget" (the library's key, as the module's keyword).
-struct Spelling {
-  bool flags = true;
-  std::string operator()(const std::string& key) const;
-};
 
 struct FinetuneJob {
   const Dataset* data = nullptr;  ///< the training views

@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/base/bounds.hpp"
+
 #include "fillgs/model/frame_grid.hpp"
 #include "fillgs/base/names.hpp"
 #include "fillgs/model/camera.hpp"
@@ -96,6 +98,20 @@ class VisibilityEngine {
 /// count (a key per frame from 0 to 1) or its model's frames, else the cameras' distinct
 /// times (two or more), else 1 for a static scene; 0 when none of these tells.
 int observation_frames(const GaussianCloud& cloud, const std::vector<Camera>& cameras);
+
+/// The times an observation job is asked for, checked once for every face.
+struct ObserveTimes {
+  std::vector<double> times;  ///< ascending, in [0, 1]
+  double frame_step = 0;      ///< the speeds' Δt: one frame, 1/(F − 1)
+  int frames = 0;             ///< F
+};
+/// F frames (`frames` 0: observation_frames of the cloud and cameras), or `times` (any order,
+/// repeats dropped, each in [0, 1]; needs F ≥ 2 for the speeds' step). Refuses, before any
+/// work, a request whose views (a camera per time) and, with `tables_in_memory`, [T, N]
+/// tables would need more memory than the process may use. Messages name the options
+/// ("frames", "times") in `spelling`'s words.
+ObserveTimes observe_times(const GaussianCloud& cloud, const std::vector<Camera>& cameras, int frames, const std::vector<double>* times,
+                           bool tables_in_memory, const Spelling& spelling);
 
 /// Which training views see each frame: a camera with a time observes the frame nearest to
 /// it (within half a frame; farther ones are dropped); a camera without a time is part of
