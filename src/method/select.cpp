@@ -702,34 +702,8 @@ PoolSelectResult select_from_pool(const SelectInput& in, const std::vector<Obser
     count_view(v, in.frames, field, engine, *strategy);
     progress.advance();
   };
-  if (o.strategy == Strategy::Random) {
-    for (size_t k = 0; k < n; ++k) choose(order[k], 0.0);
-  } else if (o.strategy == Strategy::Interpolation) {
-    // Chords: each training pose with its nearest other pose (distinct centres).
-    std::vector<Vec3d> poses;
-    for (const Camera& c : cameras)
-      if (std::none_of(poses.begin(), poses.end(), [&](const Vec3d& p) { return (p - c.centre()).norm() < 1e-9; })) poses.push_back(c.centre());
-    std::vector<std::pair<Vec3d, Vec3d>> chords;
-    for (size_t a = 0; a < poses.size(); ++a) {
-      size_t b = a;
-      for (size_t j = 0; j < poses.size(); ++j)
-        if (j != a && (b == a || (poses[j] - poses[a]).norm() < (poses[b] - poses[a]).norm())) b = j;
-      if (b != a) chords.emplace_back(poses[a], poses[b]);
-    }
-    if (chords.empty()) throw_error("select: interpolation needs two training poses at distinct centres");
-    auto distance = [&](const Vec3d& p) {
-      double best = std::numeric_limits<double>::infinity();
-      for (const auto& [a, b] : chords) {
-        const Vec3d ab = b - a;
-        const double t = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-        best = std::min(best, (p - (a + t * ab)).norm());
-      }
-      return best;
-    };
-    std::vector<double> d(pool.size());
-    for (size_t i = 0; i < pool.size(); ++i) d[i] = distance(pool[i].camera.centre());
-    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return d[a] < d[b]; });
-    for (size_t k = 0; k < n; ++k) choose(order[k], -d[order[k]]);
+  if (const auto fixed = strategy->pool_order(pool, cameras, order)) {
+    for (size_t k = 0; k < std::min(n, fixed->size()); ++k) choose((*fixed)[k].first, (*fixed)[k].second);
   } else {
     // Scores per frame (a strategy scores candidates of one frame at a time).
     std::vector<std::vector<size_t>> at(size_t(in.frames));

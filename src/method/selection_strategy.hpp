@@ -1,9 +1,12 @@
 #pragma once
 // The selection strategies behind one interface (select.hpp, SelectOptions::strategy). Each
-// is a small class in src/method/strategies.cpp that owns its own state; the registry there makes
-// them by name (Strategy's name table). Adding a strategy: its class and one registry
-// entry in strategies.cpp, its value and name beside the Strategy enum.
+// is a small class in src/method/strategies.cpp that owns its own state and decides everything
+// it does differently (its starts, paths, scores, and its order of a pool: pool_order); the
+// registry there makes them by name (Strategy's name table). Adding a strategy: its class and
+// one registry entry in strategies.cpp, its value and name beside the Strategy enum.
 #include <memory>
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include "fillgs/model/frame_grid.hpp"
@@ -46,6 +49,16 @@ class SelectionStrategy {
   }
   /// A virtual view accepted at `frame` (the field has already counted it).
   virtual void accept(const Camera& view, int frame) { (void)view, (void)frame; }
+  /// Choosing among a pool of real camera-times (select_from_pool): a strategy that does not
+  /// score them returns its own order here, each with the score it records, `shuffled` being
+  /// the pool in the selection seed's random order; nullopt (the default): the pool is
+  /// scored frame by frame and chosen greedily.
+  virtual std::optional<std::vector<std::pair<size_t, double>>> pool_order(const std::vector<ObservedView>& pool,
+                                                                           const std::vector<Camera>& training,
+                                                                           const std::vector<size_t>& shuffled) const {
+    (void)pool, (void)training, (void)shuffled;
+    return std::nullopt;
+  }
 };
 
 /// The strategy named by `s`, sharing `context` (which must outlive it).
