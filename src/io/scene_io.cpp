@@ -44,9 +44,9 @@ GaussianCloud read_scene(const std::string& path, const SceneReadOptions& option
       c = f.read(path, options);
     } else if (f.streams && options.model_evaluation == ModelEvaluation::Streamed) {
       // Networks and closed-form slices: streamed unless keys are asked for.
-      c = stream_trained_model(std::shared_ptr<const TrainedModel>(open_trained_model(path, f.name, options)), options.still, reference, progress);
+      c = stream_trained_model(std::shared_ptr<const TrainedModel>(open_trained_model(path, f, options)), options.still, reference, progress);
     } else {
-      c = sample_trained_model(*open_trained_model(path, f.name, options), reference, progress);
+      c = sample_trained_model(*open_trained_model(path, f, options), reference, progress);
     }
     c.validate(path);
     partition_static_dynamic(c, options.partition);

@@ -31,7 +31,10 @@ namespace fs = std::filesystem;
 namespace fillgs {
 
 std::unique_ptr<TrainedModel> open_trained_model(const std::string& path, const std::string& format, const SceneReadOptions& options) {
-  const ModelFormat& f = format == "auto" ? model_format(detect_scene_format(path)) : model_format(format);
+  return open_trained_model(path, format == "auto" ? model_format(detect_scene_format(path)) : model_format(format), options);
+}
+
+std::unique_ptr<TrainedModel> open_trained_model(const std::string& path, const ModelFormat& f, const SceneReadOptions& options) {
   if (!f.open) throw_error(path, ": ", f.name, " is not a trained-model format (its Gaussians are read whole)");
   std::unique_ptr<TrainedModel> m = f.open(path, options);
   m->format = f.name;

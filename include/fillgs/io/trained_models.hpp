@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "fillgs/base/math.hpp"
+#include "fillgs/io/model_formats.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/model/gaussians.hpp"
 
@@ -56,6 +57,8 @@ class TrainedModel {
 /// Opens a trained model of format `format` (a name; "auto": detected), one whose own code
 /// evaluates it at any time (a row of io/model_formats.hpp with open()).
 std::unique_ptr<TrainedModel> open_trained_model(const std::string& path, const std::string& format, const SceneReadOptions& options);
+/// The same for a format already resolved (read_scene resolves it once).
+std::unique_ptr<TrainedModel> open_trained_model(const std::string& path, const ModelFormat& format, const SceneReadOptions& options);
 
 /// The model sampled at each of its frames into keyframed tracks, one key per frame
 /// (t_f = f / (frames - 1)); SH bands above the DC keep their mean over the frames. What
