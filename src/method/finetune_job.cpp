@@ -34,14 +34,14 @@ void check_finetune_job(const FinetuneJob& job, const Spelling& s) {
   if (job.model.size() == 0) throw_error(job.model_path, ": has no Gaussians; fine-tuning needs a trained model");
   check_trainable(job.model, job.model_path);
   const FinetuneOptions& o = job.options;
-  if (o.iterations < 1) throw_error(s("iterations"), " must be at least 1, got ", o.iterations);
-  if (o.select_every < 1) throw_error(s("select_every"), " must be at least 1, got ", o.select_every);
-  if (o.trajectories < 0 || o.trajectories > 100000) throw_error(s("trajectories"), " must be in [0, 100000], got ", o.trajectories);
-  if (o.pool_budget < 0 || o.pool_budget > 1000000) throw_error(s("pool_budget"), " must be in [0, 1000000], got ", o.pool_budget);
-  if (job.refined_share && !(*job.refined_share >= 0 && *job.refined_share <= 1))
-    throw_error(s("refined_share"), " must be in [0, 1], got ", *job.refined_share);
-  if (!(job.rates.position_lr > 0) || !(job.rates.key_lr_scale > 0))
-    throw_error(s("position_lr"), " and ", s("key_lr_scale"), " must be positive");
+  // The flags' own bounds (cmd_finetune.cpp), checked by the one check both faces use.
+  check_within(s("iterations"), o.iterations, at_least(1));
+  check_within(s("select_every"), o.select_every, at_least(1));
+  check_within(s("trajectories"), o.trajectories, within(0, 100000));
+  check_within(s("pool_budget"), o.pool_budget, within(0, 1000000));
+  if (job.refined_share) check_within(s("refined_share"), *job.refined_share, within(0, 1));
+  check_within(s("position_lr"), job.rates.position_lr, positive());
+  check_within(s("key_lr_scale"), job.rates.key_lr_scale, positive());
   if (o.select.no_error_term && o.select.no_sensitivity_term)
     throw_error(s("no_error_term"), " and ", s("no_sensitivity_term"), " leave no priority");
   if (!job.confidence_dir.empty() && !fs::is_directory(job.confidence_dir))
