@@ -46,6 +46,7 @@ ExplorationGrid ExplorationGrid::from_labels(const Box3& box, const Vec3i& dims,
   ExplorationGrid grid;
   grid.box_ = box;
   grid.dims_ = dims;
+  grid.occupancy_alpha_ = occupancy_alpha;
   // Only the non-free voxels are stored.
   auto vdb = openvdb::Int32Grid::create(0);
   vdb->setName("labels");
@@ -225,6 +226,10 @@ ExplorationGrid ExplorationGrid::read(const std::string& path) {
       grid.box_.lo = Vec3d(lo.x(), lo.y(), lo.z());
       grid.box_.hi = Vec3d(hi.x(), hi.y(), hi.z());
       grid.dims_ = Vec3i(d.x(), d.y(), d.z());
+      // Grids written before the alpha was recorded were built at the default.
+      if ((*labels)["fillgs_occupancy_alpha"]) grid.occupancy_alpha_ = labels->metaValue<float>("fillgs_occupancy_alpha");
+      if (!(grid.occupancy_alpha_ > 0.0f && grid.occupancy_alpha_ < 1.0f))
+        throw_error(path, ": metadata fillgs_occupancy_alpha ", grid.occupancy_alpha_, " is not in (0, 1)");
       if ((grid.dims_.array() < 1).any() || (grid.dims_.array() > kMaxDivisions).any() || !((grid.box_.hi - grid.box_.lo).array() > 0).all() ||
           !grid.box_.lo.allFinite() || !grid.box_.hi.allFinite())
         throw_error(path, ": metadata fillgs_box_min/max or fillgs_divisions is invalid");

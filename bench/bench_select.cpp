@@ -20,6 +20,7 @@
 
 #include "bench_common.hpp"
 #include "cli/options.hpp"
+#include "fillgs/method/strategies.hpp"
 #include "fillgs/base/threads.hpp"
 #include "fillgs/explore/exploration.hpp"
 #include "fillgs/render/raster.hpp"
@@ -165,15 +166,16 @@ int bench_select(const std::vector<std::string>& args) {
   if (want("strategies")) {
     std::printf("\n### Strategies (%d trajectories, seed 1; mean D̂ rendered at full resolution from the initial tables)\n\n", K);
     std::printf("| strategy | select s | mean D̂ of chosen views | chosen views seeing the chair move | global wins |\n|---|---|---|---|---|\n");
-    for (Strategy st : values_of<Strategy>()) {
+    for (const StrategyRow* row : strategy_table().rows()) {
+      const std::string& st = row->name;
       SelectOptions o = base;
       o.strategy = st;
       SelectInput in = s.input();
       in.priority = &prio;
-      const SelectResult r = st == Strategy::FillGS ? ref_run : select_viewpoints(in, o);
+      const SelectResult r = row->method ? ref_run : select_viewpoints(in, o);
       size_t global = 0;
       for (const Trajectory& t : r.trajectories) global += t.global;
-      std::printf("| %s | %.2f | %.4f | %.0f %% | %zu |\n", to_string(st), r.timings.total - r.timings.priority, mean_deficiency(s, r),
+      std::printf("| %s | %.2f | %.4f | %.0f %% | %zu |\n", st.c_str(), r.timings.total - r.timings.priority, mean_deficiency(s, r),
                   100.0 * chair_moving_share(r), global);
       std::fflush(stdout);
     }

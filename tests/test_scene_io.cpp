@@ -1,10 +1,14 @@
 // Scene readers on the real files in ../shared/data (values checked against a reading
 // made with Python's struct module), on every PLY encoding, and on hand-built Spacetime,
 // Ex4DGS and fillgs files whose motion has a closed form.
+#include <algorithm>
 #include <cstring>
 #include <fstream>
 
 #include "fillgs/base/error.hpp"
+#include "fillgs/io/model_formats.hpp"
+#include "fillgs/method/refiners.hpp"
+#include "fillgs/method/strategies.hpp"
 #include "fillgs/io/ply.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/train/train_model.hpp"
@@ -156,8 +160,7 @@ TEST_CASE("Spacetime Gaussians: cubic position, linear rotation, temporal RBF, S
   ply.elements.push_back(v);
   write_ply(dir + "/stg.ply", ply);
 
-  SceneReadOptions o;
-  o.stg_duration = 50;
+  SceneReadOptions o;  // stg_duration: its declared default, 50
   const GaussianCloud c = read_scene(dir + "/stg.ply", o);
   CHECK(c.motion == MotionModel::Polynomial);
   CHECK(c.dynamic_count() == 1);  // Gaussian 1 neither moves nor fades (σ_t = 1000): static
@@ -176,6 +179,68 @@ TEST_CASE("Spacetime Gaussians: cubic position, linear rotation, temporal RBF, S
   }
   // Colour: full model (6 f_dc) → sigmoid of f_dc_0..2 as the base colour.
   CHECK(c.sh[0 * 3 + 1] * kSHC0 + 0.5f == Approx(1 / (1 + std::exp(-0.2))).epsilon(1e-6));
+}
+
+TEST_CASE("A format's own parameter: declared in its row, given as a value, checked once", "[io][motion]") {
+  const std::string dir = scratch("stg_parameter");
+  PlyElement v = vertex_element(1);
+  add_standard(v, {Vec3f(0, 0, 0)});
+  add(v, "trbf_center", {0.5f});
+  add(v, "trbf_scale", {std::log(1000.0f)});
+  for (int k = 0; k < 9; ++k) add(v, "motion_" + std::to_string(k), {k == 0 ? 1.0f : 0.0f});  // x = t - 0.5 in STG time
+  for (int k = 0; k < 4; ++k) add(v, "omega_" + std::to_string(k), {0.0f});
+  PlyData ply;
+  ply.elements.push_back(v);
+  write_ply(dir + "/stg.ply", ply);
+
+  const RowParameter* duration = model_format_table().parameter("stg_duration");
+  REQUIRE(duration);
+  CHECK(model_format("stg").parameters == std::vector<const RowParameter*>{duration, model_format_table().parameter("stg_color")});
+  SceneReadOptions o;
+  o.parameters.set(*duration, "10");
+  // Frame f of D at STG time f / D: normalised time 1 is 9/10 with D = 10 (49/50 by default).
+  CHECK(frame_at(read_scene(dir + "/stg.ply", o), 1.0).means[0].x() == Approx(0.9 - 0.5).margin(1e-6));
+  CHECK(frame_at(read_scene(dir + "/stg.ply"), 1.0).means[0].x() == Approx(0.98 - 0.5).margin(1e-6));
+  // The one check, in each face's spelling; a refused value is not kept.
+  CHECK_THROWS_WITH(o.parameters.set(*duration, "0"), "--stg-duration must be in [1, 1e+06], got 0");
+  CHECK_THROWS_WITH(o.parameters.set(*duration, "2.5", Spelling{false}), "stg_duration expects an integer, got '2.5'");
+  CHECK(o.parameters.integer(*duration) == 10);
+  const RowParameter* colour = model_format_table().parameter("stg_color");
+  REQUIRE(colour);
+  CHECK_THROWS_WITH(o.parameters.set(*colour, "tanh"), "--stg-color expects auto, sigmoid, clamp or none, got 'tanh'");
+  CHECK(o.parameters.identity({duration, colour}) == nlohmann::json{{"stg_duration", 10}, {"stg_color", "auto"}});
+}
+
+TEST_CASE("Every row table (formats, refiners, strategies): defaults that pass their own check, keys and names unique", "[io]") {
+  auto check_table = [](const auto& table) {
+    std::vector<std::string> keys, names;
+    for (const auto* row : table.rows()) {
+      names.push_back(row->name);
+      for (const RowParameter* p : row->parameters) {
+        INFO(row->name << " " << p->key);
+        CHECK(p->problem(p->default_text).empty());
+        CHECK(p->key.find('-') == std::string::npos);  // the flag is its spelling (--a-b), the keyword the key (a_b)
+        if (std::find(keys.begin(), keys.end(), p->key) == keys.end()) keys.push_back(p->key);
+        else CHECK(table.parameter(p->key) == p);  // a key two rows read is one declaration
+      }
+    }
+    std::sort(names.begin(), names.end());
+    CHECK(std::adjacent_find(names.begin(), names.end()) == names.end());
+  };
+  check_table(model_format_table());
+  check_table(refiner_table());
+  check_table(strategy_table());
+  // The strategies as the paper's tables list them, the method's first; a name no row has gets
+  // the table's line.
+  std::vector<std::string> strategies;
+  for (const StrategyRow* r : strategy_table().rows()) strategies.push_back(r->name);
+  CHECK(strategies == std::vector<std::string>{"fillgs", "random", "negative", "interpolation", "fisherrf", "coverage3d", "coverage4d"});
+  CHECK(method_strategy().name == "fillgs");
+  CHECK_THROWS_WITH(strategy_row("greedy"),
+                    "unknown strategy 'greedy' (expected fillgs, random, negative, interpolation, fisherrf, coverage3d or coverage4d)");
+  // The external refiner's command: required, so a run without it is refused before it starts.
+  RefinerInputs in;
+  CHECK_THROWS_WITH(make_refiner("external", in), "missing --refiner-command");
 }
 
 TEST_CASE("Ex4DGS pair: Catmull-Rom keyframes, slerp, temporal opacity, moving static set", "[io][motion]") {

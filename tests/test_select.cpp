@@ -62,7 +62,7 @@ const Fixture& fixture() {
   return f;
 }
 
-SelectOptions small_options(Strategy s, int trajectories = 4) {
+SelectOptions small_options(const std::string& s, int trajectories = 4) {
   SelectOptions o;
   o.strategy = s;
   o.trajectories = trajectories;
@@ -103,7 +103,7 @@ bool same_cameras(const std::vector<Trajectory>& a, const std::vector<Trajectory
 
 TEST_CASE("priority: the highest viewpoints see the chair move, the lowest do not", "[select]") {
   const Fixture& fx = fixture();
-  SelectOptions o = small_options(Strategy::FillGS);
+  SelectOptions o = small_options("fillgs");
   const SelectInput in = fx.input();
   const PriorityScores p = exploration_priority(in, o);
   REQUIRE(p.views.size() == fx.views.size());
@@ -132,7 +132,7 @@ TEST_CASE("priority: the highest viewpoints see the chair move, the lowest do no
 }
 
 TEST_CASE("priority: the time-subsampling knob evaluates every k-th frame only", "[select]") {
-  SelectOptions o = small_options(Strategy::FillGS);
+  SelectOptions o = small_options("fillgs");
   o.time_stride = 3;
   const PriorityScores p = exploration_priority(fixture().input(), o);
   std::set<int> frames;
@@ -150,7 +150,7 @@ TEST_CASE("patch frames and the time window stay inside the frame range at t = 0
   CHECK(FrameGrid(1).consecutive(0, 3) == std::vector<int>{0});
   // Trajectories chosen at the first and last frames (a rig: every frame a start).
   const Fixture& fx = fixture();
-  for (const Trajectory& t : select_viewpoints(fx.input(), small_options(Strategy::Interpolation, 12)).trajectories) {
+  for (const Trajectory& t : select_viewpoints(fx.input(), small_options("interpolation", 12)).trajectories) {
     CHECK(t.patch_frames == FrameGrid(kFrames).consecutive(t.frame, 3));
     for (size_t i = 0; i < t.patch_frames.size(); ++i) CHECK(t.patch_times[i] == double(t.patch_frames[i]) / (kFrames - 1));
   }
@@ -242,7 +242,7 @@ TEST_CASE("candidates: with two training cameras the start and the other one spa
 
 TEST_CASE("selection: D falls where a trajectory looked and the next trajectory starts elsewhere", "[select]") {
   const Fixture& fx = fixture();
-  SelectOptions o = small_options(Strategy::FillGS, 2);
+  SelectOptions o = small_options("fillgs", 2);
   const SelectResult r = select_viewpoints(fx.input(), o);
   REQUIRE(r.trajectories.size() == 2);
   const Trajectory& t0 = r.trajectories[0];
@@ -278,7 +278,7 @@ TEST_CASE("selection: D falls where a trajectory looked and the next trajectory 
 
 TEST_CASE("selection: fillgs looks at the moving chair, negative avoids it", "[select]") {
   const Fixture& fx = fixture();
-  auto chair_views = [&](Strategy s) {
+  auto chair_views = [&](const std::string& s) {
     const SelectResult r = select_viewpoints(fx.input(), small_options(s, 4));
     REQUIRE(r.trajectories.size() == 4);
     size_t seeing = 0, total = 0;
@@ -289,8 +289,8 @@ TEST_CASE("selection: fillgs looks at the moving chair, negative avoids it", "[s
       }
     return std::make_pair(seeing, total);
   };
-  const auto fill = chair_views(Strategy::FillGS);
-  const auto neg = chair_views(Strategy::Negative);
+  const auto fill = chair_views("fillgs");
+  const auto neg = chair_views("negative");
   CHECK(fill.first == fill.second);
   CHECK(neg.first == 0);
 }
@@ -307,7 +307,7 @@ TEST_CASE("selection: spread starts take the best E(v) whose patch overlaps no e
       }
     return pairs;
   };
-  SelectOptions o = small_options(Strategy::FillGS, 4);
+  SelectOptions o = small_options("fillgs", 4);
   o.no_global = true;  // a global winner moves Trajectory::start_view off the starting view
   const SelectResult plain = select_viewpoints(fx.input(), o);
   o.spread_starts = true;
@@ -335,7 +335,7 @@ TEST_CASE("selection: spread starts take the best E(v) whose patch overlaps no e
 
 TEST_CASE("selection: the gain score of a pose is the sum of D-hat over what it sees", "[select]") {
   const Fixture& fx = fixture();
-  SelectOptions o = small_options(Strategy::FillGS, 2);
+  SelectOptions o = small_options("fillgs", 2);
   o.score_gain = true;
   const SelectResult r = select_viewpoints(fx.input(), o);
   REQUIRE(r.trajectories.size() == 2);
@@ -360,16 +360,16 @@ TEST_CASE("selection: the gain score of a pose is the sum of D-hat over what it 
 
 TEST_CASE("selection: every strategy returns free, deterministic trajectories whatever the thread count", "[select]") {
   const Fixture& fx = fixture();
-  for (Strategy s : {Strategy::FillGS, Strategy::Random, Strategy::Negative, Strategy::Interpolation, Strategy::FisherRF,
-                     Strategy::Coverage3D, Strategy::Coverage4D}) {
-    INFO("strategy " << to_string(s));
+  for (const std::string s : {"fillgs", "random", "negative", "interpolation", "fisherrf",
+                     "coverage3d", "coverage4d"}) {
+    INFO("strategy " << s);
     SelectOptions o = small_options(s, 2);
     o.time_stride = 3;  // priority on 4 of the 10 frames: the same code, a quarter of the renders
     const SelectResult a = with_threads(1, [&] { return select_viewpoints(fx.input(), o); });
     const SelectResult b = with_threads(2, [&] { return select_viewpoints(fx.input(), o); });
     CHECK(a.trajectories.size() == 2);
     CHECK(same_cameras(a.trajectories, b.trajectories));
-    if (s == Strategy::Random || s == Strategy::Interpolation) {  // the seeded ones: another seed, other views
+    if (s == "random" || s == "interpolation") {  // the seeded ones: another seed, other views
       o.seed = 99;
       CHECK_FALSE(same_cameras(a.trajectories, select_viewpoints(fx.input(), o).trajectories));
     }
@@ -383,7 +383,7 @@ TEST_CASE("selection: every strategy returns free, deterministic trajectories wh
 
 TEST_CASE("selection: interpolation poses lie between neighbouring training cameras", "[select]") {
   const Fixture& fx = fixture();
-  const SelectResult r = select_viewpoints(fx.input(), small_options(Strategy::Interpolation, 6));
+  const SelectResult r = select_viewpoints(fx.input(), small_options("interpolation", 6));
   for (const Trajectory& t : r.trajectories) {
     const Vec3d a = fx.views[size_t(t.start_view)].camera.centre();
     // The other end: the pose after the last is as far again as the spacing.
@@ -414,7 +414,7 @@ TEST_CASE("selection: interpolation on a monocular video (one camera per frame) 
   REQUIRE(mono.size() == size_t(kFrames));
   in.views = mono;
   in.image = [&images](size_t i) { return images[i]; };
-  const SelectResult r = select_viewpoints(in, small_options(Strategy::Interpolation, 6));
+  const SelectResult r = select_viewpoints(in, small_options("interpolation", 6));
   REQUIRE(r.trajectories.size() == 6);
   // The 10 frames film ring cameras 0..9 (22.5 degrees apart); each is paired with its two
   // nearest among them, so a pair is 22.5 or (at the ends: 0 with 2, 9 with 7) 45 degrees wide.
@@ -457,7 +457,7 @@ TEST_CASE("selection: a scene with no motion selects without NaN and says D is z
   REQUIRE(still.dynamic_count() == 0);
   SelectInput in = fx.input();
   in.scene = &still;
-  SelectOptions o = small_options(Strategy::FillGS, 2);
+  SelectOptions o = small_options("fillgs", 2);
   o.time_stride = 3;
   const SelectResult r = select_viewpoints(in, o);
   CHECK(r.trajectories.size() == 2);
@@ -564,10 +564,10 @@ TEST_CASE("pool selection: the lazy search chooses exactly what rescoring every 
   for (const ObservedView& v : p.pool)
     if (v.pose % 2 == 1 && v.frame >= 2 && v.frame <= 6) few.push_back(v);
   p.pool = few;
-  for (Strategy s : {Strategy::FillGS, Strategy::Coverage3D, Strategy::Coverage4D, Strategy::FisherRF, Strategy::Negative}) {
-    INFO("strategy " << to_string(s));
+  for (const std::string s : {"fillgs", "coverage3d", "coverage4d", "fisherrf", "negative"}) {
+    INFO("strategy " << s);
     SelectOptions o = small_options(s, 0);
-    const int count = s == Strategy::FisherRF ? 3 : 8;
+    const int count = s == "fisherrf" ? 3 : 8;
     const PoolSelectResult lazy = select_from_pool(p.in, p.pool, count, o);
     const PoolSelectResult full = select_from_pool(p.in, p.pool, count, o, true);
     REQUIRE(lazy.chosen.size() == size_t(count));
@@ -576,10 +576,10 @@ TEST_CASE("pool selection: the lazy search chooses exactly what rescoring every 
       CHECK(lazy.chosen[size_t(k)].candidate == full.chosen[size_t(k)].candidate);
       CHECK(lazy.chosen[size_t(k)].score == full.chosen[size_t(k)].score);
     }
-    if (s != Strategy::Negative) CHECK(lazy.scored < full.scored);
+    if (s != "negative") CHECK(lazy.scored < full.scored);
     // No score grows as views are added: each choice scores at most the one before.
     for (int k = 1; k < count; ++k)
-      if (s != Strategy::Negative) CHECK(full.chosen[size_t(k)].score <= full.chosen[size_t(k - 1)].score);
+      if (s != "negative") CHECK(full.chosen[size_t(k)].score <= full.chosen[size_t(k - 1)].score);
     // Never the same candidate twice.
     std::set<size_t> seen;
     for (const PoolChoice& c : lazy.chosen) CHECK(seen.insert(c.candidate).second);
@@ -600,18 +600,18 @@ TEST_CASE("pool selection: coverage4d keeps one map per frame and coverage3d one
   for (const ObservedView& v : p.pool)
     if (v.pose == 2 && (v.frame == 1 || v.frame == 6)) two.push_back(v);
   REQUIRE(two.size() == 2);
-  auto solo = [&](Strategy s, const ObservedView& v) {
+  auto solo = [&](const std::string& s, const ObservedView& v) {
     const PoolSelectResult r = select_from_pool(p.in, {v}, 1, small_options(s, 0));
     REQUIRE(r.chosen.size() == 1);
     return r.chosen[0].score;
   };
-  for (const ObservedView& v : two) CHECK(solo(Strategy::Coverage3D, v) <= solo(Strategy::Coverage4D, v));
-  const PoolSelectResult c4 = select_from_pool(p.in, two, 2, small_options(Strategy::Coverage4D, 0), true);
-  const PoolSelectResult c3 = select_from_pool(p.in, two, 2, small_options(Strategy::Coverage3D, 0), true);
+  for (const ObservedView& v : two) CHECK(solo("coverage3d", v) <= solo("coverage4d", v));
+  const PoolSelectResult c4 = select_from_pool(p.in, two, 2, small_options("coverage4d", 0), true);
+  const PoolSelectResult c3 = select_from_pool(p.in, two, 2, small_options("coverage3d", 0), true);
   REQUIRE(c4.chosen.size() == 2);
   REQUIRE(c3.chosen.size() == 2);
   const double second4 = c4.chosen[1].score;
-  CHECK(second4 == solo(Strategy::Coverage4D, two[c4.chosen[1].candidate]));
+  CHECK(second4 == solo("coverage4d", two[c4.chosen[1].candidate]));
   CHECK(second4 > 0);
   // coverage3d's second choice: at most the moving Gaussians (each one cell), far fewer than
   // the Gaussians the camera sees.
@@ -622,7 +622,7 @@ TEST_CASE("pool selection: coverage4d keeps one map per frame and coverage3d one
 TEST_CASE("pool selection: fillgs's first choice is the candidate with the largest mean rendered D-hat", "[select][pool]") {
   const Fixture& fx = fixture();
   const PoolFixture p(fx);
-  const SelectOptions o = small_options(Strategy::FillGS, 0);
+  const SelectOptions o = small_options("fillgs", 0);
   const PoolSelectResult r = select_from_pool(p.in, p.pool, 1, o);
   REQUIRE(r.chosen.size() == 1);
   // The same score from the tables directly: D = s / (1 + C) of the two training poses,
@@ -653,7 +653,7 @@ TEST_CASE("pool selection: interpolation takes the pool cameras nearest the trai
   // Training poses 0 and 4 lie 90 degrees apart on the ring: the chord between them passes
   // 0.217 R from poses 1 and 3 (22.5 degrees from an end), 0.293 R from pose 2 (the middle),
   // and every other pose is farther (0.390 R from an end for poses 5 and 15).
-  const PoolSelectResult r = select_from_pool(p.in, p.pool, 3 * kFrames, small_options(Strategy::Interpolation, 0));
+  const PoolSelectResult r = select_from_pool(p.in, p.pool, 3 * kFrames, small_options("interpolation", 0));
   REQUIRE(r.chosen.size() == size_t(3 * kFrames));
   std::map<uint32_t, int> first, third;
   for (int k = 0; k < 2 * kFrames; ++k) ++first[p.pool[r.chosen[size_t(k)].candidate].pose];
@@ -663,7 +663,7 @@ TEST_CASE("pool selection: interpolation takes the pool cameras nearest the trai
   const double R = (fx.synth.train[0].centre() - fx.synth.train[8].centre()).norm() / 2;
   CHECK(-r.chosen[0].score == Approx(R * (std::cos(kPi / 8) + std::sin(kPi / 8) - 1) / std::sqrt(2.0)).epsilon(1e-6));
   // random: the same seed, the same choices; another seed, others.
-  SelectOptions o = small_options(Strategy::Random, 0);
+  SelectOptions o = small_options("random", 0);
   const PoolSelectResult a = select_from_pool(p.in, p.pool, 8, o), b = select_from_pool(p.in, p.pool, 8, o);
   o.seed = 2;
   const PoolSelectResult c = select_from_pool(p.in, p.pool, 8, o);

@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "fillgs/base/error.hpp"
+#include "fillgs/base/limits.hpp"
 
 namespace fillgs {
 
@@ -43,6 +44,16 @@ std::string Spelling::operator()(const std::string& key) const {
   for (char& c : s)
     if (c == '_') c = '-';
   return s;
+}
+
+std::string check_number(const std::string& text, bool integral, const Bounds& bounds, double* out) {
+  double x = 0;
+  if (!parse_number(text, &x)) return std::string("expects ") + (integral ? "an integer" : "a number") + ", got '" + text + "'";
+  if (integral && x != std::floor(x)) return "expects an integer, got '" + text + "'";
+  const std::string why = bounds_problem(x, bounds, text);
+  if (!why.empty()) return why;
+  *out = x;
+  return "";
 }
 
 }  // namespace fillgs

@@ -9,6 +9,7 @@
 #include "options.hpp"
 #include "progress_bar.hpp"
 #include "bench_setup.hpp"
+#include "fillgs/method/strategies.hpp"
 #include "fillgs/base/limits.hpp"
 #include "fillgs/experiment/evaluate.hpp"
 #include "fillgs/experiment/experiment.hpp"
@@ -32,16 +33,17 @@ constexpr double kRunArtifactStrength = 0.5;
 
 struct RunFlags {
   std::string out = "fillgs_run", scene = "n3v";
-  Strategy baseline = Strategy::Coverage4D;
+  std::string baseline = "coverage4d";
   std::string refiner = "reference";
   SetupFlags setup;
 };
 
 int run_pipeline(const RunFlags& f, const Invocation& in) {
   const std::string& dir = f.out;
-  const std::string baseline = to_string(f.baseline);
+  const std::string& baseline = f.baseline;
   const std::string& refiner = f.refiner;
-  if (f.baseline == Strategy::FillGS) in.fail("--baseline must be another strategy than fillgs");
+  const std::string& method = method_strategy().name;
+  if (strategy_row(baseline).method) in.fail("--baseline must be another strategy than ", method);
   const auto t0 = Clock::now();
   BenchSetup setup = bench_setup(f.setup, in);
   const SceneChoice choice = parse_scene(f.scene);
@@ -58,7 +60,7 @@ int run_pipeline(const RunFlags& f, const Invocation& in) {
   std::vector<RunResult> results;
   std::vector<std::string> run_ids;
   for (const RunConfig& c : standard_configs(Weighting::ExploreGS, kRunArtifactStrength, {refiner}))
-    if (c.id == "no-refinement" || c.id == "fillgs" || c.id == baseline) {
+    if (c.id == "no-refinement" || c.id == method || c.id == baseline) {
       results.push_back(run_config(p, c, setup.finetune, progress, in.out));
       run_ids.push_back(c.id);
     }
@@ -96,7 +98,7 @@ Action declare_run(CLI::App& app) {
   auto f = std::make_shared<RunFlags>();
   add_text(app, "--out", f->out, "the folder for the report, pictures and runs", "DIR");
   add_text(app, "--scene", f->scene, "built-in scene: " + join_names(bench_scenes()), "NAME");
-  add_choice(app, "--baseline", f->baseline, "the strategy FillGS is compared with");
+  add_table_choice(app, "--baseline", f->baseline, strategy_table(), "the strategy FillGS is compared with");
   add_row_choice(app, "--refiner", f->refiner, bench_refiners(), [](const std::string& v) { return bench_refiner(v); },
                  "the refiner: " + refiner_names(true) + " (" + bench_refiners().front() + " the default)");
   add_setup_flags(app, f->setup, false);

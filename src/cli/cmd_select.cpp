@@ -29,9 +29,6 @@ std::vector<Camera> timed_cameras(const std::vector<Camera>& cams, int frames) {
 
 // ------------------------------------------------------------------ select
 
-/// logit(0.1): the default occupancy threshold of the exploration grid.
-constexpr float kOccupyingLogit = -2.1972246f;
-
 /// A grid given with --grid must be this scene's: its box holds every training camera and
 /// the bulk of the static Gaussians that occupy space (1st to 99th percentile per axis), to
 /// a voxel. A grid
@@ -49,11 +46,12 @@ void check_grid_fits(const std::string& path, const ExplorationGrid& grid, const
     if (!loose.contains(c.centre()))
       throw_error(path, ": camera ", c.name, " at ", where(c.centre()), " lies outside the grid's box ", box,
                   ": the grid was made for another scene or other cameras; build it with fillgs explore on these");
+  const float occupying_logit = logit(grid.occupancy_alpha());  // the opacity the grid was built at
   std::vector<char> moving(cloud.size(), 0);
   for (uint32_t g : cloud.dynamic_ids) moving[g] = 1;
   std::array<std::vector<double>, 3> coords;
   for (uint32_t g = 0; g < cloud.size(); ++g)
-    if (!moving[g] && cloud.opacity_logits[g] >= kOccupyingLogit)  // the Gaussians that shape the grid's box
+    if (!moving[g] && cloud.opacity_logits[g] >= occupying_logit)  // the Gaussians that shape the grid's box
       for (int k = 0; k < 3; ++k) coords[size_t(k)].push_back(cloud.means[g][k]);
   if (coords[0].size() < 10) return;
   for (int k = 0; k < 3; ++k) {
@@ -130,7 +128,7 @@ int select_views(const SelectFlags& f, const Invocation& invocation) {
   const SelectionReport report = write_selection(folder.path(), in, o, r, *grid, cams, ro, progress);
   folder.commit();
   const SelectTimings& tm = r.timings;
-  invocation.out << "selected " << r.trajectories.size() << " trajectories (" << report.virtual_views << " virtual views) with " << to_string(o.strategy)
+  invocation.out << "selected " << r.trajectories.size() << " trajectories (" << report.virtual_views << " virtual views) with " << o.strategy
       << " in " << seconds_since(t0) << " s (priority " << tm.priority << " s, scoring " << tm.scoring << " s of "
       << tm.candidates_scored << " candidates) -> " << f.out << "\n";
   for (const std::string& n : r.notes) invocation.out << "note: " << n << "\n";
@@ -147,10 +145,10 @@ Action declare_select(CLI::App& app) {
   add_text(app, "--out", f->out, "the folder for trajectories.json, renders, priorities and pictures", "DIR")->required();
   add_text(app, "--images", f->images, "the training images (the priority's error term L needs them)", "DIR");
   add_time_flags(app, f->time, false);
-  add_number(app, "--trajectories", o.trajectories, "trajectories to select (at most 100000)", within(0, 100000));
+  add_number(app, "--trajectories", o.trajectories, "trajectories to select (at most 100000)", trajectory_bounds());
   add_number(app, "--seed", o.seed, "random seed");
-  add_number(app, "--views", o.views, "virtual poses per trajectory (at most 1000: each is scored, rendered and refined)", within(1, 1000));
-  add_number(app, "--patch-frames", o.patch_frames, "consecutive frames each pose is rendered at (at most 1000)", within(1, 1000));
+  add_number(app, "--views", o.views, "virtual poses per trajectory (at most 1000: each is scored, rendered and refined)", views_bounds());
+  add_number(app, "--patch-frames", o.patch_frames, "consecutive frames each pose is rendered at (at most 1000)", patch_frame_bounds());
   add_number(app, "--render-scale", o.render_scale, "priority renders at this fraction of the resolution", within_open(0, 1e3));
   add_choice(app, "--renderer", o.renderer, "how candidate maps are rendered");
   add_number(app, "--stride", o.stride, "raytraced candidate maps: one ray every s pixels", at_least(1));

@@ -1,3 +1,4 @@
+#include "fillgs/method/strategies.hpp"
 #include "fillgs/base/limits.hpp"
 #include "fillgs/io/camera_io.hpp"
 #include "options.hpp"
@@ -61,16 +62,6 @@ bool parse_flags(CLI::App& app, const std::vector<std::string>& args, std::ostre
   }
   if (!parse_error.empty()) throw_error(app.get_name(), ": ", parse_error);
   return true;
-}
-
-std::string check_number(const std::string& text, bool integral, const Bounds& bounds, double* out) {
-  double x = 0;
-  if (!parse_number(text, &x)) return std::string("expects ") + (integral ? "an integer" : "a number") + ", got '" + text + "'";
-  if (integral && x != std::floor(x)) return "expects an integer, got '" + text + "'";
-  const std::string why = bounds_problem(x, bounds, text);
-  if (!why.empty()) return why;
-  *out = x;
-  return "";
 }
 
 CLI::Option* add_flag(CLI::App& app, const std::string& flag, bool& dest, const std::string& help) {
@@ -168,16 +159,41 @@ CLI::Option* add_row_choice(CLI::App& app, const std::string& flag, std::string&
   return o;
 }
 
+void add_row_parameters(CLI::App& app, RowParameterValues& values, const std::vector<const RowParameter*>& parameters, const std::string& group) {
+  const std::string name = app.get_name();
+  for (const RowParameter* p : parameters) {
+    const std::string flag = Spelling{}(p->key);
+    std::string type = p->kind == RowParameter::Kind::Integer ? "N" : p->kind == RowParameter::Kind::Text ? "TEXT" : "X";
+    if (p->kind == RowParameter::Kind::Choice) {
+      type.clear();
+      for (const std::string& c : p->choices) type += (type.empty() ? "" : "|") + c;
+    }
+    // The flag, then each older name as its own flag, so that a refused value is named as typed.
+    std::vector<std::string> names = {flag};
+    names.insert(names.end(), p->flag_aliases.begin(), p->flag_aliases.end());
+    for (const std::string& given : names) {
+      CLI::Option* o = app.add_option(
+          given,
+          [&values, p, given, name](const CLI::results_t& r) {
+            const std::string why = p->problem(r.back());
+            if (!why.empty()) throw_error(name, ": ", given, " ", why);
+            values.set(*p, r.back());
+            return true;
+          },
+          given == flag ? p->help : "the same as " + flag);
+      o->type_name(type)->default_str(p->default_text);
+      if (!group.empty()) o->group(group);
+    }
+  }
+}
+
 void add_scene_flags(CLI::App& app, SceneReadOptions& o) {
   std::vector<std::string> formats = {"auto"};
   for (const ModelFormat* f : model_formats()) formats.push_back(f->name);
   add_row_choice(app, "--scene-format", o.format, formats,
                  [](const std::string& v) { return v == "auto" ? v : model_format(v).name; }, "the scene's format (auto: from the file)")
       ->group("Scene options");
-  add_number(app, "--duration", o.ex4dgs_duration, "Ex4DGS: frames the model covers (0: from cfg_args)", at_least(0))->group("Scene options");
-  add_number(app, "--stg-duration", o.stg_duration, "Spacetime Gaussians: frames one model covers", at_least(1))->group("Scene options");
-  add_text(app, "--stg-color", o.stg_color_activation, "Spacetime Gaussians colour activation: auto, sigmoid, clamp or none", "NAME")
-      ->group("Scene options");
+  add_row_parameters(app, o.parameters, model_format_table().parameters(), "Scene options");
   add_number(app, "--model-frames", o.model_frames, "trained models: frames the model covers (0: E-D3DGS's cfg_args; 4DGaussians, 4DGS, Deformable 3D Gaussians need it)", at_least(0))
       ->group("Scene options");
   add_text(app, "--model-time-range", o.model_time_range, "E-D3DGS, 4DGaussians, 4DGS: the model times the frames span, T0:T1 (frame f at T0 + f (T1-T0)/F; default 0:1; 4DGS: its time_duration)", "T0:T1")
@@ -297,8 +313,7 @@ void add_refiner_flags(CLI::App& app, std::string& refiner, std::string& truth, 
   }
   add_number(app, "--reference-angle", ri.reference.angle_scale_degrees, "reference/warp: the parallax angle (degrees) at which confidence falls to 1/e",
              positive());
-  add_text(app, "--refiner-command", ri.command, "external: the command, with {in} and {out}", "CMD");
-  add_number(app, "--refiner-timeout", ri.timeout_seconds, "external: seconds per patch", positive());
+  add_row_parameters(app, ri.parameters, refiner_table().parameters(), "");
   add_text(app, "--truth", truth, "oracle/reference: the ground-truth scene (warp: only for its records)", "PATH");
   add_number(app, "--artifact-strength", ri.oracle.artifacts.strength, "oracle/reference/warp: strength of the simulated refiner artifacts", at_least(0));
   add_number(app, "--support-window", ri.oracle.window, "oracle: frames either side that count as observed", at_least(0));
@@ -308,7 +323,7 @@ void add_refiner_flags(CLI::App& app, std::string& refiner, std::string& truth, 
 
 void add_selection_flags(CLI::App& app, SelectOptions& o) {
   const std::string g = "Selection options";
-  add_choice(app, "--strategy", o.strategy, "how virtual viewpoints are chosen (fillgs: the paper's; the others: baselines)")->group(g);
+  add_table_choice(app, "--strategy", o.strategy, strategy_table(), "how virtual viewpoints are chosen (fillgs: the paper's; the others: baselines)")->group(g);
   add_number(app, "--time-stride", o.time_stride, "starting-view priority on every k-th frame only", at_least(1))->group(g);
   add_flag(app, "--no-start-selection", o.no_start_selection, "ablation: random starting viewpoints")->group(g);
   add_flag(app, "--no-error-term", o.no_error_term, "ablation: priority E = V")->group(g);
@@ -321,7 +336,11 @@ void add_selection_flags(CLI::App& app, SelectOptions& o) {
 
 void check_selection(const Invocation& in, const SelectOptions& o) {
   if (in.given("--count-only") && in.given("--speed-only")) in.fail("--count-only and --speed-only exclude each other");
-  if (o.no_error_term && o.no_sensitivity_term) in.fail("--no-error-term and --no-sensitivity-term leave no priority");
+  try {
+    check_select_options(o);
+  } catch (const Error& e) {
+    in.fail(e.what());
+  }
 }
 
 void add_grid_flags(CLI::App& app, ExplorationOptions& o) {

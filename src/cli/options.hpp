@@ -28,6 +28,7 @@
 #include "fillgs/base/limits.hpp"
 #include "fillgs/base/math.hpp"
 #include "fillgs/base/names.hpp"
+#include "fillgs/base/row_table.hpp"
 #include "fillgs/render/raster.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/base/timing.hpp"
@@ -120,9 +121,7 @@ CLI::Option* add_colour(CLI::App& app, const std::string& flag, Vec3f& dest, con
 /// A size given in `unit` bytes (MB, GB) as a number >= 0, stored in bytes.
 CLI::Option* add_bytes(CLI::App& app, const std::string& flag, int64_t& dest, double unit, const std::string& unit_name, const std::string& help);
 
-/// One-line message for a value that is not a number of the destination's kind or outside
-/// its bounds; empty when the value is good (the number in *out).
-std::string check_number(const std::string& text, bool integral, const Bounds& bounds, double* out);
+using fillgs::check_number;
 
 /// A number: integral types take integers only; the bounds are checked.
 template <class T>
@@ -192,6 +191,18 @@ CLI::Option* add_choice(CLI::App& app, const std::string& flag, E& dest, const s
 /// into the row's own, or throws the table's one-line message; the help lists `names`.
 CLI::Option* add_row_choice(CLI::App& app, const std::string& flag, std::string& dest, const std::vector<std::string>& names,
                             std::function<std::string(const std::string&)> canonical, const std::string& help);
+
+/// A flag for each of `parameters` (rows' own, base/row_table.hpp): `--<key>` and its
+/// aliases, its help, default and check from the declaration; a value given lands in `values`.
+void add_row_parameters(CLI::App& app, RowParameterValues& values, const std::vector<const RowParameter*>& parameters, const std::string& group);
+
+/// One of a row table's names (its aliases parse to the row's own); the help lists them.
+template <class Row>
+CLI::Option* add_table_choice(CLI::App& app, const std::string& flag, std::string& dest, const RowTable<Row>& table, const std::string& help) {
+  std::vector<std::string> names;
+  for (const Row* r : table.rows()) names.push_back(r->name);
+  return add_row_choice(app, flag, dest, names, [&table](const std::string& v) { return table.find(v).name; }, help);
+}
 
 /// A comma-separated list of an enum's names ("a,b"); the help lists them.
 template <class E>

@@ -1,3 +1,4 @@
+#include "fillgs/method/strategies.hpp"
 #include "fillgs/experiment/experiment.hpp"
 #include "experiment/experiment_text.hpp"
 #include "fillgs/method/refiners.hpp"
@@ -151,15 +152,6 @@ GaussianCloud train_backbone(const Dataset& data, const std::string& points, con
   trainer.run(o.backbone_iterations, progress);
   return trainer.model();
 }
-
-/// Mean and sample standard deviation of values added one at a time.
-struct Moments {
-  double sum = 0, squares = 0;
-  int n = 0;
-  void add(double x) { sum += x, squares += x * x, ++n; }
-  double mean() const { return sum / n; }
-  double sd() const { return n > 1 ? std::sqrt(std::max(0.0, (squares - sum * sum / n) / (n - 1))) : 0.0; }
-};
 
 }  // namespace
 
@@ -540,7 +532,7 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
   for (size_t ri = 0; ri < refiners.size(); ++ri) {
     const std::string refiner = bench_refiner(refiners[ri]);
     const std::string suffix = ri == 0 ? "" : "@" + refiner;
-    auto add = [&](const std::string& id, ConfigGroup group, Strategy s, Weighting w, double a, int k) {
+    auto add = [&](const std::string& id, ConfigGroup group, const std::string& s, Weighting w, double a, int k) {
       RunConfig c;
       c.id = id + suffix;
       c.group = group;
@@ -552,12 +544,14 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
       out.push_back(c);
       return &out.back();
     };
-    add("random.w-none", ConfigGroup::Calibration, Strategy::Random, Weighting::None, strength, 5);
-    for (Strategy s : values_of<Strategy>()) add(to_string(s), ConfigGroup::Strategy, s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, strength, 5);
+    // The paper's strategy carries FillGS's weights; the baselines the baseline weighting.
+    auto weighting_of = [&](const StrategyRow& r) { return r.method ? Weighting::FillGS : baseline_weighting; };
+    add("random.w-none", ConfigGroup::Calibration, "random", Weighting::None, strength, 5);
+    for (const StrategyRow* r : strategy_table().rows()) add(r->name, ConfigGroup::Strategy, r->name, weighting_of(*r), strength, 5);
     const char* ablations[] = {"no-start-selection", "no-error-term", "no-sensitivity-term", "no-candidate-scoring",
                                "no-global",          "count-only",    "speed-only"};
     for (const char* a : ablations) {
-      RunConfig* c = add(std::string("fillgs.") + a, ConfigGroup::Ablation, Strategy::FillGS, Weighting::FillGS, strength, 5);
+      RunConfig* c = add(std::string("fillgs.") + a, ConfigGroup::Ablation, "fillgs", Weighting::FillGS, strength, 5);
       const std::string n = a;
       c->select.no_start_selection = n == "no-start-selection";
       c->select.no_error_term = n == "no-error-term";
@@ -568,53 +562,52 @@ std::vector<RunConfig> standard_configs(Weighting baseline_weighting, double str
       if (n == "speed-only") c->select.score = CandidateScore::SpeedOnly;
     }
     // Table 3's "other selection strategy" rows: each strategy's views with FillGS's fine-tuning and weights.
-    for (Strategy s : values_of<Strategy>())
-      if (s != Strategy::FillGS) add(std::string(to_string(s)) + ".w-fillgs", ConfigGroup::Selection, s, Weighting::FillGS, strength, 5);
+    for (const StrategyRow* r : strategy_table().rows())
+      if (!r->method) add(r->name + ".w-fillgs", ConfigGroup::Selection, r->name, Weighting::FillGS, strength, 5);
     for (Weighting w : {Weighting::None, Weighting::NoConsistency, Weighting::NoCovisibility, Weighting::Enhancer3DGS, Weighting::ExploreGS,
                         Weighting::UA4DGS})
-      add(std::string("fillgs.w-") + to_string(w), ConfigGroup::Weighting, Strategy::FillGS, w, strength, 5);
+      add(std::string("fillgs.w-") + to_string(w), ConfigGroup::Weighting, "fillgs", w, strength, 5);
     // fillgs's own options beyond the paper: the weights' D̂ scaled over every moving Gaussian
     // of every frame (the earlier rule), the weighted loss normalised by the view's mean
     // weight, model-independent sweep matching, co-visibility rules that weigh static content
     // by its observation density (static-count, density).
-    add("fillgs.covis-global", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.scale = CovisibilityScale::Global;
-    add("fillgs.normalised", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.normalise = true;
-    add("fillgs.m-sweep", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.method = MaskMethod::Sweep;
-    add("fillgs.covis-static-count", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.covisibility =
+    add("fillgs.covis-global", ConfigGroup::Weighting, "fillgs", Weighting::FillGS, strength, 5)->mask.scale = CovisibilityScale::Global;
+    add("fillgs.normalised", ConfigGroup::Weighting, "fillgs", Weighting::FillGS, strength, 5)->mask.normalise = true;
+    add("fillgs.m-sweep", ConfigGroup::Weighting, "fillgs", Weighting::FillGS, strength, 5)->mask.method = MaskMethod::Sweep;
+    add("fillgs.covis-static-count", ConfigGroup::Weighting, "fillgs", Weighting::FillGS, strength, 5)->mask.covisibility =
         Covisibility::StaticCount;
-    add("fillgs.covis-density", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5)->mask.covisibility = Covisibility::Density;
+    add("fillgs.covis-density", ConfigGroup::Weighting, "fillgs", Weighting::FillGS, strength, 5)->mask.covisibility = Covisibility::Density;
     {
-      RunConfig* c = add("fillgs.sweep+static-count", ConfigGroup::Weighting, Strategy::FillGS, Weighting::FillGS, strength, 5);
+      RunConfig* c = add("fillgs.sweep+static-count", ConfigGroup::Weighting, "fillgs", Weighting::FillGS, strength, 5);
       c->mask.method = MaskMethod::Sweep;
       c->mask.covisibility = Covisibility::StaticCount;
     }
     // fillgs's option beyond the paper: starts of one round whose patches do not overlap on
     // a camera; with FillGS's weights and with none (to see the views without the weights).
-    add("fillgs.spread-starts", ConfigGroup::Ablation, Strategy::FillGS, Weighting::FillGS, strength, 5)->select.spread_starts = true;
-    add("fillgs.w-none.spread-starts", ConfigGroup::Weighting, Strategy::FillGS, Weighting::None, strength, 5)->select.spread_starts = true;
+    add("fillgs.spread-starts", ConfigGroup::Ablation, "fillgs", Weighting::FillGS, strength, 5)->select.spread_starts = true;
+    add("fillgs.w-none.spread-starts", ConfigGroup::Weighting, "fillgs", Weighting::None, strength, 5)->select.spread_starts = true;
     // ... and candidates scored by the D̂ they see (sum over their visible set), unweighted.
-    add("fillgs.w-none.gain-score", ConfigGroup::Weighting, Strategy::FillGS, Weighting::None, strength, 5)->select.score_gain = true;
+    add("fillgs.w-none.gain-score", ConfigGroup::Weighting, "fillgs", Weighting::None, strength, 5)->select.score_gain = true;
     {
-      RunConfig* c = add("fillgs.w-none.spread+gain", ConfigGroup::Weighting, Strategy::FillGS, Weighting::None, strength, 5);
+      RunConfig* c = add("fillgs.w-none.spread+gain", ConfigGroup::Weighting, "fillgs", Weighting::None, strength, 5);
       c->select.spread_starts = true;
       c->select.score_gain = true;
     }
     // The score alone: FillGS's candidate score and coverage4d's, both unweighted from the
     // same shuffled starts (no start selection; the same seed shuffles the same way).
     {
-      RunConfig* c = add("fillgs.w-none.no-start-selection", ConfigGroup::Ablation, Strategy::FillGS, Weighting::None, strength, 5);
+      RunConfig* c = add("fillgs.w-none.no-start-selection", ConfigGroup::Ablation, "fillgs", Weighting::None, strength, 5);
       c->select.no_start_selection = true;
-      add("coverage4d.w-none", ConfigGroup::Ablation, Strategy::Coverage4D, Weighting::None, strength, 5);
+      add("coverage4d.w-none", ConfigGroup::Ablation, "coverage4d", Weighting::None, strength, 5);
     }
     // Table 1 with one weighting: every strategy's views unweighted, so that only the selection
     // differs (random's, FillGS's and coverage4d's unweighted rows are above).
-    for (Strategy s : {Strategy::Negative, Strategy::Interpolation, Strategy::FisherRF, Strategy::Coverage3D})
-      add(std::string(to_string(s)) + ".w-none", ConfigGroup::Unweighted, s, Weighting::None, strength, 5);
+    for (const char* s : {"negative", "interpolation", "fisherrf", "coverage3d"})
+      add(std::string(s) + ".w-none", ConfigGroup::Unweighted, s, Weighting::None, strength, 5);
     // The exploration space as the paper masks it: occupied voxels only, no "unexplored" label.
-    add("fillgs.occupied-only", ConfigGroup::Ablation, Strategy::FillGS, Weighting::FillGS, strength, 5)->grid.label_unexplored = false;
-    for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), ConfigGroup::Budget, Strategy::FillGS, Weighting::FillGS, strength, k);
-    for (Strategy s : values_of<Strategy>())
-      add(std::string(to_string(s)) + ".clean", ConfigGroup::Refiner, s, s == Strategy::FillGS ? Weighting::FillGS : baseline_weighting, 0.0, 5);
+    add("fillgs.occupied-only", ConfigGroup::Ablation, "fillgs", Weighting::FillGS, strength, 5)->grid.label_unexplored = false;
+    for (int k : {1, 10, 20}) add("fillgs.k" + std::to_string(k), ConfigGroup::Budget, "fillgs", Weighting::FillGS, strength, k);
+    for (const StrategyRow* r : strategy_table().rows()) add(r->name + ".clean", ConfigGroup::Refiner, r->name, weighting_of(*r), 0.0, 5);
   }
   RunConfig tv;
   tv.id = "upper.test-views";

@@ -3,6 +3,7 @@
 #include "fillgs/experiment/experiment.hpp"
 #include "experiment/experiment_text.hpp"
 #include "fillgs/method/refiners.hpp"
+#include "fillgs/method/strategies.hpp"
 #include "fillgs/io/camera_io.hpp"
 #include "fillgs/base/json_file.hpp"
 
@@ -39,6 +40,7 @@ namespace fillgs {
 namespace {
 using detail::csv_cells;
 using detail::fmt;
+using detail::Moments;
 }  // namespace
 
 void write_refined_view_records(const std::string& path, const std::vector<RefinedViewRecord>& records) {
@@ -207,8 +209,8 @@ namespace {
 /// "negative.w-none", "fillgs.w-none@oracle": a strategy's views with no weights.
 bool unweighted_strategy_row(const std::string& id) {
   const std::string base = id.substr(0, id.find('@'));
-  for (Strategy s : values_of<Strategy>())
-    if (base == std::string(to_string(s)) + ".w-none") return true;
+  for (const StrategyRow* r : strategy_table().rows())
+    if (base == r->name + ".w-none") return true;
   return false;
 }
 }  // namespace

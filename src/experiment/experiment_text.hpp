@@ -1,5 +1,6 @@
 #pragma once
 // Text helpers the benchmark's plan, runs and reports share (src/experiment/).
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <string>
@@ -26,5 +27,14 @@ inline std::vector<std::string> csv_cells(const std::string& line) {
   if (!line.empty() && line.back() == ',') f.emplace_back();
   return f;
 }
+
+/// Mean and sample standard deviation of values added one at a time.
+struct Moments {
+  double sum = 0, squares = 0;
+  int n = 0;
+  void add(double x) { sum += x, squares += x * x, ++n; }
+  double mean() const { return sum / n; }
+  double sd() const { return n > 1 ? std::sqrt(std::max(0.0, (squares - sum * sum / n) / (n - 1))) : 0.0; }
+};
 
 }  // namespace fillgs::detail

@@ -101,7 +101,7 @@ SelectionReport write_selection(const std::string& dir, const SelectInput& in, c
       virtual_cams.push_back(c);
     }
   }
-  nlohmann::json tj = {{"strategy", to_string(o.strategy)}, {"seed", o.seed}, {"frames", in.frames},
+  nlohmann::json tj = {{"strategy", o.strategy}, {"seed", o.seed}, {"frames", in.frames},
                        {"deficiency_scale", r.deficiency_scale}, {"trajectories", trajs}, {"cameras", flat}};
   write_file_atomically(join_path(dir, "trajectories.json"), tj.dump(2) + "\n");
   write_transforms_json(join_path(dir, "transforms.json"), virtual_cams);
@@ -170,11 +170,11 @@ SelectionReport write_selection(const std::string& dir, const SelectInput& in, c
     prio = {{"evaluated_views", r.priority.views.size()}, {"seconds", r.priority.seconds}};
   }
   write_topdown_png(join_path(dir, "trajectories.png"), topdown_slice(grid, cams), cams, virtual_cams,
-                    std::string("strategy ") + to_string(o.strategy) + ": " + std::to_string(r.trajectories.size()) + " trajectories");
+                    std::string("strategy ") + o.strategy + ": " + std::to_string(r.trajectories.size()) + " trajectories");
 
   const SelectTimings& tm = r.timings;
   nlohmann::json s = {{"command", "select"},
-                      {"strategy", to_string(o.strategy)},
+                      {"strategy", o.strategy},
                       {"seed", o.seed},
                       {"trajectories", r.trajectories.size()},
                       {"virtual_views", virtual_cams.size()},
@@ -275,7 +275,7 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
   }
   report.train = evaluate_training_sample(r.model, data, Vec3f::Zero());
   nlohmann::json j = {{"iterations", o.iterations}, {"select_every", o.select_every}, {"trajectories_per_round", o.trajectories},
-                            {"strategy", to_string(o.select.strategy)}, {"weighting", to_string(o.weighting)}, {"refiner", refiner},
+                            {"strategy", o.select.strategy}, {"weighting", to_string(o.weighting)}, {"refiner", refiner},
                             {"rounds", rounds}, {"virtual_views", r.virtual_views.size()}, {"virtual_views_dropped", report.dropped},
                             {"train_psnr", report.train.psnr}, {"train_ssim", report.train.ssim}, {"gaussians", r.model.size()},
                             {"moving_gaussians", r.model.dynamic_count()}, {"seconds", {{"train", r.seconds_train}, {"total", seconds}}}};
@@ -294,7 +294,7 @@ FinetuneReport write_finetune_report(const std::string& dir, const FinetuneResul
 
 FinetuneReport write_finetune_job_report(const std::string& dir, const FinetuneJobResult& r, const Dataset& data) {
   const FinetuneReport report = write_finetune_report(dir, r.result, data, r.options, r.refiner, r.seconds);
-  if (r.pool && r.options.pool_budget > 0) write_pool_report(dir, r.result, *r.pool, to_string(r.options.select.strategy));
+  if (r.pool && r.options.pool_budget > 0) write_pool_report(dir, r.result, *r.pool, r.options.select.strategy);
   return report;
 }
 

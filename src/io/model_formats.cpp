@@ -1,6 +1,5 @@
 #include "fillgs/io/model_formats.hpp"
 
-#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -39,14 +38,12 @@ const std::string& FormatProbe::ply_header() const {
   return header_;
 }
 
-const std::vector<const ModelFormat*>& model_formats() {
-  static const std::vector<const ModelFormat*> rows = [] {
-    std::vector<const ModelFormat*> r = model_io::rows();
-    std::stable_sort(r.begin(), r.end(), [](const ModelFormat* a, const ModelFormat* b) { return a->detect_order < b->detect_order; });
-    return r;
-  }();
-  return rows;
+const RowTable<ModelFormat>& model_format_table() {
+  static const RowTable<ModelFormat> table("scene format", model_io::rows(), {"auto"});
+  return table;
 }
+
+const std::vector<const ModelFormat*>& model_formats() { return model_format_table().rows(); }
 
 std::string model_format_names() {
   std::vector<std::string> names;
@@ -54,14 +51,7 @@ std::string model_format_names() {
   return join_names(names);
 }
 
-const ModelFormat& model_format(const std::string& name) {
-  for (const ModelFormat* f : model_formats()) {
-    if (f->name == name) return *f;
-    for (const std::string& a : f->aliases)
-      if (a == name) return *f;
-  }
-  throw_error("unknown scene format '", name.substr(0, 40), "' (expected auto, ", model_format_names(), ")");
-}
+const ModelFormat& model_format(const std::string& name) { return model_format_table().find(name); }
 
 const ModelFormat* find_model_format(const std::string& path) {
   std::error_code ec;

@@ -37,13 +37,12 @@ void check_finetune_job(const FinetuneJob& job, const Spelling& s) {
   // The flags' own bounds (cmd_finetune.cpp), checked by the one check both faces use.
   check_within(s("iterations"), o.iterations, at_least(1));
   check_within(s("select_every"), o.select_every, at_least(1));
-  check_within(s("trajectories"), o.trajectories, within(0, 100000));
+  check_within(s("trajectories"), o.trajectories, trajectory_bounds());
   check_within(s("pool_budget"), o.pool_budget, within(0, 1000000));
   if (job.refined_share) check_within(s("refined_share"), *job.refined_share, within(0, 1));
   check_within(s("position_lr"), job.rates.position_lr, positive());
   check_within(s("key_lr_scale"), job.rates.key_lr_scale, positive());
-  if (o.select.no_error_term && o.select.no_sensitivity_term)
-    throw_error(s("no_error_term"), " and ", s("no_sensitivity_term"), " leave no priority");
+  check_select_options(o.select, s);
   if (!job.confidence_dir.empty() && !fs::is_directory(job.confidence_dir))
     throw_error(s("confidence"), " ", job.confidence_dir, " is not a folder");
   const RefinerKind& kind = refiner_kind(refiner_of(job));
@@ -53,7 +52,7 @@ void check_finetune_job(const FinetuneJob& job, const Spelling& s) {
   if (kind.needs_truth && !job.refiner_inputs.truth)
     throw_error(s("refiner"), " ", kind.name, " needs ", s("truth"), " (the ground-truth scene",
                 kind.on_real_data.empty() ? ")" : "; on real data use " + s("refiner") + " " + kind.on_real_data + ")");
-  if (kind.needs_command && job.refiner_inputs.command.empty()) throw_error("missing ", s("refiner_command"));
+  job.refiner_inputs.parameters.require(kind.parameters, s);
   if (needs_pool(job)) {
     const std::string why = o.pool_budget > 0 ? s("pool_budget") : s("refiner") + " " + kind.name;
     if (job.pool_cameras.empty()) throw_error(why, " needs ", s("pool_cameras"), " (rig cameras neither trained on nor held out)");
@@ -126,11 +125,11 @@ FinetuneJobResult run_finetune_job(FinetuneJob job, const Spelling& s, std::ostr
   const GaussianCloud& model = job.model;
   if (o.pool)
     log << "fine-tuning " << model.size() << " Gaussians on " << data.views().size() << " views for " << o.iterations << " iterations; "
-        << o.pool_budget << " of the pool's " << pool.cameras.size() << " photographs (" << to_string(o.select.strategy) << "), chosen over "
+        << o.pool_budget << " of the pool's " << pool.cameras.size() << " photographs (" << o.select.strategy << "), chosen over "
         << (o.iterations + o.select_every - 1) / o.select_every << " rounds, weights " << to_string(o.weighting) << "\n";
   else
     log << "fine-tuning " << model.size() << " Gaussians on " << data.views().size() << " views for " << o.iterations << " iterations; "
-        << o.trajectories << " trajectories (" << to_string(o.select.strategy) << ") every " << o.select_every << ", refiner " << refiner->name()
+        << o.trajectories << " trajectories (" << o.select.strategy << ") every " << o.select_every << ", refiner " << refiner->name()
         << ", weights " << to_string(o.weighting) << "\n";
   r.result = finetune(data, model, *refiner, o, progress);
   r.result.keys = keys;

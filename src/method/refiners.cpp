@@ -1,7 +1,5 @@
 #include "fillgs/method/refiners.hpp"
 
-#include <algorithm>
-
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/names.hpp"
 
@@ -11,27 +9,22 @@ namespace refiner_rows {
 std::vector<const RefinerKind*> rows();  // generated from src/method/refiners/ (src/row_table.cpp.in)
 }  // namespace refiner_rows
 
-const std::vector<const RefinerKind*>& refiner_kinds() {
-  static const std::vector<const RefinerKind*> kinds = [] {
-    std::vector<const RefinerKind*> r = refiner_rows::rows();
-    std::stable_sort(r.begin(), r.end(), [](const RefinerKind* a, const RefinerKind* b) { return a->order < b->order; });
-    return r;
-  }();
-  return kinds;
+const RowTable<RefinerKind>& refiner_table() {
+  static const RowTable<RefinerKind> table("refiner", refiner_rows::rows());
+  return table;
 }
 
+const std::vector<const RefinerKind*>& refiner_kinds() { return refiner_table().rows(); }
+
 std::string refiner_names(bool benchmark_only) {
+  if (!benchmark_only) return refiner_table().names();
   std::vector<std::string> names;
   for (const RefinerKind* k : refiner_kinds())
-    if (!benchmark_only || k->benchmark) names.push_back(k->name);
+    if (k->benchmark) names.push_back(k->name);
   return join_names(names);
 }
 
-const RefinerKind& refiner_kind(const std::string& name) {
-  for (const RefinerKind* k : refiner_kinds())
-    if (k->name == name) return *k;
-  throw_error("unknown refiner '", name.substr(0, 40), "' (expected ", refiner_names(), ")");
-}
+const RefinerKind& refiner_kind(const std::string& name) { return refiner_table().find(name); }
 
 nlohmann::json identity_json(const ArtifactOptions& o) {
   return {{"strength", o.strength}, {"seed", o.seed}, {"region_fraction", o.region_fraction}};
@@ -65,7 +58,7 @@ std::unique_ptr<Refiner> make_refiner(const std::string& name, const RefinerInpu
   const RefinerKind& k = refiner_kind(name);
   if (k.needs_truth && !in.truth) throw_error("the ", k.name, " refiner needs the ground-truth scene (synthetic data)");
   if (k.needs_pool && (!in.pool || in.pool->cameras.empty())) throw_error("the ", k.name, " refiner needs pool cameras (rig cameras neither trained on nor held out)");
-  if (k.needs_command && in.command.empty()) throw_error("the ", k.name, " refiner needs a command");
+  in.parameters.require(k.parameters);
   return k.make(in);
 }
 

@@ -1,3 +1,4 @@
+#include "fillgs/method/strategies.hpp"
 #include "fillgs/method/select.hpp"
 
 #include <algorithm>
@@ -380,7 +381,7 @@ class Selector {
     VisibilityEngine engine(*in_.scene, o_.visibility);
     FrameSampler sampler(*in_.scene);
     SelectionContext context{in_, o_, field, engine, sampler, vertical_};
-    const std::unique_ptr<SelectionStrategy> strategy = make_strategy(o_.strategy, context);
+    const std::unique_ptr<SelectionStrategy> strategy = strategy_row(o_.strategy).make(context);
     strategy_ = strategy.get();
     engine_ = &engine;
 
@@ -410,7 +411,7 @@ class Selector {
       if (!v.has_time()) throw_error("select: earlier virtual view ", v.name, " has no time");
       accept(v, field);
     }
-    progress_.start(std::string("select (") + to_string(o_.strategy) + ")", size_t(o_.trajectories));
+    progress_.start(std::string("select (") + o_.strategy + ")", size_t(o_.trajectories));
     size_t next_start = 0;
     for (int k = 0; k < o_.trajectories; ++k) {
       Trajectory tr;
@@ -684,7 +685,7 @@ PoolSelectResult select_from_pool(const SelectInput& in, const std::vector<Obser
   VisibilityEngine engine(*in.scene, o.visibility);
   FrameSampler sampler(*in.scene);
   SelectionContext context{in, o, field, engine, sampler, vertical_axis(cameras)};
-  const std::unique_ptr<SelectionStrategy> strategy = make_strategy(o.strategy, context);
+  const std::unique_ptr<SelectionStrategy> strategy = strategy_row(o.strategy).make(context);
   for (const Camera& v : in.earlier_views) {
     if (!v.has_time()) throw_error("select: earlier view ", v.name, " has no time");
     count_view(v, in.frames, field, engine, *strategy);
@@ -694,7 +695,7 @@ PoolSelectResult select_from_pool(const SelectInput& in, const std::vector<Obser
   std::vector<size_t> order(pool.size());
   std::iota(order.begin(), order.end(), size_t(0));
   for (size_t i = order.size(); i > 1; --i) std::swap(order[i - 1], order[size_t(rng() % i)]);
-  progress.start(std::string("select from the pool (") + to_string(o.strategy) + ")", n);
+  progress.start(std::string("select from the pool (") + o.strategy + ")", n);
   auto choose = [&](size_t c, double score) {
     result.chosen.push_back({c, score});
     Camera v = pool[c].camera;
@@ -776,6 +777,19 @@ SelectResult select_viewpoints(const SelectInput& in, const SelectOptions& o, Pr
   SelectResult result;
   Selector(in, o, result, progress).run();
   return result;
+}
+
+Bounds trajectory_bounds() { return within(0, 100000); }
+Bounds views_bounds() { return within(1, 1000); }
+Bounds patch_frame_bounds() { return within(1, 1000); }
+
+void check_select_options(const SelectOptions& o, const Spelling& s) {
+  strategy_row(o.strategy);
+  check_within(s("trajectories"), o.trajectories, trajectory_bounds());
+  check_within(s("views"), o.views, views_bounds());
+  check_within(s("patch_frames"), o.patch_frames, patch_frame_bounds());
+  check_within(s("time_stride"), o.time_stride, at_least(1));
+  if (o.no_error_term && o.no_sensitivity_term) throw_error(s("no_error_term"), " and ", s("no_sensitivity_term"), " leave no priority");
 }
 
 }  // namespace fillgs

@@ -1,9 +1,8 @@
 #pragma once
 // The selection strategies behind one interface (select.hpp, SelectOptions::strategy). Each
-// is a small class in src/method/strategies.cpp that owns its own state and decides everything
-// it does differently (its starts, paths, scores, and its order of a pool: pool_order); the
-// registry there makes them by name (Strategy's name table). Adding a strategy: its class and
-// one registry entry in strategies.cpp, its value and name beside the Strategy enum.
+// is a small class in its row's file under src/method/strategies/ (method/strategies.hpp)
+// that owns its own state and decides everything it does differently (its starts, paths,
+// scores, and its order of a pool: pool_order). Adding a strategy is adding that file.
 #include <memory>
 #include <optional>
 #include <utility>
@@ -61,7 +60,5 @@ class SelectionStrategy {
   }
 };
 
-/// The strategy named by `s`, sharing `context` (which must outlive it).
-std::unique_ptr<SelectionStrategy> make_strategy(Strategy s, SelectionContext& context);
 
 }  // namespace fillgs

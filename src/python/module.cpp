@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/method/strategies.hpp"
 #include "fillgs/base/bounds.hpp"
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/fs_util.hpp"
@@ -132,12 +133,17 @@ void require_file(const std::string& path) {
 /// A library message with the command line's flags named as this module's keywords:
 /// "--model-frames F" -> "frames=F", "--tau" -> "tau=". Flags without a keyword stay.
 std::string as_keywords(const std::string& message) {
-  static const std::pair<const char*, const char*> kKeywords[] = {
+  static const std::vector<std::pair<std::string, std::string>> kKeywords = [] {
+    std::vector<std::pair<std::string, std::string>> k = {
       {"--model-frames", "frames"}, {"--model-time-range", "time_range"}, {"--scene-format", "format"}, {"--model-evaluation", "evaluation"},
       {"--still-tolerance", "still_tolerance"}, {"--camera-format", "format"}, {"--train-cameras", "train_cameras"}, {"--downscale", "downscale"},
       {"--frames", "frames"}, {"--times", "times"}, {"--mode", "mode"}, {"--stride", "stride"}, {"--tau", "tau"}, {"--hit-cache", "hit_cache_mb"},
       {"--divisions", "divisions"}, {"--strategy", "strategy"}, {"--trajectories", "trajectories"}, {"--weighting", "weighting"},
       {"--background", "background"}};
+    // The rows' own parameters: each flag is its key's spelling, each keyword the key.
+    for (const RowParameter* p : model_format_table().parameters()) k.emplace_back(Spelling{}(p->key), p->key);
+    return k;
+  }();
   std::string out;
   for (size_t i = 0; i < message.size();) {
     bool replaced = false;
@@ -154,7 +160,7 @@ std::string as_keywords(const std::string& message) {
           static const char* kWords[] = {"and", "or", "must", "is", "expects", "takes", "given", "has", "needs", "with", "to", "for", "of", "in", "at"};
           const std::string next = end < message.size() && message[end] == ' ' ? message.substr(end + 1, word_end - end - 1) : "";
           const bool value = !next.empty() && std::none_of(std::begin(kWords), std::end(kWords), [&](const char* w) { return next == w; });
-          out += std::string(keyword) + "=";
+          out += keyword + "=";
           i = end + (value ? 1 : 0);
           replaced = true;
           break;
@@ -438,10 +444,39 @@ std::pair<Model, std::shared_ptr<const CallerFrames>> model_from_frames(const py
   return {Model{c, "frames"}, source};
 }
 
+/// A row's own parameters as the module lists them: {key: {default, help}}.
+py::dict parameters_of(const RowHeading& row) {
+  py::dict out;
+  for (const RowParameter* q : row.parameters) out[q->key.c_str()] = py::dict(py::arg("default") = q->default_text, py::arg("help") = q->help);
+  return out;
+}
+
+/// The values of rows' own parameters given as keywords (`table`'s declarations, base/row_table.hpp);
+/// a keyword no row declares is a TypeError naming the ones they do.
+template <class Row>
+RowParameterValues row_parameters(const RowTable<Row>& table, const py::kwargs& given, const char* function) {
+  RowParameterValues values;
+  for (const auto& [key, value] : given) {
+    const std::string k = py::str(key).cast<std::string>();
+    const RowParameter* p = table.parameter(k);
+    if (!p) {
+      std::vector<std::string> keys;
+      for (const RowParameter* q : table.parameters()) keys.push_back(q->key);
+      throw py::type_error(std::string(function) + "() got an unexpected keyword argument '" + k + "' (its rows' parameters: " + join_names(keys) + ")");
+    }
+    const bool text = p->kind == RowParameter::Kind::Choice || p->kind == RowParameter::Kind::Text;
+    if (py::isinstance<py::bool_>(value) || (text ? !py::isinstance<py::str>(value) : !(py::isinstance<py::int_>(value) || py::isinstance<py::float_>(value))))
+      throw py::type_error(k + ": expected " + (text ? "a string" : p->kind == RowParameter::Kind::Integer ? "an integer" : "a number"));
+    values.set(*p, py::str(value).cast<std::string>(), Spelling{false});
+  }
+  return values;
+}
+
 Model load_model(const std::string& path, const std::string& format, int frames, const std::string& time_range, const std::string& evaluation,
-                 const py::object& still_tolerance, const py::object& progress) {
+                 const py::object& still_tolerance, const py::object& progress, const py::kwargs& parameters) {
   require_file(path);
   SceneReadOptions o;
+  o.parameters = row_parameters(model_format_table(), parameters, "load_model");
   o.format = format == "auto" ? format : model_format(format).name;
   check_within("frames", frames, at_least(0));  // --model-frames' bounds
   o.model_frames = frames;
@@ -846,15 +881,13 @@ py::dict select_py(const Model& model, const Cameras& cameras, int frames, const
                    uint64_t seed, const py::object& images, const py::object& grid, const py::object& progress) {
   const GaussianCloud& cloud = *model.cloud;
   if (cloud.size() == 0) throw py::value_error("model: no Gaussians, so no camera observes anything and there is no view to choose");
-  if (trajectories < 0 || trajectories > 100000) throw py::value_error("trajectories: " + std::to_string(trajectories) + ", expected 0 to 100000");
-  if (views < 1 || views > 1000) throw py::value_error("views: " + std::to_string(views) + ", expected 1 to 1000");
-  if (patch_frames < 1 || patch_frames > 1000) throw py::value_error("patch_frames: " + std::to_string(patch_frames) + ", expected 1 to 1000");
   SelectOptions o;
-  o.strategy = parse_name<Strategy>(strategy);
+  o.strategy = strategy_row(strategy).name;
   o.trajectories = trajectories;
   o.views = views;
   o.patch_frames = patch_frames;
   o.seed = seed;
+  check_select_options(o, Spelling{false});  // the command line's check, in the keywords' names
   SelectInput in;
   in.scene = &cloud;
   std::tie(in.views, in.frames) = views_of(cloud, cameras, frames);
@@ -896,8 +929,8 @@ py::dict select_py(const Model& model, const Cameras& cameras, int frames, const
 py::dict finetune_py(const Model& model, const std::string& images, const std::string& cameras, const std::string& out,
                      const std::vector<std::string>& train_cameras, const std::string& frames, int downscale, int iterations, int select_every,
                      const py::object& trajectories, uint64_t seed, const std::string& strategy, const std::string& weighting,
-                     const py::object& refiner, const std::string& refiner_command, const py::object& truth, const std::vector<std::string>& pool_cameras,
-                     int pool_budget, const std::string& motion_rates, const py::object& refined_share, const py::object& progress) {
+                     const py::object& refiner, const py::object& truth, const std::vector<std::string>& pool_cameras, int pool_budget,
+                     const std::string& motion_rates, const py::object& refined_share, const py::object& progress, const py::kwargs& parameters) {
   require_file(images);
   require_file(cameras);
   FinetuneJob job;
@@ -908,10 +941,10 @@ py::dict finetune_py(const Model& model, const std::string& images, const std::s
   job.options.iterations = iterations;
   job.options.select_every = select_every;
   if (!trajectories.is_none()) job.options.trajectories = trajectories.cast<int>(), job.trajectories_given = true;
-  job.options.select.strategy = parse_name<Strategy>(strategy);
+  job.options.select.strategy = strategy_row(strategy).name;
   job.options.weighting = parse_name<Weighting>(weighting);
   if (!refiner.is_none()) job.refiner = refiner.cast<std::string>();
-  job.refiner_inputs.command = refiner_command;
+  job.refiner_inputs.parameters = row_parameters(refiner_table(), parameters, "finetune");
   job.refiner_inputs.reference = bench_reference_options(0.5, 1);  // as --reference-angle's default
   if (!truth.is_none()) job.refiner_inputs.truth = truth.cast<const Model&>().cloud.get();
   job.pool_cameras = pool_cameras;
@@ -1062,7 +1095,26 @@ PYBIND11_MODULE(_fillgs, m) {
 
   m.def("load_model", &load_model, py::arg("path"), py::arg("format") = "auto", py::arg("frames") = 0, py::arg("time_range") = "",
         py::arg("evaluation") = "streamed", py::arg("still_tolerance") = py::none(), py::arg("progress") = py::none(),
-        "Reads a model as the command line does (`--scene-format`, `--model-frames`, `--model-time-range`, `--model-evaluation`, `--still-tolerance`).");
+        "Reads a model as the command line does (`--scene-format`, `--model-frames`, `--model-time-range`, `--model-evaluation`, `--still-tolerance`); "
+        "a format's own parameters are keywords (stg_duration=50 for `--stg-duration 50`; model_formats() lists each format's).");
+  m.def(
+      "refiners",
+      [] {
+        py::list out;
+        for (const RefinerKind* k : refiner_kinds()) {
+          py::dict d;
+          d["name"] = k->name;
+          d["description"] = k->description;
+          d["needs_truth"] = k->needs_truth;
+          d["needs_pool"] = k->needs_pool;
+          d["benchmark"] = k->benchmark;
+          d["parameters"] = parameters_of(*k);
+          out.append(d);
+        }
+        return out;
+      },
+      "The refiners finetune takes, in listing order: dicts of name, description, needs_truth, needs_pool, benchmark (made from "
+      "a synthetic scene's truth and training cameras alone) and parameters (its own finetune keywords: default and help).");
   m.def(
       "model_formats",
       [] {
@@ -1073,12 +1125,13 @@ PYBIND11_MODULE(_fillgs, m) {
           d["aliases"] = f->aliases;
           d["description"] = f->description;
           d["evaluated"] = bool(f->open);
+          d["parameters"] = parameters_of(*f);
           out.append(d);
         }
         return out;
       },
-      "The formats load_model reads, in detection order: dicts of name, aliases, description and evaluated (the model's own code "
-      "evaluates it at any time; else its file is read whole).");
+      "The formats load_model reads, in detection order: dicts of name, aliases, description, evaluated (the model's own code "
+      "evaluates it at any time; else its file is read whole) and parameters (its own load_model keywords: default and help).");
   m.def(
       "model_from_arrays",
       [](const py::dict& arrays) {
@@ -1195,14 +1248,15 @@ PYBIND11_MODULE(_fillgs, m) {
   m.def("finetune", &finetune_py, py::arg("model"), py::arg("images"), py::arg("cameras"), py::arg("out"),
         py::arg("train_cameras") = std::vector<std::string>(), py::arg("frames") = "", py::arg("downscale") = 1, py::arg("iterations") = 2400,
         py::arg("select_every") = 800, py::arg("trajectories") = py::none(), py::arg("seed") = 1, py::arg("strategy") = "fillgs",
-        py::arg("weighting") = "fillgs", py::arg("refiner") = py::none(), py::arg("refiner_command") = "", py::arg("truth") = py::none(),
+        py::arg("weighting") = "fillgs", py::arg("refiner") = py::none(), py::arg("truth") = py::none(),
         py::arg("pool_cameras") = std::vector<std::string>(), py::arg("pool_budget") = 0, py::arg("motion_rates") = "converged",
         py::arg("refined_share") = py::none(), py::arg("progress") = py::none(),
         "Fine-tunes a loaded model as `fillgs finetune` does, the same job with the same checks (each problem named by its keyword), "
         "writing the same folder `out` (model.ply, virtual_views.json, summary.json, pool_chosen.json with a pool budget); returns "
         "summary.json as a dict. images, cameras, train_cameras, frames, downscale: the training views as load_views reads them; "
         "trajectories None: 5 (a pool budget takes none); refiner None: identity (a pool budget takes none); truth: a loaded "
-        "ground-truth scene (oracle, reference); motion_rates: converged, repair or gentle (--motion-rates).");
+        "ground-truth scene (oracle, reference); motion_rates: converged, repair or gentle (--motion-rates); a refiner's own parameters "
+        "are keywords (refiner_command=, refiner_timeout= for external; refiners() lists each refiner's).");
   m.def("weights", &weights_py, py::arg("model"), py::arg("cameras"), py::arg("images"), py::arg("refined"), py::arg("refined_cameras"),
         py::arg("weighting") = "fillgs", py::arg("frames") = 0, py::arg("mask_sigma") = py::none(),
         py::arg("mask") = std::string(to_string(MaskOptions().method)), py::arg("covis") = std::string(to_string(MaskOptions().covisibility)),

@@ -43,7 +43,7 @@ def test_every_function_has_a_signature_and_a_stub_that_agree():
         sig = inspect.signature(getattr(fillgs, name))
         assert name in stubs, f"{name} has no stub"
         args = stubs[name].args
-        names = [a.arg for a in args.args if a.arg != "self"]
+        names = [a.arg for a in args.args if a.arg != "self"] + ([args.kwarg.arg] if args.kwarg else [])
         assert names == list(sig.parameters), (name, names, list(sig.parameters))
         defaults = [ast.literal_eval(d) for d in args.defaults]
         runtime = [p.default for p in sig.parameters.values() if p.default is not inspect.Parameter.empty]

@@ -7,6 +7,7 @@ FILLGS_MODEL_FIXTURES, FILLGS_BIN, FILLGS_SOURCE set."""
 import gc
 import json
 import os
+import re
 import subprocess
 import sys
 import threading
@@ -85,6 +86,34 @@ def test_model_formats_are_the_cli_table():
         assert m.size == info["gaussians"]
     with pytest.raises(fillgs.Error, match="unknown scene format 'no-such'.*e-d3dgs"):
         fillgs.load_model(fixture("ed3dgs"), format="no-such")
+
+
+def test_format_parameters_are_keywords(tmp_path):
+    """A format's own parameters, declared in its row, are load_model's keywords as they are the
+    command line's flags: the value reaches the format, a bad one gets the command line's
+    sentence in the keyword's name, and model_formats() lists them."""
+    names = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3",
+             "trbf_center", "trbf_scale"] + [f"motion_{k}" for k in range(9)] + [f"omega_{k}" for k in range(4)]
+    row = dict.fromkeys(names, 0.0)
+    row.update(opacity=1.0, scale_0=-3.0, scale_1=-3.0, scale_2=-3.0, rot_0=1.0, trbf_center=0.5, trbf_scale=float(np.log(1000.0)), motion_0=1.0)
+    path = tmp_path / "stg.ply"
+    header = "ply\nformat binary_little_endian 1.0\nelement vertex 1\n" + "".join(f"property float {n}\n" for n in names) + "end_header\n"
+    path.write_bytes(header.encode() + np.array([row[n] for n in names], dtype="<f4").tobytes())
+    # x = (STG time) - 0.5 with frame f of D at STG time f / D: normalised time 1 is (D - 1) / D.
+    assert fillgs.load_model(str(path), stg_duration=10).at(1.0)["means"][0, 0] == pytest.approx(0.9 - 0.5, abs=1e-6)
+    assert fillgs.load_model(str(path)).at(1.0)["means"][0, 0] == pytest.approx(0.98 - 0.5, abs=1e-6)
+    r = cli("info", str(path), "--stg-duration", "0")
+    assert r.returncode != 0 and "--stg-duration must be in [1, 1e+06], got 0" in r.stderr, r.stderr
+    with pytest.raises(fillgs.Error, match=r"^stg_duration must be in \[1, 1e\+06\], got 0$"):
+        fillgs.load_model(str(path), stg_duration=0)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'stg_durations'.*stg_duration"):
+        fillgs.load_model(str(path), stg_durations=10)
+    with pytest.raises(TypeError, match="stg_color: expected a string"):
+        fillgs.load_model(str(path), stg_color=1)
+    stg = [f for f in fillgs.model_formats() if f["name"] == "stg"][0]
+    assert stg["parameters"]["stg_duration"]["default"] == "50" and set(stg["parameters"]) == {"stg_duration", "stg_color"}
+    external = [k for k in fillgs.refiners() if k["name"] == "external"][0]
+    assert set(external["parameters"]) == {"refiner_command", "refiner_timeout"}
 
 
 def test_model_arrays_layout():
@@ -536,6 +565,33 @@ def test_finetune_is_the_command_lines_job(tmp_path, synth):
     assert not os.path.exists(tmp_path / "bad_cli") and not os.path.exists(tmp_path / "bad_py")
     with pytest.raises(Exception, match="refined_share must be in"):
         fillgs.finetune(model, synth, f"{synth}/transforms_train.json", str(tmp_path / "bad_py"), refined_share=2.0, **kw)
+    # A refiner's own parameter (declared in its row) is a keyword too, checked as its flag is.
+    no_pool = {k: v for k, v in kw.items() if k not in ("pool_cameras", "pool_budget")}
+    bad = cli("finetune", *common[:-9], "--quiet", "--refiner", "external", "--out", str(tmp_path / "bad_cli"))
+    assert bad.returncode != 0 and "missing --refiner-command" in bad.stderr, bad.stderr
+    with pytest.raises(fillgs.Error, match="^missing refiner_command$"):
+        fillgs.finetune(model, synth, f"{synth}/transforms_train.json", str(tmp_path / "bad_py"), refiner="external", **no_pool)
+    with pytest.raises(fillgs.Error, match=r"^refiner_timeout must be positive, got 0$"):
+        fillgs.finetune(model, synth, f"{synth}/transforms_train.json", str(tmp_path / "bad_py"), refiner="external", refiner_command="x {in} {out}",
+                        refiner_timeout=0, **no_pool)
+    assert not os.path.exists(tmp_path / "bad_cli") and not os.path.exists(tmp_path / "bad_py")
+
+
+def test_select_options_get_the_command_lines_check(tmp_path, cameras_file):
+    """select's counts and ablations are checked once, in the library (check_select_options,
+    with the bounds the command line's flags declare): the same sentence from either face."""
+    scene = fixture("ed3dgs")
+    m, cams = fillgs.load_model(scene), fillgs.read_cameras(cameras_file)
+    for flag, keyword, value, words in [("--trajectories", "trajectories", 100001, "must be in [0, 100000], got 100001"),
+                                        ("--views", "views", 0, "must be in [1, 1000], got 0"),
+                                        ("--patch-frames", "patch_frames", 1001, "must be in [1, 1000], got 1001")]:
+        r = cli("select", "--scene", scene, "--cameras", cameras_file, "--out", str(tmp_path / "s"), flag, str(value), "--quiet")
+        assert r.returncode != 0 and f"{flag} {words}" in r.stderr, r.stderr
+        with pytest.raises(fillgs.Error, match="^" + re.escape(f"{keyword} {words}") + "$"):
+            fillgs.select(m, cams, frames=5, **{keyword: value})
+    with pytest.raises(fillgs.Error, match="unknown strategy 'greedy'"):
+        fillgs.select(m, cams, frames=5, strategy="greedy")
+    assert not os.path.exists(tmp_path / "s")
 
 
 def test_observe_options_get_the_command_lines_check(tmp_path, cameras_file):

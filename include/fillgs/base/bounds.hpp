@@ -28,6 +28,11 @@ std::string bounds_problem(double x, const Bounds& bounds, const std::string& te
 /// line's parser refuses such text), "<what> must be ..., got ..." where it is outside the bounds.
 void check_within(const std::string& what, double x, const Bounds& bounds);
 
+/// One-line message for text that is not a number (an integer where `integral`) or is
+/// outside the bounds ("must be at least 1, got 0"); empty when it is good (the number in
+/// *out). The command line's flags and the rows' parameters (base/row_table.hpp) check so.
+std::string check_number(const std::string& text, bool integral, const Bounds& bounds, double* out);
+
 /// How a face spells an option in the library's messages: the command line "--pool-budget",
 /// the Python module "pool_budget" (the library's key, the module's keyword). A check made
 /// once in the library words its sentence for whichever face asked.

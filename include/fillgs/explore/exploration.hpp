@@ -88,6 +88,9 @@ class ExplorationGrid {
 
   const Box3& box() const { return box_; }
   const Vec3i& dims() const { return dims_; }
+  /// The opacity at which a Gaussian occupied a voxel when the grid was built (its file's
+  /// record; ExplorationOptions' default for a file written before it was recorded).
+  float occupancy_alpha() const { return occupancy_alpha_; }
   Vec3d voxel_size() const { return (box_.hi - box_.lo).cwiseQuotient(dims_.cast<double>()); }
   /// Candidate step: twice the voxel's body diagonal (the paper, Appendix A, after ExploreGS).
   double step() const { return 2.0 * voxel_size().norm(); }
@@ -119,6 +122,7 @@ class ExplorationGrid {
   std::unique_ptr<Impl> impl_;
   Box3 box_;
   Vec3i dims_ = Vec3i::Zero();
+  float occupancy_alpha_ = ExplorationOptions{}.occupancy_alpha;
 };
 
 /// The exploration space of a scene (the paper, Appendix A, after ExploreGS): a box around the training cameras and

@@ -1,7 +1,10 @@
 #pragma once
-// The model formats fillgs reads, one table: each format is one file under src/io/formats/
-// that defines its row {name, detect(path), open(path, options)}, and the build collects
-// every file there into the table (CMakeLists.txt, src/row_table.cpp.in).
+// The model formats fillgs reads, one table (base/row_table.hpp): each format is one file
+// under src/io/formats/ that defines its row {heading, detect(path), open(path, options)},
+// and the build collects every file there into the table (CMakeLists.txt,
+// src/row_table.cpp.in). A format's own parameters (Spacetime Gaussians' duration) are
+// declared in its row; the command line's flags and the Python module's keywords are made
+// from them, and their values reach it as SceneReadOptions::parameters.
 // Adding a format is adding that file (and its test); nothing else names it.
 //
 // read_scene (io/scene_io.hpp) detects a path's format here, and reads it through its row:
@@ -13,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/base/row_table.hpp"
 #include "fillgs/io/scene_io.hpp"
 
 namespace fillgs {
@@ -41,11 +45,10 @@ class FormatProbe {
   mutable std::string header_;
 };
 
-struct ModelFormat {
-  std::string name;                  ///< what --scene-format and load_model(format=) take
-  std::vector<std::string> aliases;  ///< other names that parse to it
-  std::string description;           ///< the codebase and what it saves, one line
-  int detect_order = 50;             ///< detection asks lower first; the most specific formats are lowest
+/// The heading's name is what --scene-format and load_model(format=) take, its description
+/// the codebase and what it saves; detection asks the lower `order` first (the most specific
+/// formats are lowest).
+struct ModelFormat : RowHeading {
   /// Whether the path (a file or folder that exists) holds this format.
   std::function<bool(const FormatProbe&)> detect;
   /// A model its own code evaluates at any time (null: read() reads the file whole).
@@ -57,6 +60,8 @@ struct ModelFormat {
   std::function<GaussianCloud(const std::string& path, const SceneReadOptions&)> read;
 };
 
+/// The table of formats (detection order; "auto" is accepted beside the names).
+const RowTable<ModelFormat>& model_format_table();
 /// Every format, in detection order.
 const std::vector<const ModelFormat*>& model_formats();
 

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "fillgs/base/names.hpp"
+#include "fillgs/base/row_table.hpp"
 #include "fillgs/model/gaussians.hpp"
 
 namespace fillgs {
@@ -39,15 +40,10 @@ FILLGS_ENUM_NAMES(NetworkKernel, "network kernel", {NetworkKernel::Simd, "simd"}
 struct SceneReadOptions {
   /// A format's name or alias (io/model_formats.hpp), or "auto": detected from the path.
   std::string format = "auto";
-  /// Spacetime Gaussians: frames one model covers (configs use 50).
-  int stg_duration = 50;
-  /// Spacetime Gaussians colour activation for f_dc_0..2: "auto" (sigmoid for the full
-  /// model, none for the lite model), "sigmoid", "clamp", "none".
-  std::string stg_color_activation = "auto";
-  /// Ex4DGS: overrides for cfg_args values (0 / empty: take them from cfg_args or defaults).
-  int ex4dgs_duration = 0;
-  int ex4dgs_interval = 0;
-  int ex4dgs_pad = -1;
+  /// The values given for the formats' own parameters (each declared in its format's row,
+  /// io/model_formats.hpp: Spacetime Gaussians' stg_duration and stg_color, Ex4DGS's
+  /// ex4dgs_duration, ex4dgs_interval and ex4dgs_pad); a parameter not given is its default.
+  RowParameterValues parameters;
   /// Trained 4D models (E-D3DGS, 4DGaussians, 4DGS): frames the model covers (0: from its
   /// files: E-D3DGS's cfg_args), the model-time range they span ("T0:T1"; frame f at
   /// T0 + f (T1 - T0) / F; empty: 0:1), E-D3DGS's camera whose time offset to use (-1: the

@@ -1,5 +1,5 @@
 #pragma once
-// The refiners fillgs drives, one table: each is one file under src/method/refiners/ that
+// The refiners fillgs drives, one table (base/row_table.hpp): each is one file under src/method/refiners/ that
 // defines its row (its fields named: name, what it needs, make(inputs), identity(inputs)), and
 // the build collects every file there into the table (CMakeLists.txt, src/row_table.cpp.in).
 // The fine-tuning job (`fillgs finetune`, the module's `finetune`) and the benchmark's runs
@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "fillgs/base/row_table.hpp"
 #include "fillgs/io/dataset.hpp"
 #include "fillgs/method/refine.hpp"
 
@@ -22,21 +23,20 @@ struct RefinerInputs {
   std::vector<Camera> observers;         ///< the training cameras, with their times (the oracle's support)
   int frames = 0;                        ///< the video's frame count
   const RigPool* pool = nullptr;         ///< a rig's pool cameras and their photographs
-  std::string command;                   ///< an external program, with {in} and {out}
-  double timeout_seconds = 600.0;        ///< the external program's time per patch
+  /// The values given for the refiners' own parameters (each declared in its row: the
+  /// external program's refiner_command and refiner_timeout).
+  RowParameterValues parameters;
   OracleOptions oracle;                  ///< the oracles' artifacts, window and background (the row sets the support)
   ReferenceOptions reference;            ///< the reference-conditioned refiners' parameters
   RigOptions rig;
   SupportStats* stats = nullptr;         ///< where the oracles and the reference-conditioned refiners record what they restored
 };
 
-struct RefinerKind {
-  std::string name;         ///< what --refiner takes
-  std::string description;  ///< what it restores, one line (help, reports)
-  int order = 50;           ///< listing order (help, reports), lower first
+/// The heading's name is what --refiner takes, its description what it restores (help,
+/// reports), its order the listing's (base/row_table.hpp).
+struct RefinerKind : RowHeading {
   bool needs_truth = false;    ///< a synthetic scene's ground truth
   bool needs_pool = false;     ///< a rig's pool cameras
-  bool needs_command = false;  ///< an external program
   /// Made from the truth and the training cameras alone, so the benchmark (synthetic scenes)
   /// can run it.
   bool benchmark = false;
@@ -60,6 +60,8 @@ void complete_refiner_inputs(RefinerInputs& inputs, const Dataset& data, uint64_
 nlohmann::json identity_json(const ArtifactOptions& o);
 nlohmann::json identity_json(const ReferenceOptions& o);  ///< with "name": "reference"
 
+/// The table of refiners.
+const RowTable<RefinerKind>& refiner_table();
 /// Every refiner, in listing order.
 const std::vector<const RefinerKind*>& refiner_kinds();
 /// The refiner of that name; one line listing the names otherwise.

@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/base/bounds.hpp"
 #include "fillgs/base/names.hpp"
 #include "fillgs/model/camera.hpp"
 #include "fillgs/explore/exploration.hpp"
@@ -36,12 +37,6 @@
 #include "fillgs/visibility/visibility.hpp"
 
 namespace fillgs {
-
-enum class Strategy { FillGS, Random, Negative, Interpolation, FisherRF, Coverage3D, Coverage4D };
-FILLGS_ENUM_NAMES(Strategy, "strategy",
-    {Strategy::FillGS, "fillgs"}, {Strategy::Random, "random"}, {Strategy::Negative, "negative"},
-    {Strategy::Interpolation, "interpolation"}, {Strategy::FisherRF, "fisherrf"}, {Strategy::Coverage3D, "coverage3d"},
-    {Strategy::Coverage4D, "coverage4d"});
 
 /// What a candidate's rendered map holds per Gaussian (the paper's score and its ablations).
 enum class CandidateScore { Deficiency, CountOnly, SpeedOnly };
@@ -71,7 +66,8 @@ enum class MapRenderer { Raytraced, Raster };
 FILLGS_ENUM_NAMES(MapRenderer, "map renderer", {MapRenderer::Raytraced, "raytraced"}, {MapRenderer::Raster, "raster"});
 
 struct SelectOptions {
-  Strategy strategy = Strategy::FillGS;
+  /// A strategy's name (method/strategies.hpp: fillgs, the paper's, and the baselines).
+  std::string strategy = "fillgs";
   int trajectories = 20;         ///< budget
   int views = 3;                 ///< virtual poses per trajectory (the refiner patch takes 3)
   int patch_frames = 3;          ///< consecutive frames each pose is rendered at (centred on the start's)
@@ -177,6 +173,16 @@ struct SelectResult {
   ObservationTables initial_tables;  ///< C, s, D before any trajectory was added
   std::vector<std::string> notes;
 };
+
+/// The ranges of SelectOptions' counts: the command line's flags declare them, and
+/// check_select_options checks them for every face.
+Bounds trajectory_bounds();    ///< trajectories: [0, 100000]
+Bounds views_bounds();         ///< views per trajectory: [1, 1000] (each is scored, rendered and refined)
+Bounds patch_frame_bounds();   ///< patch_frames: [1, 1000]
+
+/// The one check of a selection's options (counts in range, a priority left by the
+/// ablations, a known strategy), each problem one line naming the option as `spell` writes it.
+void check_select_options(const SelectOptions& o, const Spelling& spell = {});
 
 /// Runs a strategy. Deterministic for a given seed, whatever the thread count.
 SelectResult select_viewpoints(const SelectInput& input, const SelectOptions& options, Progress& progress = null_progress());

@@ -219,7 +219,7 @@ class Deformable3dgs : public TrainedModel {
 }  // namespace
 
 const ModelFormat& row_deformable3dgs() {
-  static const ModelFormat row{"deformable3dgs", {}, "Deformable 3D Gaussians: point_cloud/, deform/iteration_N/deform.pth and cfg_args (its run folder)", 30,
+  static const ModelFormat row{{"deformable3dgs", {}, "Deformable 3D Gaussians: point_cloud/, deform/iteration_N/deform.pth and cfg_args (its run folder)", 30, {}},
       [](const FormatProbe& p) { return p.directory() && p.beside("deform", true); },
       [](const std::string& path, const SceneReadOptions& o) -> std::unique_ptr<TrainedModel> { return std::make_unique<Deformable3dgs>(path, o); },
       true, nullptr};

@@ -87,7 +87,7 @@ class Dynamic3dgs : public FrameSequence {
 }  // namespace
 
 const ModelFormat& row_dynamic3dgs() {
-  static const ModelFormat row{"dynamic3dgs", {}, "Dynamic 3D Gaussians: params.npz, or the folder holding it", 20,
+  static const ModelFormat row{{"dynamic3dgs", {}, "Dynamic 3D Gaussians: params.npz, or the folder holding it", 20, {}},
       [](const FormatProbe& p) {
         const std::string n = p.filename();
         return p.directory() ? p.beside("params.npz") : n.size() > 4 && n.compare(n.size() - 4, 4, ".npz") == 0;

@@ -266,7 +266,7 @@ class Ed3dgs : public TrainedModel {
 }  // namespace
 
 const ModelFormat& row_ed3dgs() {
-  static const ModelFormat row{"e-d3dgs", {}, "E-D3DGS: point_cloud.ply with embedding_*, deformation.pth and cfg_args (its run folder or an iteration folder)", 50,
+  static const ModelFormat row{{"e-d3dgs", {}, "E-D3DGS: point_cloud.ply with embedding_*, deformation.pth and cfg_args (its run folder or an iteration folder)", 50, {}},
       [](const FormatProbe& p) { return deformation_run_header(p).find(" embedding_0\n") != std::string::npos; },
       [](const std::string& path, const SceneReadOptions& o) -> std::unique_ptr<TrainedModel> { return std::make_unique<Ed3dgs>(path, o); },
       true, nullptr};

@@ -94,13 +94,32 @@ Ex4dgsConfig read_ex4dgs_config(const std::string& static_ply) {
   return cfg;
 }
 
+// Ex4DGS's own parameters: overrides of its cfg_args.
+const RowParameter& ex4dgs_duration_parameter() {
+  static const RowParameter p = [] {
+    RowParameter q = RowParameter::integer("ex4dgs_duration", 0, within(0, 1000000), "Ex4DGS: frames the model covers (0: from cfg_args)");
+    q.flag_aliases = {"--duration"};
+    return q;
+  }();
+  return p;
+}
+const RowParameter& ex4dgs_interval_parameter() {
+  static const RowParameter p = RowParameter::integer("ex4dgs_interval", 0, within(0, 1000000), "Ex4DGS: frames between its keys (0: cfg_args' time_interval)");
+  return p;
+}
+const RowParameter& ex4dgs_pad_parameter() {
+  static const RowParameter p = RowParameter::integer("ex4dgs_pad", -1, within(-1, 1000000), "Ex4DGS: keys padded at either end (-1: cfg_args' time_pad)");
+  return p;
+}
+
 GaussianCloud read_ex4dgs(const std::string& static_path, const std::string& dynamic_path, const SceneReadOptions& opt) {
   Ex4dgsConfig cfg = read_ex4dgs_config(static_path);
-  if (opt.ex4dgs_duration > 0) cfg.duration = opt.ex4dgs_duration;
-  if (opt.ex4dgs_interval > 0) cfg.interval = opt.ex4dgs_interval;
-  if (opt.ex4dgs_pad >= 0) cfg.pad = opt.ex4dgs_pad;
+  // Their declared ranges are cfg_args' own (read_ex4dgs_config).
+  if (const long long d = opt.parameters.integer(ex4dgs_duration_parameter()); d > 0) cfg.duration = int(d);
+  if (const long long i = opt.parameters.integer(ex4dgs_interval_parameter()); i > 0) cfg.interval = int(i);
+  if (const long long k = opt.parameters.integer(ex4dgs_pad_parameter()); k >= 0) cfg.pad = int(k);
   if (cfg.duration < 2)
-    throw_error(static_path, ": Ex4DGS duration unknown (", cfg.source, " has none): give the duration in frames");
+    throw_error(static_path, ": Ex4DGS duration unknown (", cfg.source, " has none): give the duration in frames (--ex4dgs-duration)");
   if (cfg.interval < 1) throw_error(cfg.source, ": time_interval must be positive");
   const int D = cfg.duration, I = cfg.interval, P = cfg.pad;
   const int S = (cfg.interp == "linear") ? P : P + I;
@@ -222,7 +241,8 @@ GaussianCloud read_ex4dgs_pair(const std::string& path, const SceneReadOptions& 
 }  // namespace
 
 const ModelFormat& row_ex4dgs() {
-  static const ModelFormat row{"ex4dgs", {}, "Ex4DGS: point_cloud.ply and dynamic_point_cloud.ply side by side (either file, or their folder), cfg_args", 10,
+  static const ModelFormat row{{"ex4dgs", {}, "Ex4DGS: point_cloud.ply and dynamic_point_cloud.ply side by side (either file, or their folder), cfg_args", 10,
+                                {&ex4dgs_duration_parameter(), &ex4dgs_interval_parameter(), &ex4dgs_pad_parameter()}},
       [](const FormatProbe& p) { return !ex4dgs_pair(p.path()).first.empty(); }, nullptr, false, read_ex4dgs_pair};
   return row;
 }

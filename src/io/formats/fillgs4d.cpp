@@ -126,7 +126,7 @@ GaussianCloud read_fillgs(const std::string& path, const SceneReadOptions&) {
 }  // namespace
 
 const ModelFormat& row_fillgs4d() {
-  static const ModelFormat row{"fillgs", {}, "fillgs 4D PLY (a 3DGS vertex element and a track element of keys)", 70,
+  static const ModelFormat row{{"fillgs", {}, "fillgs 4D PLY (a 3DGS vertex element and a track element of keys)", 70, {}},
       [](const FormatProbe& p) { return p.ply_header().find(kFillgsMagic) != std::string::npos; }, nullptr, false, read_fillgs};
   return row;
 }

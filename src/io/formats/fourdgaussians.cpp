@@ -286,7 +286,7 @@ class FourDGaussians : public TrainedModel {
 }  // namespace
 
 const ModelFormat& row_fourdgaussians() {
-  static const ModelFormat row{"4dgaussians", {}, "4DGaussians: point_cloud.ply, deformation.pth (HexPlane) and cfg_args (its run folder or an iteration folder)", 51,
+  static const ModelFormat row{{"4dgaussians", {}, "4DGaussians: point_cloud.ply, deformation.pth (HexPlane) and cfg_args (its run folder or an iteration folder)", 51, {}},
       [](const FormatProbe& p) {
         const std::string header = deformation_run_header(p);
         return !header.empty() && header.find(" embedding_0\n") == std::string::npos;

@@ -227,7 +227,7 @@ class FourDGS : public TrainedModel {
 }  // namespace
 
 const ModelFormat& row_fourdgs() {
-  static const ModelFormat row{"4dgs", {}, "4D Gaussian Splatting (Yang et al.): a chkpnt*.pth, or the folder holding them (the newest)", 40,
+  static const ModelFormat row{{"4dgs", {}, "4D Gaussian Splatting (Yang et al.): a chkpnt*.pth, or the folder holding them (the newest)", 40, {}},
       [](const FormatProbe& p) {
         auto checkpoint = [](const std::string& n) { return n.rfind("chkpnt", 0) == 0 && n.size() > 10 && n.compare(n.size() - 4, 4, ".pth") == 0; };
         if (!p.directory()) return checkpoint(p.filename());

@@ -28,7 +28,7 @@ GaussianCloud read_3dgs(const std::string& path, const SceneReadOptions&) {
 }  // namespace
 
 const ModelFormat& row_gaussian3d() {
-  static const ModelFormat row{"3dgs", {}, "3D Gaussian Splatting PLY (a static scene; any PLY of Gaussians the other formats do not claim)", 100,
+  static const ModelFormat row{{"3dgs", {}, "3D Gaussian Splatting PLY (a static scene; any PLY of Gaussians the other formats do not claim)", 100, {}},
       [](const FormatProbe& p) { return !p.ply_header().empty(); }, nullptr, false, read_3dgs};
   return row;
 }

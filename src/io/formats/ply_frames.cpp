@@ -74,7 +74,7 @@ class PlyFrames : public FrameSequence {
 }  // namespace
 
 const ModelFormat& row_ply_frames() {
-  static const ModelFormat row{"ply-frames", {}, "per-frame 3DGS PLYs: a folder of time_*.ply or frame_*.ply numbered from 0", 60,
+  static const ModelFormat row{{"ply-frames", {}, "per-frame 3DGS PLYs: a folder of time_*.ply or frame_*.ply numbered from 0", 60, {}},
       [](const FormatProbe& p) { return p.directory() && !PlyFrames::frame_files(p.path()).empty(); },
       [](const std::string& path, const SceneReadOptions& o) -> std::unique_ptr<TrainedModel> { return std::make_unique<PlyFrames>(path, o); },
       false, nullptr};

@@ -22,6 +22,20 @@ namespace fillgs::model_io {
 namespace {
 
 
+// Spacetime Gaussians' own parameters.
+const RowParameter& stg_duration_parameter() {
+  static const RowParameter p = RowParameter::integer("stg_duration", 50, within(1, 1000000), "Spacetime Gaussians: frames one model covers (its configs use 50)");
+  return p;
+}
+const RowParameter& stg_colour_parameter() {
+  static const RowParameter p = [] {
+    RowParameter q = RowParameter::choice("stg_color", "auto", {"auto", "sigmoid", "clamp", "none"},
+                                          "Spacetime Gaussians colour activation of f_dc_0..2 (auto: sigmoid for the full model, none for the lite one)");
+    return q;
+  }();
+  return p;
+}
+
 GaussianCloud read_spacetime(const std::string& path, const SceneReadOptions& opt) {
   const PlyData ply = read_ply(path);
   const PlyElement& v = ply.element("vertex");
@@ -33,10 +47,8 @@ GaussianCloud read_spacetime(const std::string& path, const SceneReadOptions& op
   read_base(v, c, ids);
   const size_t dc_count = v.indexed_properties("f_dc_").size();
   if (dc_count < 3) throw_error(path, ": Spacetime Gaussians file has ", dc_count, " 'f_dc_*' properties, need at least 3");
-  std::string act = opt.stg_color_activation;
+  std::string act = opt.parameters.text(stg_colour_parameter());  // one of its declared choices
   if (act == "auto") act = dc_count >= 6 ? "sigmoid" : "none";
-  if (act != "sigmoid" && act != "clamp" && act != "none")
-    throw_error("unknown Spacetime colour activation '", act, "' (expected auto, sigmoid, clamp or none)");
   for (int ch = 0; ch < 3; ++ch) {
     const auto& f = v.finite_column("f_dc_" + std::to_string(ch));
     for (size_t r = 0; r < n; ++r) {
@@ -52,7 +64,8 @@ GaussianCloud read_spacetime(const std::string& path, const SceneReadOptions& op
   c.motion = MotionModel::Polynomial;
   c.dynamic_ids = iota_ids(n);
   PolynomialMotion& p = c.polynomial;
-  p.time_scale = opt.stg_duration > 0 ? double(opt.stg_duration - 1) / opt.stg_duration : 1.0;
+  const double frames = double(opt.parameters.integer(stg_duration_parameter()));
+  p.time_scale = (frames - 1) / frames;
   p.coeffs.resize(9 * n);
   for (int k = 0; k < 9; ++k) {
     const auto& m = v.finite_column("motion_" + std::to_string(k));
@@ -71,7 +84,7 @@ GaussianCloud read_spacetime(const std::string& path, const SceneReadOptions& op
 }  // namespace
 
 const ModelFormat& row_spacetime() {
-  static const ModelFormat row{"stg", {"spacetime"}, "Spacetime Gaussians PLY (trbf_center, motion_*, omega_*)", 71,
+  static const ModelFormat row{{"stg", {"spacetime"}, "Spacetime Gaussians PLY (trbf_center, motion_*, omega_*)", 71, {&stg_duration_parameter(), &stg_colour_parameter()}},
       [](const FormatProbe& p) { return p.ply_header().find(" trbf_center\n") != std::string::npos; }, nullptr, false, read_spacetime};
   return row;
 }

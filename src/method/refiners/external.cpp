@@ -4,16 +4,30 @@
 
 namespace fillgs::refiner_rows {
 
+namespace {
+const RowParameter& external_command() {
+  static const RowParameter p = RowParameter::text("refiner_command", "external: the command, with {in} and {out}", true);
+  return p;
+}
+const RowParameter& external_timeout() {
+  static const RowParameter p = RowParameter::number("refiner_timeout", 600, positive(), "external: seconds per patch");
+  return p;
+}
+}  // namespace
+
 const RefinerKind& row_external() {
   static const RefinerKind row = [] {
     RefinerKind k;
     k.name = "external";
     k.description = "a program through the folder protocol ({in} -> {out})";
     k.order = 60;
-    k.needs_command = true;
-    k.make = [](const RefinerInputs& in) { return make_external_refiner(in.command, in.timeout_seconds); };
+    k.parameters = {&external_command(), &external_timeout()};
+    // make_refiner has checked that the command was given.
+    k.make = [](const RefinerInputs& in) { return make_external_refiner(in.parameters.text(external_command()), in.parameters.number(external_timeout())); };
     k.identity = [](const RefinerInputs& in) {
-      return nlohmann::json{{"name", "external"}, {"command", in.command}, {"timeout_seconds", in.timeout_seconds}};
+      nlohmann::json j = in.parameters.identity({&external_command(), &external_timeout()});
+      j["name"] = "external";
+      return j;
     };
     return k;
   }();

@@ -56,6 +56,9 @@ def _signature(fn, name=None, skip_self=False):
     inner = first[len(name) + 1 : first.rindex(") -> ")]
     params = []
     for part in _split_top(inner)[1 if skip_self else 0 :]:
+        if part.strip().startswith("**"):  # a row's own parameters (a format's, a refiner's) as keywords
+            params.append(_inspect.Parameter(part.strip()[2:], _inspect.Parameter.VAR_KEYWORD))
+            continue
         head, _, default = part.partition("=")
         pname = head.split(":", 1)[0].strip()
         if pname in ("*", "/") or not pname.isidentifier():
