@@ -4,41 +4,37 @@
 
 namespace fillgs {
 
-RowParameter RowParameter::integer(std::string key, long long default_value, Bounds bounds, std::string help) {
+namespace {
+RowParameter declared(std::string key, RowParameter::Kind kind, std::string default_text, std::string help) {
   RowParameter p;
   p.key = std::move(key);
-  p.kind = Kind::Integer;
+  p.kind = kind;
+  p.default_text = std::move(default_text);
   p.help = std::move(help);
-  p.default_text = std::to_string(default_value);
+  return p;
+}
+}  // namespace
+
+RowParameter RowParameter::integer(std::string key, long long default_value, Bounds bounds, std::string help) {
+  RowParameter p = declared(std::move(key), Kind::Integer, std::to_string(default_value), std::move(help));
   p.bounds = std::move(bounds);
   return p;
 }
 
 RowParameter RowParameter::number(std::string key, double default_value, Bounds bounds, std::string help) {
-  RowParameter p;
-  p.key = std::move(key);
-  p.kind = Kind::Number;
-  p.help = std::move(help);
-  p.default_text = number_text(default_value);
+  RowParameter p = declared(std::move(key), Kind::Number, number_text(default_value), std::move(help));
   p.bounds = std::move(bounds);
   return p;
 }
 
 RowParameter RowParameter::choice(std::string key, std::string default_value, std::vector<std::string> choices, std::string help) {
-  RowParameter p;
-  p.key = std::move(key);
-  p.kind = Kind::Choice;
-  p.help = std::move(help);
-  p.default_text = std::move(default_value);
+  RowParameter p = declared(std::move(key), Kind::Choice, std::move(default_value), std::move(help));
   p.choices = std::move(choices);
   return p;
 }
 
 RowParameter RowParameter::text(std::string key, std::string help, bool required) {
-  RowParameter p;
-  p.key = std::move(key);
-  p.kind = Kind::Text;
-  p.help = std::move(help);
+  RowParameter p = declared(std::move(key), Kind::Text, "", std::move(help));
   p.required = required;
   return p;
 }

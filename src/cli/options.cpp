@@ -317,8 +317,6 @@ void add_refiner_flags(CLI::App& app, std::string& refiner, std::string& truth, 
   add_text(app, "--truth", truth, "oracle/reference: the ground-truth scene (warp: only for its records)", "PATH");
   add_number(app, "--artifact-strength", ri.oracle.artifacts.strength, "oracle/reference/warp: strength of the simulated refiner artifacts", at_least(0));
   add_number(app, "--support-window", ri.oracle.window, "oracle: frames either side that count as observed", at_least(0));
-  add_number(app, "--rig-max-distance", ri.rig.max_distance, "rig: how far a pool camera may stand from the virtual view", at_least(0));
-  add_number(app, "--rig-max-angle", ri.rig.max_angle_degrees, "rig: how far it may look away (degrees)", within(0, 180));
 }
 
 void add_selection_flags(CLI::App& app, SelectOptions& o) {

@@ -24,11 +24,11 @@ struct RefinerInputs {
   int frames = 0;                        ///< the video's frame count
   const RigPool* pool = nullptr;         ///< a rig's pool cameras and their photographs
   /// The values given for the refiners' own parameters (each declared in its row: the
-  /// external program's refiner_command and refiner_timeout).
+  /// external program's refiner_command and refiner_timeout, the rig's rig_max_distance and
+  /// rig_max_angle).
   RowParameterValues parameters;
   OracleOptions oracle;                  ///< the oracles' artifacts, window and background (the row sets the support)
   ReferenceOptions reference;            ///< the reference-conditioned refiners' parameters
-  RigOptions rig;
   SupportStats* stats = nullptr;         ///< where the oracles and the reference-conditioned refiners record what they restored
 };
 

@@ -28,11 +28,8 @@ const RowParameter& stg_duration_parameter() {
   return p;
 }
 const RowParameter& stg_colour_parameter() {
-  static const RowParameter p = [] {
-    RowParameter q = RowParameter::choice("stg_color", "auto", {"auto", "sigmoid", "clamp", "none"},
-                                          "Spacetime Gaussians colour activation of f_dc_0..2 (auto: sigmoid for the full model, none for the lite one)");
-    return q;
-  }();
+  static const RowParameter p = RowParameter::choice("stg_color", "auto", {"auto", "sigmoid", "clamp", "none"},
+                                                     "Spacetime Gaussians colour activation of f_dc_0..2 (auto: sigmoid for the full model, none for the lite one)");
   return p;
 }
 
