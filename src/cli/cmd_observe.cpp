@@ -198,11 +198,11 @@ Action declare_observe(CLI::App& app) {
   add_text(app, "--out", f->out, "the folder for the tables, summary.json and plots", "DIR")->required();
   add_time_flags(app, f->time, true);
   add_choice(app, "--mode", v.mode, "how a camera observes a Gaussian: its centre in the frustum, or traced rays");
-  add_number(app, "--stride", v.stride, "raytraced: one ray every s pixels", at_least(1));
-  add_number(app, "--tau", v.min_weight, "raytraced: the blending weight at which a hit counts", within_open(0, 1));
+  add_number(app, "--stride", v.stride, "raytraced: one ray every s pixels", stride_bounds());
+  add_number(app, "--tau", v.min_weight, "raytraced: the blending weight at which a hit counts", tau_bounds());
   add_switch_off(app, "--no-raster-match", v.dilate, "raytraced: footprints not widened to the rasterizer's");
   add_switch_off(app, "--from-scratch", f->options.incremental, "raytraced: every frame traced anew, not only what moved");
-  add_number(app, "--hit-cache", f->hit_cache_mb, "raytraced: MB of static hits kept for re-traced rays (default 2048; 0: none)", from_below(0, 1e9))
+  add_number(app, "--hit-cache", f->hit_cache_mb, "raytraced: MB of static hits kept for re-traced rays (default 2048; 0: none)", hit_cache_mb_bounds())
       ->type_name("MB");
   add_choice(app, "--motion-tables", f->tables, "the per-frame tables: every Gaussian, or the moving ones only");
   add_switch_off(app, "--no-plots", f->output.plots, "no heatmaps or charts");

@@ -151,7 +151,7 @@ Action declare_select(CLI::App& app) {
   add_number(app, "--patch-frames", o.patch_frames, "consecutive frames each pose is rendered at (at most 1000)", patch_frame_bounds());
   add_number(app, "--render-scale", o.render_scale, "priority renders at this fraction of the resolution", within_open(0, 1e3));
   add_choice(app, "--renderer", o.renderer, "how candidate maps are rendered");
-  add_number(app, "--stride", o.stride, "raytraced candidate maps: one ray every s pixels", at_least(1));
+  add_number(app, "--stride", o.stride, "raytraced candidate maps: one ray every s pixels", stride_bounds());
   add_number(app, "--global-candidates", o.global_candidates, "candidates drawn from the whole exploration space", at_least(0));
   add_choice(app, "--mode", o.visibility.mode, "how the counts C decide that a camera observes a Gaussian");
   add_colour(app, "--background", f->background, "the background colour");

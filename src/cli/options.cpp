@@ -342,8 +342,8 @@ void check_selection(const Invocation& in, const SelectOptions& o) {
 }
 
 void add_grid_flags(CLI::App& app, ExplorationOptions& o) {
-  add_number(app, "--divisions", o.divisions, "exploration grid cells along each axis", at_least(1))->group("Grid options");
-  add_number(app, "--occupancy-alpha", o.occupancy_alpha, "a Gaussian occupies where its opacity reaches this", within_open(0, 1))
+  add_number(app, "--divisions", o.divisions, "exploration grid cells along each axis", divisions_bounds())->group("Grid options");
+  add_number(app, "--occupancy-alpha", o.occupancy_alpha, "a Gaussian occupies where its opacity reaches this", occupancy_alpha_bounds())
       ->group("Grid options");
 }
 

@@ -42,7 +42,7 @@ ExplorationGrid build_exploration_grid(const GaussianCloud& scene, const std::ve
   const auto t0 = Clock::now();
   if (o.divisions < 2 || o.divisions > kMaxDivisions)
     throw_error("exploration grid: divisions must lie in [2, ", kMaxDivisions, "] (got ", o.divisions, ")");
-  if (!(o.occupancy_alpha > 0.0f && o.occupancy_alpha < 1.0f)) throw_error("exploration grid: occupancy alpha must lie in (0, 1)");
+  if (!occupancy_alpha_bounds().holds(o.occupancy_alpha)) throw_error("exploration grid: occupancy alpha must lie in (0, 1)");
   if (training.empty()) throw_error("exploration grid: no training cameras");
   ExplorationStats stats;
   const std::vector<double> times = times_in.empty() ? default_sweep_times(scene) : times_in;
@@ -240,5 +240,8 @@ TopdownSlice topdown_slice(const ExplorationGrid& grid, const std::vector<Camera
     }
   return s;
 }
+
+Bounds divisions_bounds() { return at_least(1); }
+Bounds occupancy_alpha_bounds() { return within_open(0, 1); }
 
 }  // namespace fillgs

@@ -644,10 +644,10 @@ py::dict observe_py(const Model& model, const std::shared_ptr<const CallerFrames
   const double frame_step = requested.frame_step;
   ObservationOptions o;
   o.visibility.mode = parse_name<VisibilityMode>(mode);
-  check_within("stride", stride, at_least(1));  // --stride's bounds
+  check_within("stride", stride, stride_bounds());  // the bounds --stride, --tau and --hit-cache declare
   o.visibility.stride = stride;
-  if (const auto x = number_or_none(tau, "tau", within_open(0, 1))) o.visibility.min_weight = float(*x);
-  if (const auto x = number_or_none(hit_cache_mb, "hit_cache_mb", from_below(0, 1e9))) o.static_hit_cache_bytes = size_t(*x * 1048576.0);
+  if (const auto x = number_or_none(tau, "tau", tau_bounds())) o.visibility.min_weight = float(*x);
+  if (const auto x = number_or_none(hit_cache_mb, "hit_cache_mb", hit_cache_mb_bounds())) o.static_hit_cache_bytes = size_t(*x * 1048576.0);
   const size_t T = times.size(), N = cloud.size();
   const bool narrow = counts_fit_uint8(max_views_per_frame(cameras.list, times, frame_step));
   py::array counts = narrow ? py::array(py::array_t<uint8_t>({py::ssize_t(T), py::ssize_t(N)})) : py::array(py::array_t<uint16_t>({py::ssize_t(T), py::ssize_t(N)}));
@@ -842,7 +842,7 @@ struct Grid {
 };
 
 Grid explore_py(const Model& model, const Cameras& cameras, int frames, int divisions, const py::object& progress) {
-  if (divisions < 1) throw py::value_error("divisions: " + std::to_string(divisions) + ", expected at least 1");
+  check_within("divisions", divisions, divisions_bounds());  // as --divisions
   ExplorationOptions o;
   o.divisions = divisions;
   std::vector<double> sweep;

@@ -1106,4 +1106,8 @@ float ObservationTables::deficiency_scale(double quantile) const {
   return positive[k] > 0.0f ? positive[k] : 1.0f;
 }
 
+Bounds stride_bounds() { return at_least(1); }
+Bounds tau_bounds() { return within_open(0, 1); }
+Bounds hit_cache_mb_bounds() { return from_below(0, 1e9); }
+
 }  // namespace fillgs

@@ -579,7 +579,8 @@ def test_finetune_is_the_command_lines_job(tmp_path, synth):
 
 def test_select_options_get_the_command_lines_check(tmp_path, cameras_file):
     """select's counts and ablations are checked once, in the library (check_select_options,
-    with the bounds the command line's flags declare): the same sentence from either face."""
+    with the bounds the command line's flags declare), and explore's and observe's against the
+    bounds declared beside their options: the same sentence from either face."""
     scene = fixture("ed3dgs")
     m, cams = fillgs.load_model(scene), fillgs.read_cameras(cameras_file)
     for flag, keyword, value, words in [("--trajectories", "trajectories", 100001, "must be in [0, 100000], got 100001"),
@@ -592,6 +593,15 @@ def test_select_options_get_the_command_lines_check(tmp_path, cameras_file):
     with pytest.raises(fillgs.Error, match="unknown strategy 'greedy'"):
         fillgs.select(m, cams, frames=5, strategy="greedy")
     assert not os.path.exists(tmp_path / "s")
+    # explore's and observe's bounds: declared once beside their options, the same words.
+    r = cli("explore", "--scene", scene, "--cameras", cameras_file, "--out", str(tmp_path / "e"), "--divisions", "0", "--quiet")
+    assert r.returncode != 0 and "--divisions must be at least 1, got 0" in r.stderr, r.stderr
+    with pytest.raises(fillgs.Error, match=r"^divisions must be at least 1, got 0$"):
+        fillgs.explore(m, cams, frames=5, divisions=0)
+    r = cli("observe", "--scene", scene, "--cameras", cameras_file, "--frames", "5", "--out", str(tmp_path / "o"), "--tau", "1", "--quiet")
+    assert r.returncode != 0 and "--tau must be in (0, 1), got 1" in r.stderr, r.stderr
+    with pytest.raises(fillgs.Error, match=r"^tau must be in \(0, 1\), got 1$"):
+        fillgs.observe(m, cams, frames=5, tau=1.0)
 
 
 def test_observe_options_get_the_command_lines_check(tmp_path, cameras_file):

@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/base/bounds.hpp"
 #include "fillgs/base/names.hpp"
 #include "fillgs/model/camera.hpp"
 #include "fillgs/io/plot.hpp"
@@ -57,6 +58,11 @@ struct ExplorationStats {
   int time_samples = 0;           ///< frames the moving Gaussians were swept over
   double seconds = 0;
 };
+
+/// The ranges of ExplorationOptions' values both faces take: divisions >= 1, the occupancy
+/// alpha in (0, 1).
+Bounds divisions_bounds();
+Bounds occupancy_alpha_bounds();
 
 /// Axis-aligned box.
 struct Box3 {

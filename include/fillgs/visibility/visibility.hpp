@@ -42,6 +42,13 @@ struct VisibilityOptions {
   bool dilate = true;
 };
 
+/// The ranges of the options both faces take (the command line's flags declare them, the
+/// module's keywords are checked against them): stride >= 1, τ in (0, 1), the static hit
+/// cache in MB in [0, 1e9).
+Bounds stride_bounds();
+Bounds tau_bounds();
+Bounds hit_cache_mb_bounds();
+
 /// Counters of the ray work (raytraced mode; maps in any mode).
 struct TraceCounters {
   uint64_t rays = 0;       ///< rays traced through all layers or the static layer
