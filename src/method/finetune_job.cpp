@@ -53,6 +53,11 @@ void check_finetune_job(const FinetuneJob& job, const Spelling& s) {
     throw_error(s("refiner"), " ", kind.name, " needs ", s("truth"), " (the ground-truth scene",
                 kind.on_real_data.empty() ? ")" : "; on real data use " + s("refiner") + " " + kind.on_real_data + ")");
   job.refiner_inputs.parameters.require(kind.parameters, s);
+  // The options several refiners share (the command line's --reference-angle,
+  // --artifact-strength and --support-window).
+  check_within(s("reference_angle"), job.refiner_inputs.reference.angle_scale_degrees, positive());
+  check_within(s("artifact_strength"), job.refiner_inputs.oracle.artifacts.strength, at_least(0));
+  check_within(s("support_window"), job.refiner_inputs.oracle.window, at_least(0));
   if (needs_pool(job)) {
     const std::string why = o.pool_budget > 0 ? s("pool_budget") : s("refiner") + " " + kind.name;
     if (job.pool_cameras.empty()) throw_error(why, " needs ", s("pool_cameras"), " (rig cameras neither trained on nor held out)");

@@ -930,7 +930,8 @@ py::dict finetune_py(const Model& model, const std::string& images, const std::s
                      const std::vector<std::string>& train_cameras, const std::string& frames, int downscale, int iterations, int select_every,
                      const py::object& trajectories, uint64_t seed, const std::string& strategy, const std::string& weighting,
                      const py::object& refiner, const py::object& truth, const std::vector<std::string>& pool_cameras, int pool_budget,
-                     const std::string& motion_rates, const py::object& refined_share, const py::object& progress, const py::kwargs& parameters) {
+                     const std::string& motion_rates, const py::object& refined_share, const py::object& reference_angle,
+                     const py::object& artifact_strength, const py::object& support_window, const py::object& progress, const py::kwargs& parameters) {
   require_file(images);
   require_file(cameras);
   FinetuneJob job;
@@ -945,7 +946,14 @@ py::dict finetune_py(const Model& model, const std::string& images, const std::s
   job.options.weighting = parse_name<Weighting>(weighting);
   if (!refiner.is_none()) job.refiner = refiner.cast<std::string>();
   job.refiner_inputs.parameters = row_parameters(refiner_table(), parameters, "finetune");
-  job.refiner_inputs.reference = bench_reference_options(0.5, 1);  // as --reference-angle's default
+  job.refiner_inputs.reference = bench_reference_options(0.5, 1);  // as the command line's (add_refiner_flags)
+  // The options several refiners share; their check is the job's (check_finetune_job).
+  if (!reference_angle.is_none()) job.refiner_inputs.reference.angle_scale_degrees = number_or_none(reference_angle, "reference_angle", {}).value();
+  if (!artifact_strength.is_none()) job.refiner_inputs.oracle.artifacts.strength = number_or_none(artifact_strength, "artifact_strength", {}).value();
+  if (const auto w = number_or_none(support_window, "support_window", {})) {
+    if (*w != std::floor(*w) || std::abs(*w) > 1e9) throw Error("support_window expects an integer, got " + number_text(*w));
+    job.refiner_inputs.oracle.window = int(*w);
+  }
   if (!truth.is_none()) job.refiner_inputs.truth = truth.cast<const Model&>().cloud.get();
   job.pool_cameras = pool_cameras;
   job.options.pool_budget = pool_budget;
@@ -1250,12 +1258,15 @@ PYBIND11_MODULE(_fillgs, m) {
         py::arg("select_every") = 800, py::arg("trajectories") = py::none(), py::arg("seed") = 1, py::arg("strategy") = "fillgs",
         py::arg("weighting") = "fillgs", py::arg("refiner") = py::none(), py::arg("truth") = py::none(),
         py::arg("pool_cameras") = std::vector<std::string>(), py::arg("pool_budget") = 0, py::arg("motion_rates") = "converged",
-        py::arg("refined_share") = py::none(), py::arg("progress") = py::none(),
+        py::arg("refined_share") = py::none(), py::arg("reference_angle") = py::none(), py::arg("artifact_strength") = py::none(),
+        py::arg("support_window") = py::none(), py::arg("progress") = py::none(),
         "Fine-tunes a loaded model as `fillgs finetune` does, the same job with the same checks (each problem named by its keyword), "
         "writing the same folder `out` (model.ply, virtual_views.json, summary.json, pool_chosen.json with a pool budget); returns "
         "summary.json as a dict. images, cameras, train_cameras, frames, downscale: the training views as load_views reads them; "
         "trajectories None: 5 (a pool budget takes none); refiner None: identity (a pool budget takes none); truth: a loaded "
-        "ground-truth scene (oracle, reference); motion_rates: converged, repair or gentle (--motion-rates); a refiner's own parameters "
+        "ground-truth scene (oracle, reference); motion_rates: converged, repair or gentle (--motion-rates); reference_angle, artifact_strength, "
+        "support_window: the options several refiners share (--reference-angle, --artifact-strength, --support-window; None: the "
+        "command line's defaults); a refiner's own parameters "
         "are keywords (refiner_command=, refiner_timeout= for external; refiners() lists each refiner's).");
   m.def("weights", &weights_py, py::arg("model"), py::arg("cameras"), py::arg("images"), py::arg("refined"), py::arg("refined_cameras"),
         py::arg("weighting") = "fillgs", py::arg("frames") = 0, py::arg("mask_sigma") = py::none(),

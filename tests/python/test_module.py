@@ -575,6 +575,15 @@ def test_finetune_is_the_command_lines_job(tmp_path, synth):
         fillgs.finetune(model, synth, f"{synth}/transforms_train.json", str(tmp_path / "bad_py"), refiner="external", refiner_command="x {in} {out}",
                         refiner_timeout=0, **no_pool)
     assert not os.path.exists(tmp_path / "bad_cli") and not os.path.exists(tmp_path / "bad_py")
+    # The options several refiners share: keywords too, the job's one check.
+    for flag, keyword, value, words in [("--support-window", "support_window", -1, "must be at least 0, got -1"),
+                                        ("--reference-angle", "reference_angle", 0, "must be positive, got 0"),
+                                        ("--artifact-strength", "artifact_strength", -0.5, "must be at least 0, got -0.5")]:
+        bad = cli("finetune", *common[:-9], "--quiet", "--refiner", "identity", flag, str(value), "--out", str(tmp_path / "bad_cli"))
+        assert bad.returncode != 0 and f"{flag} {words}" in bad.stderr, bad.stderr
+        with pytest.raises(fillgs.Error, match="^" + re.escape(f"{keyword} {words}") + "$"):
+            fillgs.finetune(model, synth, f"{synth}/transforms_train.json", str(tmp_path / "bad_py"), refiner="identity", **{keyword: value}, **no_pool)
+    assert not os.path.exists(tmp_path / "bad_cli") and not os.path.exists(tmp_path / "bad_py")
 
 
 def test_select_options_get_the_command_lines_check(tmp_path, cameras_file):

@@ -32,8 +32,8 @@ struct FinetuneJob {
   std::optional<double> refined_share;  ///< unset: the schedule's
   uint64_t seed = 1;                    ///< training, selection and the refiners' artifacts
   /// Unset: `identity`, or the pool's photographs with options.pool_budget > 0 (which takes
-  /// no refiner). The refiner's own knobs are in refiner_inputs (command, timeout, oracle,
-  /// reference, rig, truth); the job adds the training cameras, frames, seeds and pool.
+  /// no refiner). The refiner's knobs are in refiner_inputs (the rows' own
+  /// parameters, the oracles' and the reference refiners' shared options, the truth); the job adds the training cameras, frames, seeds and pool.
   std::optional<std::string> refiner;
   RefinerInputs refiner_inputs;
   bool trajectories_given = false;  ///< options.trajectories was asked for (a pool budget takes none)

@@ -99,6 +99,7 @@ def finetune(model: Model, images: str, cameras: str, out: str, train_cameras: L
              iterations: int = 2400, select_every: int = 800, trajectories: Optional[int] = None, seed: int = 1, strategy: str = 'fillgs',
              weighting: str = 'fillgs', refiner: Optional[str] = None, truth: Optional[Model] = None,
              pool_cameras: List[str] = [], pool_budget: int = 0, motion_rates: str = 'converged', refined_share: Optional[float] = None,
+             reference_angle: Optional[float] = None, artifact_strength: Optional[float] = None, support_window: Optional[int] = None,
              progress: Progress = None, **kwargs: Union[int, float, str]) -> Dict[str, Any]: ...
 # finetune: summary.json, the folder `out` as fillgs finetune writes it; kwargs: the refiners' own parameters (refiners())
 def render(model: Model, cameras: Cameras, index: int = 0, t: float = 0.0,
