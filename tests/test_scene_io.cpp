@@ -9,6 +9,7 @@
 #include "fillgs/io/model_formats.hpp"
 #include "fillgs/method/refiners.hpp"
 #include "fillgs/method/strategies.hpp"
+#include "fillgs/experiment/identity.hpp"
 #include "fillgs/io/ply.hpp"
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/train/train_model.hpp"
@@ -238,6 +239,13 @@ TEST_CASE("Every row table (formats, refiners, strategies): defaults that pass t
   CHECK(method_strategy().name == "fillgs");
   CHECK_THROWS_WITH(strategy_row("greedy"),
                     "unknown strategy 'greedy' (expected fillgs, random, negative, interpolation, fisherrf, coverage3d or coverage4d)");
+  // A run's identity holds a strategy's own parameters only where its row declares some, so
+  // the identities recorded before rows declared parameters still match.
+  for (const StrategyRow* r : strategy_table().rows()) {
+    SelectOptions o;
+    o.strategy = r->name;
+    CHECK(identity_json(o).contains("parameters") == !r->parameters.empty());
+  }
   // The external refiner's command: required, so a run without it is refused before it starts.
   RefinerInputs in;
   CHECK_THROWS_WITH(make_refiner("external", in), "missing --refiner-command");

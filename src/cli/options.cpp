@@ -322,6 +322,7 @@ void add_refiner_flags(CLI::App& app, std::string& refiner, std::string& truth, 
 void add_selection_flags(CLI::App& app, SelectOptions& o) {
   const std::string g = "Selection options";
   add_table_choice(app, "--strategy", o.strategy, strategy_table(), "how virtual viewpoints are chosen (fillgs: the paper's; the others: baselines)")->group(g);
+  add_row_parameters(app, o.parameters, strategy_table().parameters(), g);
   add_number(app, "--time-stride", o.time_stride, "starting-view priority on every k-th frame only", at_least(1))->group(g);
   add_flag(app, "--no-start-selection", o.no_start_selection, "ablation: random starting viewpoints")->group(g);
   add_flag(app, "--no-error-term", o.no_error_term, "ablation: priority E = V")->group(g);

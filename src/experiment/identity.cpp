@@ -1,3 +1,4 @@
+#include "fillgs/method/strategies.hpp"
 #include "fillgs/experiment/identity.hpp"
 
 #include <set>
@@ -26,13 +27,13 @@ json vec3(const Vec3f& v) { return json::array({v.x(), v.y(), v.z()}); }
 // and these sizes updated (x86-64, the platform fillgs builds on).
 #if defined(__x86_64__)
 static_assert(sizeof(TrainOptions) == 368, "TrainOptions changed: add the new field to identity_json(TrainOptions), then update this size");
-static_assert(sizeof(SelectOptions) == 144, "SelectOptions changed: add the new field to identity_json(SelectOptions), then update this size");
+static_assert(sizeof(SelectOptions) == 192, "SelectOptions changed: add the new field to identity_json(SelectOptions), then update this size");
 static_assert(sizeof(VisibilityOptions) == 20, "VisibilityOptions changed: add the new field to identity_json(SelectOptions), then update this size");
 static_assert(sizeof(MaskOptions) == 104, "MaskOptions changed: add the new field to identity_json(MaskOptions), then update this size");
 static_assert(sizeof(ExplorationOptions) == 32, "ExplorationOptions changed: add the new field to identity_json(ExplorationOptions), then update this size");
 static_assert(sizeof(ArtifactOptions) == 24, "ArtifactOptions changed: add the new field to identity_json(ArtifactOptions), then update this size");
 static_assert(sizeof(ReferenceOptions) == 112, "ReferenceOptions changed: add the new field to identity_json(ReferenceOptions), then update this size");
-static_assert(sizeof(FinetuneOptions) == 744, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
+static_assert(sizeof(FinetuneOptions) == 792, "FinetuneOptions changed: add the new field to identity_json(FinetuneOptions), then update this size");
 #endif
 
 void differences(const json& was, const json& now, const std::string& path, std::string& first) {
@@ -119,7 +120,7 @@ json identity_json(const TrainOptions& o) {
 }
 
 json identity_json(const SelectOptions& o) {
-  return {{"strategy", o.strategy},
+  json j = {{"strategy", o.strategy},
           {"trajectories", o.trajectories},
           {"views", o.views},
           {"patch_frames", o.patch_frames},
@@ -146,6 +147,11 @@ json identity_json(const SelectOptions& o) {
           {"spread_starts", o.spread_starts},
           {"score_gain", o.score_gain},
           {"fisher_lambda", o.fisher_lambda}};
+  // The strategy's own parameters, where its row declares any (a strategy without them keeps
+  // the identity runs recorded before rows could declare them).
+  if (const StrategyRow* row = strategy_table().lookup(o.strategy); row && !row->parameters.empty())
+    j["parameters"] = o.parameters.identity(row->parameters);
+  return j;
 }
 
 json identity_json(const MaskOptions& o) {

@@ -451,32 +451,39 @@ py::dict parameters_of(const RowHeading& row) {
   return out;
 }
 
-/// The values of rows' own parameters given as keywords (`table`'s declarations, base/row_table.hpp);
-/// a keyword no row declares is a TypeError naming the ones they do.
-template <class Row>
-RowParameterValues row_parameters(const RowTable<Row>& table, const py::kwargs& given, const char* function) {
-  RowParameterValues values;
+/// Where the keywords of one kind of row go: the parameters its rows declare
+/// (base/row_table.hpp), and the values they set.
+struct KeywordRows {
+  std::vector<const RowParameter*> parameters;
+  RowParameterValues* values;
+};
+
+/// Sets each keyword in the values of the rows that declare it, checked as the command line
+/// checks its flag; a keyword no row declares is a TypeError naming the ones they do.
+void set_row_parameters(const py::kwargs& given, const char* function, std::initializer_list<KeywordRows> rows) {
   for (const auto& [key, value] : given) {
     const std::string k = py::str(key).cast<std::string>();
-    const RowParameter* p = table.parameter(k);
-    if (!p) {
-      std::vector<std::string> keys;
-      for (const RowParameter* q : table.parameters()) keys.push_back(q->key);
-      throw py::type_error(std::string(function) + "() got an unexpected keyword argument '" + k + "' (its rows' parameters: " + join_names(keys) + ")");
-    }
+    const RowParameter* p = nullptr;
+    RowParameterValues* values = nullptr;
+    std::vector<std::string> keys;
+    for (const KeywordRows& r : rows)
+      for (const RowParameter* q : r.parameters) {
+        keys.push_back(q->key);
+        if (!p && q->key == k) p = q, values = r.values;
+      }
+    if (!p) throw py::type_error(std::string(function) + "() got an unexpected keyword argument '" + k + "' (its rows' parameters: " + join_names(keys) + ")");
     const bool text = p->kind == RowParameter::Kind::Choice || p->kind == RowParameter::Kind::Text;
     if (py::isinstance<py::bool_>(value) || (text ? !py::isinstance<py::str>(value) : !(py::isinstance<py::int_>(value) || py::isinstance<py::float_>(value))))
       throw py::type_error(k + ": expected " + (text ? "a string" : p->kind == RowParameter::Kind::Integer ? "an integer" : "a number"));
-    values.set(*p, py::str(value).cast<std::string>(), Spelling{false});
+    values->set(*p, py::str(value).cast<std::string>(), Spelling{false});
   }
-  return values;
 }
 
 Model load_model(const std::string& path, const std::string& format, int frames, const std::string& time_range, const std::string& evaluation,
                  const py::object& still_tolerance, const py::object& progress, const py::kwargs& parameters) {
   require_file(path);
   SceneReadOptions o;
-  o.parameters = row_parameters(model_format_table(), parameters, "load_model");
+  set_row_parameters(parameters, "load_model", {{model_format_table().parameters(), &o.parameters}});
   o.format = format == "auto" ? format : model_format(format).name;
   check_within("frames", frames, at_least(0));  // --model-frames' bounds
   o.model_frames = frames;
@@ -878,7 +885,7 @@ struct PyTrajectory {
 };
 
 py::dict select_py(const Model& model, const Cameras& cameras, int frames, const std::string& strategy, int trajectories, int views, int patch_frames,
-                   uint64_t seed, const py::object& images, const py::object& grid, const py::object& progress) {
+                   uint64_t seed, const py::object& images, const py::object& grid, const py::object& progress, const py::kwargs& parameters) {
   const GaussianCloud& cloud = *model.cloud;
   if (cloud.size() == 0) throw py::value_error("model: no Gaussians, so no camera observes anything and there is no view to choose");
   SelectOptions o;
@@ -887,6 +894,7 @@ py::dict select_py(const Model& model, const Cameras& cameras, int frames, const
   o.views = views;
   o.patch_frames = patch_frames;
   o.seed = seed;
+  set_row_parameters(parameters, "select", {{strategy_table().parameters(), &o.parameters}});
   check_select_options(o, Spelling{false});  // the command line's check, in the keywords' names
   SelectInput in;
   in.scene = &cloud;
@@ -945,7 +953,8 @@ py::dict finetune_py(const Model& model, const std::string& images, const std::s
   job.options.select.strategy = strategy_row(strategy).name;
   job.options.weighting = parse_name<Weighting>(weighting);
   if (!refiner.is_none()) job.refiner = refiner.cast<std::string>();
-  job.refiner_inputs.parameters = row_parameters(refiner_table(), parameters, "finetune");
+  set_row_parameters(parameters, "finetune",
+                     {{refiner_table().parameters(), &job.refiner_inputs.parameters}, {strategy_table().parameters(), &job.options.select.parameters}});
   job.refiner_inputs.reference = bench_reference_options(0.5, 1);  // as the command line's (add_refiner_flags)
   // The options several refiners share; their check is the job's (check_finetune_job).
   if (!reference_angle.is_none()) job.refiner_inputs.reference.angle_scale_degrees = number_or_none(reference_angle, "reference_angle", {}).value();
@@ -1251,8 +1260,8 @@ PYBIND11_MODULE(_fillgs, m) {
         py::arg("views") = SelectOptions().views, py::arg("patch_frames") = SelectOptions().patch_frames, py::arg("seed") = 1, py::arg("images") = py::none(),
         py::arg("grid") = py::none(), py::arg("progress") = py::none(),
         "Viewpoint-time selection as `fillgs select` runs it, by any strategy (fillgs, random, negative, interpolation, fisherrf, coverage3d, "
-        "coverage4d). `images`: the observed views' images (their order: load_views) for the priority's error term. Returns a dict: "
-        "trajectories (list of Trajectory), deficiency_scale, notes, grid.");
+        "coverage4d). `images`: the observed views' images (their order: load_views) for the priority's error term; a strategy's own "
+        "parameters (declared in its row) are keywords. Returns a dict: trajectories (list of Trajectory), deficiency_scale, notes, grid.");
   m.def("finetune", &finetune_py, py::arg("model"), py::arg("images"), py::arg("cameras"), py::arg("out"),
         py::arg("train_cameras") = std::vector<std::string>(), py::arg("frames") = "", py::arg("downscale") = 1, py::arg("iterations") = 2400,
         py::arg("select_every") = 800, py::arg("trajectories") = py::none(), py::arg("seed") = 1, py::arg("strategy") = "fillgs",

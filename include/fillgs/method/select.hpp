@@ -30,6 +30,7 @@
 
 #include "fillgs/base/bounds.hpp"
 #include "fillgs/base/names.hpp"
+#include "fillgs/base/row_table.hpp"
 #include "fillgs/model/camera.hpp"
 #include "fillgs/explore/exploration.hpp"
 #include "fillgs/model/gaussians.hpp"
@@ -68,6 +69,9 @@ FILLGS_ENUM_NAMES(MapRenderer, "map renderer", {MapRenderer::Raytraced, "raytrac
 struct SelectOptions {
   /// A strategy's name (method/strategies.hpp: fillgs, the paper's, and the baselines).
   std::string strategy = "fillgs";
+  /// The values given for the strategies' own parameters (each declared in its row; the
+  /// strategy reads them through SelectionContext::options).
+  RowParameterValues parameters;
   int trajectories = 20;         ///< budget
   int views = 3;                 ///< virtual poses per trajectory (the refiner patch takes 3)
   int patch_frames = 3;          ///< consecutive frames each pose is rendered at (centred on the start's)

@@ -4,6 +4,9 @@
 // collects every file there into the table (CMakeLists.txt, src/row_table.cpp.in).
 // SelectOptions::strategy names a row; the strategy's class (src/method/selection_strategy.hpp)
 // decides everything it does differently: its starts, paths, scores and its order of a pool.
+// A strategy's own parameters are declared in its row (RowHeading::parameters): the command
+// line's flags, select's and finetune's keywords and the run identity are made from them,
+// and the strategy reads their values through SelectionContext::options.parameters.
 // Adding a strategy is adding its file (and its test); nothing else names it.
 #include <functional>
 #include <memory>

@@ -91,7 +91,7 @@ def read_grid(path: str) -> ExplorationGrid: ...
 def explore(model: Model, cameras: Cameras, frames: int = 0, divisions: int = 64, progress: Progress = None) -> ExplorationGrid: ...
 def select(model: Model, cameras: Cameras, frames: int = 0, strategy: str = 'fillgs', trajectories: int = 5, views: int = 3, patch_frames: int = 3,
            seed: int = 1, images: Optional[Sequence[Array]] = None, grid: Optional[ExplorationGrid] = None,  # images: uint8 (0-255, not copied) or float in [0, 1]
-           progress: Progress = None) -> Dict[str, Any]: ...  # trajectories (list of Trajectory), deficiency_scale, notes, grid
+           progress: Progress = None, **kwargs: Union[int, float, str]) -> Dict[str, Any]: ...  # kwargs: the strategies' own parameters  # trajectories (list of Trajectory), deficiency_scale, notes, grid
 def weights(model: Model, cameras: Cameras, images: Sequence[Array], refined: Sequence[Array], refined_cameras: Cameras, weighting: str = 'fillgs',
             frames: int = 0, mask_sigma: Optional[float] = None, mask: str = 'depth-warp', covis: str = 'paper', covis_scale: str = 'visible',
             normalise: bool = False, tables: Optional[Dict[str, Any]] = None, progress: Progress = None) -> List[Dict[str, Optional[Float32]]]: ...  # weight, consistency, covisibility [H,W]
