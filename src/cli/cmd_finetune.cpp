@@ -49,7 +49,7 @@ int finetune_model(const FinetuneFlags& f, const Invocation& in) {
     for (const FinetuneRound& rd : r.result.rounds)
       for (const auto& [patch, why] : rd.refine_failures) in.err << "warning: refinement failed for " << why << "\n";
     in.out << "fine-tuned in " << fixed(r.seconds, 1) << " s: " << r.result.virtual_views.size()
-           << (r.refiner == "pool" ? " pool photographs" : " refined views") << " added"
+           << (r.options.pool_budget > 0 ? " pool photographs" : " refined views") << " added"
            << (report.dropped ? " (" + std::to_string(report.dropped) + " dropped by the refiner)" : "") << ", train PSNR "
            << fixed(report.train.psnr) << " dB -> " << f.job.out << "\n";
   });

@@ -367,7 +367,7 @@ void write_bench_report(const std::string& root, const std::vector<RunResult>& r
   }
   ScatterSeries bi{"interpolation", {}, {}, {}}, be{"extrapolation", {}, {}, {}};
   for (const Mean& m : means)
-    if (m.variant == plotted && m.id.find('@') == std::string::npos && (m.group == ConfigGroup::Budget || m.id == "fillgs")) {
+    if (m.variant == plotted && m.id.find('@') == std::string::npos && (m.group == ConfigGroup::Budget || m.id == method_strategy().name)) {
       bi.x.push_back(m.mean(8)), bi.y.push_back(m.mean(0));
       be.x.push_back(m.mean(8)), be.y.push_back(m.mean(3));
     }
