@@ -11,7 +11,7 @@ set grid xtics lc rgb '#dddddd' lt 1
 set yrange [6.5:-0.5]
 set ytics scale 0
 set ytics ('positive control minus random' 0, 'FillGS minus negative' 1, 'FillGS minus random' 2, 'FillGS minus interpolation' 3, 'FillGS minus fisherrf' 4, 'FillGS minus coverage3d' 5, 'FillGS minus coverage4d' 6)
-set xrange [-0.5906:0.5906]
+set xrange [-0.5500:0.5500]
 set arrow from 0, graph 0 to 0, graph 1 nohead dt 2 lc rgb '#404040'
 plot 'intervals_K30.csv' skip 1 using ($1 == 0 && $6 > 0.5 ? $3 : NaN):2:4:5 with xerrorbars pt 7 ps 1.3 lw 2 lc rgb '#3c78b4' title 'near', \
      'intervals_K30.csv' skip 1 using ($1 == 0 && $6 < 0.5 ? $3 : NaN):2:4:5 with xerrorbars pt 6 ps 1.3 lw 2 lc rgb '#3c78b4' notitle, \
