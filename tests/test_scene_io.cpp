@@ -210,6 +210,9 @@ TEST_CASE("A format's own parameter: declared in its row, given as a value, chec
   REQUIRE(colour);
   CHECK_THROWS_WITH(o.parameters.set(*colour, "tanh"), "--stg-color expects auto, sigmoid, clamp or none, got 'tanh'");
   CHECK(o.parameters.identity({duration, colour}) == nlohmann::json{{"stg_duration", 10}, {"stg_color", "auto"}});
+  // A number's default reads back as the declared double, whatever its digits.
+  const RowParameter fine = RowParameter::number("fine", 0.1234567891234, positive(), "a default of 13 digits");
+  CHECK(RowParameterValues().number(fine) == 0.1234567891234);
 }
 
 TEST_CASE("Every row table (formats, refiners, strategies): defaults that pass their own check, keys and names unique", "[io]") {

@@ -1,5 +1,6 @@
 #include "fillgs/base/row_table.hpp"
 
+#include <charconv>
 #include <cmath>
 
 namespace fillgs {
@@ -22,7 +23,10 @@ RowParameter RowParameter::integer(std::string key, long long default_value, Bou
 }
 
 RowParameter RowParameter::number(std::string key, double default_value, Bounds bounds, std::string help) {
-  RowParameter p = declared(std::move(key), Kind::Number, number_text(default_value), std::move(help));
+  // The shortest text that reads back as the same double (number_text keeps 6 digits).
+  char text[64];
+  const auto end = std::to_chars(text, text + sizeof text, default_value).ptr;
+  RowParameter p = declared(std::move(key), Kind::Number, std::string(text, end), std::move(help));
   p.bounds = std::move(bounds);
   return p;
 }
