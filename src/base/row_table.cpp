@@ -55,9 +55,9 @@ std::string RowParameter::problem(const std::string& text, double* number) const
   return why;
 }
 
-void RowParameterValues::set(const RowParameter& p, const std::string& text, const Spelling& spell) {
+void RowParameterValues::set(const RowParameter& p, const std::string& text, const std::string& as) {
   const std::string why = p.problem(text);
-  if (!why.empty()) throw_error(spell(p.key), " ", why);
+  if (!why.empty()) throw_error(as, " ", why);
   values_[p.key] = text;
 }
 

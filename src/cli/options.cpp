@@ -175,9 +175,11 @@ void add_row_parameters(CLI::App& app, RowParameterValues& values, const std::ve
       CLI::Option* o = app.add_option(
           given,
           [&values, p, given, name](const CLI::results_t& r) {
-            const std::string why = p->problem(r.back());
-            if (!why.empty()) throw_error(name, ": ", given, " ", why);
-            values.set(*p, r.back());
+            try {
+              values.set(*p, r.back(), given);  // the one check, naming the flag as typed
+            } catch (const Error& e) {
+              throw_error(name, ": ", e.what());
+            }
             return true;
           },
           given == flag ? p->help : "the same as " + flag);

@@ -47,8 +47,8 @@ struct RowParameter {
   static RowParameter choice(std::string key, std::string default_value, std::vector<std::string> choices, std::string help);
   /// Any text (a command); `required`: no default, a run of its row needs it given.
   static RowParameter text(std::string key, std::string help, bool required);
-  /// One line naming the parameter as `spell` writes it where `text` is no value it takes;
-  /// empty where it is (the value, parsed, in *number for Integer and Number).
+  /// Why `text` is no value it takes ("must be at least 1, got 0"); empty where it is (the
+  /// value, parsed, in *number for Integer and Number).
   std::string problem(const std::string& text, double* number = nullptr) const;
 };
 
@@ -58,7 +58,9 @@ class RowParameterValues {
  public:
   /// Checks `text` against the declaration and keeps it; otherwise throws the one line
   /// "<key as `spell` writes it> must be at least 1, got 0".
-  void set(const RowParameter& p, const std::string& text, const Spelling& spell = {});
+  void set(const RowParameter& p, const std::string& text, const Spelling& spell = {}) { set(p, text, spell(p.key)); }
+  /// The same, the parameter named `as` in the message (a flag as the user typed it).
+  void set(const RowParameter& p, const std::string& text, const std::string& as);
   bool given(const RowParameter& p) const { return values_.count(p.key) > 0; }
   /// Throws "missing <key as `spell` writes it>" for each of `parameters` that is required
   /// and was not given (or given empty).

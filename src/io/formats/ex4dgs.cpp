@@ -114,7 +114,7 @@ const RowParameter& ex4dgs_pad_parameter() {
 
 GaussianCloud read_ex4dgs(const std::string& static_path, const std::string& dynamic_path, const SceneReadOptions& opt) {
   Ex4dgsConfig cfg = read_ex4dgs_config(static_path);
-  // Their declared ranges are cfg_args' own (read_ex4dgs_config).
+  // 0 / -1: cfg_args' value. A duration of 1 is refused below as an unknown one.
   if (const long long d = opt.parameters.integer(ex4dgs_duration_parameter()); d > 0) cfg.duration = int(d);
   if (const long long i = opt.parameters.integer(ex4dgs_interval_parameter()); i > 0) cfg.interval = int(i);
   if (const long long k = opt.parameters.integer(ex4dgs_pad_parameter()); k >= 0) cfg.pad = int(k);
