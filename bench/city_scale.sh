@@ -1,10 +1,13 @@
 #!/usr/bin/env bash
-# The first city-scale figure: `fillgs_bench city` writes guitar.ply replicated to N Gaussians
+# The city-scale figure: `fillgs_bench city` writes guitar.ply replicated to N Gaussians
 # (a share S moving on straight lines, one key per frame) as a fillgs 4D PLY with 20 orbit
 # cameras at 1352x1014; then `fillgs observe --mode frustum` builds the whole table end to end
-# (reading, every frame, writing count / speed / deficiency). Wall time and peak memory (GNU
-# time), file sizes. Writes OUT/results.md; the scene and the tables live in a scratch folder
-# under OUT, removed at the end.
+# (reading, every frame, writing), once in the compact layout (the default) and once with
+# `--tables dense` (every table [T, N], the layout observe wrote before the compact one: the
+# reference of the same run), and numpy checks, frame by frame, that the compact tables are
+# the dense ones cell for cell. Wall time and peak memory (GNU time), file sizes, the ratios.
+# Writes OUT/results.md; the scene and the tables live in a scratch folder under OUT, removed
+# at the end.
 #
 #   bench/city_scale.sh [--gaussians N] [--moving S] [--frames F] [--smoke] OUT
 #
@@ -38,24 +41,57 @@ echo "writing the scene ($gaussians Gaussians, $moving moving, $frames frames) .
 /usr/bin/time -f "%e %M" -o "$out/make.time" "$bin/fillgs_bench" city --gaussians "$gaussians" --moving "$moving" --frames "$frames" --out "$work" \
   | tee "$out/make.txt"
 ply_mb=$(du -m "$work/city.ply" | cut -f1)
-echo "observing ..."
-/usr/bin/time -f "%e %M" -o "$out/observe.time" "$bin/fillgs" observe --quiet --scene "$work/city.ply" --cameras "$work/cameras.json" --mode frustum \
-  --frames "$frames" --no-plots --out "$work/observe" >/dev/null
-tables_mb=$(du -m -c "$work/observe"/*.npy | tail -1 | cut -f1)
+for layout in compact dense; do
+  echo "observing ($layout tables) ..."
+  /usr/bin/time -f "%e %M" -o "$out/observe_$layout.time" "$bin/fillgs" observe --quiet --scene "$work/city.ply" --cameras "$work/cameras.json" \
+    --mode frustum --frames "$frames" --tables "$layout" --no-plots --out "$work/$layout" >/dev/null
+done
+echo "comparing the layouts cell for cell ..."
+check=$(/usr/bin/python3 - "$work/compact" "$work/dense" <<'PY'
+import sys, numpy as np
+c, d = sys.argv[1], sys.argv[2]
+L = lambda f: np.load(c + "/" + f + ".npy", mmap_mode="r")
+ids, rows, static, dyn = L("dynamic_ids"), L("count_rows"), L("count_static"), L("count_dynamic")
+off, cid, cval = L("count_change_offsets"), L("count_change_ids"), L("count_change_values")
+count, speed, deficiency = (np.load(d + "/" + f + ".npy", mmap_mode="r") for f in ("count", "speed", "deficiency"))
+sd, dd = L("speed_dynamic"), L("deficiency_dynamic")
+bad = 0
+for t in range(count.shape[0]):
+    row = np.array(static[rows[t]])
+    row[ids] = dyn[t]
+    row[cid[off[t]:off[t + 1]]] = cval[off[t]:off[t + 1]]
+    bad += int((row != count[t]).sum())
+    for dense, mine in ((speed, sd), (deficiency, dd)):
+        m = np.zeros(dense.shape[1], np.float32)
+        m[ids] = mine[t]
+        bad += int((m.view(np.uint32) != np.asarray(dense[t]).view(np.uint32)).sum())
+print(f"{bad} cells differ over {count.shape[0]} frames" if bad else f"identical, every cell of {count.shape[0]} frames")
+PY
+)
+echo "$check"
 read -r make_s make_kb <"$out/make.time"
-read -r obs_s obs_kb <"$out/observe.time"
-n=$(python3 -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["gaussians"], j["dynamic"], j["views"])' "$work/observe/summary.json")
+n=$(python3 -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["gaussians"], j["dynamic"], j["views"])' "$work/compact/summary.json")
 commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)
 machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1), $(awk '/MemTotal/{printf "%.0f GB", $2/1048576}' /proc/meminfo)"
 read -r ng nd nv <<<"$n"
+read -r compact_s compact_kb <"$out/observe_compact.time"
+read -r dense_s dense_kb <"$out/observe_dense.time"
+compact_b=$(du -b -c "$work/compact"/*.npy | tail -1 | cut -f1)
+dense_b=$(du -b -c "$work/dense"/*.npy | tail -1 | cut -f1)
+compact_mb=$(awk "BEGIN{printf \"%.1f\", $compact_b/1048576}")
+dense_mb=$(awk "BEGIN{printf \"%.1f\", $dense_b/1048576}")
 {
   echo "Command: \`bench/city_scale.sh --gaussians $gaussians --moving $moving --frames $frames OUT\` · commit $commit · $(date -u +%Y-%m-%d) · $machine."
   echo
   echo "| step | what | seconds | peak memory (MB) | size on disk (MB) |"
   echo "|---|---|---|---|---|"
   echo "| \`fillgs_bench city\` | $ng Gaussians ($nd moving), one key per frame for the moving ones, as a fillgs 4D PLY; 20 cameras | $make_s | $(awk "BEGIN{printf \"%.0f\", $make_kb/1024}") | $ply_mb |"
-  echo "| \`fillgs observe --mode frustum\` | the table $ng × 20 cameras × $frames frames ($nv views) end to end: reading, every frame, writing | $obs_s | $(awk "BEGIN{printf \"%.0f\", $obs_kb/1024}") | $tables_mb (the tables) |"
+  echo "| \`fillgs observe --mode frustum\` | the table $ng × 20 cameras × $frames frames ($nv views) end to end, compact tables (the default) | $compact_s | $(awk "BEGIN{printf \"%.0f\", $compact_kb/1024}") | $compact_mb (the tables) |"
+  echo "| \`fillgs observe --mode frustum --tables dense\` | the same, every table [T, N] (the reference) | $dense_s | $(awk "BEGIN{printf \"%.0f\", $dense_kb/1024}") | $dense_mb (the tables) |"
+  echo
+  echo "Compact against dense in this run: $(awk "BEGIN{printf \"%.3f\", $compact_s/$dense_s}") of the time, $(awk "BEGIN{printf \"%.4f\", $compact_b/$dense_b}") of the bytes of the tables; the compact tables against the dense ones: $check."
 } >"$out/results.md.part"
 mv "$out/results.md.part" "$out/results.md"
-rm -f "$out/make.time" "$out/observe.time" "$out/make.txt"
+rm -f "$out/make.time" "$out/observe_compact.time" "$out/observe_dense.time" "$out/make.txt"
 echo "wrote $out/results.md"
+case "$check" in identical*) ;; *) echo "bench/city_scale.sh: the compact tables are not the dense ones: $check" >&2; exit 1 ;; esac

@@ -48,7 +48,7 @@ echo "writing the scene ($gaussians Gaussians, $moving moving, $frames frames) .
 "$build/bin/fillgs_bench" city --gaussians "$gaussians" --moving "$moving" --frames "$frames" --out "$work" >/dev/null
 echo "cli ..."
 /usr/bin/time -f "%e %M" -o "$out/cli.time" "$build/bin/fillgs" observe --quiet --scene "$work/city.ply" --cameras "$work/cameras.json" \
-  --mode frustum --frames "$frames" --no-plots --out "$work/observe" >/dev/null
+  --mode frustum --frames "$frames" --tables dense --no-plots --out "$work/observe" >/dev/null
 # One Python run per path: its seconds from the interpreter's start to the tables in hand and
 # its peak resident memory then (the digests after, of the arrays' own buffers, uncounted),
 # then the tables' digests and shapes for the comparison.

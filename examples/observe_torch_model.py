@@ -102,8 +102,8 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run([a.fillgs, "observe", "--quiet", "--no-plots", "--scene", run, "--model-frames", str(a.frames), "--still-tolerance", "0",
                         "--cameras", cams_path, "--out", tmp], check=True)
-        counts = np.load(os.path.join(tmp, "count.npy"))
-        deficiency = np.load(os.path.join(tmp, "deficiency.npy"))
+        written = fillgs.load_observation(tmp, dense=True)  # the compact files as [T, N] tables
+        counts, deficiency = written["counts"], written["deficiency"]
     same_counts = counts.shape == tables["counts"].shape and bool((counts == tables["counts"]).all())
     # How far fillgs's own evaluation of the saved network is from PyTorch's, in positions; a
     # speed is a difference of two positions over two frames, so deficiency can differ by up

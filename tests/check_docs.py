@@ -129,7 +129,7 @@ def walkthrough(repo, fillgs):
                            capture_output=True, text=True)
         if r.returncode != 0:
             return [f"README.md walkthrough failed (status {r.returncode}): {(r.stderr.strip().splitlines() or [''])[-1]}"]
-        expected = ["work/observe/count.npy", "work/observe/deficiency.npy", "work/explore/exploration.vdb", "work/select/trajectories.json",
+        expected = ["work/observe/count_static.npy", "work/observe/deficiency_dynamic.npy", "work/explore/exploration.vdb", "work/select/trajectories.json",
                     "work/finetune/model.ply", "work/finetune/summary.json", "work/eval/metrics.json"]
         missing = [e for e in expected if not os.path.exists(os.path.join(work, e))]
         if missing:

@@ -23,6 +23,7 @@
 #include "fillgs/io/image_io.hpp"
 #include "fillgs/io/model_formats.hpp"
 #include "fillgs/io/npy.hpp"
+#include "fillgs/visibility/observe_tables.hpp"
 #include "fillgs/visibility/visibility.hpp"
 #include "fillgs/io/ply.hpp"
 #include "fillgs/render/raster.hpp"
@@ -189,12 +190,12 @@ SynthScene observe_inputs(const std::string& dir, int F) {
 
 }  // namespace
 
-TEST_CASE("fillgs observe writes [T, N] tables that numpy reads, summary.json and pictures", "[cli][observe]") {
+TEST_CASE("fillgs observe --tables dense writes [T, N] tables that numpy reads, summary.json and pictures", "[cli][observe]") {
   const std::string dir = scratch("cli_observe");
   const int F = 4;
   const SynthScene s = observe_inputs(dir, F);
   const Result r = run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/obs",
-                            "--mode", "raytraced", "--stride", "4", "--quiet"});
+                            "--mode", "raytraced", "--stride", "4", "--tables", "dense", "--quiet"});
   INFO(r.err);
   REQUIRE(r.code == 0);
   const size_t N = s.scene.size(), M = s.scene.dynamic_count();
@@ -238,7 +239,7 @@ TEST_CASE("fillgs observe writes [T, N] tables that numpy reads, summary.json an
     CHECK(w > 300);
   }
 
-  SECTION("dynamic-only motion tables") {
+  SECTION("dynamic-only motion tables (--motion-tables, the flag's older name)") {
     REQUIRE(run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/train.json", "--out", dir + "/dyn",
                      "--motion-tables", "dynamic", "--no-plots", "--quiet"}).code == 0);
     CHECK(read_npy(dir + "/dyn/speed_dynamic.npy").shape == std::vector<size_t>{size_t(F), M});
@@ -261,7 +262,7 @@ TEST_CASE("fillgs observe writes [T, N] tables that numpy reads, summary.json an
   SECTION("a static scene with untimed cameras has one time: tables [1, N], no flags needed") {
     std::ofstream(dir + "/static.ply") << kHeader << "0 0 0 1 0 0 2 -1 -1 -1 1 0 0 0\n0.3 0.2 0.1 0 1 0 1 -2 -2 -2 1 0 0 0\n";
     write_transforms_json(dir + "/rig.json", s.train);  // no times: a rig
-    const Result st = run_cli({"observe", "--scene", dir + "/static.ply", "--cameras", dir + "/rig.json", "--out", dir + "/static", "--quiet"});
+    const Result st = run_cli({"observe", "--scene", dir + "/static.ply", "--cameras", dir + "/rig.json", "--out", dir + "/static", "--tables", "dense", "--quiet"});
     INFO(st.err);
     REQUIRE(st.code == 0);
     CHECK(read_npy(dir + "/static/times.npy").to_doubles("times") == std::vector<double>{0.0});
@@ -280,6 +281,99 @@ TEST_CASE("fillgs observe writes [T, N] tables that numpy reads, summary.json an
       CHECK(counts[k] == seen);
     }
     CHECK(counts[0] > 0);
+  }
+}
+
+namespace {
+
+/// The dense [T, N] counts of a compact folder, rebuilt from its files as the layout's
+/// numpy recipe does (observe_tables.hpp), without the library's reader.
+std::vector<double> counts_from_compact_files(const std::string& d, size_t N) {
+  const std::vector<double> stat = read_npy(d + "/count_static.npy").to_doubles("count_static");
+  const std::vector<double> rows = read_npy(d + "/count_rows.npy").to_doubles("count_rows");
+  const std::vector<double> ids = read_npy(d + "/dynamic_ids.npy").to_doubles("dynamic_ids");
+  const std::vector<double> dyn = read_npy(d + "/count_dynamic.npy").to_doubles("count_dynamic");
+  const std::vector<double> off = read_npy(d + "/count_change_offsets.npy").to_doubles("offsets");
+  const std::vector<double> cid = read_npy(d + "/count_change_ids.npy").to_doubles("change ids");
+  const std::vector<double> cval = read_npy(d + "/count_change_values.npy").to_doubles("change values");
+  const size_t T = rows.size(), M = ids.size();
+  std::vector<double> c(T * N);
+  for (size_t t = 0; t < T; ++t) {
+    for (size_t g = 0; g < N; ++g) c[t * N + g] = stat[size_t(rows[t]) * N + g];
+    for (size_t j = 0; j < M; ++j) c[t * N + size_t(ids[j])] = dyn[t * M + j];
+    for (size_t e = size_t(off[t]); e < size_t(off[t + 1]); ++e) c[t * N + size_t(cid[e])] = cval[e];
+  }
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("fillgs observe's compact tables (the default) are the dense tables cell for cell", "[cli][observe]") {
+  const std::string dir = scratch("cli_observe_compact");
+  const int F = 5;
+  const SynthScene s = observe_inputs(dir, F);
+  // Timed cameras whose set changes: the even rig cameras at even frames, the odd ones at odd
+  // frames, all of them at the last: three camera sets, the first two recurring.
+  std::vector<Camera> alternating;
+  const std::vector<Camera> timed = cameras_over_time(s.train, F);
+  for (size_t k = 0; k < timed.size(); ++k) {
+    const size_t cam = k / size_t(F), f = k % size_t(F);
+    if (f == size_t(F) - 1 || cam % 2 == f % 2) alternating.push_back(timed[k]);
+  }
+  write_transforms_json(dir + "/alternating.json", alternating);
+  const size_t N = s.scene.size(), M = s.scene.dynamic_count();
+  struct Case {
+    std::string cameras, mode;
+    size_t rows;
+  };
+  for (const Case& c : {Case{"train.json", "raytraced", 1}, Case{"train.json", "frustum", 1}, Case{"train.json", "exact", 1},
+                        Case{"alternating.json", "raytraced", 3}, Case{"alternating.json", "frustum", 3}}) {
+    const std::string tag = c.cameras.substr(0, c.cameras.size() - 5) + "_" + c.mode;
+    INFO(tag);
+    for (const char* layout : {"compact", "dense"}) {
+      const Result r = run_cli({"observe", "--scene", dir + "/scene.ply", "--cameras", dir + "/" + c.cameras, "--mode", c.mode, "--stride", "2",
+                                "--tables", layout, "--no-plots", "--out", dir + "/" + tag + "_" + layout, "--quiet"});
+      INFO(r.err);
+      REQUIRE(r.code == 0);
+    }
+    const std::string compact = dir + "/" + tag + "_compact", dense = dir + "/" + tag + "_dense";
+    CHECK_FALSE(fs::exists(compact + "/count.npy"));
+    const std::vector<double> want = read_npy(dense + "/count.npy").to_doubles("count");
+    CHECK(counts_from_compact_files(compact, N) == want);
+    // The library's reader (the merge's and the module's) gives the same rows.
+    const ObservationFolder folder = read_observation(compact);
+    std::vector<uint16_t> row(N);
+    size_t same = 0;
+    for (size_t f = 0; f < size_t(F); ++f) {
+      folder.count_row(f, row.data());
+      for (size_t g = 0; g < N; ++g) same += row[g] == want[f * N + g];
+    }
+    CHECK(same == want.size());
+    CHECK(read_npy(compact + "/count_static.npy").shape == std::vector<size_t>{c.rows, N});
+    CHECK(read_npy(compact + "/count_static.npy").descr == read_npy(dense + "/count.npy").descr);
+    // Frustum: a static Gaussian's count depends on the cameras only, so nothing changes;
+    // traced and exact: moving Gaussians hide and uncover static ones.
+    const auto summary = nlohmann::json::parse(std::ifstream(compact + "/summary.json"));
+    CHECK(summary["tables"] == "compact");
+    CHECK(summary["count_static_rows"] == c.rows);
+    const size_t changes = summary["count_changes"].get<size_t>();
+    CHECK(read_npy(compact + "/count_change_ids.npy").shape == std::vector<size_t>{changes});
+    if (c.mode == "frustum") CHECK(changes == 0);
+    else CHECK(changes > 0);
+    if (c.cameras == "alternating.json") CHECK(read_npy(compact + "/count_rows.npy").to_doubles("rows") == std::vector<double>{0, 1, 0, 1, 2});
+    // The motion: the dense tables' moving columns, and 0 elsewhere.
+    const std::vector<double> ids = read_npy(compact + "/dynamic_ids.npy").to_doubles("ids");
+    REQUIRE(ids.size() == M);
+    for (const char* table : {"speed", "deficiency"}) {
+      const std::vector<double> d = read_npy(dense + "/" + table + ".npy").to_doubles(table);
+      const std::vector<double> m = read_npy(compact + "/" + table + "_dynamic.npy").to_doubles(table);
+      REQUIRE(m.size() == size_t(F) * M);
+      size_t equal = 0;
+      for (size_t f = 0; f < size_t(F); ++f)
+        for (size_t j = 0; j < M; ++j) equal += m[f * M + j] == d[f * N + size_t(ids[j])];
+      CHECK(equal == m.size());
+    }
+    CHECK(read_file(compact + "/times.npy") == read_file(dense + "/times.npy"));
   }
 }
 
@@ -336,16 +430,20 @@ TEST_CASE("fillgs observe --shard i/n, then --merge: the single process's tables
     INFO(a << " vs " << b);
     CHECK(read_file(dir + "/" + a) == read_file(dir + "/" + b));
   };
+  // Compact (the default; traced, so that static counts change), dense counts with the
+  // moving Gaussians' motion, and dense.
   for (const std::vector<std::string>& mode : {std::vector<std::string>{"--mode", "raytraced", "--stride", "2"},
-                                               std::vector<std::string>{"--mode", "frustum", "--motion-tables", "dynamic"}}) {
+                                               std::vector<std::string>{"--mode", "frustum", "--tables", "dynamic"},
+                                               std::vector<std::string>{"--mode", "exact", "--tables", "dense"}}) {
     const std::string tag = mode[1];
     observe(tag + "_whole", mode);
     if (tag == "raytraced") {  // no kept static hits: the same tables
       std::vector<std::string> extra = mode;
       extra.insert(extra.end(), {"--hit-cache", "0"});
       observe("raytraced_no_hit_cache", extra);
-      same_bytes("raytraced_whole/count.npy", "raytraced_no_hit_cache/count.npy");
-      same_bytes("raytraced_whole/deficiency.npy", "raytraced_no_hit_cache/deficiency.npy");
+      same_bytes("raytraced_whole/count_static.npy", "raytraced_no_hit_cache/count_static.npy");
+      same_bytes("raytraced_whole/count_change_ids.npy", "raytraced_no_hit_cache/count_change_ids.npy");
+      same_bytes("raytraced_whole/deficiency_dynamic.npy", "raytraced_no_hit_cache/deficiency_dynamic.npy");
     }
     std::vector<std::string> parts;
     for (int i = 1; i <= 3; ++i) {
@@ -355,20 +453,30 @@ TEST_CASE("fillgs observe --shard i/n, then --merge: the single process's tables
       parts.push_back(dir + "/" + tag + "_part" + std::to_string(i));
     }
     // Blocks of 2, 2 and 3 frames (7 frames in 3 shards).
-    CHECK(read_npy(parts[0] + "/count.npy").shape == std::vector<size_t>{2, s.scene.size()});
+    CHECK(read_npy(parts[0] + (tag == "raytraced" ? "/count_dynamic.npy" : "/count.npy")).shape ==
+          std::vector<size_t>{2, tag == "raytraced" ? s.scene.dynamic_count() : s.scene.size()});
     CHECK(read_npy(parts[2] + "/times.npy").to_doubles("times") == std::vector<double>{4.0 / 6, 5.0 / 6, 1.0});
     // Given out of order: the merge sorts the shards by their frames.
     const Result m = run_cli({"observe", "--merge", parts[2] + "," + parts[0] + "," + parts[1], "--out", dir + "/" + tag + "_merged", "--quiet"});
     INFO(m.err);
     REQUIRE(m.code == 0);
-    const std::string suffix = tag == "frustum" ? "_dynamic" : "";
-    for (const std::string& f : std::vector<std::string>{"count.npy", "speed" + suffix + ".npy", "deficiency" + suffix + ".npy", "dynamic_ids.npy", "times.npy"})
-      same_bytes(tag + "_whole/" + f, tag + "_merged/" + f);
+    size_t tables = 0;
+    for (const auto& e : fs::directory_iterator(dir + "/" + tag + "_whole"))
+      if (e.path().extension() == ".npy") {
+        same_bytes(tag + "_whole/" + e.path().filename().string(), tag + "_merged/" + e.path().filename().string());
+        ++tables;
+      }
+    CHECK(tables == (tag == "raytraced" ? 10u : 5u));  // compact: 6 count tables, 2 motion tables, ids, times
     const auto whole = nlohmann::json::parse(std::ifstream(dir + "/" + tag + "_whole/summary.json"));
     const auto merged = nlohmann::json::parse(std::ifstream(dir + "/" + tag + "_merged/summary.json"));
     CHECK(merged["views"] == whole["views"]);
     CHECK(merged["rays_traced"].get<uint64_t>() >= whole["rays_traced"].get<uint64_t>());  // each shard traces its cameras' static answers once
     CHECK(merged["frames"] == F);
+    CHECK(merged["tables"] == whole["tables"]);
+    if (tag == "raytraced") {
+      CHECK(merged["count_changes"] == whole["count_changes"]);
+      CHECK(merged["count_static_rows"] == whole["count_static_rows"]);
+    }
     for (size_t k = 0; k < size_t(F); ++k)
       CHECK(merged["deficiency_per_frame"][k].get<double>() == Approx(whole["deficiency_per_frame"][k].get<double>()).epsilon(1e-12));
     for (size_t c = 0; c < whole["per_camera"].size(); ++c) {
@@ -616,12 +724,14 @@ TEST_CASE("a rerun into a used folder leaves its own outputs only, and the user'
   INFO(again.err);
   REQUIRE(again.code == 0);
   CHECK(listing(dir + "/frames") == std::vector<std::string>{".fillgs-outputs", "frame_0000.ply", "frame_0001.ply", "frame_0002.ply", "notes.txt"});
-  // observe with dense tables, then with the moving Gaussians' only: no speed.npy of the first run is left.
-  REQUIRE(run_cli({"observe", "--scene", scene, "--cameras", cams, "--out", dir + "/obs", "--quiet"}).code == 0);
+  // observe with dense tables, then compact: no count.npy or speed.npy of the first run is left.
+  REQUIRE(run_cli({"observe", "--scene", scene, "--cameras", cams, "--tables", "dense", "--out", dir + "/obs", "--quiet"}).code == 0);
   CHECK(fs::exists(dir + "/obs/speed.npy"));
-  REQUIRE(run_cli({"observe", "--scene", scene, "--cameras", cams, "--motion-tables", "dynamic", "--out", dir + "/obs", "--quiet"}).code == 0);
+  REQUIRE(run_cli({"observe", "--scene", scene, "--cameras", cams, "--out", dir + "/obs", "--quiet"}).code == 0);
   CHECK_FALSE(fs::exists(dir + "/obs/speed.npy"));
+  CHECK_FALSE(fs::exists(dir + "/obs/count.npy"));
   CHECK(fs::exists(dir + "/obs/speed_dynamic.npy"));
+  CHECK(fs::exists(dir + "/obs/count_static.npy"));
   // COLMAP text into a folder that holds a binary model would be shadowed by it: refused.
   fs::create_directories(dir + "/colmap");
   std::ofstream(dir + "/colmap/cameras.bin") << "binary";

@@ -299,7 +299,8 @@ TEST_CASE("observe --merge refuses shards whose tables hold what observe never w
   std::vector<std::string> parts;
   for (int i = 1; i <= 2; ++i) {
     parts.push_back(dir + "/part" + std::to_string(i));
-    const CliResult r = run_cli({"observe", "--scene", scene, "--cameras", cams, "--shard", std::to_string(i) + "/2", "--out", parts.back(), "--quiet"});
+    const CliResult r = run_cli({"observe", "--scene", scene, "--cameras", cams, "--shard", std::to_string(i) + "/2", "--tables", "dense", "--out", parts.back(),
+                                 "--quiet"});
     INFO(r.err);
     REQUIRE(r.code == 0);
   }
@@ -327,6 +328,55 @@ TEST_CASE("observe --merge refuses shards whose tables hold what observe never w
   refused("times.npy", [&] { poke_npy(parts[0] + "/times.npy", 0, std::nan("")); }, {"element 0 is nan, not a time in [0, 1]"});
   refused("dynamic_ids.npy", [&] { poke_npy(parts[0] + "/dynamic_ids.npy", 0, uint32_t(N + 5)); },
           {"element 0 is " + std::to_string(N + 5) + ", outside [0, " + std::to_string(N - 1) + "]"});
+  // The compact layout's tables (traced, so that moving Gaussians change static counts).
+  std::vector<std::string> compact;
+  for (int i = 1; i <= 2; ++i) {
+    compact.push_back(dir + "/compact" + std::to_string(i));
+    const CliResult r = run_cli({"observe", "--scene", scene, "--cameras", cams, "--mode", "raytraced", "--stride", "2", "--shard", std::to_string(i) + "/2",
+                                 "--out", compact.back(), "--quiet"});
+    INFO(r.err);
+    REQUIRE(r.code == 0);
+  }
+  {
+    const std::string pair = compact[0] + "," + compact[1];
+    const std::string& poked = compact[1];  // frames 1 and 2: the second holds changes
+    REQUIRE(run_cli({"observe", "--merge", pair, "--out", dir + "/merged_compact", "--quiet"}).code == 0);
+    const nlohmann::json js = nlohmann::json::parse(read_file(poked + "/summary.json"));
+    REQUIRE(js.at("count_changes").get<size_t>() > 0);
+    const std::vector<double> ids = read_npy(poked + "/dynamic_ids.npy").to_doubles("ids");
+    REQUIRE(!ids.empty());
+    const size_t moving = size_t(ids[0]), still = ids[0] > 0 ? 0 : size_t(ids[0]) + 1;
+    REQUIRE((ids.size() < 2 || size_t(ids[1]) != still));
+    auto refused_compact = [&](const std::string& file, const std::function<void()>& poke, const std::vector<std::string>& says) {
+      const std::string path = poked + "/" + file, keep = read_file(path);
+      poke();
+      const CliResult r = run_cli({"observe", "--merge", pair, "--out", dir + "/bad"});
+      INFO(file << ": " << r.err);
+      CHECK(r.code == 1);
+      CHECK(std::count(r.err.begin(), r.err.end(), '\n') == 1);
+      CHECK(r.err.find(path) != std::string::npos);
+      for (const std::string& w : says) CHECK(r.err.find(w) != std::string::npos);
+      CHECK_FALSE(fs::exists(dir + "/bad"));
+      write_file_atomically(path, keep);
+    };
+    const std::string over = std::to_string(views + 1) + ", outside [0, " + std::to_string(views) + "]";
+    refused_compact("count_static.npy", [&] { poke_npy(poked + "/count_static.npy", still, uint8_t(views + 1)); },
+                    {"element [0, " + std::to_string(still) + "] is " + over});
+    refused_compact("count_static.npy", [&] { poke_npy(poked + "/count_static.npy", moving, uint8_t(1)); }, {"for a moving Gaussian"});
+    refused_compact("count_rows.npy", [&] { poke_npy(poked + "/count_rows.npy", 0, uint32_t(7)); }, {"element 0 is 7, outside [0, 0]"});
+    refused_compact("count_dynamic.npy", [&] { poke_npy(poked + "/count_dynamic.npy", 0, uint8_t(views + 1)); }, {"element [0, 0] is " + over});
+    refused_compact("count_change_values.npy", [&] { poke_npy(poked + "/count_change_values.npy", 0, uint8_t(views + 1)); },
+                    {"element 0 is " + over});
+    refused_compact("count_change_ids.npy", [&] { poke_npy(poked + "/count_change_ids.npy", 0, uint32_t(moving)); },
+                    {"expected increasing ids of static Gaussians"});
+    refused_compact("count_change_offsets.npy", [&] { poke_npy(poked + "/count_change_offsets.npy", 1, int64_t(1) << 40); }, {"element 1 is"});
+    refused_compact("speed_dynamic.npy", [&] { poke_npy(poked + "/speed_dynamic.npy", 3, std::nanf("")); }, {"element [0, 3] is nan"});
+    refused_compact("summary.json", [&] {
+      nlohmann::json j = nlohmann::json::parse(read_file(poked + "/summary.json"));
+      j["shard"].erase("count_static_keys");
+      write_file_atomically(poked + "/summary.json", j.dump());
+    }, {"malformed shard summary"});
+  }
   // A wrong-typed field (in every shard, so that they agree): named with its file.
   for (const std::string& p : parts) {
     nlohmann::json j = nlohmann::json::parse(read_file(p + "/summary.json"));
@@ -336,7 +386,7 @@ TEST_CASE("observe --merge refuses shards whose tables hold what observe never w
   const CliResult typed = run_cli({"observe", "--merge", both, "--out", dir + "/bad"});
   INFO(typed.err);
   CHECK(typed.code == 1);
-  CHECK(typed.err.find(parts[0] + "/summary.json: malformed shard summary") != std::string::npos);
+  CHECK(typed.err.find(parts[0] + "/summary.json: malformed") != std::string::npos);
   for (const std::string& p : parts) {
     nlohmann::json j = nlohmann::json::parse(read_file(p + "/summary.json"));
     j["shard"]["frames_total"] = "three";

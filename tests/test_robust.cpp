@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <sstream>
 
 #if defined(__has_feature)
@@ -108,6 +109,51 @@ TEST_CASE("crashes: long .npy and cfg_args headers, descr with trailing characte
   write(dir + "/ex/cfg_args", "Namespace(duration=21, time_interval=5, interp_type='bogus')");
   expect_error(run_cli({"info", pc + "point_cloud.ply"}), {"cfg_args", "interp_type 'bogus'", "cube, linear, pchip"});
   CHECK_FALSE(fs::exists(dir + "/o.json"));
+}
+
+TEST_CASE("a growing .npy: the row count written into the header reserved for the largest, padded as numpy pads", "[robust][io]") {
+  const std::string dir = scratch("robust_growing_npy");
+  for (const size_t rows : {size_t(0), size_t(1), size_t(1000)}) {
+    const std::string path = dir + "/g" + std::to_string(rows) + ".npy";
+    {
+      NpyStreamWriter w = NpyStreamWriter::growing(path, "<u2", 2, {3});
+      for (size_t r = 0; r < rows; ++r) {
+        const uint16_t row[3] = {uint16_t(r), uint16_t(r + 1), uint16_t(7)};
+        w.write(row, sizeof row);
+      }
+      CHECK_FALSE(fs::exists(path));  // nothing under the final name before finish()
+      w.finish();
+    }
+    const std::string bytes = read_file(path);
+    const NpyArray a = read_npy(path);
+    CHECK(a.descr == "<u2");
+    CHECK(a.shape == std::vector<size_t>{rows, 3});
+    REQUIRE(a.bytes.size() == rows * 6);
+    const size_t header = bytes.size() - a.bytes.size();
+    CHECK(header % 64 == 0);
+    CHECK(header == npy_header("<u2", {std::numeric_limits<size_t>::max(), 3}).size());
+    CHECK(bytes[header - 1] == '\n');
+    const std::vector<double> v = a.to_doubles(path);
+    for (size_t r = 0; r < rows; ++r) CHECK((v[3 * r] == double(r) && v[3 * r + 1] == double(r + 1) && v[3 * r + 2] == 7.0));
+  }
+  // One-dimensional, and a part row refused at finish (no file left).
+  {
+    NpyStreamWriter w = NpyStreamWriter::growing(dir + "/ids.npy", "<u4", 4, {});
+    const uint32_t ids[2] = {5, 9};
+    w.write(ids, sizeof ids);
+    w.finish();
+  }
+  CHECK(read_npy(dir + "/ids.npy").shape == std::vector<size_t>{2});
+  {
+    NpyStreamWriter w = NpyStreamWriter::growing(dir + "/part.npy", "<u2", 2, {3});
+    const uint16_t half[2] = {1, 2};
+    w.write(half, sizeof half);
+    CHECK_THROWS_WITH(w.finish(), Catch::Contains("part.npy") && Catch::Contains("not whole rows"));
+  }
+  CHECK_FALSE(fs::exists(dir + "/part.npy"));
+  size_t left = 0;
+  for (const auto& e : fs::directory_iterator(dir)) left += e.path().string().find(".tmp") != std::string::npos;
+  CHECK(left == 0);
 }
 
 TEST_CASE("reads past the end: wrapping LLFF shape, short cameras.json rotation rows", "[robust]") {
@@ -403,7 +449,7 @@ TEST_CASE("valid input without undefined behaviour: alpha and depth channels, ex
     CHECK(fs::exists(dir + "/" + channel + "/front.png"));
   }
   const Result o = run_cli({"observe", "--scene", dir + "/s.ply", "--cameras", dir + "/cams.json", "--out", dir + "/obs", "--mode", "exact",
-                            "--times", "0.5", "--frames", "3", "--no-plots"});
+                            "--times", "0.5", "--frames", "3", "--tables", "dense", "--no-plots"});
   INFO(o.err);
   REQUIRE(o.code == 0);
   const NpyArray counts = read_npy(dir + "/obs/count.npy");

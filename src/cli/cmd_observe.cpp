@@ -28,15 +28,6 @@
 #include "progress_bar.hpp"
 
 namespace fillgs::cli {
-/// observe's per-frame tables: every Gaussian, or the moving ones only.
-enum class MotionTables { Dense, Dynamic };
-}  // namespace fillgs::cli
-
-namespace fillgs {
-FILLGS_ENUM_NAMES(cli::MotionTables, "motion table layout", {cli::MotionTables::Dense, "dense"}, {cli::MotionTables::Dynamic, "dynamic"});
-}  // namespace fillgs
-
-namespace fillgs::cli {
 
 namespace {
 
@@ -46,7 +37,6 @@ struct ObserveFlags {
   std::string scene, cameras, out, shard;
   std::vector<std::string> merge;
   TimeFlags time;
-  MotionTables tables = MotionTables::Dense;
   ObservationOptions options;
   ObserveOutputOptions output;
   bool mpi = false;
@@ -70,18 +60,26 @@ ObserveJob observe_job(const ObserveFlags& f, const Invocation& in) {
   job.options = f.options;
   if (in.given("--hit-cache")) job.options.static_hit_cache_bytes = size_t(f.hit_cache_mb * 1048576.0);
   job.output = f.output;
-  job.output.dense_motion_tables = f.tables == MotionTables::Dense;
   job.cloud = read_scene_shown(f.scene, f.read, in);
   job.cameras = read_cameras(f.cameras, f.camera_read);
   if (job.cameras.empty()) throw_error(f.cameras, ": no cameras");
   job.times = observe_times(in, f.time, job.cloud, job.cameras, &job.frame_step);
   {
-    // The tables' size on disk, before any work: [T, N] counts (1 byte, 2 above 255 views)
-    // and speed and deficiency (4 bytes each, over the moving Gaussians only with
-    // --motion-tables dynamic), against the space free where they will be written.
+    // The tables' size on disk, before any work, against the space free where they will be
+    // written: counts (1 byte, 2 above 255 views) [T, N], or compact [T, M] with a static
+    // row per camera set (at most T; the changes a moving Gaussian makes to static counts are
+    // not foreseen); speed and deficiency 4 bytes each, [T, N] dense, else [T, M].
     const size_t T = job.times.size(), N = job.cloud.size(), M = job.cloud.dynamic_count();
-    const size_t tables = checked_mul(T, checked_mul(N, 2, "--frames", "the tables") + checked_mul(job.output.dense_motion_tables ? N : M, 8, "--frames", "the tables"),
-                                      "--frames", "the tables");
+    const TableLayout layout = job.output.tables;
+    size_t rows = T;
+    if (layout == TableLayout::Compact) {
+      const std::vector<uint32_t> keys = count_row_keys(job.cameras, job.times, job.frame_step, {});
+      rows = size_t(*std::max_element(keys.begin(), keys.end())) + 1;
+    }
+    const size_t count_bytes = layout == TableLayout::Compact ? checked_mul(rows, checked_mul(N, 2, "--frames", "the tables"), "--frames", "the tables") +
+                                                                     checked_mul(T, M * 2, "--frames", "the tables")
+                                                               : checked_mul(T, checked_mul(N, 2, "--frames", "the tables"), "--frames", "the tables");
+    const size_t tables = count_bytes + checked_mul(T, checked_mul(layout == TableLayout::Dense ? N : M, 8, "--frames", "the tables"), "--frames", "the tables");
     namespace fs = std::filesystem;
     fs::path where = fs::absolute(f.out);
     std::error_code ec;
@@ -167,7 +165,7 @@ int observe_over_mpi(const ObserveFlags& f, const Invocation& in) {
 int observe(const ObserveFlags& f, const Invocation& in) {
   const auto t0 = Clock::now();
   if (in.given("--merge")) {
-    for (const char* k : {"--scene", "--cameras", "--frames", "--times", "--mode", "--stride", "--tau", "--motion-tables", "--shard", "--hit-cache"})
+    for (const char* k : {"--scene", "--cameras", "--frames", "--times", "--mode", "--stride", "--tau", "--tables", "--motion-tables", "--shard", "--hit-cache"})
       if (in.given(k)) in.fail("--merge combines finished shards; ", k, " belongs to the shards' own runs");
     OutputFolder folder(f.out);
     const ObserveReport r = merge_observations(f.merge, folder.path(), f.output.plots);
@@ -204,7 +202,10 @@ Action declare_observe(CLI::App& app) {
   add_switch_off(app, "--from-scratch", f->options.incremental, "raytraced: every frame traced anew, not only what moved");
   add_number(app, "--hit-cache", f->hit_cache_mb, "raytraced: MB of static hits kept for re-traced rays (default 2048; 0: none)", hit_cache_mb_bounds())
       ->type_name("MB");
-  add_choice(app, "--motion-tables", f->tables, "the per-frame tables: every Gaussian, or the moving ones only");
+  add_choice(app, "--tables", f->output.tables,
+             "the tables' layout: what varies only (static counts once per camera set), every Gaussian at every frame, or dense counts "
+             "with the moving Gaussians' motion");
+  add_choice(app, "--motion-tables", f->output.tables, "the older name of --tables")->group("");
   add_switch_off(app, "--no-plots", f->output.plots, "no heatmaps or charts");
   add_text(app, "--shard", f->shard, "the i-th of n blocks of frames, for --merge", "I/N");
   add_list(app, "--merge", f->merge, "finished shards' folders, combined into the single-process tables");

@@ -3,6 +3,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <unistd.h>
 #include <sstream>
 
@@ -132,14 +133,15 @@ std::vector<double> NpyArray::to_doubles(const std::string& source) const {
   return out;
 }
 
-std::string npy_header(const std::string& descr, const std::vector<size_t>& shape) {
+std::string npy_header(const std::string& descr, const std::vector<size_t>& shape, size_t length) {
   std::ostringstream h;
   h << "{'descr': '" << descr << "', 'fortran_order': False, 'shape': (";
   for (size_t i = 0; i < shape.size(); ++i) h << shape[i] << (shape.size() == 1 ? "," : (i + 1 < shape.size() ? ", " : ""));
   h << "), }";
   std::string header = h.str();
   const size_t total = 10 + header.size() + 1;
-  header.append((64 - total % 64) % 64, ' ');
+  FILLGS_CHECK(length == 0 || length >= total);
+  header.append(length ? length - total : (64 - total % 64) % 64, ' ');
   header += '\n';
   std::string out = "\x93NUMPY";
   out += char(1);
@@ -159,17 +161,52 @@ void write_npy(const std::string& path, const T* data, const std::vector<size_t>
   write_file_atomically(path, out);
 }
 
-NpyStreamWriter::NpyStreamWriter(const std::string& path, const std::string& descr, size_t item_bytes, const std::vector<size_t>& shape)
-    : path_(path), tmp_(path + ".tmp" + std::to_string(::getpid())) {
-  expected_ = item_bytes;
-  for (size_t d : shape) expected_ *= d;
+namespace {
+
+/// Opens the temporary beside `path` and writes `header` into it.
+void* open_npy_temporary(const std::string& path, const std::string& tmp, const std::string& header) {
   const size_t slash = path.find_last_of('/');
   if (slash != std::string::npos && slash > 0) make_directories(path.substr(0, slash));
-  FILE* f = std::fopen(tmp_.c_str(), "wb");
+  FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) throw_error(path, ": cannot open for writing (", std::strerror(errno), ")");
-  file_ = f;
-  const std::string header = npy_header(descr, shape);
-  if (std::fwrite(header.data(), 1, header.size(), f) != header.size()) throw_error(path, ": write failed");
+  if (std::fwrite(header.data(), 1, header.size(), f) != header.size()) {
+    std::fclose(f);
+    std::remove(tmp.c_str());
+    throw_error(path, ": write failed");
+  }
+  return f;
+}
+
+}  // namespace
+
+NpyStreamWriter::NpyStreamWriter(const std::string& path, const std::string& descr, size_t item_bytes, const std::vector<size_t>& shape)
+    : path_(path), tmp_(path + ".tmp" + std::to_string(::getpid())), descr_(descr) {
+  expected_ = item_bytes;
+  for (size_t d : shape) expected_ *= d;
+  file_ = open_npy_temporary(path_, tmp_, npy_header(descr, shape));
+}
+
+NpyStreamWriter NpyStreamWriter::growing(const std::string& path, const std::string& descr, size_t item_bytes, const std::vector<size_t>& row_shape) {
+  NpyStreamWriter w;
+  w.path_ = path;
+  w.tmp_ = path + ".tmp" + std::to_string(::getpid());
+  w.descr_ = descr;
+  w.row_shape_ = row_shape;
+  w.row_bytes_ = item_bytes;
+  for (size_t d : row_shape) w.row_bytes_ *= d;
+  std::vector<size_t> widest = {std::numeric_limits<size_t>::max()};
+  widest.insert(widest.end(), row_shape.begin(), row_shape.end());
+  const std::string header = npy_header(descr, widest);
+  w.header_bytes_ = header.size();
+  w.expected_ = std::numeric_limits<size_t>::max();
+  w.file_ = open_npy_temporary(path, w.tmp_, header);
+  return w;
+}
+
+NpyStreamWriter::NpyStreamWriter(NpyStreamWriter&& o) noexcept
+    : path_(std::move(o.path_)), tmp_(std::move(o.tmp_)), descr_(std::move(o.descr_)), file_(o.file_), expected_(o.expected_),
+      written_(o.written_), row_bytes_(o.row_bytes_), header_bytes_(o.header_bytes_), row_shape_(std::move(o.row_shape_)) {
+  o.file_ = nullptr;
 }
 
 NpyStreamWriter::~NpyStreamWriter() {
@@ -181,18 +218,29 @@ NpyStreamWriter::~NpyStreamWriter() {
 
 void NpyStreamWriter::write(const void* data, size_t bytes) {
   FILLGS_CHECK(file_ != nullptr);
-  if (written_ + bytes > expected_) throw_error(path_, ": more data than the shape holds");
+  if (bytes > expected_ - written_) throw_error(path_, ": more data than the shape holds");
   if (bytes && std::fwrite(data, 1, bytes, static_cast<FILE*>(file_)) != bytes) throw_error(path_, ": write failed (", std::strerror(errno), ")");
   written_ += bytes;
 }
 
 void NpyStreamWriter::finish() {
   FILLGS_CHECK(file_ != nullptr);
-  if (written_ != expected_) throw_error(path_, ": ", written_, " bytes written, the shape needs ", expected_);
   FILE* f = static_cast<FILE*>(file_);
+  bool ok = true;
+  if (header_bytes_) {  // growing: the row count goes into the reserved header
+    const size_t rows = row_bytes_ ? written_ / row_bytes_ : 0;
+    if (row_bytes_ ? written_ % row_bytes_ != 0 : written_ != 0)
+      throw_error(path_, ": ", written_, " bytes written, not whole rows of ", row_bytes_);
+    std::vector<size_t> shape = {rows};
+    shape.insert(shape.end(), row_shape_.begin(), row_shape_.end());
+    const std::string header = npy_header(descr_, shape, header_bytes_);
+    ok = std::fflush(f) == 0 && std::fseek(f, 0, SEEK_SET) == 0 && std::fwrite(header.data(), 1, header.size(), f) == header.size();
+  } else if (written_ != expected_) {
+    throw_error(path_, ": ", written_, " bytes written, the shape needs ", expected_);
+  }
   file_ = nullptr;
-  const bool ok = std::fflush(f) == 0;
-  std::fclose(f);
+  ok = std::fflush(f) == 0 && ok;
+  if (std::fclose(f) != 0) ok = false;
   if (!ok || std::rename(tmp_.c_str(), path_.c_str()) != 0) {
     std::remove(tmp_.c_str());
     throw_error(path_, ": cannot finish writing (", std::strerror(errno), ")");

@@ -714,6 +714,57 @@ py::dict observe_py(const Model& model, const std::shared_ptr<const CallerFrames
   return d;
 }
 
+// ------------------------------------------------------------------ load_observation
+
+/// Counts as the folder stores them: uint8 where it does, else uint16.
+py::array count_array(const std::vector<uint16_t>& v, bool narrow, std::vector<py::ssize_t> shape) {
+  if (!narrow) return to_array(std::vector<uint16_t>(v), std::move(shape));
+  return to_array(std::vector<uint8_t>(v.begin(), v.end()), std::move(shape));
+}
+
+py::dict load_observation_py(const std::string& path, bool dense) {
+  require_file(path);
+  ObservationFolder o;
+  {
+    py::gil_scoped_release release;
+    o = read_observation(path);
+  }
+  const py::ssize_t T = py::ssize_t(o.frames()), N = py::ssize_t(o.gaussians), M = py::ssize_t(o.dynamic_ids.size());
+  py::dict d;
+  d["tables"] = to_string(o.layout);
+  d["times"] = to_array(std::vector<double>(o.times), {T});
+  d["dynamic_ids"] = to_array(std::vector<uint32_t>(o.dynamic_ids), {M});
+  if (dense) {  // the [T, N] view, as observe() returns it
+    std::vector<uint16_t> counts(size_t(T) * size_t(N));
+    std::vector<float> speed(counts.size(), 0.0f), deficiency(counts.size(), 0.0f);
+    for (size_t f = 0; f < size_t(T); ++f) {
+      o.count_row(f, counts.data() + f * size_t(N));
+      for (size_t j = 0; j < size_t(M); ++j) {
+        speed[f * size_t(N) + o.dynamic_ids[j]] = o.dynamic_speed[f * size_t(M) + j];
+        deficiency[f * size_t(N) + o.dynamic_ids[j]] = o.dynamic_deficiency[f * size_t(M) + j];
+      }
+    }
+    d["counts"] = count_array(counts, o.narrow, {T, N});
+    d["speed"] = to_array(std::move(speed), {T, N});
+    d["deficiency"] = to_array(std::move(deficiency), {T, N});
+    return d;
+  }
+  if (o.layout == TableLayout::Compact) {
+    const py::ssize_t R = py::ssize_t(o.static_rows), E = py::ssize_t(o.change_ids.size());
+    d["count_static"] = count_array(o.count_static, o.narrow, {R, N});
+    d["count_rows"] = to_array(std::move(o.count_rows), {T});
+    d["count_dynamic"] = count_array(o.count_dynamic, o.narrow, {T, M});
+    d["count_change_offsets"] = to_array(std::move(o.change_offsets), {T + 1});
+    d["count_change_ids"] = to_array(std::move(o.change_ids), {E});
+    d["count_change_values"] = count_array(o.change_values, o.narrow, {E});
+  } else {
+    d["count"] = count_array(o.counts, o.narrow, {T, N});
+  }
+  d["speed_dynamic"] = to_array(std::move(o.dynamic_speed), {T, M});
+  d["deficiency_dynamic"] = to_array(std::move(o.dynamic_deficiency), {T, M});
+  return d;
+}
+
 // ------------------------------------------------------------------ render
 
 py::dict render_py(const Model& model, const Cameras& cameras, size_t index, double t, const std::vector<float>& background) {
@@ -1208,6 +1259,12 @@ PYBIND11_MODULE(_fillgs, m) {
       "of every frame (as --times: in [0, 1], sorted, repeats dropped; frames=F >= 2 gives the speeds' step); frames, times and stride are "
       "checked by the command line's own check, the tables' memory included.");
 
+  m.def("load_observation", &load_observation_py, py::arg("path"), py::arg("dense") = false,
+        "The tables of a folder `fillgs observe` wrote, read and checked as the command line reads them. Returns a dict: tables (the "
+        "layout: compact, dense or dynamic), times [T], dynamic_ids [M] and the arrays as stored (compact: count_static [R,N], count_rows "
+        "[T], count_dynamic [T,M], count_change_offsets [T+1], count_change_ids [E], count_change_values [E]; dense: count [T,N]; "
+        "speed_dynamic and deficiency_dynamic [T,M] in every layout). dense=True: the [T,N] view instead, with observe()'s keys (counts, "
+        "speed, deficiency), which select(tables=...) takes.");
   m.def("read_image", &read_image_py, py::arg("path"), "An image file as fillgs reads it: float32 [H,W,C] in [0, 1], C the file's channels (3 for RGB, 1 for a grey map).");
   m.def(
       "write_image",

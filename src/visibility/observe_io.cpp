@@ -103,6 +103,75 @@ std::vector<std::string> write_observe_plots(const std::string& dir, const Obser
   return {"deficiency_heatmap.png", "visible_fraction.png"};
 }
 
+/// The count, speed and deficiency tables of one folder in a layout, streamed frame by frame.
+class TableStreams {
+ public:
+  TableStreams(const std::string& dir, TableLayout layout, bool narrow, size_t N, const std::vector<uint32_t>& dynamic_ids,
+               const std::vector<uint32_t>& keys)
+      : layout_(layout), narrow_(narrow), N_(N), ids_(dynamic_ids) {
+    const size_t T = keys.size(), M = ids_.size();
+    if (layout == TableLayout::Compact)
+      counts_ = std::make_unique<CompactCountWriter>(dir, narrow, N, dynamic_ids, keys);
+    else
+      count_ = std::make_unique<NpyStreamWriter>(join_path(dir, "count.npy"), narrow ? "|u1" : "<u2", narrow ? 1 : 2, std::vector<size_t>{T, N});
+    const bool dense = layout == TableLayout::Dense;
+    const std::string suffix = dense ? "" : "_dynamic";
+    motion_names_[0] = "speed" + suffix + ".npy";
+    motion_names_[1] = "deficiency" + suffix + ".npy";
+    for (int k = 0; k < 2; ++k)
+      motion_[k] = std::make_unique<NpyStreamWriter>(join_path(dir, motion_names_[k]), "<f4", 4, std::vector<size_t>{T, dense ? N : M});
+  }
+  /// One frame: the counts of every Gaussian, the speeds and deficiencies of the moving ones.
+  void write(const uint16_t* counts, const float* speed, const float* deficiency) {
+    if (counts_) {
+      counts_->write(counts);
+    } else if (narrow_) {
+      narrowed_.assign(counts, counts + N_);
+      count_->write(narrowed_.data(), N_);
+    } else {
+      count_->write(counts, N_ * 2);
+    }
+    const float* motion[2] = {speed, deficiency};
+    for (int k = 0; k < 2; ++k) {
+      if (layout_ != TableLayout::Dense) {
+        motion_[k]->write(motion[k], ids_.size() * 4);
+        continue;
+      }
+      dense_.assign(N_, 0.0f);
+      for (size_t j = 0; j < ids_.size(); ++j) dense_[ids_[j]] = motion[k][j];
+      motion_[k]->write(dense_.data(), N_ * 4);
+    }
+  }
+  /// Renames every table into place; returns their names.
+  std::vector<std::string> finish() {
+    std::vector<std::string> files;
+    if (counts_) {
+      counts_->finish();
+      files = counts_->files();
+    } else {
+      count_->finish();
+      files = {"count.npy"};
+    }
+    for (int k = 0; k < 2; ++k) {
+      motion_[k]->finish();
+      files.push_back(motion_names_[k]);
+    }
+    return files;
+  }
+  const CompactCountWriter* counts() const { return counts_.get(); }
+
+ private:
+  TableLayout layout_;
+  bool narrow_;
+  size_t N_;
+  std::vector<uint32_t> ids_;
+  std::unique_ptr<CompactCountWriter> counts_;
+  std::unique_ptr<NpyStreamWriter> count_, motion_[2];
+  std::string motion_names_[2];
+  std::vector<uint8_t> narrowed_;
+  std::vector<float> dense_;
+};
+
 nlohmann::json per_camera_json(const ObserveTallies& t) {
   nlohmann::json per_camera = nlohmann::json::array();
   for (size_t c = 0; c < t.camera_names.size(); ++c)
@@ -141,14 +210,16 @@ ObserveReport write_observation(const GaussianCloud& cloud, const std::vector<Ca
   const bool narrow = counts_fit_uint8(max_views);
 
   ObserveReport report;
-  const std::string motion_suffix = output.dense_motion_tables ? "" : "_dynamic";
-  const size_t motion_width = output.dense_motion_tables ? N : M;
-  auto count_file = std::make_unique<NpyStreamWriter>(join_path(dir, "count.npy"), narrow ? "|u1" : "<u2", narrow ? 1 : 2,
-                                                      std::vector<size_t>{T, N});
-  auto speed_file = std::make_unique<NpyStreamWriter>(join_path(dir, "speed" + motion_suffix + ".npy"), "<f4", 4,
-                                                      std::vector<size_t>{T, motion_width});
-  auto deficiency_file = std::make_unique<NpyStreamWriter>(join_path(dir, "deficiency" + motion_suffix + ".npy"), "<f4", 4,
-                                                           std::vector<size_t>{T, motion_width});
+  const TableLayout layout = output.tables;
+  std::vector<uint32_t> keys;  // compact: the count row of every frame written
+  {
+    const std::vector<uint32_t> all = count_row_keys(cameras, times, frame_step, options.cameras);
+    if (shard)
+      for (size_t f : options.frames) keys.push_back(all[f]);
+    else
+      keys = all;
+  }
+  TableStreams streams(dir, layout, narrow, N, cloud.dynamic_ids, keys);
   ObserveTallies tally;
   const std::vector<uint32_t> bin = spatial_bins(cloud, output.heatmap_columns, &tally.columns);
   tally.heat.assign(T * size_t(tally.columns), 0.0f);
@@ -158,29 +229,12 @@ ObserveReport write_observation(const GaussianCloud& cloud, const std::vector<Ca
   size_t pose_count = 0;
   tally.pose_group = camera_pose_groups(cameras, &pose_count);
   std::vector<double> evaluated_times;
-  std::vector<uint8_t> narrow_row;
-  std::vector<float> dense_row;
   double write_seconds = 0;
 
   const ObservationSummary summary = source(
       [&](const FrameObservation& fo) {
         const auto start = Clock::now();
-        if (narrow) {
-          narrow_row.assign(fo.counts, fo.counts + N);
-          count_file->write(narrow_row.data(), N);
-        } else {
-          count_file->write(fo.counts, N * 2);
-        }
-        if (output.dense_motion_tables) {
-          dense_row.assign(N, 0.0f);
-          for (size_t j = 0; j < M; ++j) dense_row[cloud.dynamic_ids[j]] = fo.dynamic_speed[j];
-          speed_file->write(dense_row.data(), N * 4);
-          for (size_t j = 0; j < M; ++j) dense_row[cloud.dynamic_ids[j]] = fo.dynamic_deficiency[j];
-          deficiency_file->write(dense_row.data(), N * 4);
-        } else {
-          speed_file->write(fo.dynamic_speed, M * 4);
-          deficiency_file->write(fo.dynamic_deficiency, M * 4);
-        }
+        streams.write(fo.counts, fo.dynamic_speed, fo.dynamic_deficiency);
         const size_t row = evaluated_times.size();
         evaluated_times.push_back(fo.time);
         double total = 0;
@@ -197,10 +251,7 @@ ObserveReport write_observation(const GaussianCloud& cloud, const std::vector<Ca
       },
       progress);
   const auto start_files = Clock::now();
-  count_file->finish();
-  speed_file->finish();
-  deficiency_file->finish();
-  report.files = {"count.npy", "speed" + motion_suffix + ".npy", "deficiency" + motion_suffix + ".npy"};
+  report.files = streams.finish();
   write_npy(join_path(dir, "dynamic_ids.npy"), cloud.dynamic_ids.data(), {M});
   write_npy(join_path(dir, "times.npy"), evaluated_times.data(), {T});
   report.files.push_back("dynamic_ids.npy");
@@ -235,8 +286,16 @@ ObserveReport write_observation(const GaussianCloud& cloud, const std::vector<Ca
   j["views"] = summary.views;
   j["max_views_per_frame"] = max_views;
   j["count_dtype"] = narrow ? "uint8" : "uint16";
-  j["motion_tables"] = output.dense_motion_tables ? "dense" : "dynamic";
-  if (shard) j["shard"] = {{"frames_total", times.size()}, {"frames", options.frames}};
+  j["tables"] = to_string(layout);
+  if (layout == TableLayout::Compact) {
+    j["count_static_rows"] = streams.counts()->row_keys().size();
+    j["count_changes"] = streams.counts()->changes();
+  }
+  if (shard) {
+    j["shard"] = {{"frames_total", times.size()}, {"frames", options.frames}};
+    // The job's key of each static count row: the merge numbers the whole job's rows by them.
+    if (layout == TableLayout::Compact) j["shard"]["count_static_keys"] = streams.counts()->row_keys();
+  }
   j["rays_traced"] = summary.counters.rays;
   j["dynamic_probes"] = summary.counters.probes;
   j["hits"] = summary.counters.hits;
@@ -264,15 +323,6 @@ struct ShardInput {
   nlohmann::json summary;
   std::vector<size_t> frames;
 };
-
-/// The payload of one .npy table (its header stripped), checked against the expected
-/// descr and shape.
-std::string table_payload(const std::string& path, const std::string& descr, const std::vector<size_t>& shape) {
-  const NpyArray a = read_npy(path);
-  if (a.descr != descr || a.shape != shape || a.fortran_order)
-    throw_error(path, ": not the table this shard's summary.json describes (", a.descr, " ", a.shape.size(), "-d, expected ", descr, ")");
-  return a.bytes;
-}
 
 /// The values of a table a shard wrote (T: its element type), checked as observe writes
 /// them: counts at most the cameras of a frame, speeds and deficiencies finite and at least
@@ -318,7 +368,7 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
   // One job: every setting that shapes the tables agrees; frames tile [0, total) in order.
   const nlohmann::json& first = shards.front().summary;
   const char* same_keys[] = {"mode", "stride", "min_weight", "rasterizer_matching", "incremental", "gaussians", "static", "dynamic", "frame_step",
-                             "cameras", "camera_poses", "max_views_per_frame", "count_dtype", "motion_tables"};
+                             "cameras", "camera_poses", "max_views_per_frame", "count_dtype", "tables", "motion_tables"};
   size_t next = 0, T = 0;
   for (const ShardInput& in : shards) try {
     for (const char* k : same_keys)
@@ -340,57 +390,65 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
   if (next != T) throw_error("merge: the shards hold frames 0 to ", next - 1, " of ", T, " (a shard is missing)");
 
   const std::string first_path = join_path(shards.front().dir, "summary.json");
-  size_t N = 0, M = 0, max_views = 0;
-  bool narrow = false, dense = true;
-  try {
-    N = first.at("gaussians").get<size_t>();
-    M = first.at("dynamic").get<size_t>();
-    max_views = first.at("max_views_per_frame").get<size_t>();
-    narrow = first.at("count_dtype").get<std::string>() == "uint8";
-    dense = first.value("motion_tables", std::string("dense")) == "dense";
-  } catch (const nlohmann::json::exception& e) {
-    throw_error(first_path, ": malformed shard summary (", e.what(), ")");
+  // The tables: each shard read and checked (read_observation), one in memory at a time,
+  // its frames streamed in order into the layout the shards share.
+  std::vector<ObservationFolder> held;
+  std::vector<uint32_t> keys;  // compact: the job's count-row key of every frame
+  bool narrow = false;
+  size_t N = 0;
+  TableLayout layout = TableLayout::Compact;
+  std::vector<uint32_t> ids;
+  for (size_t s = 0; s < shards.size(); ++s) {
+    ObservationFolder in = read_observation(shards[s].dir);
+    const std::string where = join_path(shards[s].dir, "summary.json");
+    if (in.frames() != shards[s].frames.size())
+      throw_error(join_path(shards[s].dir, "times.npy"), ": ", in.frames(), " times for ", shards[s].frames.size(), " frames");
+    if (s == 0) {
+      narrow = in.narrow, N = in.gaussians, layout = in.layout, ids = in.dynamic_ids;
+    } else if (in.dynamic_ids != ids) {
+      throw_error(join_path(shards[s].dir, "dynamic_ids.npy"), ": other dynamic Gaussians than ", join_path(shards.front().dir, "dynamic_ids.npy"));
+    }
+    if (layout == TableLayout::Compact) {
+      std::vector<uint32_t> row_keys;
+      try {
+        row_keys = shards[s].summary.at("shard").at("count_static_keys").get<std::vector<uint32_t>>();
+      } catch (const nlohmann::json::exception& e) {
+        throw_error(where, ": malformed shard summary (", e.what(), ")");
+      }
+      if (row_keys.size() != in.static_rows)
+        throw_error(where, ": ", row_keys.size(), " count_static_keys for the ", in.static_rows, " rows of count_static.npy");
+      for (uint32_t r : in.count_rows) keys.push_back(row_keys[r]);
+    } else {
+      keys.resize(keys.size() + in.frames(), 0);
+    }
+    // Only the first shard is kept while the others are checked; the rest are read again below.
+    if (s == 0) held.push_back(std::move(in));
   }
-  if (M > N) throw_error(first_path, ": ", M, " dynamic Gaussians of ", N);
-  const std::string suffix = dense ? "" : "_dynamic";
-  const size_t width = dense ? N : M;
+  const size_t M = ids.size();
   make_directories(dir);
   ObserveReport report;
-  // The tables: each shard's rows appended in frame order, one shard in memory at a time.
-  const std::pair<std::string, std::pair<std::string, size_t>> tables[] = {
-      {"count.npy", {narrow ? "|u1" : "<u2", N}}, {"speed" + suffix + ".npy", {"<f4", width}}, {"deficiency" + suffix + ".npy", {"<f4", width}}};
-  for (const auto& [name, type] : tables) {
-    const size_t item = type.first == "|u1" ? 1 : type.first == "<u2" ? 2 : 4;
-    NpyStreamWriter out(join_path(dir, name), type.first, item, {T, type.second});
-    for (const ShardInput& in : shards) {
-      const std::string bytes = table_payload(join_path(in.dir, name), type.first, {in.frames.size(), type.second});
-      const std::string path = join_path(in.dir, name);
-      if (item == 1) check_table_values<uint8_t>(path, bytes, double(max_views), type.second);
-      else if (item == 2) check_table_values<uint16_t>(path, bytes, double(max_views), type.second);
-      else check_table_values<float>(path, bytes, double(FLT_MAX), type.second);
-      out.write(bytes.data(), bytes.size());
-    }
-    out.finish();
-    report.files.push_back(name);
-  }
   std::vector<double> times;
-  for (const ShardInput& in : shards) {
-    const std::vector<double> t = read_npy(join_path(in.dir, "times.npy")).to_doubles(join_path(in.dir, "times.npy"));
-    if (t.size() != in.frames.size()) throw_error(join_path(in.dir, "times.npy"), ": ", t.size(), " times for ", in.frames.size(), " frames");
-    for (size_t k = 0; k < t.size(); ++k)
-      if (!(t[k] >= 0.0 && t[k] <= 1.0)) throw_error(join_path(in.dir, "times.npy"), ": element ", k, " is ", t[k], ", not a time in [0, 1]");
-    times.insert(times.end(), t.begin(), t.end());
-  }
-  const std::string ids = table_payload(join_path(shards.front().dir, "dynamic_ids.npy"), "<u4", {M});
-  if (N > 0) check_table_values<uint32_t>(join_path(shards.front().dir, "dynamic_ids.npy"), ids, double(N - 1), 0, true);
-  for (const ShardInput& in : shards)
-    if (table_payload(join_path(in.dir, "dynamic_ids.npy"), "<u4", {M}) != ids)
-      throw_error(join_path(in.dir, "dynamic_ids.npy"), ": other dynamic Gaussians than ", join_path(shards.front().dir, "dynamic_ids.npy"));
+  size_t static_rows = 0;
+  uint64_t changes = 0;
   {
-    NpyStreamWriter out(join_path(dir, "dynamic_ids.npy"), "<u4", 4, {M});
-    out.write(ids.data(), ids.size());
-    out.finish();
+    TableStreams streams(dir, layout, narrow, N, ids, keys);
+    std::vector<uint16_t> row(N);
+    for (size_t s = 0; s < shards.size(); ++s) {
+      const ObservationFolder in = s == 0 ? std::move(held.front()) : read_observation(shards[s].dir);
+      if (s == 0) held.clear();
+      for (size_t f = 0; f < in.frames(); ++f) {
+        in.count_row(f, row.data());
+        streams.write(row.data(), in.dynamic_speed.data() + f * M, in.dynamic_deficiency.data() + f * M);
+      }
+      times.insert(times.end(), in.times.begin(), in.times.end());
+    }
+    report.files = streams.finish();
+    if (layout == TableLayout::Compact) {
+      static_rows = streams.counts()->row_keys().size();
+      changes = streams.counts()->changes();
+    }
   }
+  write_npy(join_path(dir, "dynamic_ids.npy"), ids.data(), {M});
   write_npy(join_path(dir, "times.npy"), times.data(), {T});
   report.files.push_back("dynamic_ids.npy");
   report.files.push_back("times.npy");
@@ -444,6 +502,10 @@ ObserveReport merge_observations(const std::vector<std::string>& shard_dirs, con
   }
   for (int k = 0; k < kSummed; ++k) j[summed[k]] = sums[k];
   j["frames"] = T;
+  if (layout == TableLayout::Compact) {
+    j["count_static_rows"] = static_rows;
+    j["count_changes"] = changes;
+  }
   j["seconds"] = {{"total_over_shards", seconds}};
   j["peak_memory_mb"] = peak_mb;
   j["deficiency_per_frame"] = tally.deficiency_per_frame;

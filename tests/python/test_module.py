@@ -135,7 +135,8 @@ def test_observe_equals_cli_files(tmp_path, cameras_file, mode):
     """observe() returns the tables `fillgs observe` writes, byte for byte."""
     name = "4dgaussians"
     out = str(tmp_path / "obs")
-    r = cli("observe", "--scene", fixture(name), "--model-frames", "10", "--cameras", cameras_file, "--mode", mode, "--out", out, "--no-plots", "--quiet")
+    r = cli("observe", "--scene", fixture(name), "--model-frames", "10", "--cameras", cameras_file, "--mode", mode, "--out", out, "--no-plots",
+            "--tables", "dense", "--quiet")
     assert r.returncode == 0, r.stderr
     m = fillgs.load_model(fixture(name), frames=10)
     cams = fillgs.read_cameras(cameras_file)
@@ -145,11 +146,39 @@ def test_observe_equals_cli_files(tmp_path, cameras_file, mode):
         assert got[key].dtype == want.dtype, key
         assert got[key].shape == want.shape, key
         assert got[key].tobytes() == want.tobytes(), key
+    # The compact layout (the default): numpy's reading of it by the documented recipe, and
+    # load_observation's dense view, give the same tables.
+    compact = str(tmp_path / "compact")
+    r = cli("observe", "--scene", fixture(name), "--model-frames", "10", "--cameras", cameras_file, "--mode", mode, "--out", compact, "--no-plots", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert not os.path.exists(os.path.join(compact, "count.npy"))
+    L = lambda f: np.load(os.path.join(compact, f + ".npy"))
+    ids = L("dynamic_ids")
+    counts = L("count_static")[L("count_rows")]
+    counts[:, ids] = L("count_dynamic")
+    offsets, change_ids, change_values = L("count_change_offsets"), L("count_change_ids"), L("count_change_values")
+    for t in range(counts.shape[0]):
+        s = slice(offsets[t], offsets[t + 1])
+        counts[t, change_ids[s]] = change_values[s]
+    assert counts.dtype == got["counts"].dtype and np.array_equal(counts, got["counts"])
+    speed = np.zeros_like(got["speed"])
+    speed[:, ids] = L("speed_dynamic")
+    assert np.array_equal(speed, got["speed"])
+    dense = fillgs.load_observation(compact, dense=True)
+    for key in ("counts", "speed", "deficiency", "times", "dynamic_ids"):
+        assert dense[key].dtype == got[key].dtype and dense[key].tobytes() == got[key].tobytes(), key
+    stored = fillgs.load_observation(compact)
+    assert stored["tables"] == "compact"
+    for key in ("count_static", "count_rows", "count_dynamic", "count_change_offsets", "count_change_ids", "count_change_values", "speed_dynamic",
+                "deficiency_dynamic"):
+        assert stored[key].dtype == L(key).dtype and np.array_equal(stored[key], L(key)), key
+    assert fillgs.load_observation(out)["tables"] == "dense"
+    assert fillgs.load_observation(out, dense=True)["counts"].tobytes() == got["counts"].tobytes()
 
 
 def test_observe_some_frames_equals_cli(tmp_path, cameras_file):
     out = str(tmp_path / "obs")
-    r = cli("observe", "--scene", fixture("ed3dgs"), "--cameras", cameras_file, "--frames", "4", "--out", out, "--no-plots", "--quiet")
+    r = cli("observe", "--scene", fixture("ed3dgs"), "--cameras", cameras_file, "--frames", "4", "--out", out, "--no-plots", "--tables", "dense", "--quiet")
     assert r.returncode == 0, r.stderr
     got = fillgs.observe(fillgs.load_model(fixture("ed3dgs")), fillgs.read_cameras(cameras_file), frames=4)
     assert got["counts"].tobytes() == np.load(os.path.join(out, "count.npy")).tobytes()
@@ -629,7 +658,8 @@ def test_observe_options_get_the_command_lines_check(tmp_path, cameras_file):
         fillgs.observe(m, cams, frames=1, times=[0.5])
     got = fillgs.observe(m, cams, frames=5, times=[0.75, 0.25, 0.75])
     out = str(tmp_path / "o3")
-    r = cli("observe", "--scene", scene, "--cameras", cameras_file, "--frames", "5", "--times", "0.75,0.25,0.75", "--out", out, "--no-plots", "--quiet")
+    r = cli("observe", "--scene", scene, "--cameras", cameras_file, "--frames", "5", "--times", "0.75,0.25,0.75", "--out", out, "--no-plots",
+            "--tables", "dense", "--quiet")
     assert r.returncode == 0, r.stderr
     assert list(got["times"]) == [0.25, 0.75] and np.array_equal(np.load(os.path.join(out, "times.npy")), got["times"])
     assert np.array_equal(np.load(os.path.join(out, "count.npy")), got["counts"])

@@ -31,6 +31,11 @@ void write_npy(const std::string& path, const T* data, const std::vector<size_t>
 class NpyStreamWriter {
  public:
   NpyStreamWriter(const std::string& path, const std::string& descr, size_t item_bytes, const std::vector<size_t>& shape);
+  /// A writer whose first dimension is the number of rows written (each `row_shape` wide,
+  /// `{}` for a 1-D array): the header is reserved for the largest count and rewritten by
+  /// finish() with the count, padded with spaces to the same length (as numpy pads).
+  static NpyStreamWriter growing(const std::string& path, const std::string& descr, size_t item_bytes, const std::vector<size_t>& row_shape);
+  NpyStreamWriter(NpyStreamWriter&& other) noexcept;
   ~NpyStreamWriter();
   NpyStreamWriter(const NpyStreamWriter&) = delete;
   NpyStreamWriter& operator=(const NpyStreamWriter&) = delete;
@@ -39,13 +44,18 @@ class NpyStreamWriter {
   const std::string& path() const { return path_; }
 
  private:
-  std::string path_, tmp_;
+  NpyStreamWriter() = default;
+  std::string path_, tmp_, descr_;
   void* file_ = nullptr;
   size_t expected_ = 0, written_ = 0;
+  // growing(): bytes per row, the rows' shape and the header's reserved length (0: fixed shape)
+  size_t row_bytes_ = 0, header_bytes_ = 0;
+  std::vector<size_t> row_shape_;
 };
 
-/// The .npy header (magic, version 1.0, padded dict) for a C-order array.
-std::string npy_header(const std::string& descr, const std::vector<size_t>& shape);
+/// The .npy header (magic, version 1.0, padded dict) for a C-order array; with `length`, the
+/// dict is padded to make the header exactly that long (at least its natural length).
+std::string npy_header(const std::string& descr, const std::vector<size_t>& shape, size_t length = 0);
 
 /// numpy descr string of T ("<f4", "|u1", ...).
 template <typename T>

@@ -5,14 +5,16 @@
 #include <string>
 #include <vector>
 
+#include "fillgs/visibility/observe_tables.hpp"
 #include "fillgs/visibility/visibility.hpp"
 
 namespace fillgs {
 
 struct ObserveOutputOptions {
-  /// true: speed.npy and deficiency.npy are [T, N] (zeros for static Gaussians);
-  /// false: speed_dynamic.npy and deficiency_dynamic.npy are [T, M] over dynamic_ids.npy.
-  bool dense_motion_tables = true;
+  /// Compact: what varies only (observe_tables.hpp); Dense: count.npy, speed.npy and
+  /// deficiency.npy [T, N]; Dynamic: count.npy [T, N] with speed_dynamic.npy and
+  /// deficiency_dynamic.npy [T, M] over dynamic_ids.npy.
+  TableLayout tables = TableLayout::Compact;
   bool plots = true;
   int heatmap_columns = 256;  ///< bins of dynamic Gaussians across the heatmap
 };
@@ -31,8 +33,8 @@ size_t max_views_per_frame(const std::vector<Camera>& cameras, const std::vector
 inline bool counts_fit_uint8(size_t max_views) { return max_views <= 255; }
 
 /// Computes the tables (see observe) and writes into `dir`:
-///   count.npy [T, N] (uint8 when at most 255 views share a time, else uint16),
-///   speed.npy / deficiency.npy [T, N] float32 (or the _dynamic [T, M] variants),
+///   the count, speed and deficiency tables in `output.tables`' layout (observe_tables.hpp;
+///   counts uint8 when at most 255 views share a time, else uint16),
 ///   dynamic_ids.npy [M] uint32, times.npy [T] float64, summary.json,
 ///   with ObservationOptions::frames (a shard): only those rows, times.npy of those frames,
 ///   deficiency_heat.npy (the heatmap's rows) and "shard" in summary.json;

@@ -83,6 +83,7 @@ def read_cameras(path: str, format: str = 'auto', width: int = 0, height: int = 
 def observe(model: Union[Model, Callable[[int], Dict[str, Array]]], cameras: Cameras, frames: int = 0, times: Optional[Array] = None,
             mode: str = 'frustum', stride: int = 4, tau: Optional[float] = None, hit_cache_mb: Optional[float] = None,
             progress: Progress = None, still_tolerance: Optional[float] = None) -> Dict[str, Any]: ...  # counts [T,N] uint8/uint16, speed, deficiency [T,N] float32, times [T], dynamic_ids [M]
+def load_observation(path: str, dense: bool = False) -> Dict[str, Any]: ...  # tables, times [T], dynamic_ids [M], the stored arrays (compact: count_static [R,N], count_rows [T], count_dynamic [T,M], count_change_offsets [T+1], count_change_ids [E], count_change_values [E]; speed_dynamic, deficiency_dynamic [T,M]); dense=True: counts, speed, deficiency [T,N]
 def read_image(path: str) -> Float32: ...  # [H,W,C] in [0, 1]
 def write_image(path: str, pixels: Array) -> None: ...
 def load_views(images: str, cameras: str, train_cameras: List[str] = [], frames: str = '', downscale: int = 1,
