@@ -15,9 +15,7 @@
 
 namespace fillgs {
 
-namespace {
-constexpr double kHugeCoordinate = 1e8;  // clamp before int conversion: a footprint covers at most the image
-}  // namespace
+using internal::kHugeCoordinate;
 
 bool project_gaussian(const Vec3f& mean, const Vec3f& scale, const Vec4f& rotation, const Camera& cam,
                       ProjectedGaussian* out) {

@@ -12,6 +12,9 @@
 
 namespace fillgs::internal {
 
+/// Screen coordinates are clamped to this before int conversion: a footprint covers at most the image.
+constexpr double kHugeCoordinate = 1e8;
+
 /// Radius and touched tiles of a projected splat (3DGS: ceil(3·sqrt(λmax)), tile rect);
 /// false when 3DGS culls it. Fills every field of `out`.
 bool splat_footprint(const SplatProjection<double>& p, const Camera& cam, ProjectedGaussian* out);

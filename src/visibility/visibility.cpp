@@ -1,5 +1,7 @@
 #include "fillgs/visibility/visibility.hpp"
 
+#include "render/frustum.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -328,21 +330,24 @@ std::vector<uint32_t> merge_ids(tbb::enumerable_thread_specific<RayScratch>& scr
   return merge_id_lists(lists);
 }
 
-/// Frustum rule for the listed Gaussians (all when ids is null), ascending.
+/// Frustum rule for the listed Gaussians (all when ids is null), ascending where `ids` is:
+/// blocks of rows in order, each kept by the vector rule (render/frustum.hpp), joined in order.
 std::vector<uint32_t> frustum_visible(const FrameGaussians& frame, const Camera& cam, const std::vector<uint32_t>* ids) {
   const size_t n = ids ? ids->size() : frame.size();
-  tbb::enumerable_thread_specific<std::vector<uint32_t>> found;
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    auto& out = found.local();
-    ProjectedGaussian p;
-    for (size_t i = r.begin(); i < r.end(); ++i) {
-      const uint32_t g = ids ? (*ids)[i] : uint32_t(i);
-      if (project_gaussian(frame.means[g], frame.scales[g], frame.rotations[g], cam, &p)) out.push_back(g);
-    }
+  constexpr size_t kBlock = 8192;
+  const size_t blocks = (n + kBlock - 1) / kBlock;
+  const internal::FrustumCamera fc(cam);
+  std::vector<std::vector<uint32_t>> found(blocks);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 1), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t b = r.begin(); b < r.end(); ++b)
+      internal::frustum_keep(fc, frame.means.data(), frame.scales.data(), frame.rotations.data(), ids ? ids->data() : nullptr, b * kBlock,
+                             std::min(n, (b + 1) * kBlock), &found[b]);
   });
+  size_t total = 0;
+  for (const auto& v : found) total += v.size();
   std::vector<uint32_t> all;
-  for (auto& v : found) all.insert(all.end(), v.begin(), v.end());
-  std::sort(all.begin(), all.end());
+  all.reserve(total);
+  for (const auto& v : found) all.insert(all.end(), v.begin(), v.end());
   return all;
 }
 

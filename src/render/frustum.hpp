@@ -1,0 +1,27 @@
+#pragma once
+// The 3DGS frustum rule over many Gaussians at once (frustum_simd.cpp): the decision
+// project_gaussian makes (radius > 0), on a lane of Gaussians per instruction.
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "fillgs/model/camera.hpp"
+#include "fillgs/render/raster.hpp"
+#include "render/raster_internal.hpp"
+
+namespace fillgs::internal {
+
+/// A camera's numbers as the rule reads them, computed once per camera.
+struct FrustumCamera {
+  explicit FrustumCamera(const Camera& c);
+  double W[3][3], t[3];
+  double fx, fy, cx, cy, limx, limy, grid_x, grid_y;
+  double near = double(kNearPlane), dilation = double(kDilation), tile = double(kTileSize), huge = kHugeCoordinate;
+};
+
+/// Appends to `out`, in order, the ids among rows [begin, end) of `ids` (or the rows
+/// themselves where `ids` is null) that project_gaussian keeps for this camera.
+void frustum_keep(const FrustumCamera& cam, const Vec3f* means, const Vec3f* scales, const Vec4f* rotations, const uint32_t* ids, size_t begin,
+                  size_t end, std::vector<uint32_t>* out);
+
+}  // namespace fillgs::internal
