@@ -2,6 +2,10 @@
 
 #include <fstream>
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -92,6 +96,7 @@ const std::vector<float>& PlyElement::column(const std::string& property) const 
   if (it == property_names.end())
     throw_error(source, ": property '", property, "' missing (", name, " element has ", property_names.size(),
                 " properties)");
+  if (columns.size() != property_names.size()) throw_error(source, ": element '", name, "' was read in blocks by its reader; its columns are not kept");
   return columns[size_t(it - property_names.begin())];
 }
 
@@ -99,7 +104,7 @@ const std::vector<float>& PlyElement::finite_column(const std::string& property)
   const std::vector<float>& c = column(property);
   for (size_t i = 0; i < c.size(); ++i)
     if (!std::isfinite(c[i]))
-      throw_error(source, ": ", name, " ", i, " property '", property, "' is ",
+      throw_error(source, ": ", name, " ", first_row + i, " property '", property, "' is ",
                   std::isnan(c[i]) ? "NaN" : "infinite");
   return c;
 }
@@ -135,8 +140,35 @@ const PlyElement& PlyData::element(const std::string& name) const {
   return *e;
 }
 
-PlyData read_ply(const std::string& path) {
-  const std::string bytes = read_file(path);
+namespace {
+
+/// The bytes of a PLY up to and including its end_header line, read in pieces (the whole
+/// file when it has none within 64 MiB: the header's own checks then say what is wrong).
+std::string read_head(const std::string& path) {
+  require_regular_file(path);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw_error(path, ": cannot open (", std::strerror(errno), ")");
+  std::string head;
+  char piece[65536];
+  while (head.size() < (size_t(64) << 20)) {
+    in.read(piece, sizeof piece);
+    const size_t got = size_t(in.gcount());
+    if (got == 0) break;
+    const size_t from = head.size() > 16 ? head.size() - 16 : 0;
+    head.append(piece, got);
+    const size_t at = head.find("end_header", from);
+    if (at != std::string::npos && (at == 0 || head[at - 1] == '\n')) {
+      const size_t eol = head.find('\n', at);
+      if (eol != std::string::npos) return head.substr(0, eol + 1);
+    }
+  }
+  return head;
+}
+
+}  // namespace
+
+PlyData read_ply(const std::string& path, const PlyElementSink* sink) {
+  std::string bytes = read_head(path);
   // ---- header ----
   if (bytes.compare(0, 3, "ply") != 0 || bytes.size() < 4 || (bytes[3] != '\n' && bytes[3] != '\r'))
     throw_error(path, ": not a PLY file (missing 'ply' magic line)");
@@ -212,9 +244,25 @@ PlyData read_ply(const std::string& path) {
 
   // ---- body ----
   const bool binary = data.format != PlyFormat::Ascii;
+  // Binary elements of scalars only are read from the file a block of rows at a time; any
+  // other body is read whole (its header is the first bytes read again).
+  const bool streamed = binary && std::all_of(decls.begin(), decls.end(), [](const ElementDecl& d) {
+    return std::none_of(d.properties.begin(), d.properties.end(), [](const PropertyDecl& p) { return p.is_list; });
+  });
+  std::unique_ptr<FILE, int (*)(FILE*)> file(nullptr, &std::fclose);
+  size_t file_size = 0;
+  if (streamed) {
+    std::error_code ec;
+    file_size = size_t(std::filesystem::file_size(path, ec));
+    if (ec) throw_error(path, ": cannot read its size (", ec.message(), ")");
+    file.reset(std::fopen(path.c_str(), "rb"));
+    if (!file || std::fseek(file.get(), long(pos), SEEK_SET) != 0) throw_error(path, ": cannot open (", std::strerror(errno), ")");
+  } else {
+    bytes = read_file(path);
+  }
   const bool swap = binary && ((data.format == PlyFormat::BinaryLittleEndian) != host_is_little_endian());
   const unsigned char* base = reinterpret_cast<const unsigned char*>(bytes.data());
-  const size_t end = bytes.size();
+  const size_t end = streamed ? file_size : bytes.size();
   // ASCII: a token cursor over the whole body.
   const char* cur = bytes.c_str() + pos;
   const char* stop = bytes.c_str() + end;
@@ -249,8 +297,10 @@ PlyData read_ply(const std::string& path) {
     if (d.count > (end - pos + 1) / std::max<size_t>(min_record, 1))
       throw_error(path, ": truncated or corrupt: element '", d.name, "' claims ", d.count, " records of at least ", min_record, " bytes, but only ",
                   end - pos, " bytes follow");
-    el.columns.assign(el.property_names.size(), std::vector<float>(d.count));
+    const bool sunk = sink && sink->element == d.name;
+    if (sunk) sink->start(data, el);
     bool all_scalar = std::all_of(d.properties.begin(), d.properties.end(), [](const PropertyDecl& p) { return !p.is_list; });
+    if (!(binary && all_scalar)) el.columns.assign(el.property_names.size(), std::vector<float>(d.count));
     if (binary && all_scalar) {
       size_t record = 0;
       for (const auto& p : d.properties) record += type_size(p.type);
@@ -262,20 +312,49 @@ PlyData read_ply(const std::string& path) {
       const bool all_native_float =
           !swap && std::all_of(d.properties.begin(), d.properties.end(), [](const PropertyDecl& p) { return p.type == Type::Float32; });
       const size_t np = d.properties.size();
-      if (all_native_float) {
-        for (size_t r = 0; r < d.count; ++r) {
-          const unsigned char* rec = base + pos + r * record;
-          for (size_t i = 0; i < np; ++i) std::memcpy(&el.columns[i][r], rec + 4 * i, 4);
+      // Rows `n` records at `src` into `cols` from row `at`.
+      auto convert = [&](const unsigned char* src, size_t n, std::vector<std::vector<float>>& cols, size_t at) {
+        if (all_native_float) {
+          for (size_t r = 0; r < n; ++r)
+            for (size_t i = 0; i < np; ++i) std::memcpy(&cols[i][at + r], src + r * record + 4 * i, 4);
+          return;
         }
-      } else {
-        for (size_t r = 0; r < d.count; ++r) {
-          const unsigned char* rec = base + pos + r * record;
+        for (size_t r = 0; r < n; ++r) {
           size_t off = 0;
           for (size_t i = 0; i < np; ++i) {
-            el.columns[size_t(column_of[i])][r] = float(load_binary(rec + off, d.properties[i].type, swap));
+            cols[size_t(column_of[i])][at + r] = float(load_binary(src + r * record + off, d.properties[i].type, swap));
             off += type_size(d.properties[i].type);
           }
         }
+      };
+      // A block of about 1 MiB of records at a time: read from the file (streamed) and, for
+      // the sink's element, handed over as a block instead of kept.
+      const size_t rows_per_block = std::max<size_t>(1, (size_t(1) << 20) / std::max<size_t>(record, 1));
+      std::vector<unsigned char> buffer(streamed ? std::min(d.count, rows_per_block) * record : 0);
+      PlyElement block;
+      if (sunk) {
+        block.name = el.name, block.source = path, block.property_names = el.property_names;
+        block.columns.assign(np, std::vector<float>(std::min(d.count, rows_per_block)));
+      } else {
+        el.columns.assign(el.property_names.size(), std::vector<float>(d.count));
+      }
+      for (size_t r0 = 0; r0 < d.count; r0 += rows_per_block) {
+        const size_t n = std::min(rows_per_block, d.count - r0);
+        const unsigned char* src = base + pos + r0 * record;
+        if (streamed) {
+          if (std::fread(buffer.data(), record, n, file.get()) != n)
+            throw_error(path, ": truncated while reading element '", d.name, "' row ", r0, " (the file changed while it was read?)");
+          src = buffer.data();
+        }
+        if (!sunk) {
+          convert(src, n, el.columns, r0);
+          continue;
+        }
+        for (auto& c : block.columns) c.resize(n);
+        convert(src, n, block.columns, 0);
+        block.count = n;
+        block.first_row = r0;
+        sink->take(block);
       }
       pos += need;
     } else if (binary) {
@@ -317,6 +396,10 @@ PlyData read_ply(const std::string& path) {
           }
         }
       }
+    }
+    if (sunk && !(binary && all_scalar)) {  // parsed whole: handed over as one block
+      sink->take(el);
+      el.columns.clear();
     }
     data.elements.push_back(std::move(el));
   }

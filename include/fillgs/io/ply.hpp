@@ -5,6 +5,7 @@
 // (faces in mesh files) are parsed and dropped. Errors name the file, the element,
 // the record and the property.
 #include <cstddef>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,7 @@ class PlyElement {
   std::vector<std::string> indexed_properties(const std::string& prefix) const;
 
   std::string source;  ///< file name used in error messages
+  size_t first_row = 0;  ///< a block of an element's rows (PlyElementSink): its first row's index, for messages
 };
 
 struct PlyData {
@@ -40,8 +42,22 @@ struct PlyData {
   const PlyElement* find(const std::string& name) const;
 };
 
-/// Reads a PLY file. Throws fillgs::Error on any malformed or truncated input.
-PlyData read_ply(const std::string& path);
+/// An element whose rows a reader takes in blocks instead of as whole columns, so that they
+/// are held once, in the reader's own arrays.
+struct PlyElementSink {
+  std::string element;
+  /// Before the element's rows: what is read so far (format, comments, the elements before
+  /// it) and the element's name, count and property names (no columns).
+  std::function<void(const PlyData& so_far, const PlyElement& declared)> start;
+  /// Each block of rows in order: its columns (`block.count` rows, `block.first_row` the first's index).
+  std::function<void(const PlyElement& block)> take;
+};
+
+/// Reads a PLY file. Throws fillgs::Error on any malformed or truncated input. A binary file
+/// whose elements hold scalar properties only is read from the file in blocks (never whole
+/// in memory); `sink`, where given, takes its element's rows, which the result then lists
+/// without columns.
+PlyData read_ply(const std::string& path, const PlyElementSink* sink = nullptr);
 
 /// The header of a PLY only (up to end_header, at most 1 MiB), to sniff a format cheaply.
 std::string read_ply_header(const std::string& path);
