@@ -9,6 +9,7 @@
 #include <optional>
 #include <sstream>
 #include "fillgs/base/error.hpp"
+#include "fillgs/model/frame_grid.hpp"
 #include "fillgs/base/threads.hpp"
 #include "fillgs/base/fs_util.hpp"
 #include "fillgs/io/image_io.hpp"
@@ -60,7 +61,14 @@ ObserveJob observe_job(const ObserveFlags& f, const Invocation& in) {
   job.options = f.options;
   if (in.given("--hit-cache")) job.options.static_hit_cache_bytes = size_t(f.hit_cache_mb * 1048576.0);
   job.output = f.output;
-  job.cloud = read_scene_shown(f.scene, f.read, in);
+  // The times asked for, where the flags say them before the model is read: a streamed
+  // model's still rule then checks those times instead of sweeping frames the job never
+  // evaluates (the full check of them follows, once the model is read).
+  SceneReadOptions read = f.read;
+  if (in.given("--times")) read.still.times = f.time.times;
+  else if (f.time.frames >= 2) read.still.times = FrameGrid(f.time.frames).times();
+  std::sort(read.still.times.begin(), read.still.times.end());
+  job.cloud = read_scene_shown(f.scene, read, in);
   job.cameras = read_cameras(f.cameras, f.camera_read);
   if (job.cameras.empty()) throw_error(f.cameras, ": no cameras");
   job.times = observe_times(in, f.time, job.cloud, job.cameras, &job.frame_step);

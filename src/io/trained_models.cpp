@@ -236,14 +236,25 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
   // The sweep: the still rule at each of its frames against frame 0, as the largest share of a
   // tolerance any of a Gaussian's departures reaches (> 1: moving).
   const std::vector<int> sweep = sweep_frames(F, rule.sweep_frames);
+  // A job that evaluates fewer times than the sweep has frames: the rule checks exactly those
+  // times against frame 0, so every time the job asks for is checked, and nothing else.
+  std::vector<double> job_times;
+  for (const double t : rule.times)
+    if (t > 0.0 && t <= 1.0 && (job_times.empty() || t > job_times.back())) job_times.push_back(t);
+  const bool by_job = !rule.times.empty() && job_times.size() + 1 < sweep.size();
   std::vector<float> departure(N, 0.0f);
   auto share = [](float d, float tolerance) { return d <= 0.0f ? 0.0f : tolerance > 0.0f ? d / tolerance : INFINITY; };
   auto depart = [&](const ModelState& s, size_t j, size_t i) { return still_departure(s, j, first, i, rule); };
-  auto sweep_rows = [&](const std::vector<int>& frames, const std::vector<uint32_t>& rows) {
-    for (const int f : frames) {
-      if (f == 0) continue;
+  auto frame_times = [&](const std::vector<int>& frames) {
+    std::vector<double> t;
+    for (const int f : frames)
+      if (f != 0) t.push_back(F > 1 ? double(f) / double(F - 1) : 0.0);
+    return t;
+  };
+  auto sweep_rows = [&](const std::vector<double>& times, const std::vector<uint32_t>& rows) {
+    for (const double t : times) {
       ModelState s;
-      motion->evaluate_once(F > 1 ? double(f) / double(F - 1) : 0.0, rows, s);
+      motion->evaluate_once(t, rows, s);
       tbb::parallel_for(tbb::blocked_range<size_t>(0, rows.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
         for (size_t j = r.begin(); j < r.end(); ++j) departure[rows[j]] = std::max(departure[rows[j]], depart(s, j, rows[j]));
       });
@@ -255,13 +266,14 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
   const std::vector<float> lived = model->opacity_variation();
   if (lived.size() == N)
     for (size_t i = 0; i < N; ++i) departure[i] = std::max(departure[i], share(lived[i], rule.opacity));
-  progress.start("still rule", sweep.size() - 1);
-  sweep_rows(sweep, all);
+  const std::vector<double> swept = by_job ? job_times : frame_times(sweep);
+  progress.start("still rule", swept.size());
+  sweep_rows(swept, all);
   progress.finish();
   // Gaussians the sweep found still but not far from a tolerance are checked at every frame:
   // a motion between the sweep's frames can exceed what its frames saw.
   std::vector<uint32_t> recheck;
-  if (int(sweep.size()) < F)
+  if (!by_job && int(sweep.size()) < F)
     for (size_t i = 0; i < N; ++i)
       if (departure[i] <= 1.0f && departure[i] > rule.recheck) recheck.push_back(uint32_t(i));
   if (!recheck.empty()) {
@@ -269,7 +281,17 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
     for (int f = 0; f < F; ++f)
       if (!std::binary_search(sweep.begin(), sweep.end(), f)) rest.push_back(f);
     progress.start("still rule, rechecked at every frame", rest.size());
-    sweep_rows(rest, recheck);
+    // A Gaussian is rechecked until it moves: past a tolerance it is moving, whatever the
+    // later frames hold, so each frame evaluates only those still within every tolerance.
+    std::vector<uint32_t> pending = recheck;
+    for (const int f : rest) {
+      if (pending.empty()) {
+        progress.advance();
+        continue;
+      }
+      sweep_rows(frame_times({f}), pending);
+      pending.erase(std::remove_if(pending.begin(), pending.end(), [&](uint32_t g) { return departure[g] > 1.0f; }), pending.end());
+    }
     progress.finish();
   }
   std::vector<char> moving(N, 0);
@@ -299,9 +321,13 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
     c.model_times = os.str();
     c.model_time_first = model->time_first, c.model_time_last = model->time_last;
     std::ostringstream still;
-    still << N - c.dynamic_ids.size() << " of " << N << " Gaussians still (evaluated once, at frame 0): at each of " << sweep.size() << " of its "
-          << F << " frames";
-    if (int(sweep.size()) < F) still << " (all " << F << " for the " << recheck.size() << " whose departure there exceeded " << rule.recheck << " of a tolerance)";
+    still << N - c.dynamic_ids.size() << " of " << N << " Gaussians still (evaluated once, at frame 0): ";
+    if (by_job)
+      still << "at frame 0 and each of the " << job_times.size() << " other times the job evaluates (of the model's " << F << " frames)";
+    else
+      still << "at each of " << sweep.size() << " of its " << F << " frames";
+    if (!by_job && int(sweep.size()) < F)
+      still << " (all " << F << " for the " << recheck.size() << " whose departure there exceeded " << rule.recheck << " of a tolerance)";
     still << " within " << rule.position << " world units, " << rule.rotation_degrees << " degrees, " << rule.log_scale
           << " in log-scale, " << rule.opacity << " in opacity (its temporal term's whole range included) and " << rule.colour
           << " in colour (every SH band, in any direction) of frame 0";

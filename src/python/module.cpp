@@ -480,7 +480,7 @@ void set_row_parameters(const py::kwargs& given, const char* function, std::init
 }
 
 Model load_model(const std::string& path, const std::string& format, int frames, const std::string& time_range, const std::string& evaluation,
-                 const py::object& still_tolerance, const py::object& progress, const py::kwargs& parameters) {
+                 const py::object& still_tolerance, const py::object& still_times, const py::object& progress, const py::kwargs& parameters) {
   require_file(path);
   SceneReadOptions o;
   set_row_parameters(parameters, "load_model", {{model_format_table().parameters(), &o.parameters}});
@@ -490,6 +490,15 @@ Model load_model(const std::string& path, const std::string& format, int frames,
   o.model_time_range = time_range;
   o.model_evaluation = parse_name<ModelEvaluation>(evaluation);
   if (const auto x = number_or_none(still_tolerance, "still_tolerance", at_least(0))) o.still.position = float(*x);
+  if (!still_times.is_none()) {  // what `fillgs observe --frames F` / `--times` tell its still rule
+    const auto t = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(still_times);
+    if (!t || t.ndim() != 1) throw py::value_error("still_times: expected a 1-D array of times in [0, 1]");
+    for (py::ssize_t i = 0; i < t.size(); ++i)
+      if (!(t.data()[i] >= 0.0 && t.data()[i] <= 1.0))
+        throw py::value_error("still_times: element " + std::to_string(i) + " is " + std::string(py::str(py::float_(t.data()[i]))) + ", not a time in [0, 1]");
+    o.still.times.assign(t.data(), t.data() + t.size());
+    std::sort(o.still.times.begin(), o.still.times.end());
+  }
   PyProgress shown(progress);
   o.progress = &shown;
   std::shared_ptr<GaussianCloud> c;
@@ -1162,9 +1171,11 @@ PYBIND11_MODULE(_fillgs, m) {
       });
 
   m.def("load_model", &load_model, py::arg("path"), py::arg("format") = "auto", py::arg("frames") = 0, py::arg("time_range") = "",
-        py::arg("evaluation") = "streamed", py::arg("still_tolerance") = py::none(), py::arg("progress") = py::none(),
+        py::arg("evaluation") = "streamed", py::arg("still_tolerance") = py::none(), py::arg("still_times") = py::none(), py::arg("progress") = py::none(),
         "Reads a model as the command line does (`--scene-format`, `--model-frames`, `--model-time-range`, `--model-evaluation`, `--still-tolerance`); "
-        "a format's own parameters are keywords (stg_duration=50 for `--stg-duration 50`; model_formats() lists each format's).");
+        "a format's own parameters are keywords (stg_duration=50 for `--stg-duration 50`; model_formats() lists each format's). "
+        "still_times: the times a job will observe, given to a streamed model's still rule as `fillgs observe --frames F` / `--times` "
+        "gives them (fewer than its sweep: those times are checked, not the sweep's frames).");
   m.def(
       "refiners",
       [] {

@@ -176,6 +176,38 @@ def test_observe_equals_cli_files(tmp_path, cameras_file, mode):
     assert fillgs.load_observation(out, dense=True)["counts"].tobytes() == got["counts"].tobytes()
 
 
+def test_still_rule_checks_the_jobs_times(tmp_path, cameras_file):
+    """`fillgs observe --frames F` (or --times) tells a streamed model's still rule the times the
+    job evaluates; fewer than its sweep's frames, those are checked and no others.
+    load_model(still_times=...) gives Python the same model."""
+    path = fixture("ed3dgs_still")  # 12 frames, 180 of 300 Gaussians still but for network noise
+    full = fillgs.load_model(path)
+    near_zero = fillgs.load_model(path, still_times=[0.0, 1e-6])
+    assert len(full.dynamic_ids) == 120 and len(near_zero.dynamic_ids) == 0  # at t = 1e-6 nothing has moved yet
+    assert any("each of the 1 other times the job evaluates" in n for n in near_zero.notes)
+    assert not any("times the job evaluates" in n for n in full.notes)
+    # Every Gaussian the job's rule calls still stays within the position tolerance at the
+    # job's times, by the model's own values (every Gaussian moving: no still rule on position).
+    every = fillgs.load_model(path, still_tolerance=0.0)
+    assert len(every.dynamic_ids) == every.size
+    for times in ([0.0, 1e-6], [0.0, 0.5, 1.0]):
+        job = fillgs.load_model(path, still_times=times)
+        still = np.setdiff1d(np.arange(job.size), job.dynamic_ids)
+        assert len(still) > 0
+        for t in times[1:]:
+            moved = np.linalg.norm(every.at(t)["means"][still] - every.at(0.0)["means"][still], axis=1)
+            assert moved.max() <= 1e-3 * (1 + 1e-6), (times, t)
+    # The command line's `observe --frames 3` is observe() on the model read with those times.
+    out = str(tmp_path / "obs")
+    r = cli("observe", "--scene", path, "--cameras", cameras_file, "--frames", "3", "--tables", "dense", "--out", out, "--no-plots", "--quiet")
+    assert r.returncode == 0, r.stderr
+    got = fillgs.observe(fillgs.load_model(path, still_times=[0.0, 0.5, 1.0]), fillgs.read_cameras(cameras_file), frames=3)
+    for key, file in (("counts", "count.npy"), ("speed", "speed.npy"), ("deficiency", "deficiency.npy"), ("dynamic_ids", "dynamic_ids.npy")):
+        assert got[key].tobytes() == np.load(os.path.join(out, file)).tobytes(), key
+    with pytest.raises(ValueError, match=r"still_times: element 1 is 1.5, not a time in \[0, 1\]"):
+        fillgs.load_model(path, still_times=[0.0, 1.5])
+
+
 def test_observe_some_frames_equals_cli(tmp_path, cameras_file):
     out = str(tmp_path / "obs")
     r = cli("observe", "--scene", fixture("ed3dgs"), "--cameras", cameras_file, "--frames", "4", "--out", out, "--no-plots", "--tables", "dense", "--quiet")

@@ -4,6 +4,7 @@
 // io/model_formats.hpp, one file each under src/io/formats/), and the writers: standard
 // 3DGS PLY and the fillgs 4D PLY (baked tracks, documented in data/README.md).
 #include <string>
+#include <vector>
 
 #include "fillgs/base/names.hpp"
 #include "fillgs/base/row_table.hpp"
@@ -25,6 +26,11 @@ struct StillRule {
   /// 0.5: a motion up to twice what the sweep's frames saw is caught (bench/results/README.md,
   /// "Trained models at scale", measures the trade).
   float recheck = 0.5f;
+  /// The normalised times a job will evaluate, where it knows them before reading (observe
+  /// with --frames or --times). Fewer than the sweep's frames: the rule checks exactly these
+  /// (against frame 0) and no others, so a Gaussian is still where it stays within every
+  /// tolerance at every time the job asks for. Empty: the sweep.
+  std::vector<double> times;
 };
 
 /// How a trained model is read: streamed (its moving Gaussians evaluated by the model at each
