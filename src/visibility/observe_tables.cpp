@@ -144,7 +144,7 @@ std::vector<T> read_table(const std::string& dir, const std::string& name, const
     for (size_t i = 0; i < out.size(); ++i) out[i] = T(static_cast<unsigned char>(a.bytes[i]));
   } else {
     FILLGS_CHECK(a.bytes.size() == out.size() * sizeof(T));
-    std::memcpy(out.data(), a.bytes.data(), a.bytes.size());
+    if (!out.empty()) std::memcpy(out.data(), a.bytes.data(), a.bytes.size());
   }
   return out;
 }
@@ -282,6 +282,7 @@ ObservationFolder read_observation(const std::string& dir) {
 void ObservationFolder::count_row(size_t f, uint16_t* out) const {
   FILLGS_CHECK(f < frames());
   const size_t N = gaussians, M = dynamic_ids.size();
+  if (N == 0) return;
   if (layout != TableLayout::Compact) {
     std::memcpy(out, counts.data() + f * N, N * sizeof(uint16_t));
     return;
