@@ -50,11 +50,6 @@ for layout in compact dense; do
   /usr/bin/time -f "%e %M" -o "$out/observe_$layout.time" "$bin/fillgs" observe --quiet --scene "$work/city.ply" --cameras "$work/cameras.json" \
     --mode frustum --frames "$frames" --tables "$layout" --no-plots --out "$work/$layout" >/dev/null
 done
-if [ -n "$before" ]; then
-  echo "observing (the earlier build in $before) ..."
-  /usr/bin/time -f "%e %M" -o "$out/observe_before.time" "$before/fillgs" observe --quiet --scene "$work/city.ply" --cameras "$work/cameras.json" \
-    --mode frustum --frames "$frames" --no-plots --out "$work/before" >/dev/null
-fi
 echo "comparing the layouts cell for cell ..."
 check=$(/usr/bin/python3 - "$work/compact" "$work/dense" <<'PY'
 import sys, numpy as np
@@ -78,6 +73,13 @@ print(f"{bad} cells differ over {count.shape[0]} frames" if bad else f"identical
 PY
 )
 echo "$check"
+dense_b=$(du -b -c "$work/dense"/*.npy | tail -1 | cut -f1)
+rm -rf "$work/dense"  # room for the earlier build's tables
+if [ -n "$before" ]; then
+  echo "observing (the earlier build in $before) ..."
+  /usr/bin/time -f "%e %M" -o "$out/observe_before.time" "$before/fillgs" observe --quiet --scene "$work/city.ply" --cameras "$work/cameras.json" \
+    --mode frustum --frames "$frames" --no-plots --out "$work/before" >/dev/null
+fi
 read -r make_s make_kb <"$out/make.time"
 n=$(python3 -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["gaussians"], j["dynamic"], j["views"])' "$work/compact/summary.json")
 commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown)
@@ -86,7 +88,6 @@ read -r ng nd nv <<<"$n"
 read -r compact_s compact_kb <"$out/observe_compact.time"
 read -r dense_s dense_kb <"$out/observe_dense.time"
 compact_b=$(du -b -c "$work/compact"/*.npy | tail -1 | cut -f1)
-dense_b=$(du -b -c "$work/dense"/*.npy | tail -1 | cut -f1)
 compact_mb=$(awk "BEGIN{printf \"%.1f\", $compact_b/1048576}")
 dense_mb=$(awk "BEGIN{printf \"%.1f\", $dense_b/1048576}")
 {
