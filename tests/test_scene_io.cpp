@@ -341,11 +341,11 @@ TEST_CASE("fillgs 4D PLY round-trips the synthetic scene exactly", "[io][motion]
   }
 }
 
-TEST_CASE("a fillgs 4D PLY read a block of rows at a time: every key array exact, a NaN named with its row", "[io][motion]") {
+TEST_CASE("a fillgs 4D PLY read a block of rows at a time: the vertex and every key array exact, a NaN named with its row", "[io][motion]") {
   // 2,000 moving Gaussians of degree 1 with 40 keys of every kind (positions, rotations,
   // log-scales, opacities, DC and the band above): a track record of 3,680 bytes, so the
   // element is read in 8 blocks of 284 rows. Each value is distinct: a misplaced one shows.
-  const size_t M = 2000, N = 2100, K = 40;
+  const size_t M = 2000, N = 25000, K = 40;
   GaussianCloud c;
   c.sh_degree = 1;
   c.resize(N);
@@ -354,6 +354,9 @@ TEST_CASE("a fillgs 4D PLY read a block of rows at a time: every key array exact
     c.log_scales[g] = Vec3f(-3, -3, -3);
     c.rotations[g] = Vec4f(1, 0, 0, 0);
   }
+  // Two opacity logits of +inf, in the vertex element's first and third blocks (10,082 rows
+  // of 104 bytes each): kept as +40, with one note for both.
+  c.opacity_logits[5] = c.opacity_logits[24000] = INFINITY;
   c.motion = MotionModel::Keyframed;
   for (size_t j = 0; j < M; ++j) c.dynamic_ids.push_back(uint32_t(N - M + j));
   KeyframedMotion& k = c.keyframed;
@@ -380,6 +383,11 @@ TEST_CASE("a fillgs 4D PLY read a block of rows at a time: every key array exact
   CHECK(r.keyframed.opacity_logits == k.opacity_logits);
   CHECK(r.keyframed.colours == k.colours);
   CHECK(r.keyframed.sh_rest == k.sh_rest);
+  CHECK(r.means == c.means);
+  CHECK(r.sh == c.sh);
+  CHECK(r.opacity_logits[5] == 40.0f);
+  CHECK(r.opacity_logits[24000] == 40.0f);
+  CHECK(std::count_if(r.notes.begin(), r.notes.end(), [](const std::string& n) { return n.find("2 opacity logits in") == 0; }) == 1);
   // A NaN in track row 1500 (the sixth block), key 7's z: named with its row in the element.
   const std::string header = read_ply_header(path), original = read_file(path);
   std::string bytes = original;
@@ -403,6 +411,16 @@ TEST_CASE("a fillgs 4D PLY read a block of rows at a time: every key array exact
   std::memcpy(&bytes[header.size() + N * vertex_record + 1500 * track_record + column * 4], &nan, 4);
   write_file_atomically(dir + "/nan.ply", bytes);
   CHECK_THROWS_WITH(read_scene(dir + "/nan.ply"), Catch::Contains("nan.ply: track 1500 property 'motion_xyz_7_2' is NaN"));
+  // NaN in vertex row 21,000 (the third block): its x, then its opacity, named with the row.
+  size_t x_column = 0, opacity_column = 0;
+  (void)properties_of("vertex", "x", &x_column);
+  (void)properties_of("vertex", "opacity", &opacity_column);
+  for (const auto& [column, name] : {std::pair<size_t, std::string>{x_column, "x"}, {opacity_column, "opacity"}}) {
+    std::string v = original;
+    std::memcpy(&v[header.size() + 21000 * vertex_record + column * 4], &nan, 4);
+    write_file_atomically(dir + "/vnan.ply", v);
+    CHECK_THROWS_WITH(read_scene(dir + "/vnan.ply"), Catch::Contains("vnan.ply: vertex 21000 property '" + name + "' is NaN"));
+  }
   // Cut short inside a block, and one byte too many: refused as the whole-file reader refused them.
   write_file_atomically(dir + "/short.ply", original.substr(0, original.size() - 100));
   CHECK_THROWS_WITH(read_scene(dir + "/short.ply"), Catch::Contains("short.ply: truncated"));

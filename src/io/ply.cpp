@@ -167,7 +167,7 @@ std::string read_head(const std::string& path) {
 
 }  // namespace
 
-PlyData read_ply(const std::string& path, const PlyElementSink* sink) {
+PlyData read_ply(const std::string& path, const std::vector<PlyElementSink>& sinks) {
   std::string bytes = read_head(path);
   // ---- header ----
   if (bytes.compare(0, 3, "ply") != 0 || bytes.size() < 4 || (bytes[3] != '\n' && bytes[3] != '\r'))
@@ -297,7 +297,10 @@ PlyData read_ply(const std::string& path, const PlyElementSink* sink) {
     if (d.count > (end - pos + 1) / std::max<size_t>(min_record, 1))
       throw_error(path, ": truncated or corrupt: element '", d.name, "' claims ", d.count, " records of at least ", min_record, " bytes, but only ",
                   end - pos, " bytes follow");
-    const bool sunk = sink && sink->element == d.name;
+    const PlyElementSink* sink = nullptr;
+    for (const PlyElementSink& k : sinks)
+      if (k.element == d.name) sink = &k;
+    const bool sunk = sink != nullptr;
     if (sunk) sink->start(data, el);
     bool all_scalar = std::all_of(d.properties.begin(), d.properties.end(), [](const PropertyDecl& p) { return !p.is_list; });
     if (!(binary && all_scalar)) el.columns.assign(el.property_names.size(), std::vector<float>(d.count));

@@ -39,7 +39,12 @@ void read_sh(const PlyElement& v, const std::string& dc_prefix, const std::strin
     }
 }
 
-void read_base(const PlyElement& v, GaussianCloud& c, const std::vector<uint32_t>& ids, const std::string& prefix) {
+void note_saturated(GaussianCloud& c, size_t saturated, const std::string& source) {
+  if (saturated)
+    c.notes.push_back(std::to_string(saturated) + " opacity logits in " + source + " were infinite (opacity exactly 0 or 1); kept as ±40");
+}
+
+void read_base(const PlyElement& v, GaussianCloud& c, const std::vector<uint32_t>& ids, const std::string& prefix, size_t* saturated_out) {
   const char* axes[3] = {"x", "y", "z"};
   for (int a = 0; a < 3; ++a) {
     if (prefix.empty()) {
@@ -56,15 +61,15 @@ void read_base(const PlyElement& v, GaussianCloud& c, const std::vector<uint32_t
   size_t saturated = 0;
   for (size_t r = 0; r < v.count; ++r) {
     float x = o[r];
-    if (std::isnan(x)) throw_error(v.source, ": ", v.name, " ", r, " property '", prefix, "opacity' is NaN");
+    if (std::isnan(x)) throw_error(v.source, ": ", v.name, " ", v.first_row + r, " property '", prefix, "opacity' is NaN");
     if (std::isinf(x)) {
       x = x > 0 ? kSaturatedLogit : -kSaturatedLogit;
       ++saturated;
     }
     c.opacity_logits[ids[r]] = x;
   }
-  if (saturated)
-    c.notes.push_back(std::to_string(saturated) + " opacity logits in " + v.source + " were infinite (opacity exactly 0 or 1); kept as ±40");
+  if (saturated_out) *saturated_out += saturated;
+  else note_saturated(c, saturated, v.source);
   if (prefix.empty())
     for (int a = 0; a < 4; ++a) {
       const auto& q = v.finite_column("rot_" + std::to_string(a));
@@ -102,6 +107,21 @@ GaussianCloud read_standard_vertex(const PlyElement& v) {
   read_base(v, c, ids);
   read_sh(v, "f_dc_", "f_rest_", c, ids);
   return c;
+}
+
+PlyElementSink standard_vertex_sink(GaussianCloud& c, size_t& saturated) {
+  PlyElementSink sink;
+  sink.element = "vertex";
+  sink.start = [&c](const PlyData&, const PlyElement& v) {
+    c.sh_degree = sh_degree_of(v, "f_rest_");
+    c.resize(v.count);
+  };
+  sink.take = [&c, &saturated](const PlyElement& block) {
+    const auto ids = iota_ids(block.count, uint32_t(block.first_row));
+    read_base(block, c, ids, "", &saturated);
+    read_sh(block, "f_dc_", "f_rest_", c, ids);
+  };
+  return sink;
 }
 
 ModelState read_vertex_state(const PlyElement& v, std::vector<std::string>& notes) {

@@ -25,7 +25,13 @@ void read_sh(const PlyElement& v, const std::string& dc_prefix, const std::strin
 /// Position (without a prefix only), scale, rotation (without a prefix only) and opacity
 /// of rows r into Gaussians ids[r]. An opacity logit of +-inf (opacity exactly 1 or 0, as
 /// some exporters write it) is kept as +-40, with a note; NaN is an error.
-void read_base(const PlyElement& v, GaussianCloud& c, const std::vector<uint32_t>& ids, const std::string& prefix = "");
+/// With `saturated`, the count of such logits is added there instead (a reader of blocks
+/// notes them once, note_saturated).
+void read_base(const PlyElement& v, GaussianCloud& c, const std::vector<uint32_t>& ids, const std::string& prefix = "",
+               size_t* saturated = nullptr);
+
+/// The note read_base makes of `saturated` infinite opacity logits in `source` (none for 0).
+void note_saturated(GaussianCloud& c, size_t saturated, const std::string& source);
 
 /// first, first + 1, ..., first + n - 1.
 std::vector<uint32_t> iota_ids(size_t n, uint32_t first = 0);
@@ -37,6 +43,11 @@ void refuse_canonical_ply(const std::string& ply, const std::string& header);
 
 /// A static cloud from a vertex element with the standard 3DGS properties.
 GaussianCloud read_standard_vertex(const PlyElement& v);
+
+/// read_standard_vertex a block of rows at a time: a sink for read_ply that builds `c` from
+/// the vertex element's rows as they are read (their columns are never kept), counting
+/// infinite opacity logits into `saturated` (note_saturated after the read).
+PlyElementSink standard_vertex_sink(GaussianCloud& c, size_t& saturated);
 
 /// The same Gaussians as a ModelState (a deformation model's canonical cloud, a frame of a
 /// sequence); the reader's notes are appended to `notes`.

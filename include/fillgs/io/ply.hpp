@@ -55,9 +55,9 @@ struct PlyElementSink {
 
 /// Reads a PLY file. Throws fillgs::Error on any malformed or truncated input. A binary file
 /// whose elements hold scalar properties only is read from the file in blocks (never whole
-/// in memory); `sink`, where given, takes its element's rows, which the result then lists
+/// in memory); each of `sinks` takes its element's rows, which the result then lists
 /// without columns.
-PlyData read_ply(const std::string& path, const PlyElementSink* sink = nullptr);
+PlyData read_ply(const std::string& path, const std::vector<PlyElementSink>& sinks = {});
 
 /// The header of a PLY only (up to end_header, at most 1 MiB), to sniff a format cheaply.
 std::string read_ply_header(const std::string& path);

@@ -53,11 +53,14 @@ GaussianCloud read_fillgs(const std::string& path, const SceneReadOptions&) {
   std::vector<Target> plan;
   PlyElementSink sink;
   sink.element = "track";
-  sink.start = [&](const PlyData& so_far, const PlyElement& tr) {
-    const PlyElement* v = so_far.find("vertex");
-    if (!v) throw_error(path, ": the track element comes before the vertex element (fillgs writes vertex first)");
-    c = read_standard_vertex(*v);
+  size_t saturated = 0;
+  PlyElementSink vertex = standard_vertex_sink(c, saturated);
+  vertex.start = [&have_vertex, start = vertex.start](const PlyData& so_far, const PlyElement& v) {
+    start(so_far, v);
     have_vertex = true;
+  };
+  sink.start = [&](const PlyData& so_far, const PlyElement& tr) {
+    if (!have_vertex) throw_error(path, ": the track element comes before the vertex element (fillgs writes vertex first)");
     M = tr.count;
     if (M == 0) return;
     std::map<std::string, std::string> keys;
@@ -71,7 +74,7 @@ GaussianCloud read_fillgs(const std::string& path, const SceneReadOptions&) {
       if (e == it->second.c_str() || !std::isfinite(x)) throw_error(path, ": comment 'fillgs_keys' has a bad '", k, "' value");
       return x;
     };
-    if (M > v->count) throw_error(path, ": track element has ", M, " rows but vertex has only ", v->count);
+    if (M > c.size()) throw_error(path, ": track element has ", M, " rows but vertex has only ", c.size());
     KeyframedMotion& km = c.keyframed;
     const double count = key_number("count");
     if (!(count >= 1 && count <= 1e6) || count != std::floor(count))
@@ -126,8 +129,9 @@ GaussianCloud read_fillgs(const std::string& path, const SceneReadOptions&) {
       for (const Target& t : plan) (*t.values)[(row + t.key) * t.width + t.offset] = block.columns[t.column][r];
     }
   };
-  const PlyData ply = read_ply(path, &sink);
-  if (!have_vertex) c = read_standard_vertex(ply.element("vertex"));
+  const PlyData ply = read_ply(path, {vertex, sink});
+  (void)ply.element("vertex");  // no vertex element: one line naming the file
+  note_saturated(c, saturated, path);
   if (M == 0) return c;
   c.motion = MotionModel::Keyframed;
   c.dynamic_ids = iota_ids(M, uint32_t(c.size() - M));

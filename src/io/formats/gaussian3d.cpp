@@ -22,7 +22,13 @@ namespace {
 
 GaussianCloud read_3dgs(const std::string& path, const SceneReadOptions&) {
   refuse_canonical_ply(path, read_ply_header(path));
-  return read_standard_vertex(read_ply(path).element("vertex"));
+  // The vertex rows go into the cloud a block at a time: the file's columns are never held.
+  GaussianCloud c;
+  size_t saturated = 0;
+  const PlyData ply = read_ply(path, {standard_vertex_sink(c, saturated)});
+  (void)ply.element("vertex");  // no vertex element: one line naming the file
+  note_saturated(c, saturated, path);
+  return c;
 }
 
 }  // namespace
