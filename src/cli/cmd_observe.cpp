@@ -64,9 +64,12 @@ ObserveJob observe_job(const ObserveFlags& f, const Invocation& in) {
   // The times asked for, where the flags say them before the model is read: a streamed
   // model's still rule then checks those times instead of sweeping frames the job never
   // evaluates (the full check of them follows, once the model is read).
+  // Only as many as the sweep's frames matter (more: the sweep runs), so none are made for a
+  // frame count that observe_times will refuse.
   SceneReadOptions read = f.read;
-  if (in.given("--times")) read.still.times = f.time.times;
-  else if (f.time.frames >= 2) read.still.times = FrameGrid(f.time.frames).times();
+  const size_t sweep = size_t(std::max(0, read.still.sweep_frames));
+  if (in.given("--times") && f.time.times.size() <= sweep) read.still.times = f.time.times;
+  else if (!in.given("--times") && f.time.frames >= 2 && size_t(f.time.frames) <= sweep) read.still.times = FrameGrid(f.time.frames).times();
   std::sort(read.still.times.begin(), read.still.times.end());
   job.cloud = read_scene_shown(f.scene, read, in);
   job.cameras = read_cameras(f.cameras, f.camera_read);
