@@ -23,9 +23,11 @@
 #include <unistd.h>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include <tbb/task_arena.h>
 
@@ -121,6 +123,41 @@ inline void add_gaussian(GaussianCloud& c, const Vec3f& mean, float scale, float
 }
 
 /// The synthetic scene at a test-sized resolution (spacing in metres; coarser = fewer Gaussians).
+/// 60,000 Gaussians placed to meet every branch of the 3DGS preprocess (its frustum rule and
+/// footprint) and the cameras they are seen from: behind the camera, at the near plane, on
+/// the image's edges and tile borders, far outside, needle-thin and huge (scales from 1e-9
+/// to 1e7), with arbitrary rotations (unit and not), in front of cameras of odd sizes.
+inline GaussianCloud preprocess_extremes(std::vector<Camera>* cams) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f), ls(-20.0f, 16.0f);
+  Camera base;
+  base.width = 37, base.height = 29, base.fx = 31.0, base.fy = 29.5, base.cx = 18.3, base.cy = 14.1;
+  *cams = {base};
+  Camera wide = base;
+  wide.width = 1352, wide.height = 1014, wide.fx = 1100, wide.fy = 1100, wide.cx = 676, wide.cy = 507;
+  cams->push_back(wide);
+  Camera turned = base;
+  turned.look_at(Vec3d(0.3, -0.2, -2.0), Vec3d(0.1, 0.05, 1.0), Vec3d(0, -1, 0));
+  cams->push_back(turned);
+  GaussianCloud c;
+  for (int i = 0; i < 60000; ++i) {
+    Vec3f m;
+    switch (i % 6) {
+      case 0: m = Vec3f(unit(rng) * 3, unit(rng) * 3, unit(rng) * 3); break;                            // anywhere, behind included
+      case 1: m = Vec3f(unit(rng) * 0.2f, unit(rng) * 0.2f, 0.2f + unit(rng) * 1e-6f); break;           // at the near plane
+      case 2: m = Vec3f(unit(rng) * 0.7f, unit(rng) * 0.6f, 1.0f); break;                               // near the image's edges at z = 1
+      case 3: m = Vec3f(unit(rng) * 50, unit(rng) * 50, 1.0f + 20 * std::fabs(unit(rng))); break;      // far outside
+      case 4: m = Vec3f(float(16 * int(unit(rng) * 3)) / 31.0f, unit(rng) * 0.5f, 1.0f); break;         // on tile borders
+      default: m = Vec3f(unit(rng), unit(rng), 1e4f * std::fabs(unit(rng))); break;                     // very far
+    }
+    add_gaussian(c, m, 1.0f, 0.0f, Vec3f(0.5f, 0.5f, 0.5f));
+    c.log_scales[size_t(i)] = Vec3f(ls(rng), ls(rng), ls(rng));
+    const Vec4f q(unit(rng), unit(rng), unit(rng), unit(rng));
+    c.rotations[size_t(i)] = i % 5 == 0 ? q : Vec4f(q.normalized());
+  }
+  return c;
+}
+
 inline SynthScene small_synth(int frames, int width, int height, double spacing = 0.02) {
   SynthOptions o;
   o.frames = frames;

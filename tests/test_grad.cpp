@@ -3,13 +3,16 @@
 
 #include <cmath>
 #include <iterator>
+#include <cstring>
 #include <random>
 
 #include "fillgs/render/loss.hpp"
 #include "fillgs/render/raster.hpp"
 #include "fillgs/render/raster_grad.hpp"
 #include "fillgs/train/train_model.hpp"
+#include "fillgs/base/instruction_set.hpp"
 #include "helpers.hpp"
+#include "render/splat_backward_rows.hpp"
 
 using namespace fillgs;
 using namespace fillgs::test;
@@ -454,4 +457,70 @@ TEST_CASE("photometric loss gradient (L1 + 0.2 D-SSIM, weighted) matches finite 
   const LossValue lv = photometric_loss<double>(same_d.data(), same.data(), W, H, nullptr, 0.2, nullptr);
   REQUIRE(lv.total == Approx(0.0).margin(1e-12));
   REQUIRE(ssim(same.data(), same.data(), W, H, 3) == Approx(1.0).epsilon(1e-12));
+}
+
+TEST_CASE("the projection's backward written out, and on lanes, gives the Eigen form's gradients bit for bit", "[grad][extremes]") {
+  // The Gaussians and cameras built to meet each branch of the preprocess, with gradients
+  // over 16 orders of magnitude; the written-out form in double, and the lane form at each
+  // instruction set, against project_splat_backward<double> (Eigen products).
+  std::vector<Camera> cams;
+  const GaussianCloud c = preprocess_extremes(&cams);
+  const size_t N = c.size();
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f), expo(-8.0f, 8.0f);
+  std::vector<Vec3f> scales(N);
+  std::vector<float> sums(N * 6);
+  std::vector<uint32_t> rows(N);
+  for (size_t g = 0; g < N; ++g) {
+    scales[g] = c.log_scales[g].array().exp();
+    for (int a = 0; a < 5; ++a) sums[g * 6 + size_t(a)] = unit(rng) * std::pow(10.0f, expo(rng));
+    rows[g] = uint32_t(N - 1 - g);  // rows read Gaussians through the visible list
+  }
+  auto bits = [](double x) {
+    uint64_t b;
+    std::memcpy(&b, &x, sizeof b);
+    return b;
+  };
+  for (size_t k = 0; k < cams.size(); ++k) {
+    const internal::BackwardCamera bc(cams[k]);
+    std::vector<double> expected(N * 10, 0.0);
+    size_t used = 0, mismatched = 0;
+    for (size_t i = 0; i < N; ++i) {
+      const size_t g = rows[i];
+      const float* s = &sums[i * 6];
+      double m[3], sc[3], q[4];
+      for (int a = 0; a < 3; ++a) m[a] = c.means[g][a], sc[a] = scales[g][a];
+      for (int a = 0; a < 4; ++a) q[a] = c.rotations[g][a];
+      const double gconic[3] = {s[2], s[3], s[4]};
+      double* e = &expected[i * 10];
+      project_splat_backward<double>(m, sc, q, cams[k], double(s[0]), double(s[1]), gconic, e, e + 3, e + 6);
+      double h[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+      bool ok = false;
+      internal::splat_backward_math<double>(bc, m, sc, q, double(s[0]), double(s[1]), gconic, h, h + 3, h + 6, &ok,
+                                            [](double x) { return x; });
+      used += ok;
+      for (int a = 0; a < 10; ++a) mismatched += bits(ok ? h[a] : 0.0) != bits(e[a]);
+    }
+    INFO("camera " << k);
+    CHECK(used > 1000);
+    CHECK(N - used > 1000);
+    CHECK(mismatched == 0);
+    for (const char* set : {"native", "avx2", "sse4"}) {
+      try {
+        limit_instruction_set(set, "test");
+      } catch (const Error& e) {
+        WARN("skipped " << set << ": " << e.what());
+        continue;
+      }
+      INFO(set << " (" << kernel_instruction_set() << ")");
+      std::vector<double> got(N * 10, -1.0);
+      const internal::BackwardRowsInput in{rows.data(), c.means[0].data(), scales[0].data(), c.rotations[0].data(), sums.data(), 6};
+      internal::project_backward_rows(bc, in, 0, N - 3, got.data());  // two calls: a part lane at the end of each
+      internal::project_backward_rows(bc, in, N - 3, N, got.data());
+      size_t lane_mismatched = 0;
+      for (size_t j = 0; j < N * 10; ++j) lane_mismatched += bits(got[j]) != bits(expected[j]);
+      CHECK(lane_mismatched == 0);
+    }
+    limit_instruction_set("native", "test");
+  }
 }

@@ -20,6 +20,7 @@
 #include "fillgs/train/train_model.hpp"
 #include "fillgs/visibility/accel.hpp"
 #include "helpers.hpp"
+#include "render/frustum.hpp"
 #include "render/tile_kernel.hpp"
 
 using namespace fillgs;
@@ -247,4 +248,59 @@ TEST_CASE("FILLGS_INSTRUCTION_SET holds the vector kernels to a narrower instruc
   CHECK(code == 1);
   CHECK(err.str() == "error: FILLGS_INSTRUCTION_SET: 'avx9' is not an instruction set fillgs can be held to (avx512, avx2, sse4 or native)\n");
   CHECK(std::string(simd_target()) == widest);
+}
+
+TEST_CASE("the vector preprocess writes the scalar preprocess's projection and footprint, bit for bit, at each instruction set",
+          "[kernel][extremes]") {
+  std::vector<Camera> cams;
+  const GaussianCloud c = preprocess_extremes(&cams);
+  const size_t N = c.size();
+  std::vector<Vec3f> scales(N);
+  for (size_t g = 0; g < N; ++g) scales[g] = c.log_scales[g].array().exp();
+  auto bits = [](double x) {
+    uint64_t b;
+    std::memcpy(&b, &x, sizeof b);
+    return b;
+  };
+  for (const char* set : {"native", "avx2", "sse4"}) {
+    try {
+      limit_instruction_set(set, "test");
+    } catch (const Error& e) {
+      WARN("skipped " << set << ": " << e.what());
+      continue;
+    }
+    for (size_t k = 0; k < cams.size(); ++k) {
+      INFO(set << " (" << kernel_instruction_set() << "), camera " << k);
+      const internal::FrustumCamera fc(cams[k]);
+      std::vector<SplatProjection<double>> exact(N);
+      std::vector<ProjectedGaussian> projected(N);
+      std::vector<int> radii(N, 0);
+      internal::project_rows(fc, c.means[0].data(), scales[0].data(), c.rotations[0].data(), 0, N, exact.data(), projected.data(),
+                             radii.data());
+      size_t kept = 0, mismatched = 0;
+      for (size_t g = 0; g < N; ++g) {
+        const double m[3] = {c.means[g][0], c.means[g][1], c.means[g][2]}, s[3] = {scales[g][0], scales[g][1], scales[g][2]},
+                     q[4] = {c.rotations[g][0], c.rotations[g][1], c.rotations[g][2], c.rotations[g][3]};
+        const SplatProjection<double> e = project_splat<double>(m, s, q, cams[k]);
+        ProjectedGaussian p;
+        const bool keep = internal::splat_footprint(e, cams[k], &p);
+        kept += keep;
+        bool same = radii[g] == (keep ? p.radius : 0);
+        if (keep) {
+          const SplatProjection<double>& v = exact[g];
+          const ProjectedGaussian& w = projected[g];
+          same = same && v.valid && bits(v.u) == bits(e.u) && bits(v.v) == bits(e.v) && bits(v.depth) == bits(e.depth);
+          for (int i = 0; i < 3; ++i) same = same && bits(v.cov[i]) == bits(e.cov[i]) && bits(v.conic[i]) == bits(e.conic[i]);
+          same = same && w.mean == p.mean && w.cov2d == p.cov2d && w.conic == p.conic && w.depth == p.depth && w.radius == p.radius &&
+                 w.rect_min[0] == p.rect_min[0] && w.rect_min[1] == p.rect_min[1] && w.rect_max[0] == p.rect_max[0] &&
+                 w.rect_max[1] == p.rect_max[1];
+        }
+        mismatched += !same;
+      }
+      CHECK(kept > 1000);
+      CHECK(N - kept > 1000);
+      CHECK(mismatched == 0);
+    }
+  }
+  limit_instruction_set("native", "test");
 }

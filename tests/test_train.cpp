@@ -3,7 +3,9 @@
 
 #include <filesystem>
 #include <fstream>
+#include <cstring>
 #include <numeric>
+#include <random>
 #include <sstream>
 
 #include "fillgs/experiment/evaluate.hpp"
@@ -17,6 +19,8 @@
 #include "fillgs/io/scene_io.hpp"
 #include "fillgs/model/sh.hpp"
 #include "fillgs/render/raster.hpp"
+#include "fillgs/base/instruction_set.hpp"
+#include "train/adam.hpp"
 #include "cli_run.hpp"
 #include "helpers.hpp"
 
@@ -367,4 +371,67 @@ TEST_CASE("fillgs train --draws-per-view: iterations follow the views, each view
     CHECK((row.at(0) == "cam00" || row.at(0) == "cam08"));
     CHECK(row.at(2) == 3);
   }
+}
+
+TEST_CASE("the vector Adam step stores the scalar step's values bit for bit, dense and sparse, at each instruction set",
+          "[train][extremes]") {
+  // Gradients and moments over many magnitudes (1e-30 to 1e30), zeros of both signs, a
+  // denormal, a NaN, and lengths that leave a part lane (1 to 1003 elements).
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f), expo(-30.0f, 30.0f);
+  const size_t n = 1003;
+  std::vector<float> x0(n), g(n), m0(n), v0(n);
+  for (size_t i = 0; i < n; ++i) {
+    x0[i] = unit(rng) * std::pow(10.0f, expo(rng) / 3);
+    g[i] = i % 7 == 0 ? 0.0f : i % 11 == 0 ? -0.0f : unit(rng) * std::pow(10.0f, expo(rng));
+    m0[i] = unit(rng) * std::pow(10.0f, expo(rng) / 2);
+    v0[i] = std::fabs(unit(rng)) * std::pow(10.0f, expo(rng));
+  }
+  g[5] = 1e-40f;  // denormal
+  g[6] = std::nanf("");
+  auto bits = [](float f) {
+    uint32_t b;
+    std::memcpy(&b, &f, sizeof b);
+    return b;
+  };
+  for (const char* set : {"native", "avx2", "sse4"}) {
+    try {
+      limit_instruction_set(set, "test");
+    } catch (const Error& e) {
+      WARN("skipped " << set << ": " << e.what());
+      continue;
+    }
+    for (bool sparse : {false, true})
+      for (size_t len : {size_t(1), size_t(7), size_t(16), size_t(n)}) {
+        INFO(set << " (" << kernel_instruction_set() << "), sparse " << sparse << ", " << len << " elements");
+        train::AdamStep step;
+        step.a = 1.6e-4f / 0.1f, step.s2 = float(1.0 / std::sqrt(1.0 - 0.999)), step.sparse = sparse;
+        std::vector<float> x = x0, m = m0, v = v0, xs = x0, ms = m0, vs = v0;
+        for (int it = 0; it < 3; ++it) {
+          train::adam_update(step, x.data(), g.data(), m.data(), v.data(), len);
+          train::adam_update_scalar(step, xs.data(), g.data(), ms.data(), vs.data(), len);
+        }
+        size_t differ = 0, changed = 0, touched = 0;
+        for (size_t i = 0; i < n; ++i) {
+          differ += bits(x[i]) != bits(xs[i]) || bits(m[i]) != bits(ms[i]) || bits(v[i]) != bits(vs[i]);
+          const bool moved = bits(x[i]) != bits(x0[i]) || bits(m[i]) != bits(m0[i]) || bits(v[i]) != bits(v0[i]);
+          changed += moved;
+          // Elements past the length, and with a sparse step those of a zero gradient, are untouched.
+          touched += moved && (i >= len || (sparse && g[i] == 0.0f));
+        }
+        CHECK(differ == 0);
+        CHECK(changed >= (sparse && len == 1 ? 0 : len / 2));  // element 0 has a zero gradient
+        CHECK(touched == 0);
+      }
+  }
+  limit_instruction_set("native", "test");
+  // One element against the textbook step in double: m, v and the move agree to float rounding.
+  train::AdamStep step;
+  step.a = 0.01f, step.s2 = 1.0f;
+  float x = 1.0f, gg = 0.5f, m = 0.2f, v = 0.04f;
+  train::adam_update(step, &x, &gg, &m, &v, 1);
+  const double me = 0.9 * 0.2 + 0.1 * 0.5, ve = 0.999 * 0.04 + 0.001 * 0.25, xe = 1.0 - 0.01 * me / (std::sqrt(ve) + 1e-15);
+  CHECK(m == Approx(me).epsilon(1e-6));
+  CHECK(v == Approx(ve).epsilon(1e-6));
+  CHECK(x == Approx(xe).epsilon(1e-6));
 }

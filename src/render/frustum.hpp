@@ -7,6 +7,7 @@
 
 #include "fillgs/model/camera.hpp"
 #include "fillgs/render/raster.hpp"
+#include "fillgs/render/raster_grad.hpp"
 #include "render/raster_internal.hpp"
 
 namespace fillgs::internal {
@@ -23,5 +24,12 @@ struct FrustumCamera {
 /// themselves where `ids` is null) that project_gaussian keeps for this camera.
 void frustum_keep(const FrustumCamera& cam, const Vec3f* means, const Vec3f* scales, const Vec4f* rotations, const uint32_t* ids, size_t begin,
                   size_t end, std::vector<uint32_t>* out);
+
+/// project_splat<double> and splat_footprint for rows [begin, end) of float arrays ([N][3],
+/// [N][3], [N][4]), a lane of rows per instruction with the scalar code's operations in its
+/// order: for each row splat_footprint keeps, exact[g], projected[g] and radii[g] as the scalar
+/// preprocess (preprocess.hpp) writes them, bit for bit; other rows are left as they were.
+void project_rows(const FrustumCamera& cam, const float* means, const float* scales, const float* rotations, size_t begin, size_t end,
+                  SplatProjection<double>* exact, ProjectedGaussian* projected, int* radii);
 
 }  // namespace fillgs::internal

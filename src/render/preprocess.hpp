@@ -9,11 +9,13 @@
 
 #include <cmath>
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 
 #include "fillgs/render/raster.hpp"
 #include "fillgs/render/raster_grad.hpp"
 #include "fillgs/model/sh.hpp"
+#include "render/frustum.hpp"
 #include "render/raster_internal.hpp"
 
 namespace fillgs::tiles {
@@ -64,15 +66,24 @@ void prepare_splats(const SplatSource<Real>& G, const Camera& cam, int C, const 
   out.radii->assign(N, 0);
   out.projected->resize(N);
   std::vector<SplatProjection<double>> exact(N);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 1024), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t g = r.begin(); g < r.end(); ++g) {
-      double m[3], s[3], q[4];
-      for (int k = 0; k < 3; ++k) m[k] = double(G.means[3 * g + k]), s[k] = double(G.scales[3 * g + k]);
-      for (int k = 0; k < 4; ++k) q[k] = double(G.rotations[4 * g + k]);
-      exact[g] = project_splat<double>(m, s, q, cam);
-      if (internal::splat_footprint(exact[g], cam, &(*out.projected)[g])) (*out.radii)[g] = (*out.projected)[g].radius;
-    }
-  });
+  if constexpr (std::is_same_v<Real, float>) {
+    // A lane of Gaussians per instruction (frustum.hpp), every value the loop below writes for double.
+    const internal::FrustumCamera fc(cam);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 1024), [&](const tbb::blocked_range<size_t>& r) {
+      internal::project_rows(fc, G.means, G.scales, G.rotations, r.begin(), r.end(), exact.data(), out.projected->data(),
+                             out.radii->data());
+    });
+  } else {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 1024), [&](const tbb::blocked_range<size_t>& r) {
+      for (size_t g = r.begin(); g < r.end(); ++g) {
+        double m[3], s[3], q[4];
+        for (int k = 0; k < 3; ++k) m[k] = double(G.means[3 * g + k]), s[k] = double(G.scales[3 * g + k]);
+        for (int k = 0; k < 4; ++k) q[k] = double(G.rotations[4 * g + k]);
+        exact[g] = project_splat<double>(m, s, q, cam);
+        if (internal::splat_footprint(exact[g], cam, &(*out.projected)[g])) (*out.radii)[g] = (*out.projected)[g].radius;
+      }
+    });
+  }
   out.visible->clear();
   for (uint32_t g = 0; g < N; ++g)
     if ((*out.radii)[g] > 0 && G.opacities[g] >= Real(kMinAlpha)) out.visible->push_back(g);

@@ -30,6 +30,7 @@
 #include "fillgs/render/raster.hpp"
 #include "fillgs/model/sh.hpp"
 #include "fillgs/io/video.hpp"
+#include "train/adam.hpp"
 
 namespace fs = std::filesystem;
 
@@ -800,20 +801,16 @@ void Trainer::adam_step() {
   const double key_lr = options_.key_lr_scale * (iteration_ < ramp_end ? decayed(0.0)
                                                                         : decayed(double(iteration_ - ramp_end) / std::max(1, options_.iterations - ramp_end)));
   const int K = params_.sh_count();
-  // Element-wise Adam in float (vectorisable); lr / c1 and 1 / √c2 fold the bias corrections.
-  const float fb1 = float(b1), fb2 = float(b2), s2 = float(1.0 / std::sqrt(c2)), feps = float(eps);
-  const bool sparse = options_.sparse_adam;
+  // Element-wise Adam in float, a lane of elements per instruction (train/adam.hpp: the
+  // scalar step's values bit for bit); lr / c1 and 1 / √c2 fold the bias corrections.
+  train::AdamStep step;
+  step.b1 = float(b1), step.b2 = float(b2), step.s2 = float(1.0 / std::sqrt(c2)), step.eps = float(eps);
+  step.sparse = options_.sparse_adam;
   auto update = [&](std::vector<float>& x, const std::vector<float>& g, std::vector<float>& m, std::vector<float>& v, double lr) {
-    const float a = float(lr / c1);
+    train::AdamStep s = step;
+    s.a = float(lr / c1);
     tbb::parallel_for(tbb::blocked_range<size_t>(0, x.size(), 16384), [&](const tbb::blocked_range<size_t>& r) {
-      float *X = x.data(), *M = m.data(), *Vv = v.data();
-      const float* G = g.data();
-      for (size_t i = r.begin(); i < r.end(); ++i) {
-        if (sparse && G[i] == 0.0f) continue;
-        M[i] = fb1 * M[i] + (1 - fb1) * G[i];
-        Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
-        X[i] -= a * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
-      }
+      train::adam_update(s, x.data() + r.begin(), g.data() + r.begin(), m.data() + r.begin(), v.data() + r.begin(), r.size());
     });
   };
   update(params_.means, grad_.means, adam_m_.means, adam_v_.means, pos_lr);
@@ -827,18 +824,20 @@ void Trainer::adam_step() {
   // SH, per block of one Gaussian's (or one colour key's) coefficients: the DC (its first 3
   // values) at feature_lr, the rest at 1/20 of it.
   const size_t block = size_t(K) * 3;
-  const float a_dc = float(options_.feature_lr / c1), a_rest = float(options_.feature_lr / 20.0 / c1);
+  train::AdamStep dc = step, rest = step;
+  dc.a = float(options_.feature_lr / c1), rest.a = float(options_.feature_lr / 20.0 / c1);
   auto update_sh = [&](std::vector<float>& x, const std::vector<float>& g, std::vector<float>& m, std::vector<float>& v) {
+    if (block == 3) {  // degree 0: every value is a DC value
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, x.size(), 16384), [&](const tbb::blocked_range<size_t>& r) {
+        train::adam_update(dc, x.data() + r.begin(), g.data() + r.begin(), m.data() + r.begin(), v.data() + r.begin(), r.size());
+      });
+      return;
+    }
     tbb::parallel_for(tbb::blocked_range<size_t>(0, x.size() / block, 2048), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t row = r.begin(); row < r.end(); ++row) {
-        float *X = &x[row * block], *M = &m[row * block], *Vv = &v[row * block];
-        const float* G = &g[row * block];
-        for (size_t i = 0; i < block; ++i) {
-          if (sparse && G[i] == 0.0f) continue;
-          M[i] = fb1 * M[i] + (1 - fb1) * G[i];
-          Vv[i] = fb2 * Vv[i] + (1 - fb2) * G[i] * G[i];
-          X[i] -= (i < 3 ? a_dc : a_rest) * M[i] / (std::sqrt(Vv[i]) * s2 + feps);
-        }
+        const size_t o = row * block;
+        train::adam_update(dc, &x[o], &g[o], &m[o], &v[o], 3);
+        train::adam_update(rest, &x[o + 3], &g[o + 3], &m[o + 3], &v[o + 3], block - 3);
       }
     });
   };

@@ -29,7 +29,12 @@ void ModelParams<Real>::set_zeros_like(const ModelParams& shape) {
   keyed_opacity = shape.keyed_opacity;
   auto dst = arrays();
   auto src = shape.arrays();
-  for (size_t a = 0; a < dst.size(); ++a) dst[a]->assign(src[a]->size(), Real(0));
+  // Sized first, then zeroed in parallel blocks (a training step zeroes every key's gradient).
+  for (size_t a = 0; a < dst.size(); ++a) dst[a]->resize(src[a]->size());
+  for (std::vector<Real>* d : dst)
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, d->size(), size_t(1) << 16), [&](const tbb::blocked_range<size_t>& r) {
+      std::fill(d->begin() + ptrdiff_t(r.begin()), d->begin() + ptrdiff_t(r.end()), Real(0));
+    });
 }
 
 template <typename Real>
