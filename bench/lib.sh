@@ -5,7 +5,8 @@
 # line is refused. The model a step reads is part of its identity through the step that
 # made it. Prints how long a step that ran took (seconds) to stderr and writes it, with the
 # time it finished (UTC), the commit of the checkout that ran it and the CPU (cpu_line), to
-# DIR/step.txt.
+# DIR/step.txt. A caller may set the array STEP_RUNNER to a prefix the command runs under
+# (bench/pool_select.sh --jobs: `taskset -c CORE`); it is not part of the command line.
 #
 # hold_instruction_set STEP_TXT: continues records made on another instruction set on it.
 #
@@ -56,7 +57,7 @@ step() {
   fi
   rm -rf "$dir"
   local t0=$SECONDS
-  "$@"
+  ${STEP_RUNNER[@]+"${STEP_RUNNER[@]}"} "$@"
   printf '%s\n' "$@" >"$dir/command.txt.tmp"
   mv "$dir/command.txt.tmp" "$dir/command.txt"
   printf 'seconds %s\nfinished %s\ncommit %s\ncpu %s\n' $((SECONDS - t0)) "$(date -u +%Y-%m-%dT%H:%M:%SZ)" \

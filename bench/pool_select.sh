@@ -36,7 +36,8 @@
 # three rounds, each from the current model.
 #
 #   bench/pool_select.sh [--scene panoptic|n3v-static] [--smoke] [--test-cameras FILE]
-#                        [--seeds 1,2,3] [--budgets ...] [--strategies a,b,..] [--no-scratch] [--warm-start] [OUT]
+#                        [--seeds 1,2,3] [--budgets ...] [--strategies a,b,..] [--no-scratch] [--warm-start]
+#                        [--jobs N] [OUT]
 #       (default OUT: bench/results/video/panoptic_pool_exposure or bench/results/video/n3v_static_pool_exposure)
 #
 # Seeds: without --seeds and --budgets, Panoptic runs K = 30 over seeds 1-10 first (every
@@ -93,10 +94,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 source bench/lib.sh
-SMOKE=0 TEST= SEEDS= BUDGETS= SCENE=panoptic ONLY= NO_SCRATCH=0 WARM=0
+SMOKE=0 TEST= SEEDS= BUDGETS= SCENE=panoptic ONLY= NO_SCRATCH=0 WARM=0 JOBS=1
 while [ $# -gt 0 ]; do
   case $1 in
     --scene) SCENE=$2; shift ;;
+    --jobs) JOBS=$2; shift ;;
     --smoke) SMOKE=1 ;;
     --test-cameras) TEST=$2; shift ;;
     --seeds) SEEDS=$2; shift ;;
@@ -251,7 +253,15 @@ evaluate() {  # model folder
 have_model() {  # model folder: a step still to run reads its model.ply
   [ -f "$1/model.ply" ] && return 0
   case $1 in
-    */backbone) backbone_again "$(basename "$(dirname "$1")")" ;;
+    */backbone)
+      if [ "$JOBS" = 1 ]; then
+        backbone_again "$(basename "$(dirname "$1")")"
+      else  # jobs that need it at once: the first trains it again, the others wait for it
+        (
+          flock 9
+          [ -f "$1/model.ply" ] || backbone_again "$(basename "$(dirname "$1")")"
+        ) 9>"${TMPDIR:-/tmp}/pool_select.$$.backbone.lock"
+      fi ;;
     *) echo "pool_select: $1/model.ply is not here (git keeps a run's records, not its model) and a step still to run reads it; delete $1 to train it again" >&2
        exit 1 ;;
   esac
@@ -307,6 +317,39 @@ bstep() {  # seed, step's arguments
   finished "$@" || have_model "$OUT/s$s/backbone"
   step "$@"
 }
+# --jobs N: a seed's trainings from scratch (the control, the dense reference, each strategy's
+# choice and training) run N at a time, each on one core of its own (taskset -c; fillgs's
+# threads follow the process's cores), after the seed's backbone and before the next seed.
+# Results do not depend on the thread count, so the records are those of --jobs 1; a step's
+# seconds are then one core's.
+[[ "$JOBS" =~ ^[1-9][0-9]*$ ]] || { echo "pool_select: --jobs expects a positive count, got '$JOBS'" >&2; exit 1; }
+[ "$JOBS" = 1 ] || command -v taskset >/dev/null || { echo "pool_select: --jobs $JOBS needs taskset (util-linux)" >&2; exit 1; }
+declare -A JOB_SLOT=()  # running job's pid -> its core
+JOB_FAILED=0
+wait_job() {  # waits for one running job to end; frees its core
+  local pid=
+  wait -n -p pid "${!JOB_SLOT[@]}" || JOB_FAILED=1
+  unset "JOB_SLOT[$pid]"
+}
+run_job() {  # runs "$@" (a function of this script) now, or with --jobs in the background on a free core
+  if [ "$JOBS" = 1 ]; then
+    "$@"
+    return
+  fi
+  [ ${#JOB_SLOT[@]} -lt "$JOBS" ] || wait_job
+  local core used
+  for ((core = 0; ; ++core)); do
+    used=0
+    for c in "${JOB_SLOT[@]}"; do [ "$c" = "$core" ] && used=1; done
+    [ $used = 0 ] && break
+  done
+  ( STEP_RUNNER=(taskset -c "$((core % $(nproc)))"); "$@" ) &
+  JOB_SLOT[$!]=$core
+}
+wait_jobs() {  # every running job; stops the script when one failed
+  while [ ${#JOB_SLOT[@]} -gt 0 ]; do wait_job; done
+  [ $JOB_FAILED = 0 ] || { echo "pool_select: a step run with --jobs $JOBS failed (above)" >&2; exit 1; }
+}
 # Initial points of every model trained from scratch, the dense reference's included: the
 # backbone's (COLMAP points of the training cameras, or the points its views gave, saved
 # beside it), so that the rows differ only in their photographs.
@@ -332,8 +375,12 @@ JUDGED=$(IFS=:; echo "${SPLIT_CAMS[*]}")
 seed_references() {  # seed
   local s=$1
   backbone "$s"
+  run_job scratch "$s" dense $TRAIN,$POOL  # the longest: first, when jobs share the cores
+  run_job control_rows "$s"
+}
+control_rows() {  # seed: the control; seed 1 also the curriculum's backbone, both judged on the training cameras
+  local s=$1
   scratch "$s" scratch.control $TRAIN
-  scratch "$s" dense $TRAIN,$POOL
   if [ "$s" = 1 ]; then
     bstep 1 "$OUT/s1/backbone.curriculum" summary.json "$FILLGS" train "${TRAIN_DS[@]}" --train-cameras $TRAIN --draws-per-view "$DRAWS" \
       --time-ramp 0.7 --points "$(scratch_points 1)" "${OPTS[@]}" --seed 1 --out "$OUT/s1/backbone.curriculum" --quiet
@@ -346,6 +393,24 @@ seed_references() {  # seed
     done
   fi
 }
+# One strategy's row at budget K: its choice, then its model trained from scratch.
+strategy_row() {  # seed, strategy, K
+  local s=$1 st=$2 K=$3
+  if [ "$st" = positive ]; then
+    # Allowed to know the judged cameras: the pool photographs nearest them, spread over the clip.
+    local frames
+    frames=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['frames'])" "$OUT/s$s/backbone/summary.json")
+    step "$OUT/s$s/choose.positive.K$K" pool_chosen.json python3 bench/pool_positive.py --rig "$OUT/rig_cameras.json" \
+      --held-out "$OUT/judged_cameras.json" --splits "$JUDGED" --pool $POOL --frames "$frames" --budget "$K" \
+      --out "$OUT/s$s/choose.positive.K$K/pool_chosen.json"
+  else
+    # K camera-times chosen on the backbone in one greedy round.
+    bstep "$s" "$OUT/s$s/choose.$st.K$K" summary.json "$FILLGS" finetune --model "$OUT/s$s/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
+      --seed "$s" --out "$OUT/s$s/choose.$st.K$K" --iterations 1 --select-every 1 --pool-cameras $POOL --pool-budget "$K" --strategy "$st" \
+      --weighting none --quiet
+  fi
+  scratch "$s" "scratch.$st.K$K" $TRAIN --camera-times "$OUT/s$s/choose.$st.K$K/pool_chosen.json"
+}
 # The main protocol: budget by budget as the plan lists them, every seed's rows before the next seed.
 if [ $NO_SCRATCH = 0 ]; then
   for entry in $PLAN; do
@@ -353,21 +418,8 @@ if [ $NO_SCRATCH = 0 ]; then
     IFS=, read -r -a plan_seeds <<<"${entry#*:}"
     for s in "${plan_seeds[@]}"; do
       seed_references "$s"
-      for st in "${STRATEGIES[@]}"; do
-        if [ "$st" = positive ]; then
-          # Allowed to know the judged cameras: the pool photographs nearest them, spread over the clip.
-          frames=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['frames'])" "$OUT/s$s/backbone/summary.json")
-          step "$OUT/s$s/choose.positive.K$K" pool_chosen.json python3 bench/pool_positive.py --rig "$OUT/rig_cameras.json" \
-            --held-out "$OUT/judged_cameras.json" --splits "$JUDGED" --pool $POOL --frames "$frames" --budget "$K" \
-            --out "$OUT/s$s/choose.positive.K$K/pool_chosen.json"
-        else
-          # K camera-times chosen on the backbone in one greedy round.
-          bstep "$s" "$OUT/s$s/choose.$st.K$K" summary.json "$FILLGS" finetune --model "$OUT/s$s/backbone/model.ply" "${TRAIN_DS[@]}" --train-cameras $TRAIN \
-            --seed "$s" --out "$OUT/s$s/choose.$st.K$K" --iterations 1 --select-every 1 --pool-cameras $POOL --pool-budget "$K" --strategy "$st" \
-            --weighting none --quiet
-        fi
-        scratch "$s" "scratch.$st.K$K" $TRAIN --camera-times "$OUT/s$s/choose.$st.K$K/pool_chosen.json"
-      done
+      for st in "${STRATEGIES[@]}"; do run_job strategy_row "$s" "$st" "$K"; done
+      wait_jobs
     done
   done
 fi

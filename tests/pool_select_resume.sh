@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # bench/pool_select.sh resumed from the records git keeps (its .gitignore): on a finished smoke
-# folder, every model removed and one strategy's two steps deleted, the script trains the
-# seed's backbone again, checks it against model.sha256 and reruns the two steps to the same
-# choice and the same metrics; a backbone that comes out otherwise (a changed model.sha256) stops it.
+# folder, every model removed and two strategies' steps deleted, the script trains the seed's
+# backbone again, checks it against model.sha256 and reruns the steps (--jobs 2: both
+# strategies at once, a core each) to the same choices and the same metrics; a backbone that comes out otherwise (a changed model.sha256) stops it.
 # The smoke folder was made with FILLGS_INSTRUCTION_SET=sse4 (CTest), and this resumes it without:
 # the script must read SSE4 from the records and hold fillgs to it; held to the CPU's widest
 # instead, the backbone trained again is another model and is refused.
@@ -12,16 +12,18 @@ out=$1 fillgs=$2 script=$3
 unset FILLGS_INSTRUCTION_SET
 test -f "$out/results.md"
 grep -q '^cpu .*, sse4 (a CPU with .*, held to sse4 by FILLGS_INSTRUCTION_SET)$' "$out/s1/backbone/step.txt"
-row=(choose.random.K2/pool_chosen.json scratch.random.K2/eval_near/metrics.json scratch.random.K2/eval_far/metrics.json)
+row=(choose.random.K2/pool_chosen.json scratch.random.K2/eval_near/metrics.json scratch.random.K2/eval_far/metrics.json
+  choose.negative.K2/pool_chosen.json scratch.negative.K2/eval_near/metrics.json scratch.negative.K2/eval_far/metrics.json)
 rm -rf "$out/before" && mkdir -p "$out/before"
 cp "$out/s1/backbone/model.sha256" "$out/before/model.sha256"
 for f in "${row[@]}"; do cp "$out/s1/$f" "$out/before/${f//\//_}"; done
-forget() {  # what a fresh checkout lacks: every model, and one strategy's steps
+forget() {  # what a fresh checkout lacks: every model, and two strategies' steps
   find "$out/s1" -name '*.ply' -delete
-  rm -rf "$out/s1/choose.random.K2" "$out/s1/scratch.random.K2"
+  rm -rf "$out/s1/choose.random.K2" "$out/s1/scratch.random.K2" "$out/s1/choose.negative.K2" "$out/s1/scratch.negative.K2"
 }
 forget
-FILLGS=$fillgs bash "$script" --smoke "$out" >/dev/null 2>"$out/resume.err"
+# Resumed two jobs at a time, each on a core of its own: the same choices and metrics.
+FILLGS=$fillgs bash "$script" --smoke --jobs 2 "$out" >/dev/null 2>"$out/resume.err"
 grep -q "s1/backbone/step.txt ran on sse4 and this CPU has .*: every step runs with FILLGS_INSTRUCTION_SET=sse4" "$out/resume.err"
 grep -q "s1/backbone/model.ply is not here (git keeps the records, not the models): training it again" "$out/resume.err"
 test -s "$out/s1/scratch.random.K2/model.ply"
