@@ -19,7 +19,9 @@
 #endif
 #include <catch2/catch.hpp>
 
+#include <cstdint>
 #include <cstdlib>
+#include <cstring>
 #include <unistd.h>
 #include <filesystem>
 #include <fstream>
@@ -32,6 +34,7 @@
 #include <tbb/task_arena.h>
 
 #include "fillgs/base/error.hpp"
+#include "fillgs/base/instruction_set.hpp"
 
 #include "fillgs/model/camera.hpp"
 #include "fillgs/base/fs_util.hpp"
@@ -156,6 +159,34 @@ inline GaussianCloud preprocess_extremes(std::vector<Camera>* cams) {
     c.rotations[size_t(i)] = i % 5 == 0 ? q : Vec4f(q.normalized());
   }
   return c;
+}
+
+/// f(set) once per instruction set the vector kernels can be held to (the native width, AVX2,
+/// SSE4; one this CPU lacks is skipped with a warning), then back to the native width.
+template <class F>
+void for_each_instruction_set(F&& f) {
+  for (const char* set : {"native", "avx2", "sse4"}) {
+    try {
+      limit_instruction_set(set, "test");
+    } catch (const Error& e) {
+      WARN("skipped " << set << ": " << e.what());
+      continue;
+    }
+    f(set);
+  }
+  limit_instruction_set("native", "test");
+}
+
+/// A number's bits, to compare two computations bit for bit (-0 and +0, NaNs, apart).
+inline uint64_t bits_of(double x) {
+  uint64_t b;
+  std::memcpy(&b, &x, sizeof b);
+  return b;
+}
+inline uint32_t bits_of(float x) {
+  uint32_t b;
+  std::memcpy(&b, &x, sizeof b);
+  return b;
 }
 
 inline SynthScene small_synth(int frames, int width, int height, double spacing = 0.02) {

@@ -160,7 +160,7 @@ TEST_CASE("a trained model read as a scene gives PyTorch's values at its frames 
     const Expect e = read_expect(dir);
     SceneReadOptions o = options_for(name);
     // No tolerance: every Gaussian that changes at all moves (the still rule has its own test).
-    o.still = {0, 0, 0, 0, 0, 1000};
+    o.still = {0, 0, 0, 0, 0, 1000, 0.5f, {}};
     const GaussianCloud c = read_scene(dir, o);
     const bool streamed = c.motion == MotionModel::Evaluated;
     CHECK(streamed == (name != "dynamic3dgs" && name != "ply_frames"));
@@ -484,7 +484,7 @@ TEST_CASE("streamed observation tables equal those of keys at every frame, byte 
   for (const std::string name : {"ed3dgs", "4dgaussians", "deformable3dgs"}) {
     const std::string dir = fixtures() + "/" + name;
     SceneReadOptions streamed = options_for(name);
-    streamed.still = {0, 0, 0, 0, 0, 1000};
+    streamed.still = {0, 0, 0, 0, 0, 1000, 0.5f, {}};
     SceneReadOptions keys = streamed;
     keys.model_evaluation = ModelEvaluation::Keys;
     keys.partition.static_speed_threshold = 0;

@@ -531,19 +531,12 @@ TEST_CASE("the vector frustum rule decides as the scalar 3DGS preprocess on ever
     CHECK(c.size() - e.size() > 1000);  // dropped, both many
     expected.push_back(e);
   }
-  for (const char* set : {"native", "avx2", "sse4"}) {
-    try {
-      limit_instruction_set(set, "test");
-    } catch (const Error& e) {
-      WARN("skipped " << set << ": " << e.what());
-      continue;
-    }
+  for_each_instruction_set([&](const char* set) {
     for (size_t k = 0; k < cams.size(); ++k) {
       INFO(set << " (" << kernel_instruction_set() << "), camera " << k);
       CHECK(engine.visible_set(cams[k]) == expected[k]);
     }
-  }
-  limit_instruction_set("native", "test");
+  });
 }
 
 // ---------------------------------------------------------------------------------

@@ -110,9 +110,12 @@ HWY_INLINE bool ProjectLanes(const FrustumCamera& cam, double (*buf)[hn::MaxLane
   return true;
 }
 
-/// Appends to `out` the ids among rows [begin, end) (ids[i], or i without ids) that the rule keeps.
-void FrustumKeep(const FrustumCamera& cam, const float* means, const float* scales, const float* rotations, const uint32_t* ids, size_t begin,
-                 size_t end, std::vector<uint32_t>* out) {
+/// visit(o, kept, lane_id, n) for each block of rows [begin, end) (ids[i], or i without ids)
+/// where the rule keeps some lane: o its lanes' values, kept their mask's bits, lane_id their
+/// rows, n the rows of the block.
+template <class Visit>
+HWY_INLINE void ForEachKeptBlock(const FrustumCamera& cam, const float* means, const float* scales, const float* rotations,
+                                 const uint32_t* ids, size_t begin, size_t end, Visit&& visit) {
   const DD d;
   const size_t L = hn::Lanes(d);
   HWY_ALIGN double buf[10][hn::MaxLanes(d)];
@@ -124,9 +127,18 @@ void FrustumKeep(const FrustumCamera& cam, const float* means, const float* scal
     if (!ProjectLanes(cam, buf, &o) || hn::AllFalse(d, o.keep)) continue;
     HWY_ALIGN uint8_t kept[hn::MaxLanes(d) * 8];
     hn::StoreMaskBits(d, o.keep, kept);
+    visit(o, kept, lane_id, n);
+  }
+}
+
+/// Appends to `out` the ids among rows [begin, end) (ids[i], or i without ids) that the rule keeps.
+void FrustumKeep(const FrustumCamera& cam, const float* means, const float* scales, const float* rotations, const uint32_t* ids, size_t begin,
+                 size_t end, std::vector<uint32_t>* out) {
+  auto append = [&](const ProjectedLanes&, const uint8_t* kept, const uint32_t* lane_id, size_t n) {
     for (size_t k = 0; k < n; ++k)
       if ((kept[k / 8] >> (k % 8)) & 1) out->push_back(lane_id[k]);
-  }
+  };
+  ForEachKeptBlock(cam, means, scales, rotations, ids, begin, end, append);
 }
 
 /// project_splat and splat_footprint for rows [begin, end): for each kept row g, exact[g],
@@ -134,22 +146,11 @@ void FrustumKeep(const FrustumCamera& cam, const float* means, const float* scal
 void ProjectRows(const FrustumCamera& cam, const float* means, const float* scales, const float* rotations, size_t begin, size_t end,
                  SplatProjection<double>* exact, ProjectedGaussian* projected, int* radii) {
   const DD d;
-  const size_t L = hn::Lanes(d);
-  HWY_ALIGN double buf[10][hn::MaxLanes(d)];
-  HWY_ALIGN double out[13][hn::MaxLanes(d)];
-  uint32_t lane_id[hn::MaxLanes(d)];
-  for (size_t i = begin; i < end; i += L) {
-    const size_t n = std::min(L, end - i);
-    GatherRows(means, scales, rotations, nullptr, i, n, L, buf, lane_id);
-    ProjectedLanes o;
-    if (!ProjectLanes(cam, buf, &o) || hn::AllFalse(d, o.keep)) continue;
-    HWY_ALIGN uint8_t kept[hn::MaxLanes(d) * 8];
-    hn::StoreMaskBits(d, o.keep, kept);
+  auto write = [&](const ProjectedLanes& o, const uint8_t* kept, const uint32_t* lane_id, size_t n) {
     const VD conic_a = hn::Div(o.c, o.det), conic_b = hn::Div(hn::Neg(o.b), o.det), conic_c = hn::Div(o.a, o.det);
-    const VD fields[13] = {o.u, o.v, o.a, o.b, o.c, conic_a, conic_b, conic_c, o.z, o.radius, o.min_x, o.min_y, o.max_x};
-    for (int f = 0; f < 13; ++f) hn::Store(fields[f], d, out[f]);
-    HWY_ALIGN double max_y[hn::MaxLanes(d)];
-    hn::Store(o.max_y, d, max_y);
+    const VD fields[14] = {o.u, o.v, o.a, o.b, o.c, conic_a, conic_b, conic_c, o.z, o.radius, o.min_x, o.min_y, o.max_x, o.max_y};
+    HWY_ALIGN double out[14][hn::MaxLanes(d)];
+    for (int f = 0; f < 14; ++f) hn::Store(fields[f], d, out[f]);
     for (size_t k = 0; k < n; ++k) {
       if (!((kept[k / 8] >> (k % 8)) & 1)) continue;
       const size_t g = lane_id[k];
@@ -165,10 +166,11 @@ void ProjectRows(const FrustumCamera& cam, const float* means, const float* scal
       p.depth = float(e.depth);
       p.radius = int(out[9][k]);
       p.rect_min[0] = int(out[10][k]), p.rect_min[1] = int(out[11][k]);
-      p.rect_max[0] = int(out[12][k]), p.rect_max[1] = int(max_y[k]);
+      p.rect_max[0] = int(out[12][k]), p.rect_max[1] = int(out[13][k]);
       radii[g] = p.radius;
     }
-  }
+  };
+  ForEachKeptBlock(cam, means, scales, rotations, nullptr, begin, end, write);
 }
 
 }  // namespace HWY_NAMESPACE
