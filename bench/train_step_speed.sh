@@ -84,7 +84,7 @@ for build in before after; do
   echo "train_step_speed: $build: ${run[*]}" >&2
   t0=$(date +%s.%N)
   (cd "$root" && /usr/bin/time -f '%M' -o "$scratch/$build.rss" "${run[@]}" >/dev/null)
-  seconds[$build]=$(echo "$(date +%s.%N) - $t0" | bc)
+  seconds[$build]=$(awk -v a="$(date +%s.%N)" -v b="$t0" 'BEGIN { printf "%.3f", a - b }')
   peak[$build]=$(tail -1 "$scratch/$build.rss")
 done
 hash() { sha256sum "$1" | cut -c1-16; }
@@ -116,7 +116,7 @@ print("yes" if a == b else "no: " + ", ".join(k for k in sorted(set(a) | set(b))
     cmp -s "$root/$step_dir/eval_near/metrics.json" "$scratch/eval_near/metrics.json" && near=yes
   fi
 fi
-ratio=$(printf '%.3f' "$(echo "scale=6; ${seconds[after]} / ${seconds[before]}" | bc)")
+ratio=$(awk -v a="${seconds[after]}" -v b="${seconds[before]}" 'BEGIN { printf "%.3f", a / b }')
 {
   echo "## A benchmark step's training, the earlier build against this one"
   echo
