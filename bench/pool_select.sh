@@ -337,7 +337,7 @@ run_job() {  # runs "$@" (a function of this script) now, or with --jobs in the 
     return
   fi
   [ ${#JOB_SLOT[@]} -lt "$JOBS" ] || wait_job
-  local core used
+  local core used c
   for ((core = 0; ; ++core)); do
     used=0
     for c in "${JOB_SLOT[@]}"; do [ "$c" = "$core" ] && used=1; done

@@ -122,7 +122,7 @@ ratio=$(awk -v a="${seconds[after]}" -v b="${seconds[before]}" 'BEGIN { printf "
   echo
   echo "step: \`${step_dir}\` ($(grep -c . "$root/$step_dir/command.txt") arguments; draws per view: ${draws:-as recorded})"
   echo "machine: $(cpu_line); commit $(git -C "$root_here" rev-parse --short HEAD 2>/dev/null || echo unknown); $(date -u +%Y-%m-%d)"
-  echo "earlier build: $before (commit $(git -C "$(dirname "$before")" rev-parse --short HEAD 2>/dev/null || echo unknown))"
+  echo "earlier build: the \`fillgs\` of a build of commit $(git -C "$(dirname "$before")" rev-parse --short HEAD 2>/dev/null || echo unknown)"
   echo
   echo "| build | seconds | peak MB | model.ply sha256 (first 16) |"
   echo "|---|---|---|---|"

@@ -478,7 +478,7 @@ TEST_CASE("the projection's backward written out, and on lanes, gives the Eigen 
   }
   auto bits = [](double x) { return bits_of(x); };
   for (size_t k = 0; k < cams.size(); ++k) {
-    const internal::BackwardCamera bc(cams[k]);
+    const internal::FrustumCamera bc(cams[k]);
     std::vector<double> expected(N * 10, 0.0);
     size_t used = 0, mismatched = 0;
     for (size_t i = 0; i < N; ++i) {

@@ -101,11 +101,11 @@ std::vector<uint32_t> iota_ids(size_t n, uint32_t first) {
 
 GaussianCloud read_standard_vertex(const PlyElement& v) {
   GaussianCloud c;
-  c.sh_degree = sh_degree_of(v, "f_rest_");
-  c.resize(v.count);
-  const auto ids = iota_ids(v.count);
-  read_base(v, c, ids);
-  read_sh(v, "f_dc_", "f_rest_", c, ids);
+  size_t saturated = 0;
+  const PlyElementSink sink = standard_vertex_sink(c, saturated);
+  sink.start(PlyData{}, v);
+  sink.take(v);  // the whole element as one block
+  note_saturated(c, saturated, v.source);
   return c;
 }
 

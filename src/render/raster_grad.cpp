@@ -385,7 +385,7 @@ void DiffRasterizer<Real>::backward(const Real* dL_dimage, const Real* dL_dfeatu
   std::vector<double> projection_grads;
   if constexpr (std::is_same_v<Real, float>) {
     projection_grads.resize(V * 10);
-    const internal::BackwardCamera bc(camera_);
+    const internal::FrustumCamera bc(camera_);
     const internal::BackwardRowsInput in{visible_.data(), G.means.data(), G.scales.data(), G.rotations.data(), sums.data(), R};
     tbb::parallel_for(tbb::blocked_range<size_t>(0, V, 512), [&](const tbb::blocked_range<size_t>& r) {
       internal::project_backward_rows(bc, in, r.begin(), r.end(), projection_grads.data());

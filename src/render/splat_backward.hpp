@@ -8,24 +8,9 @@
 // compiled without fused multiply-adds) and the overloads neg(a), less(a, b) (a mask),
 // pick(mask, a, b) (a where the mask holds), both(m1, m2) and either(m1, m2); double's are
 // below.
-#include "fillgs/model/camera.hpp"
-#include "fillgs/render/raster.hpp"
+#include "render/frustum.hpp"
 
 namespace fillgs::internal {
-
-/// The camera's numbers as the backward reads them.
-struct BackwardCamera {
-  explicit BackwardCamera(const Camera& c) {
-    for (int r = 0; r < 3; ++r) {
-      for (int k = 0; k < 3; ++k) W[r][k] = c.R(r, k);
-      t[r] = c.t[r];
-    }
-    fx = c.fx, fy = c.fy;
-    limx = 1.3 * (c.width / (2.0 * c.fx));
-    limy = 1.3 * (c.height / (2.0 * c.fy));
-  }
-  double W[3][3], t[3], fx, fy, limx, limy;
-};
 
 inline double neg(double a) { return -a; }
 inline bool less(double a, double b) { return a < b; }

@@ -16,10 +16,11 @@ V sum3_row(int row, V a0, V a1, V a2) {
   return row < 2 ? (a0 + a1) + a2 : a0 + (a1 + a2);
 }
 
-/// Adds to gm, gs, gq (mean, scale, rotation) what project_splat_backward adds, where `live`
-/// holds and the projection is defined (p.z > near, det > 0); *used says where it was.
+/// Adds to gm, gs, gq (mean, scale, rotation) what project_splat_backward adds; *used says
+/// where the projection is defined (p.z > near, det > 0), the only places it adds anything
+/// (elsewhere the caller discards these values). `set` makes a V of a double.
 template <typename V, typename M, typename S>
-void splat_backward_math(const BackwardCamera& cam, const V mean[3], const V scale[3], const V rot[4], V dL_du, V dL_dv,
+void splat_backward_math(const FrustumCamera& cam, const V mean[3], const V scale[3], const V rot[4], V dL_du, V dL_dv,
                          const V gconic[3], V gm[3], V gs[3], V gq[4], M* used, S set) {
   V W[3][3];
   for (int r = 0; r < 3; ++r)
@@ -27,7 +28,7 @@ void splat_backward_math(const BackwardCamera& cam, const V mean[3], const V sca
   V p[3];
   for (int r = 0; r < 3; ++r) p[r] = sum3_row(r, W[r][0] * mean[0], W[r][1] * mean[1], W[r][2] * mean[2]) + set(cam.t[r]);
   const V zero = set(0.0), one = set(1.0), two = set(2.0);
-  M ok = less(set(double(kNearPlane)), p[2]);
+  M ok = less(set(cam.near), p[2]);
   const V w = rot[0], x = rot[1], y = rot[2], z = rot[3];
   const V Rg[3][3] = {{one - two * (y * y + z * z), two * (x * y - w * z), two * (x * z + w * y)},
                       {two * (x * y + w * z), one - two * (x * x + z * z), two * (y * z - w * x)},
@@ -52,7 +53,7 @@ void splat_backward_math(const BackwardCamera& cam, const V mean[3], const V sca
   V TC[2][3];
   for (int r = 0; r < 2; ++r)
     for (int c = 0; c < 3; ++c) TC[r][c] = sum3_seq(T[r][0] * cov3[0][c], T[r][1] * cov3[1][c], T[r][2] * cov3[2][c]);
-  const V dil = set(double(kDilation));
+  const V dil = set(cam.dilation);
   const V a = sum3_seq(TC[0][0] * T[0][0], TC[0][1] * T[0][1], TC[0][2] * T[0][2]) + dil;
   const V b = sum3_seq(TC[0][0] * T[1][0], TC[0][1] * T[1][1], TC[0][2] * T[1][2]);
   const V c = sum3_seq(TC[1][0] * T[1][0], TC[1][1] * T[1][1], TC[1][2] * T[1][2]) + dil;

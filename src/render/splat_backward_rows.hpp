@@ -21,6 +21,6 @@ struct BackwardRowsInput {
 
 /// For rows i in [begin, end): out[i·10 …] = dL/dmean (3), dL/dscale (3), dL/drotation (4), in
 /// double, as project_splat_backward<double> adds them to zeros (0 where it adds nothing).
-void project_backward_rows(const BackwardCamera& cam, const BackwardRowsInput& in, size_t begin, size_t end, double* out);
+void project_backward_rows(const FrustumCamera& cam, const BackwardRowsInput& in, size_t begin, size_t end, double* out);
 
 }  // namespace fillgs::internal

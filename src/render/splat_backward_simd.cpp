@@ -38,7 +38,7 @@ HWY_INLINE LaneMask either(LaneMask a, LaneMask b) { return {hn::Or(a.m, b.m)}; 
 // This target's copy of the math (the namespace's own overloads above serve Lanes).
 #include "render/splat_backward_math.inl"
 
-void BackwardRows(const BackwardCamera& cam, const BackwardRowsInput& in, size_t begin, size_t end, double* out) {
+void BackwardRows(const FrustumCamera& cam, const BackwardRowsInput& in, size_t begin, size_t end, double* out) {
   const DD d;
   const size_t L = hn::Lanes(d);
   HWY_ALIGN double buf[15][hn::MaxLanes(d)];
@@ -80,7 +80,7 @@ namespace fillgs::internal {
 
 HWY_EXPORT(BackwardRows);
 
-void project_backward_rows(const BackwardCamera& cam, const BackwardRowsInput& in, size_t begin, size_t end, double* out) {
+void project_backward_rows(const FrustumCamera& cam, const BackwardRowsInput& in, size_t begin, size_t end, double* out) {
   HWY_DYNAMIC_DISPATCH(BackwardRows)(cam, in, begin, end, out);
 }
 

@@ -827,12 +827,7 @@ void Trainer::adam_step() {
   train::AdamStep dc = step, rest = step;
   dc.a = float(options_.feature_lr / c1), rest.a = float(options_.feature_lr / 20.0 / c1);
   auto update_sh = [&](std::vector<float>& x, const std::vector<float>& g, std::vector<float>& m, std::vector<float>& v) {
-    if (block == 3) {  // degree 0: every value is a DC value
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, x.size(), 16384), [&](const tbb::blocked_range<size_t>& r) {
-        train::adam_update(dc, x.data() + r.begin(), g.data() + r.begin(), m.data() + r.begin(), v.data() + r.begin(), r.size());
-      });
-      return;
-    }
+    if (block == 3) return update(x, g, m, v, options_.feature_lr);  // degree 0: every value is a DC value
     tbb::parallel_for(tbb::blocked_range<size_t>(0, x.size() / block, 2048), [&](const tbb::blocked_range<size_t>& r) {
       for (size_t row = r.begin(); row < r.end(); ++row) {
         const size_t o = row * block;
