@@ -10,10 +10,14 @@
 #              Gaussians written as a fillgs 4D PLY; wall time and peak memory (GNU time);
 #   still      `fillgs info --still-sweep S --still-recheck R`: still Gaussians, rechecked ones
 #              and seconds, for sweeps of 10, 30 and F frames alone and 30 with rechecks;
-#   few        `observe --frames 4` streamed, against all frames.
+#   few        `observe --frames 4` streamed, against all frames;
+#   before     with --before BIN: the streamed frustum piece by BIN/fillgs (an earlier build)
+#              in the same run.
+# The streamed frustum pieces are also set against the network alone: N x F Gaussian-frames at
+# the dense kernel's rate measured by the networks piece.
 # Writes OUT/results.md (tables with provenance) from the pieces' files.
 #
-#   bench/trained_models_scale.sh [--gaussians N] [--frames F] [--formats A,B] [--smoke] [--report-only] OUT
+#   bench/trained_models_scale.sh [--gaussians N] [--frames F] [--formats A,B] [--before BIN] [--smoke] [--report-only] OUT
 #
 # --report-only: results.md from the pieces there, pieces not run shown as "-".
 # --streamed-frustum-only: networks, frustum streamed and --frames 4 only (sizes whose keys
@@ -28,17 +32,19 @@ frames=300
 formats=e-d3dgs,4dgaussians,e-d3dgs-still
 report_only=0
 streamed_only=0
+before=
 out=
 while [ $# -gt 0 ]; do
   case "$1" in
     --bin) bin="$2"; shift 2 ;;
+    --before) before="$(cd "$2" && pwd)"; shift 2 ;;
     --gaussians) gaussians="$2"; shift 2 ;;
     --frames) frames="$2"; shift 2 ;;
     --formats) formats="$2"; shift 2 ;;
     --smoke) gaussians=300; frames=6; shift ;;
     --report-only) report_only=1; shift ;;
     --streamed-frustum-only) streamed_only=1; shift ;;
-    -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,28p' "$0"; exit 0 ;;
     -*) echo "bench/trained_models_scale.sh: unknown option $1" >&2; exit 2 ;;
     *) out="$1"; shift ;;
   esac
@@ -58,14 +64,14 @@ fi
 ran() { echo "$1 $(git -C "$root" rev-parse --short HEAD 2>/dev/null || echo unknown) $(date -u +%Y-%m-%d)" >>"$out/pieces/commits.txt"; }
 flags_of() { case "$1" in 4dgaussians) echo "--model-frames $frames" ;; *) echo "" ;; esac; }
 # One observe run: its seconds and peak memory into a piece file, unless it is there.
-observe() {  # piece-name scene extra-flags...
-  local name="$1" piece="$out/pieces/$1.txt" scene="$2"; shift 2
+observe() {  # piece-name scene extra-flags... (OBSERVE_BIN: another build's folder)
+  local name="$1" piece="$out/pieces/$1.txt" scene="$2" use="${OBSERVE_BIN:-$bin}"; shift 2
   { [ -f "$piece" ] || [ "$report_only" = 1 ]; } && return 0
-  if [ "$streamed_only" = 1 ]; then case "$name" in *.frustum.streamed|*.frustum.few) ;; *) return 0 ;; esac; fi
+  if [ "$streamed_only" = 1 ]; then case "$name" in *.frustum.streamed|*.frustum.streamed-before|*.frustum.few) ;; *) return 0 ;; esac; fi
   echo "  $name ..."
   local tmp="$out/pieces/$name.run"
   rm -rf "$tmp"
-  /usr/bin/time -f "%e %M" -o "$tmp.time" "$bin/fillgs" observe --quiet --scene "$scene" --cameras "$out/pieces/cameras.json" --no-plots --out "$tmp" "$@" >/dev/null
+  /usr/bin/time -f "%e %M" -o "$tmp.time" "$use/fillgs" observe --quiet --scene "$scene" --cameras "$out/pieces/cameras.json" --no-plots --out "$tmp" "$@" >/dev/null
   read -r secs kb <"$tmp.time"
   local moving; moving=$("$python" -c 'import json,sys; j=json.load(open(sys.argv[1])); print(j["dynamic"])' "$tmp/summary.json" 2>/dev/null || echo "")
   echo "$secs $kb $moving" >"$piece.part" && mv "$piece.part" "$piece" && ran "$name"
@@ -90,6 +96,7 @@ make_ply() {  # the same Gaussians as a fillgs 4D PLY (a key at every frame)
 # shellcheck disable=SC2046  # the flags are words
 for fmt in "${fmts[@]}"; do
   observe "$fmt.frustum.streamed" "$models/$fmt" --mode frustum $(flags_of "$fmt")
+  [ -n "$before" ] && OBSERVE_BIN="$before" observe "$fmt.frustum.streamed-before" "$models/$fmt" --mode frustum $(flags_of "$fmt")
   observe "$fmt.frustum.fillgs-ply" "$(make_ply "$fmt")" --mode frustum --frames "$frames"
 done
 # The still rule (--still-sweep S, --still-recheck R): how many Gaussians it finds still, how
@@ -151,6 +158,18 @@ machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -
     done
     read -r s k m < <(piece "$fmt.frustum.few")
     echo "| $fmt | frustum | streamed, \`--frames 4\` | $m | $s | $(mb "$k") | | |"
+  done
+  echo
+  echo "Streamed frustum \`observe\` against its network alone ($gaussians × $frames Gaussian-frames at the dense kernel's rate above)$([ -n "$before" ] && echo "; \"before\": the same piece by an earlier build ($(git -C "$before/../.." rev-parse --short HEAD 2>/dev/null || echo "another build")) in the same run"):"
+  echo
+  echo "| model | network alone (s) | observe (s) | observe / network | before: observe (s) | before / network |"
+  echo "|---|---|---|---|---|---|"
+  for fmt in "${fmts[@]}"; do
+    rate=$(awk -F'|' -v f="$fmt" '$2 ~ "^ *"f" *$" {gsub(/ /, "", $6); print $6}' "$out/pieces/networks.md" 2>/dev/null | head -1)
+    alone=$( [ -n "$rate" ] && awk "BEGIN{printf \"%.4g\", $gaussians * $frames / $rate}" || echo -)
+    read -r s _ _ < <(piece "$fmt.frustum.streamed")
+    read -r sb _ _ < <(piece "$fmt.frustum.streamed-before")
+    echo "| $fmt | $alone | $s | $(ratio "$s" "$alone") | $sb | $(ratio "$sb" "$alone") |"
   done
   echo
   echo "The still rule (\`fillgs info --still-sweep S --still-recheck R\`: reading, the sweep, the recheck, the training keys' choice):"

@@ -131,6 +131,42 @@ void check_model(const std::string& name) {
 
 }  // namespace
 
+TEST_CASE("a network's state is checked in parallel blocks, and the first Gaussian that is not finite is the one named", "[trained-models]") {
+  // 100,003 rows of degree 1 (25 blocks of the check), finite but for the values planted
+  // below; a serial scan is the reference.
+  ModelState s;
+  s.sh_degree = 1;
+  const size_t n = 100003;
+  s.means.assign(n, Vec3f(1, 2, 3));
+  s.log_scales.assign(n, Vec3f(-1, -1, -1));
+  s.rotations.assign(n, Vec4f(1, 0, 0, 0));
+  s.opacity_logits.assign(n, 0.5f);
+  s.sh.assign(n * 12, 0.25f);
+  auto serial = [&] {
+    for (size_t i = 0; i < n; ++i) {
+      bool ok = s.means[i].allFinite() && s.log_scales[i].allFinite() && s.rotations[i].allFinite() && std::isfinite(s.opacity_logits[i]) &&
+                (s.opacity_factor.empty() || std::isfinite(s.opacity_factor[i]));
+      for (size_t q = 0; q < 12; ++q) ok = ok && std::isfinite(s.sh[i * 12 + q]);
+      if (!ok) return i;
+    }
+    return n;
+  };
+  CHECK(first_not_finite(s) == n);
+  s.sh[99000 * 12 + 11] = INFINITY;  // the last coefficient of a late row
+  CHECK(first_not_finite(s) == 99000);
+  s.rotations[70001][3] = NAN;
+  CHECK(first_not_finite(s) == 70001);
+  s.opacity_factor.assign(n, 1.0f);
+  s.opacity_factor[4096] = -INFINITY;  // the first row of the second block
+  CHECK(first_not_finite(s) == 4096);
+  CHECK(serial() == 4096);
+  s.means[4095][0] = NAN;  // the last row of the first block
+  CHECK(first_not_finite(s) == 4095);
+  CHECK(serial() == 4095);
+  s.log_scales[0][2] = INFINITY;
+  CHECK(first_not_finite(s) == 0);
+}
+
 TEST_CASE("E-D3DGS: positions, scales, rotations, opacities, SH equal PyTorch's at frames and between", "[trained-models]") {
   check_model("ed3dgs");        // coarse embedding at min_embeddings, fine at the full table, opacity deformed
   check_model("ed3dgs_early");  // mid coarse-to-fine (12 of 20 rows), annealing at half strength

@@ -13,6 +13,7 @@
 #include "fillgs/base/error.hpp"
 #include "fillgs/base/instruction_set.hpp"
 #include "helpers.hpp"
+#include "render/frustum.hpp"
 
 using namespace fillgs;
 using namespace fillgs::test;
@@ -531,10 +532,28 @@ TEST_CASE("the vector frustum rule decides as the scalar 3DGS preprocess on ever
     CHECK(c.size() - e.size() > 1000);  // dropped, both many
     expected.push_back(e);
   }
+  // Every camera over one reading of the rows (as observe's frames run the rule), over a
+  // listed subset in two uneven blocks, gives each camera's own answer.
+  std::vector<internal::FrustumCamera> fc;
+  for (const Camera& cam : cams) fc.emplace_back(cam);
+  std::vector<uint32_t> odd;
+  for (uint32_t g = 1; g < c.size(); g += 2) odd.push_back(g);
   for_each_instruction_set([&](const char* set) {
     for (size_t k = 0; k < cams.size(); ++k) {
       INFO(set << " (" << kernel_instruction_set() << "), camera " << k);
       CHECK(engine.visible_set(cams[k]) == expected[k]);
+    }
+    std::vector<std::vector<uint32_t>> all(cams.size());
+    const size_t split = odd.size() / 3 + 5;
+    for (const auto& [b, e] : {std::pair<size_t, size_t>{0, split}, {split, odd.size()}})
+      internal::frustum_keep(fc.data(), fc.size(), frame.means.data(), frame.scales.data(), frame.rotations.data(), odd.data(), b, e, all.data());
+    for (size_t k = 0; k < cams.size(); ++k) {
+      std::vector<uint32_t> want;
+      for (uint32_t g : expected[k])
+        if (g % 2 == 1) want.push_back(g);
+      INFO(set << ", every camera at once, camera " << k);
+      CHECK(!want.empty());
+      CHECK(all[k] == want);
     }
   });
 }

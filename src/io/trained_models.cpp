@@ -5,6 +5,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cerrno>
 #include <filesystem>
@@ -148,7 +149,17 @@ class TrainedMotion : public MotionSource {
       for (const Kept& k : kept_)
         if (k.t == f && k.rows == rows) return k.state;
     }
-    auto s = std::make_shared<ModelState>();
+    // The oldest kept evaluation makes way; where no caller holds it any more, its storage
+    // takes the new one (no fresh pages for every frame).
+    std::shared_ptr<ModelState> s;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (kept_.size() == kKept) {
+        if (kept_.front().state.use_count() == 1) s = std::move(kept_.front().state);
+        kept_.erase(kept_.begin());
+      }
+    }
+    if (!s) s = std::make_shared<ModelState>();
     evaluate_once(t, rows, *s);
     std::lock_guard<std::mutex> lock(mutex_);
     if (kept_.size() == kKept) kept_.erase(kept_.begin());
@@ -169,7 +180,7 @@ class TrainedMotion : public MotionSource {
   struct Kept {
     double t;
     std::vector<uint32_t> rows;
-    std::shared_ptr<const ModelState> state;
+    std::shared_ptr<ModelState> state;  // handed out as const
   };
   /// The frame coordinate of normalised time t: t (F - 1), a whole frame when within 1e-9 of
   /// one (f / (F - 1) times F - 1, or a time less a frame step, can miss f by an ulp).
@@ -179,13 +190,9 @@ class TrainedMotion : public MotionSource {
     return f;
   }
   void check(const ModelState& s, const std::vector<uint32_t>& rows, double mt) const {
-    const size_t row = s.size() ? s.sh.size() / s.size() : 0;
-    for (size_t i = 0; i < s.size(); ++i) {
-      bool ok = s.means[i].allFinite() && s.log_scales[i].allFinite() && s.rotations[i].allFinite() && std::isfinite(s.opacity_logits[i]) &&
-                (s.opacity_factor.empty() || std::isfinite(s.opacity_factor[i]));
-      for (size_t q = 0; ok && q < row; ++q) ok = std::isfinite(s.sh[i * row + q]);
-      if (!ok) throw_error(m_->source, ": Gaussian ", rows[i], " is not finite at model time ", mt, " (its network's output overflowed)");
-    }
+    const size_t bad = first_not_finite(s);
+    if (bad < s.size())
+      throw_error(m_->source, ": Gaussian ", rows[bad], " is not finite at model time ", mt, " (its network's output overflowed)");
   }
   std::shared_ptr<const TrainedModel> m_;
   bool reference_;
@@ -198,6 +205,25 @@ float activated_opacity(const ModelState& s, size_t i) {
 }
 
 }  // namespace
+
+size_t first_not_finite(const ModelState& s) {
+  const size_t row = s.size() ? s.sh.size() / s.size() : 0;
+  // In parallel blocks, each stopping at its first such row or at a lower one found already.
+  std::atomic<size_t> bad{s.size()};
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, s.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end() && i < bad.load(std::memory_order_relaxed); ++i) {
+      bool ok = s.means[i].allFinite() && s.log_scales[i].allFinite() && s.rotations[i].allFinite() && std::isfinite(s.opacity_logits[i]) &&
+                (s.opacity_factor.empty() || std::isfinite(s.opacity_factor[i]));
+      for (size_t q = 0; ok && q < row; ++q) ok = std::isfinite(s.sh[i * row + q]);
+      if (!ok) {
+        for (size_t seen = bad.load(); i < seen && !bad.compare_exchange_weak(seen, i);) {
+        }
+        break;
+      }
+    }
+  });
+  return bad.load();
+}
 
 std::vector<int> sweep_frames(int frames, int wanted) {
   std::vector<int> out;
@@ -251,13 +277,19 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
       if (f != 0) t.push_back(F > 1 ? double(f) / double(F - 1) : 0.0);
     return t;
   };
-  auto sweep_rows = [&](const std::vector<double>& times, const std::vector<uint32_t>& rows) {
+  // The rows at each time against frame 0. A row past a tolerance is moving whatever the later
+  // times hold, so each time evaluates only the rows still within every tolerance: a model
+  // whose Gaussians all move costs the sweep about one frame, not its whole length.
+  auto check_until_moving = [&](const std::vector<double>& times, std::vector<uint32_t> pending) {
     for (const double t : times) {
-      ModelState s;
-      motion->evaluate_once(t, rows, s);
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, rows.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-        for (size_t j = r.begin(); j < r.end(); ++j) departure[rows[j]] = std::max(departure[rows[j]], depart(s, j, rows[j]));
-      });
+      if (!pending.empty()) {
+        ModelState s;
+        motion->evaluate_once(t, pending, s);
+        tbb::parallel_for(tbb::blocked_range<size_t>(0, pending.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
+          for (size_t j = r.begin(); j < r.end(); ++j) departure[pending[j]] = std::max(departure[pending[j]], depart(s, j, pending[j]));
+        });
+        pending.erase(std::remove_if(pending.begin(), pending.end(), [&](uint32_t g) { return departure[g] > 1.0f; }), pending.end());
+      }
       progress.advance();
     }
   };
@@ -267,8 +299,11 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
   if (lived.size() == N)
     for (size_t i = 0; i < N; ++i) departure[i] = std::max(departure[i], share(lived[i], rule.opacity));
   const std::vector<double> swept = by_job ? job_times : frame_times(sweep);
+  std::vector<uint32_t> within;
+  for (size_t i = 0; i < N; ++i)
+    if (departure[i] <= 1.0f) within.push_back(uint32_t(i));
   progress.start("still rule", swept.size());
-  sweep_rows(swept, all);
+  check_until_moving(swept, std::move(within));
   progress.finish();
   // Gaussians the sweep found still but not far from a tolerance are checked at every frame:
   // a motion between the sweep's frames can exceed what its frames saw.
@@ -281,17 +316,7 @@ GaussianCloud stream_trained_model(std::shared_ptr<const TrainedModel> model, co
     for (int f = 0; f < F; ++f)
       if (!std::binary_search(sweep.begin(), sweep.end(), f)) rest.push_back(f);
     progress.start("still rule, rechecked at every frame", rest.size());
-    // A Gaussian is rechecked until it moves: past a tolerance it is moving, whatever the
-    // later frames hold, so each frame evaluates only those still within every tolerance.
-    std::vector<uint32_t> pending = recheck;
-    for (const int f : rest) {
-      if (pending.empty()) {
-        progress.advance();
-        continue;
-      }
-      sweep_rows(frame_times({f}), pending);
-      pending.erase(std::remove_if(pending.begin(), pending.end(), [&](uint32_t g) { return departure[g] > 1.0f; }), pending.end());
-    }
+    check_until_moving(frame_times(rest), recheck);
     progress.finish();
   }
   std::vector<char> moving(N, 0);

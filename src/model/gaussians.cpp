@@ -284,24 +284,30 @@ void write_static(const GaussianCloud& c, FrameGaussians& f, size_t g) {
 
 ModelState ModelState::rows(const std::vector<uint32_t>& r) const {
   ModelState o;
+  rows_into(r, o);
+  return o;
+}
+
+void ModelState::rows_into(const std::vector<uint32_t>& r, ModelState& o) const {
   o.sh_degree = sh_degree;
   const size_t row = size_t(sh_degree + 1) * size_t(sh_degree + 1) * 3;
   o.means.resize(r.size());
   o.log_scales.resize(r.size());
   o.rotations.resize(r.size());
   o.opacity_logits.resize(r.size());
-  if (!opacity_factor.empty()) o.opacity_factor.resize(r.size());
+  o.opacity_factor.resize(opacity_factor.empty() ? 0 : r.size());
   o.sh.resize(r.size() * row);
-  for (size_t i = 0; i < r.size(); ++i) {
-    const size_t g = r[i];
-    o.means[i] = means[g];
-    o.log_scales[i] = log_scales[g];
-    o.rotations[i] = rotations[g];
-    o.opacity_logits[i] = opacity_logits[g];
-    if (!opacity_factor.empty()) o.opacity_factor[i] = opacity_factor[g];
-    std::copy_n(&sh[g * row], row, &o.sh[i * row]);
-  }
-  return o;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, r.size(), 4096), [&](const tbb::blocked_range<size_t>& b) {
+    for (size_t i = b.begin(); i < b.end(); ++i) {
+      const size_t g = r[i];
+      o.means[i] = means[g];
+      o.log_scales[i] = log_scales[g];
+      o.rotations[i] = rotations[g];
+      o.opacity_logits[i] = opacity_logits[g];
+      if (!opacity_factor.empty()) o.opacity_factor[i] = opacity_factor[g];
+      std::copy_n(&sh[g * row], row, &o.sh[i * row]);
+    }
+  });
 }
 
 FrameSampler::FrameSampler(const GaussianCloud& cloud) : cloud_(cloud) {

@@ -20,10 +20,11 @@ struct FrustumCamera {
   double near = double(kNearPlane), dilation = double(kDilation), tile = double(kTileSize), huge = kHugeCoordinate;
 };
 
-/// Appends to `out`, in order, the ids among rows [begin, end) of `ids` (or the rows
-/// themselves where `ids` is null) that project_gaussian keeps for this camera.
-void frustum_keep(const FrustumCamera& cam, const Vec3f* means, const Vec3f* scales, const Vec4f* rotations, const uint32_t* ids, size_t begin,
-                  size_t end, std::vector<uint32_t>* out);
+/// Appends to outs[c], in order, the ids among rows [begin, end) of `ids` (or the rows
+/// themselves where `ids` is null) that project_gaussian keeps for camera cams[c], c < ncams;
+/// each lane of rows is read once for all the cameras.
+void frustum_keep(const FrustumCamera* cams, size_t ncams, const Vec3f* means, const Vec3f* scales, const Vec4f* rotations, const uint32_t* ids,
+                  size_t begin, size_t end, std::vector<uint32_t>* outs);
 
 /// project_splat<double> and splat_footprint for rows [begin, end) of float arrays ([N][3],
 /// [N][3], [N][4]), a lane of rows per instruction with the scalar code's operations in its

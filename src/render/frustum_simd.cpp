@@ -43,25 +43,41 @@ HWY_INLINE void GatherRows(const float* means, const float* scales, const float*
   }
 }
 
+/// A lane of rows as every camera reads them: the means, the scales and the rotation matrix
+/// of the quaternion (the scalar code's operations in its order), made once for all cameras.
+struct RowLanes {
+  VD mx, my, mz, s[3], R[3][3];
+};
+
+HWY_INLINE void LoadRowLanes(double (*buf)[hn::MaxLanes(DD())], RowLanes* g) {
+  const DD d;
+  const VD one = hn::Set(d, 1.0), two = hn::Set(d, 2.0);
+  g->mx = hn::Load(d, buf[0]), g->my = hn::Load(d, buf[1]), g->mz = hn::Load(d, buf[2]);
+  for (int k = 0; k < 3; ++k) g->s[k] = hn::Load(d, buf[3 + k]);
+  const VD qw = hn::Load(d, buf[6]), qx = hn::Load(d, buf[7]), qy = hn::Load(d, buf[8]), qz = hn::Load(d, buf[9]);
+  g->R[0][0] = hn::Sub(one, hn::Mul(two, hn::Add(hn::Mul(qy, qy), hn::Mul(qz, qz))));
+  g->R[0][1] = hn::Mul(two, hn::Sub(hn::Mul(qx, qy), hn::Mul(qw, qz)));
+  g->R[0][2] = hn::Mul(two, hn::Add(hn::Mul(qx, qz), hn::Mul(qw, qy)));
+  g->R[1][0] = hn::Mul(two, hn::Add(hn::Mul(qx, qy), hn::Mul(qw, qz)));
+  g->R[1][1] = hn::Sub(one, hn::Mul(two, hn::Add(hn::Mul(qx, qx), hn::Mul(qz, qz))));
+  g->R[1][2] = hn::Mul(two, hn::Sub(hn::Mul(qy, qz), hn::Mul(qw, qx)));
+  g->R[2][0] = hn::Mul(two, hn::Sub(hn::Mul(qx, qz), hn::Mul(qw, qy)));
+  g->R[2][1] = hn::Mul(two, hn::Add(hn::Mul(qy, qz), hn::Mul(qw, qx)));
+  g->R[2][2] = hn::Sub(one, hn::Mul(two, hn::Add(hn::Mul(qx, qx), hn::Mul(qy, qy))));
+}
+
 /// False when no lane can be kept (the z test fails for all): the other fields are then unset.
-HWY_INLINE bool ProjectLanes(const FrustumCamera& cam, double (*buf)[hn::MaxLanes(DD())], ProjectedLanes* o) {
+HWY_INLINE bool ProjectLanes(const FrustumCamera& cam, const RowLanes& g, ProjectedLanes* o) {
   const DD d;
   using V = VD;
   auto S = [&](double x) { return hn::Set(d, x); };
-  const V zero = S(0.0), one = S(1.0), two = S(2.0);
-  const V mx = hn::Load(d, buf[0]), my = hn::Load(d, buf[1]), mz = hn::Load(d, buf[2]);
+  const V zero = S(0.0), one = S(1.0);
   V p[3];
   for (int r = 0; r < 3; ++r)
-    p[r] = hn::Add(hn::Add(hn::Add(hn::Mul(S(cam.W[r][0]), mx), hn::Mul(S(cam.W[r][1]), my)), hn::Mul(S(cam.W[r][2]), mz)), S(cam.t[r]));
+    p[r] = hn::Add(hn::Add(hn::Add(hn::Mul(S(cam.W[r][0]), g.mx), hn::Mul(S(cam.W[r][1]), g.my)), hn::Mul(S(cam.W[r][2]), g.mz)), S(cam.t[r]));
   auto keep = hn::Gt(p[2], S(cam.near));
   if (hn::AllFalse(d, keep)) return false;
-  const V qw = hn::Load(d, buf[6]), qx = hn::Load(d, buf[7]), qy = hn::Load(d, buf[8]), qz = hn::Load(d, buf[9]);
-  const V R[3][3] = {{hn::Sub(one, hn::Mul(two, hn::Add(hn::Mul(qy, qy), hn::Mul(qz, qz)))), hn::Mul(two, hn::Sub(hn::Mul(qx, qy), hn::Mul(qw, qz))),
-                      hn::Mul(two, hn::Add(hn::Mul(qx, qz), hn::Mul(qw, qy)))},
-                     {hn::Mul(two, hn::Add(hn::Mul(qx, qy), hn::Mul(qw, qz))), hn::Sub(one, hn::Mul(two, hn::Add(hn::Mul(qx, qx), hn::Mul(qz, qz)))),
-                      hn::Mul(two, hn::Sub(hn::Mul(qy, qz), hn::Mul(qw, qx)))},
-                     {hn::Mul(two, hn::Sub(hn::Mul(qx, qz), hn::Mul(qw, qy))), hn::Mul(two, hn::Add(hn::Mul(qy, qz), hn::Mul(qw, qx))),
-                      hn::Sub(one, hn::Mul(two, hn::Add(hn::Mul(qx, qx), hn::Mul(qy, qy))))}};
+  const V(&R)[3][3] = g.R;
   const V fx = S(cam.fx), fy = S(cam.fy), z = p[2];
   // std::clamp(v, lo, hi): lo where v < lo, else hi where hi < v, else v (NaN stays NaN).
   auto clamp = [&](V v, double lo, double hi) { return hn::IfThenElse(hn::Lt(v, S(lo)), S(lo), hn::IfThenElse(hn::Lt(S(hi), v), S(hi), v)); };
@@ -76,7 +92,7 @@ HWY_INLINE bool ProjectLanes(const FrustumCamera& cam, double (*buf)[hn::MaxLane
   }
   V U0[3], U1[3];
   for (int k = 0; k < 3; ++k) {
-    const V s = hn::Load(d, buf[3 + k]);
+    const V s = g.s[k];
     U0[k] = hn::Mul(hn::Add(hn::Add(hn::Mul(T0[0], R[0][k]), hn::Mul(T0[1], R[1][k])), hn::Mul(T0[2], R[2][k])), s);
     U1[k] = hn::Mul(hn::Add(hn::Add(hn::Mul(T1[0], R[0][k]), hn::Mul(T1[1], R[1][k])), hn::Mul(T1[2], R[2][k])), s);
   }
@@ -110,11 +126,12 @@ HWY_INLINE bool ProjectLanes(const FrustumCamera& cam, double (*buf)[hn::MaxLane
   return true;
 }
 
-/// visit(o, kept, lane_id, n) for each block of rows [begin, end) (ids[i], or i without ids)
-/// where the rule keeps some lane: o its lanes' values, kept their mask's bits, lane_id their
-/// rows, n the rows of the block.
+/// visit(c, o, kept, lane_id, n) for each block of rows [begin, end) (ids[i], or i without
+/// ids) and each camera c of cams[0, ncams) whose rule keeps some lane: o its lanes' values,
+/// kept their mask's bits, lane_id their rows, n the rows of the block. A block's rows are
+/// loaded once for all the cameras.
 template <class Visit>
-HWY_INLINE void ForEachKeptBlock(const FrustumCamera& cam, const float* means, const float* scales, const float* rotations,
+HWY_INLINE void ForEachKeptBlock(const FrustumCamera* cams, size_t ncams, const float* means, const float* scales, const float* rotations,
                                  const uint32_t* ids, size_t begin, size_t end, Visit&& visit) {
   const DD d;
   const size_t L = hn::Lanes(d);
@@ -123,22 +140,27 @@ HWY_INLINE void ForEachKeptBlock(const FrustumCamera& cam, const float* means, c
   for (size_t i = begin; i < end; i += L) {
     const size_t n = std::min(L, end - i);
     GatherRows(means, scales, rotations, ids, i, n, L, buf, lane_id);
-    ProjectedLanes o;
-    if (!ProjectLanes(cam, buf, &o) || hn::AllFalse(d, o.keep)) continue;
-    HWY_ALIGN uint8_t kept[hn::MaxLanes(d) * 8];
-    hn::StoreMaskBits(d, o.keep, kept);
-    visit(o, kept, lane_id, n);
+    RowLanes rows;
+    LoadRowLanes(buf, &rows);
+    for (size_t c = 0; c < ncams; ++c) {
+      ProjectedLanes o;
+      if (!ProjectLanes(cams[c], rows, &o) || hn::AllFalse(d, o.keep)) continue;
+      HWY_ALIGN uint8_t kept[hn::MaxLanes(d) * 8];
+      hn::StoreMaskBits(d, o.keep, kept);
+      visit(c, o, kept, lane_id, n);
+    }
   }
 }
 
-/// Appends to `out` the ids among rows [begin, end) (ids[i], or i without ids) that the rule keeps.
-void FrustumKeep(const FrustumCamera& cam, const float* means, const float* scales, const float* rotations, const uint32_t* ids, size_t begin,
-                 size_t end, std::vector<uint32_t>* out) {
-  auto append = [&](const ProjectedLanes&, const uint8_t* kept, const uint32_t* lane_id, size_t n) {
+/// Appends to outs[c] the ids among rows [begin, end) (ids[i], or i without ids) that the rule
+/// keeps for camera cams[c].
+void FrustumKeep(const FrustumCamera* cams, size_t ncams, const float* means, const float* scales, const float* rotations, const uint32_t* ids,
+                 size_t begin, size_t end, std::vector<uint32_t>* outs) {
+  auto append = [&](size_t c, const ProjectedLanes&, const uint8_t* kept, const uint32_t* lane_id, size_t n) {
     for (size_t k = 0; k < n; ++k)
-      if ((kept[k / 8] >> (k % 8)) & 1) out->push_back(lane_id[k]);
+      if ((kept[k / 8] >> (k % 8)) & 1) outs[c].push_back(lane_id[k]);
   };
-  ForEachKeptBlock(cam, means, scales, rotations, ids, begin, end, append);
+  ForEachKeptBlock(cams, ncams, means, scales, rotations, ids, begin, end, append);
 }
 
 /// project_splat and splat_footprint for rows [begin, end): for each kept row g, exact[g],
@@ -146,7 +168,7 @@ void FrustumKeep(const FrustumCamera& cam, const float* means, const float* scal
 void ProjectRows(const FrustumCamera& cam, const float* means, const float* scales, const float* rotations, size_t begin, size_t end,
                  SplatProjection<double>* exact, ProjectedGaussian* projected, int* radii) {
   const DD d;
-  auto write = [&](const ProjectedLanes& o, const uint8_t* kept, const uint32_t* lane_id, size_t n) {
+  auto write = [&](size_t, const ProjectedLanes& o, const uint8_t* kept, const uint32_t* lane_id, size_t n) {
     const VD conic_a = hn::Div(o.c, o.det), conic_b = hn::Div(hn::Neg(o.b), o.det), conic_c = hn::Div(o.a, o.det);
     const VD fields[14] = {o.u, o.v, o.a, o.b, o.c, conic_a, conic_b, conic_c, o.z, o.radius, o.min_x, o.min_y, o.max_x, o.max_y};
     HWY_ALIGN double out[14][hn::MaxLanes(d)];
@@ -170,7 +192,7 @@ void ProjectRows(const FrustumCamera& cam, const float* means, const float* scal
       radii[g] = p.radius;
     }
   };
-  ForEachKeptBlock(cam, means, scales, rotations, nullptr, begin, end, write);
+  ForEachKeptBlock(&cam, 1, means, scales, rotations, nullptr, begin, end, write);
 }
 
 }  // namespace HWY_NAMESPACE
@@ -195,10 +217,10 @@ FrustumCamera::FrustumCamera(const Camera& c) {
   grid_y = double((c.height + kTileSize - 1) / kTileSize);
 }
 
-void frustum_keep(const FrustumCamera& cam, const Vec3f* means, const Vec3f* scales, const Vec4f* rotations, const uint32_t* ids, size_t begin,
-                  size_t end, std::vector<uint32_t>* out) {
+void frustum_keep(const FrustumCamera* cams, size_t ncams, const Vec3f* means, const Vec3f* scales, const Vec4f* rotations, const uint32_t* ids,
+                  size_t begin, size_t end, std::vector<uint32_t>* outs) {
   static_assert(sizeof(Vec3f) == 3 * sizeof(float) && sizeof(Vec4f) == 4 * sizeof(float), "packed vectors");
-  HWY_DYNAMIC_DISPATCH(FrustumKeep)(cam, means->data(), scales->data(), rotations->data(), ids, begin, end, out);
+  HWY_DYNAMIC_DISPATCH(FrustumKeep)(cams, ncams, means->data(), scales->data(), rotations->data(), ids, begin, end, outs);
 }
 
 void project_rows(const FrustumCamera& cam, const float* means, const float* scales, const float* rotations, size_t begin, size_t end,

@@ -71,9 +71,11 @@ void CompactCountWriter::write(const uint16_t* counts) {
   FILLGS_CHECK(frame_ < keys_.size());
   const uint32_t key = keys_[frame_];
   const auto [at, fresh] = row_of_key_.try_emplace(key, uint32_t(row_keys_.size()));
-  std::vector<uint8_t> narrowed;
-  std::vector<uint32_t> ids;
-  std::vector<uint16_t> values;
+  std::vector<uint8_t>& narrowed = narrowed_;
+  std::vector<uint32_t>& ids = change_ids_scratch_;
+  std::vector<uint16_t>& values = change_values_scratch_;
+  ids.clear();
+  values.clear();
   if (fresh) {
     row_keys_.push_back(key);
     scratch_.assign(counts, counts + N_);

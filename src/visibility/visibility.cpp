@@ -330,25 +330,34 @@ std::vector<uint32_t> merge_ids(tbb::enumerable_thread_specific<RayScratch>& scr
   return merge_id_lists(lists);
 }
 
-/// Frustum rule for the listed Gaussians (all when ids is null), ascending where `ids` is:
-/// blocks of rows in order, each kept by the vector rule (render/frustum.hpp), joined in order.
-std::vector<uint32_t> frustum_visible(const FrameGaussians& frame, const Camera& cam, const std::vector<uint32_t>* ids) {
+/// Frustum rule for the listed Gaussians (all when ids is null), one ascending list per camera
+/// where `ids` is: blocks of rows in order, each read once and kept by the vector rule
+/// (render/frustum.hpp) for every camera, joined in order.
+std::vector<std::vector<uint32_t>> frustum_visible(const FrameGaussians& frame, const std::vector<const Camera*>& cams,
+                                                   const std::vector<uint32_t>* ids) {
   const size_t n = ids ? ids->size() : frame.size();
   constexpr size_t kBlock = 8192;
-  const size_t blocks = (n + kBlock - 1) / kBlock;
-  const internal::FrustumCamera fc(cam);
-  std::vector<std::vector<uint32_t>> found(blocks);
+  const size_t blocks = (n + kBlock - 1) / kBlock, C = cams.size();
+  std::vector<internal::FrustumCamera> fc;
+  for (const Camera* cam : cams) fc.emplace_back(*cam);
+  std::vector<std::vector<uint32_t>> found(blocks * C);  // [block][camera]
   tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t b = r.begin(); b < r.end(); ++b)
-      internal::frustum_keep(fc, frame.means.data(), frame.scales.data(), frame.rotations.data(), ids ? ids->data() : nullptr, b * kBlock,
-                             std::min(n, (b + 1) * kBlock), &found[b]);
+      internal::frustum_keep(fc.data(), C, frame.means.data(), frame.scales.data(), frame.rotations.data(), ids ? ids->data() : nullptr,
+                             b * kBlock, std::min(n, (b + 1) * kBlock), &found[b * C]);
   });
-  size_t total = 0;
-  for (const auto& v : found) total += v.size();
-  std::vector<uint32_t> all;
-  all.reserve(total);
-  for (const auto& v : found) all.insert(all.end(), v.begin(), v.end());
+  std::vector<std::vector<uint32_t>> all(C);
+  tbb::parallel_for(size_t(0), C, [&](size_t c) {
+    size_t total = 0;
+    for (size_t b = 0; b < blocks; ++b) total += found[b * C + c].size();
+    all[c].reserve(total);
+    for (size_t b = 0; b < blocks; ++b) all[c].insert(all[c].end(), found[b * C + c].begin(), found[b * C + c].end());
+  });
   return all;
+}
+
+std::vector<uint32_t> frustum_visible(const FrameGaussians& frame, const Camera& cam, const std::vector<uint32_t>* ids) {
+  return std::move(frustum_visible(frame, std::vector<const Camera*>{&cam}, ids)[0]);
 }
 
 std::vector<uint32_t> exact_visible(const FrameGaussians& frame, const Camera& cam, float tau) {
@@ -787,10 +796,14 @@ class ObservationRun {
   uint32_t pose_index(uint32_t camera) const { return pose_of_camera_[camera]; }
   size_t pose_count() const { return pose_count_; }
 
-  /// Frustum: the dynamic Gaussians in the frustum are the whole change.
-  ViewDelta frustum_delta(const FrameGaussians& frame, uint32_t camera) {
-    ViewDelta d;
-    d.added = frustum_visible(frame, cameras_[camera], &cloud_.dynamic_ids);
+  /// Frustum: the dynamic Gaussians in each view's frustum are the whole change (every view's
+  /// rule over one reading of the moving Gaussians).
+  std::vector<ViewDelta> frustum_deltas(const FrameGaussians& frame, const std::vector<uint32_t>& views) {
+    std::vector<const Camera*> cams;
+    for (uint32_t c : views) cams.push_back(&cameras_[c]);
+    std::vector<std::vector<uint32_t>> added = frustum_visible(frame, cams, &cloud_.dynamic_ids);
+    std::vector<ViewDelta> d(views.size());
+    for (size_t k = 0; k < views.size(); ++k) d[k].added = std::move(added[k]);
     return d;
   }
 
@@ -1018,16 +1031,24 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
       std::vector<uint32_t> poses;
       for (uint32_t c : views[f]) poses.push_back(run.pose_index(c));
       std::sort(poses.begin(), poses.end());
-      if (!have_base || poses != base_poses) {
+      const bool rebuilt = !have_base || poses != base_poses;
+      if (rebuilt) {
         std::fill(base.begin(), base.end(), uint16_t(0));
         for (uint32_t c : views[f])
           for (uint32_t g : run.pose(c).visible) ++base[g];
         base_poses = poses;
         have_base = true;
       }
-      counts = base;
-      for (uint32_t c : views[f]) {
-        const ViewDelta d = tracer ? run.raytraced_delta(*tracer, boxes, c) : run.frustum_delta(*frame, c);
+      if (tracer || rebuilt) {
+        counts = base;
+      } else {  // frustum: the changes are the moving Gaussians' alone, so only their rows are reset
+        for (uint32_t g : cloud.dynamic_ids) counts[g] = base[g];
+      }
+      std::vector<ViewDelta> frustum;
+      if (!tracer) frustum = run.frustum_deltas(*frame, views[f]);
+      for (size_t k = 0; k < views[f].size(); ++k) {
+        const uint32_t c = views[f][k];
+        const ViewDelta d = tracer ? run.raytraced_delta(*tracer, boxes, c) : std::move(frustum[k]);
         for (uint32_t g : d.removed) --counts[g];
         for (uint32_t g : d.added) ++counts[g];
         fo.visible_per_view.push_back(uint32_t(run.pose(c).visible.size() - d.removed.size() + d.added.size()));

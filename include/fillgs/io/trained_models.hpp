@@ -81,6 +81,10 @@ float still_departure(const ModelState& s, size_t j, const ModelState& first, si
 /// The frames of the sweep (ascending, frame 0 and frames-1 among them).
 std::vector<int> sweep_frames(int frames, int wanted);
 
+/// The first row of `s` holding a value that is not finite (any field, any SH coefficient);
+/// s.size() when every value is finite.
+size_t first_not_finite(const ModelState& s);
+
 /// A Python literal (what cfg_args holds: Namespace(key=value, ...)) as JSON; exposed for tests.
 std::string python_literal_to_json(const std::string& text, const std::string& source);
 

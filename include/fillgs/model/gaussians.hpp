@@ -35,6 +35,8 @@ struct ModelState {
   size_t size() const { return means.size(); }
   /// Rows `rows` of this state, in that order.
   ModelState rows(const std::vector<uint32_t>& rows) const;
+  /// The same into `out`, whose storage is reused (a frame's state written over the last one's).
+  void rows_into(const std::vector<uint32_t>& rows, ModelState& out) const;
 };
 
 /// Motion that a trained model's own code computes at each time (its deformation network,

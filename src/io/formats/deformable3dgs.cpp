@@ -118,7 +118,7 @@ class Deformable3dgs : public TrainedModel {
       te.assign(tv.data(), tv.data() + tv.size());
     }
     std::vector<float> bias[2] = {dense_.trunk.front().bias_at(te.data()), dense_.trunk[size_t(skip_) + 1].bias_at(te.data())};
-    out = canonical_.rows(rows);
+    canonical_.rows_into(rows, out);
     const size_t x_in = 3 * 21, W = size_t(dense_.trunk.front().out);
     struct Scratch {
       std::vector<float> xe;

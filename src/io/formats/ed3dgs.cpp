@@ -144,7 +144,7 @@ class Ed3dgs : public TrainedModel {
     head_coefficients(k);
     std::vector<float> bias0[2];
     for (int pass = 0; pass < 2; ++pass) bias0[pass] = dense_[pass].trunk.front().bias_at(emb[pass].data());
-    out = canonical_.rows(rows);
+    canonical_.rows_into(rows, out);
     struct Scratch {
       std::vector<float> x;
       DenseNet::Scratch net;  // both passes', in turn

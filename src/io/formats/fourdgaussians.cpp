@@ -114,7 +114,7 @@ class FourDGaussians : public TrainedModel {
   void evaluate(double model_time, const std::vector<uint32_t>& rows, ModelState& out) const override {
     const float t = float(model_time_checked(model_time, source));
     const std::vector<std::vector<float>> lines = time_lines(t);
-    out = canonical_.rows(rows);
+    canonical_.rows_into(rows, out);
     struct Scratch {
       std::vector<float> x;
       DenseNet::Scratch net;
