@@ -22,6 +22,7 @@
 # --report-only: results.md from the pieces there, pieces not run shown as "-".
 # --streamed-frustum-only: networks, frustum streamed and --frames 4 only (sizes whose keys
 # would not fit in memory: 1,000,000 Gaussians x 300 frames of keys are 16.8 GB).
+# --frustum-only: those and the frustum piece on the fillgs 4D PLY.
 #
 # Defaults: N = 200000, F = 300, formats e-d3dgs,4dgaussians,e-d3dgs-still. --smoke: N = 300, F = 6.
 set -euo pipefail
@@ -32,6 +33,7 @@ frames=300
 formats=e-d3dgs,4dgaussians,e-d3dgs-still
 report_only=0
 streamed_only=0
+with_ply=0
 before=
 out=
 while [ $# -gt 0 ]; do
@@ -44,7 +46,8 @@ while [ $# -gt 0 ]; do
     --smoke) gaussians=300; frames=6; shift ;;
     --report-only) report_only=1; shift ;;
     --streamed-frustum-only) streamed_only=1; shift ;;
-    -h|--help) sed -n '2,28p' "$0"; exit 0 ;;
+    --frustum-only) streamed_only=1; with_ply=1; shift ;;
+    -h|--help) sed -n '2,27p' "$0"; exit 0 ;;
     -*) echo "bench/trained_models_scale.sh: unknown option $1" >&2; exit 2 ;;
     *) out="$1"; shift ;;
   esac
@@ -67,7 +70,9 @@ flags_of() { case "$1" in 4dgaussians) echo "--model-frames $frames" ;; *) echo 
 observe() {  # piece-name scene extra-flags... (OBSERVE_BIN: another build's folder)
   local name="$1" piece="$out/pieces/$1.txt" scene="$2" use="${OBSERVE_BIN:-$bin}"; shift 2
   { [ -f "$piece" ] || [ "$report_only" = 1 ]; } && return 0
-  if [ "$streamed_only" = 1 ]; then case "$name" in *.frustum.streamed|*.frustum.streamed-before|*.frustum.few) ;; *) return 0 ;; esac; fi
+  if [ "$streamed_only" = 1 ]; then
+    case "$name" in *.frustum.streamed|*.frustum.streamed-before|*.frustum.few) ;; *.frustum.fillgs-ply) [ "$with_ply" = 1 ] || return 0 ;; *) return 0 ;; esac
+  fi
   echo "  $name ..."
   local tmp="$out/pieces/$name.run"
   rm -rf "$tmp"
@@ -87,7 +92,7 @@ IFS=, read -r -a fmts <<<"$formats"
 # rule, a few frames, ray traced, then as fillgs read them before (keys, reference products).
 make_ply() {  # the same Gaussians as a fillgs 4D PLY (a key at every frame)
   local ply="$out/pieces/$1.fillgs.ply"
-  if [ "$report_only" = 0 ] && [ "$streamed_only" = 0 ] && [ ! -f "$ply" ]; then
+  if [ "$report_only" = 0 ] && { [ "$streamed_only" = 0 ] || [ "$with_ply" = 1 ]; } && [ ! -f "$ply" ]; then
     # shellcheck disable=SC2046  # the flags are words
     "$bin/fillgs" convert --scene "$models/$1" $(flags_of "$1") --to fillgs --out "$ply" >/dev/null
   fi
@@ -137,7 +142,7 @@ commit=$( { [ -f "$out/pieces/commits.txt" ] && awk '{print $2}' "$out/pieces/co
 dates=$( { [ -f "$out/pieces/commits.txt" ] && awk '{print $3}' "$out/pieces/commits.txt" | sort -u | paste -sd, - ; } || date -u +%Y-%m-%d)
 machine="$(nproc) cores, $(sed -n 's/^model name\s*: //p' /proc/cpuinfo | head -1), $(awk '/MemTotal/{printf "%.0f GB", $2/1048576}' /proc/meminfo)"
 {
-  echo "Command: \`bench/trained_models_scale.sh --gaussians $gaussians --frames $frames --formats $formats$([ "$streamed_only" = 1 ] && echo " --streamed-frustum-only") OUT\` · commit $commit · $dates · $machine."
+  echo "Command: \`bench/trained_models_scale.sh --gaussians $gaussians --frames $frames --formats $formats$([ "$streamed_only" = 1 ] && { [ "$with_ply" = 1 ] && echo " --frustum-only" || echo " --streamed-frustum-only"; })$([ -n "$before" ] && echo " --before BIN") OUT\` · commit $commit · $dates · $machine."
   echo
   echo "Networks (\`fillgs_bench networks\`, $gaussians Gaussians):"
   echo
