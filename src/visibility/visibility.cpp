@@ -591,14 +591,15 @@ namespace {
 /// A camera pose's static answer, computed once and reused by every frame it observes.
 struct PoseCache {
   bool ready = false;
-  std::vector<uint32_t> visible;    ///< ascending static ids observed
+  size_t visible_count = 0;         ///< static ids observed
+  std::vector<uint32_t> visible;    ///< raytraced: ascending static ids observed (frustum: the bitmap alone)
   std::vector<uint32_t> ray_refs;   ///< raytraced: rays observing visible[k]
   // raytraced: per ray (row-major over the grid) its static observed Gaussians, as slots k
   // of `visible`, and its end distance
   std::vector<uint64_t> ray_offsets;
   std::vector<uint32_t> ray_slots;
   std::vector<float> ray_end;
-  std::vector<uint64_t> visible_bits;  ///< raytraced: bit g set when g is in `visible`
+  std::vector<uint64_t> visible_bits;  ///< bit g set when static id g is observed
   // raytraced, static_hit_cache_bytes > 0: per ray its static hits once a moving Gaussian
   // reached it (null until then; they live in the run's HitArenas)
   struct KeptHits {
@@ -606,6 +607,12 @@ struct PoseCache {
     uint32_t count = 0;
   };
   std::vector<KeptHits> kept;
+  /// f(g) for each observed static id g, ascending.
+  template <typename F>
+  void for_each_visible(F&& f) const {
+    for (size_t w = 0; w < visible_bits.size(); ++w)
+      for (uint64_t bits = visible_bits[w]; bits; bits &= bits - 1) f(uint32_t(w * 64 + size_t(__builtin_ctzll(bits))));
+  }
 };
 
 /// Storage that never moves what it holds: each ray's hits go contiguously into a block of
@@ -677,8 +684,13 @@ class ObservationRun {
     const auto start = Clock::now();
     const Camera& cam = cameras_[camera];
     if (vis_.mode == VisibilityMode::Frustum) {
+      // Kept as a bitmap (N / 8 bytes, not 4 bytes per observed id: 20 cameras of a
+      // 10-million-Gaussian scene would hold 800 MB of lists).
       const std::vector<uint32_t> statics = cloud_.static_ids();
-      pc.visible = frustum_visible(frame, cam, &statics);
+      const std::vector<uint32_t> visible = frustum_visible(frame, cam, &statics);
+      pc.visible_count = visible.size();
+      pc.visible_bits.assign((cloud_.size() + 63) / 64, 0);
+      for (uint32_t g : visible) pc.visible_bits[g / 64] |= uint64_t(1) << (g % 64);
     } else {
       const RayGrid grid(cam, vis_.stride, vis_.dilate);
       const size_t n = grid.count();
@@ -775,6 +787,7 @@ class ObservationRun {
       for (uint32_t g : pc.visible) marks_[g] = 0;
       pc.visible_bits.assign((cloud_.size() + 63) / 64, 0);
       for (uint32_t g : pc.visible) pc.visible_bits[g / 64] |= uint64_t(1) << (g % 64);
+      pc.visible_count = pc.visible.size();
     }
     pc.ready = true;
     summary.seconds_static += seconds_since(start);
@@ -1035,7 +1048,7 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
       if (rebuilt) {
         std::fill(base.begin(), base.end(), uint16_t(0));
         for (uint32_t c : views[f])
-          for (uint32_t g : run.pose(c).visible) ++base[g];
+          run.pose(c).for_each_visible([&](uint32_t g) { ++base[g]; });
         base_poses = poses;
         have_base = true;
       }
@@ -1051,7 +1064,7 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
         const ViewDelta d = tracer ? run.raytraced_delta(*tracer, boxes, c) : std::move(frustum[k]);
         for (uint32_t g : d.removed) --counts[g];
         for (uint32_t g : d.added) ++counts[g];
-        fo.visible_per_view.push_back(uint32_t(run.pose(c).visible.size() - d.removed.size() + d.added.size()));
+        fo.visible_per_view.push_back(uint32_t(run.pose(c).visible_count - d.removed.size() + d.added.size()));
       }
     } else {
       std::fill(counts.begin(), counts.end(), uint16_t(0));
