@@ -411,8 +411,8 @@ TEST_CASE("size arithmetic: checked products, counts and numbers from text", "[r
   CHECK(allocation_cap() > (size_t(1) << 28));
   // The limits the process actually has count, not only physical memory: under ulimit -v
   // 3 GB (set in a child) the cap is 3 GB and says where it comes from.
-  const size_t three = size_t(3) << 30;
 #if !FILLGS_SANITIZED  // AddressSanitizer's shadow memory does not live under an address-space limit
+  const size_t three = size_t(3) << 30;
   if (memory_limit().bytes > three) {
     const pid_t p = ::fork();
     if (p == 0) {
