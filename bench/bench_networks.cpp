@@ -47,7 +47,7 @@ int bench_networks(const std::vector<std::string>& args) {
   const double ghz = bench::clock_ghz();
   // Two FMA units per core (Intel since Haswell, AMD since Zen), each `lanes` multiply-adds a cycle.
   const double bound = 2.0 * lanes * ghz * 1e9 * T;
-  std::printf("dense kernel: %s, %d float lanes; %d threads; FMA bound: %d threads x 2 FMA units x %d lanes x %.2f GHz = %.3g multiply-adds/s\n\n",
+  std::printf("dense kernel: %s, %d float lanes; %d threads; FMA bound: %d threads x 2 FMA units x %d lanes x %.2f GHz (the clock measured by a chain of adds) = %.3g multiply-adds/s\n\n",
               dense::target_name(), lanes, T, T, lanes, ghz, bound);
   std::printf("| format | Gaussians | multiply-adds per Gaussian-frame | reference Gaussian-frames/s | kernel Gaussian-frames/s | speed-up | kernel multiply-adds/s | share of the FMA bound | largest difference |\n"
               "|---|---|---|---|---|---|---|---|---|\n");

@@ -94,7 +94,7 @@ int bench_render(const std::vector<std::string>& args) {
   const int lanes = simd_lanes();
   if (ghz > 0) {
     const double peak = lanes * ghz * 1e9 / kOperations;
-    std::printf("\nbound: %d lanes x %.2f GHz / %d operations = %.3g evaluations/s per core; the best measured (whole frame: "
+    std::printf("\nbound: %d lanes x %.2f GHz (measured) / %d operations = %.3g evaluations/s per core; the best measured (whole frame: "
                 "projection, SH, binning and blend) is %.0f%% of it\n", lanes, ghz, kOperations, peak, 100.0 * best_rate / peak);
   }
   return 0;
