@@ -50,7 +50,7 @@ inline double clock_ghz() {
                    : "+r"(x)
                    : "r"(one));
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    if (s > 0 && x == 8 * kIterations) best = std::max(best, double(x) / s / 1e9);
+    if (s > 0) best = std::max(best, double(x) / s / 1e9);
   }
   if (best > 0) return best;
 #endif

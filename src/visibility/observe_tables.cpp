@@ -71,16 +71,13 @@ void CompactCountWriter::write(const uint16_t* counts) {
   FILLGS_CHECK(frame_ < keys_.size());
   const uint32_t key = keys_[frame_];
   const auto [at, fresh] = row_of_key_.try_emplace(key, uint32_t(row_keys_.size()));
-  std::vector<uint8_t>& narrowed = narrowed_;
-  std::vector<uint32_t>& ids = change_ids_scratch_;
-  std::vector<uint16_t>& values = change_values_scratch_;
-  ids.clear();
-  values.clear();
+  frame_ids_.clear();
+  frame_values_.clear();
   if (fresh) {
     row_keys_.push_back(key);
     scratch_.assign(counts, counts + N_);
     for (uint32_t g : dynamic_ids_) scratch_[g] = 0;
-    write_counts(*static_, narrow_, scratch_.data(), N_, narrowed);
+    write_counts(*static_, narrow_, scratch_.data(), N_, narrowed_);
     if (last_use_[frame_] > frame_) held_[key].assign(counts, counts + N_);
   } else {
     std::vector<uint16_t>& row = held_.at(key);
@@ -91,18 +88,18 @@ void CompactCountWriter::write(const uint16_t* counts) {
       if (std::memcmp(counts + b, row.data() + b, n * sizeof(uint16_t)) == 0) continue;
       for (size_t g = b; g < b + n; ++g)
         if (counts[g] != row[g]) {
-          ids.push_back(uint32_t(g));
-          values.push_back(counts[g]);
+          frame_ids_.push_back(uint32_t(g));
+          frame_values_.push_back(counts[g]);
         }
     }
   }
   rows_.push_back(at->second);
   scratch_.resize(dynamic_ids_.size());
   for (size_t j = 0; j < dynamic_ids_.size(); ++j) scratch_[j] = counts[dynamic_ids_[j]];
-  write_counts(*dynamic_, narrow_, scratch_.data(), scratch_.size(), narrowed);
-  change_ids_->write(ids.data(), ids.size() * 4);
-  write_counts(*change_values_, narrow_, values.data(), values.size(), narrowed);
-  offsets_.push_back(offsets_.back() + int64_t(ids.size()));
+  write_counts(*dynamic_, narrow_, scratch_.data(), scratch_.size(), narrowed_);
+  change_ids_->write(frame_ids_.data(), frame_ids_.size() * 4);
+  write_counts(*change_values_, narrow_, frame_values_.data(), frame_values_.size(), narrowed_);
+  offsets_.push_back(offsets_.back() + int64_t(frame_ids_.size()));
   if (last_use_[frame_] == frame_) held_.erase(key);
   ++frame_;
 }

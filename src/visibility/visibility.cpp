@@ -330,16 +330,16 @@ std::vector<uint32_t> merge_ids(tbb::enumerable_thread_specific<RayScratch>& scr
   return merge_id_lists(lists);
 }
 
-/// Frustum rule for the listed Gaussians (all when ids is null), one ascending list per camera
-/// where `ids` is: blocks of rows in order, each read once and kept by the vector rule
+/// Frustum rule for the listed Gaussians (all when ids is null), one list per view (an index
+/// of `cameras`), ascending where `ids` is: blocks of rows in order, each read once and kept by the vector rule
 /// (render/frustum.hpp) for every camera, joined in order.
-std::vector<std::vector<uint32_t>> frustum_visible(const FrameGaussians& frame, const std::vector<const Camera*>& cams,
-                                                   const std::vector<uint32_t>* ids) {
+std::vector<std::vector<uint32_t>> frustum_visible(const FrameGaussians& frame, const std::vector<Camera>& cameras,
+                                                   const std::vector<uint32_t>& views, const std::vector<uint32_t>* ids) {
   const size_t n = ids ? ids->size() : frame.size();
   constexpr size_t kBlock = 8192;
-  const size_t blocks = (n + kBlock - 1) / kBlock, C = cams.size();
+  const size_t blocks = (n + kBlock - 1) / kBlock, C = views.size();
   std::vector<internal::FrustumCamera> fc;
-  for (const Camera* cam : cams) fc.emplace_back(*cam);
+  for (uint32_t c : views) fc.emplace_back(cameras[c]);
   std::vector<std::vector<uint32_t>> found(blocks * C);  // [block][camera]
   tbb::parallel_for(tbb::blocked_range<size_t>(0, blocks, 1), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t b = r.begin(); b < r.end(); ++b)
@@ -357,7 +357,7 @@ std::vector<std::vector<uint32_t>> frustum_visible(const FrameGaussians& frame, 
 }
 
 std::vector<uint32_t> frustum_visible(const FrameGaussians& frame, const Camera& cam, const std::vector<uint32_t>* ids) {
-  return std::move(frustum_visible(frame, std::vector<const Camera*>{&cam}, ids)[0]);
+  return std::move(frustum_visible(frame, std::vector<Camera>{cam}, {0}, ids)[0]);
 }
 
 std::vector<uint32_t> exact_visible(const FrameGaussians& frame, const Camera& cam, float tau) {
@@ -607,6 +607,12 @@ struct PoseCache {
     uint32_t count = 0;
   };
   std::vector<KeptHits> kept;
+  /// The observed static ids as the bitmap and the count (of a cloud of n Gaussians).
+  void mark_visible(const std::vector<uint32_t>& ids, size_t n) {
+    visible_count = ids.size();
+    visible_bits.assign((n + 63) / 64, 0);
+    for (uint32_t g : ids) visible_bits[g / 64] |= uint64_t(1) << (g % 64);
+  }
   /// f(g) for each observed static id g, ascending.
   template <typename F>
   void for_each_visible(F&& f) const {
@@ -673,122 +679,135 @@ class ObservationRun {
 
   ObservationSummary summary;
 
-  /// The pose's static answer, at the first frame that views it. Raytraced with kept hits:
+  /// The static answers of the poses among `views` that no earlier frame viewed.
+  /// Frustum: one reading of the static Gaussians for all of them, each answer kept as a
+  /// bitmap (N / 8 bytes, not 4 bytes per observed id: 20 cameras of a 10-million-Gaussian
+  /// scene would hold 800 MB of lists). Raytraced: static_answer, pose by pose.
+  void static_answers(const FrameGaussians& frame, const GaussianTracer* tracer, const std::vector<ProxyBox>& boxes,
+                      const std::vector<uint32_t>& views, bool swept) {
+    if (vis_.mode != VisibilityMode::Frustum) {
+      for (uint32_t c : views) static_answer(frame, tracer, boxes, c, swept);
+      return;
+    }
+    std::vector<uint32_t> fresh;  // one camera per pose not answered yet
+    for (uint32_t c : views)
+      if (!pose(c).ready && std::none_of(fresh.begin(), fresh.end(), [&](uint32_t k) { return pose_index(k) == pose_index(c); }))
+        fresh.push_back(c);
+    if (fresh.empty()) return;
+    const auto start = Clock::now();
+    const std::vector<uint32_t> statics = cloud_.static_ids();
+    const std::vector<std::vector<uint32_t>> visible = frustum_visible(frame, cameras_, fresh, &statics);
+    for (size_t k = 0; k < fresh.size(); ++k) {
+      pose(fresh[k]).mark_visible(visible[k], cloud_.size());
+      pose(fresh[k]).ready = true;
+    }
+    summary.seconds_static += seconds_since(start);
+  }
+
+  /// Raytraced: the pose's static answer, at the first frame that views it. With kept hits:
   /// the static hits of the rays in the footprints of this frame's dynamic proxies (`boxes`)
   /// are kept as they are traced here, so the frames need not trace the static layer again
   /// for the rays a moving Gaussian reaches first (those it reaches later are kept then).
   void static_answer(const FrameGaussians& frame, const GaussianTracer* tracer, const std::vector<ProxyBox>& boxes, uint32_t camera,
-                     bool swept = false) {
+                     bool swept) {
     PoseCache& pc = poses_[pose_of_camera_[camera]];
     if (pc.ready) return;
     const auto start = Clock::now();
     const Camera& cam = cameras_[camera];
-    if (vis_.mode == VisibilityMode::Frustum) {
-      // Kept as a bitmap (N / 8 bytes, not 4 bytes per observed id: 20 cameras of a
-      // 10-million-Gaussian scene would hold 800 MB of lists).
-      const std::vector<uint32_t> statics = cloud_.static_ids();
-      const std::vector<uint32_t> visible = frustum_visible(frame, cam, &statics);
-      pc.visible_count = visible.size();
-      pc.visible_bits.assign((cloud_.size() + 63) / 64, 0);
-      for (uint32_t g : visible) pc.visible_bits[g / 64] |= uint64_t(1) << (g % 64);
-    } else {
-      const RayGrid grid(cam, vis_.stride, vis_.dilate);
-      const size_t n = grid.count();
-      // Rays to keep hits of: first every ray in a footprint at any depth (known before the
-      // trace), then those whose static ray reaches the proxy's depth (known after it).
-      const bool keep = cache_budget_ > 0 && footprints_ && keep_at_answers_ && !boxes.empty();
-      std::unique_ptr<std::atomic<uint8_t>[]> in_footprint;
-      std::vector<std::vector<KeyedHit>> row_keyed;
-      std::vector<std::vector<uint32_t>> row_keyed_ends;  // per row: end offset in row_keyed of each ray
-      if (keep) {
-        in_footprint.reset(new std::atomic<uint8_t>[n]);
-        const std::vector<float> anywhere(n, std::numeric_limits<float>::infinity());
-        mark_dynamic_footprints(boxes, grid, anywhere.data(), in_footprint.get(), swept);
-        row_keyed.resize(size_t(grid.height));
-        row_keyed_ends.resize(size_t(grid.height));
-      }
-      // Rows are traced in parallel into per-row lists, then packed.
-      std::vector<std::vector<uint32_t>> row_ids(size_t(grid.height)), row_counts(size_t(grid.height));
-      pc.ray_end.assign(n, 0.0f);
-      tbb::enumerable_thread_specific<RayScratch> scratch;
-      tbb::parallel_for(tbb::blocked_range<int>(0, grid.height, 1), [&](const tbb::blocked_range<int>& r) {
-        RayScratch& s = scratch.local();
-        std::vector<KeyedHit> keyed;
-        for (int j = r.begin(); j < r.end(); ++j) {
-          auto& ids = row_ids[size_t(j)];
-          auto& counts = row_counts[size_t(j)];
-          counts.resize(size_t(grid.width));
-          if (keep) row_keyed_ends[size_t(j)].assign(size_t(grid.width), 0);
-          for (int i = 0; i < grid.width; ++i) {
-            const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
-            const bool wanted = keep && in_footprint[ray].load(std::memory_order_relaxed);
-            s.hits.clear();
-            keyed.clear();
-            const RayOutcome o =
-                tracer->trace(grid.origin, grid.direction(i, j), TraceLayers::StaticOnly, s.hits, grid.match, wanted ? &keyed : nullptr);
-            ++s.rays;
-            s.hits_count += s.hits.size();
-            const size_t before = ids.size();
-            observed_ids(s.hits, vis_.min_weight, ids);
-            counts[size_t(i)] = uint32_t(ids.size() - before);
-            pc.ray_end[ray] = o.end_key;
-            if (keep) {
-              row_keyed[size_t(j)].insert(row_keyed[size_t(j)].end(), keyed.begin(), keyed.end());
-              row_keyed_ends[size_t(j)][size_t(i)] = uint32_t(row_keyed[size_t(j)].size());
-            }
-          }
-        }
-      });
-      merge_ids(scratch, &summary.counters);
-      if (keep) {
-        mark_dynamic_footprints(boxes, grid, pc.ray_end.data(), in_footprint.get(), swept);
-        pc.kept.assign(n, {});
-        for (int j = 0; j < grid.height; ++j) {
-          const std::vector<KeyedHit>& hits = row_keyed[size_t(j)];
-          for (int i = 0; i < grid.width; ++i) {
-            const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
-            const uint32_t first = i == 0 ? 0 : row_keyed_ends[size_t(j)][size_t(i - 1)], last = row_keyed_ends[size_t(j)][size_t(i)];
-            // A ray with no static hit is kept too (empty): the frames then trace only the
-            // dynamic layer on it, without probing it and tracing the static one first.
-            if (!in_footprint[ray].load(std::memory_order_relaxed)) continue;
-            if (!keep_hits(pc.kept[ray], hits.data() + first, last - first)) continue;
-            ++summary.cached_static_rays;
-            ++summary.cached_at_static_answers;
-            summary.cached_static_hits += last - first;
-          }
-          std::vector<KeyedHit>().swap(row_keyed[size_t(j)]);
-        }
-      }
-      pc.ray_offsets.assign(n + 1, 0);
-      for (int j = 0; j < grid.height; ++j)
+    const RayGrid grid(cam, vis_.stride, vis_.dilate);
+    const size_t n = grid.count();
+    // Rays to keep hits of: first every ray in a footprint at any depth (known before the
+    // trace), then those whose static ray reaches the proxy's depth (known after it).
+    const bool keep = cache_budget_ > 0 && footprints_ && keep_at_answers_ && !boxes.empty();
+    std::unique_ptr<std::atomic<uint8_t>[]> in_footprint;
+    std::vector<std::vector<KeyedHit>> row_keyed;
+    std::vector<std::vector<uint32_t>> row_keyed_ends;  // per row: end offset in row_keyed of each ray
+    if (keep) {
+      in_footprint.reset(new std::atomic<uint8_t>[n]);
+      const std::vector<float> anywhere(n, std::numeric_limits<float>::infinity());
+      mark_dynamic_footprints(boxes, grid, anywhere.data(), in_footprint.get(), swept);
+      row_keyed.resize(size_t(grid.height));
+      row_keyed_ends.resize(size_t(grid.height));
+    }
+    // Rows are traced in parallel into per-row lists, then packed.
+    std::vector<std::vector<uint32_t>> row_ids(size_t(grid.height)), row_counts(size_t(grid.height));
+    pc.ray_end.assign(n, 0.0f);
+    tbb::enumerable_thread_specific<RayScratch> scratch;
+    tbb::parallel_for(tbb::blocked_range<int>(0, grid.height, 1), [&](const tbb::blocked_range<int>& r) {
+      RayScratch& s = scratch.local();
+      std::vector<KeyedHit> keyed;
+      for (int j = r.begin(); j < r.end(); ++j) {
+        auto& ids = row_ids[size_t(j)];
+        auto& counts = row_counts[size_t(j)];
+        counts.resize(size_t(grid.width));
+        if (keep) row_keyed_ends[size_t(j)].assign(size_t(grid.width), 0);
         for (int i = 0; i < grid.width; ++i) {
           const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
-          pc.ray_offsets[ray + 1] = pc.ray_offsets[ray] + row_counts[size_t(j)][size_t(i)];
+          const bool wanted = keep && in_footprint[ray].load(std::memory_order_relaxed);
+          s.hits.clear();
+          keyed.clear();
+          const RayOutcome o =
+              tracer->trace(grid.origin, grid.direction(i, j), TraceLayers::StaticOnly, s.hits, grid.match, wanted ? &keyed : nullptr);
+          ++s.rays;
+          s.hits_count += s.hits.size();
+          const size_t before = ids.size();
+          observed_ids(s.hits, vis_.min_weight, ids);
+          counts[size_t(i)] = uint32_t(ids.size() - before);
+          pc.ray_end[ray] = o.end_key;
+          if (keep) {
+            row_keyed[size_t(j)].insert(row_keyed[size_t(j)].end(), keyed.begin(), keyed.end());
+            row_keyed_ends[size_t(j)][size_t(i)] = uint32_t(row_keyed[size_t(j)].size());
+          }
         }
-      pc.ray_slots.reserve(pc.ray_offsets[n]);
-      for (auto& v : row_ids) {
-        pc.ray_slots.insert(pc.ray_slots.end(), v.begin(), v.end());
-        std::vector<uint32_t>().swap(v);
       }
-      // visible set with the number of rays that observe each Gaussian
-      std::vector<uint32_t> sorted = pc.ray_slots;
-      std::sort(sorted.begin(), sorted.end());
-      for (size_t k = 0; k < sorted.size();) {
-        size_t e = k;
-        while (e < sorted.size() && sorted[e] == sorted[k]) ++e;
-        pc.visible.push_back(sorted[k]);
-        pc.ray_refs.push_back(uint32_t(e - k));
-        k = e;
+    });
+    merge_ids(scratch, &summary.counters);
+    if (keep) {
+      mark_dynamic_footprints(boxes, grid, pc.ray_end.data(), in_footprint.get(), swept);
+      pc.kept.assign(n, {});
+      for (int j = 0; j < grid.height; ++j) {
+        const std::vector<KeyedHit>& hits = row_keyed[size_t(j)];
+        for (int i = 0; i < grid.width; ++i) {
+          const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
+          const uint32_t first = i == 0 ? 0 : row_keyed_ends[size_t(j)][size_t(i - 1)], last = row_keyed_ends[size_t(j)][size_t(i)];
+          // A ray with no static hit is kept too (empty): the frames then trace only the
+          // dynamic layer on it, without probing it and tracing the static one first.
+          if (!in_footprint[ray].load(std::memory_order_relaxed)) continue;
+          if (!keep_hits(pc.kept[ray], hits.data() + first, last - first)) continue;
+          ++summary.cached_static_rays;
+          ++summary.cached_at_static_answers;
+          summary.cached_static_hits += last - first;
+        }
+        std::vector<KeyedHit>().swap(row_keyed[size_t(j)]);
       }
-      // Ids to slots of `visible` (marks_ lends itself as the map and is left zero), so the
-      // frames find a Gaussian's ray count without a search; membership as a bitmap.
-      for (size_t k = 0; k < pc.visible.size(); ++k) marks_[pc.visible[k]] = uint32_t(k);
-      for (uint32_t& id : pc.ray_slots) id = marks_[id];
-      for (uint32_t g : pc.visible) marks_[g] = 0;
-      pc.visible_bits.assign((cloud_.size() + 63) / 64, 0);
-      for (uint32_t g : pc.visible) pc.visible_bits[g / 64] |= uint64_t(1) << (g % 64);
-      pc.visible_count = pc.visible.size();
     }
+    pc.ray_offsets.assign(n + 1, 0);
+    for (int j = 0; j < grid.height; ++j)
+      for (int i = 0; i < grid.width; ++i) {
+        const size_t ray = size_t(j) * size_t(grid.width) + size_t(i);
+        pc.ray_offsets[ray + 1] = pc.ray_offsets[ray] + row_counts[size_t(j)][size_t(i)];
+      }
+    pc.ray_slots.reserve(pc.ray_offsets[n]);
+    for (auto& v : row_ids) {
+      pc.ray_slots.insert(pc.ray_slots.end(), v.begin(), v.end());
+      std::vector<uint32_t>().swap(v);
+    }
+    // visible set with the number of rays that observe each Gaussian
+    std::vector<uint32_t> sorted = pc.ray_slots;
+    std::sort(sorted.begin(), sorted.end());
+    for (size_t k = 0; k < sorted.size();) {
+      size_t e = k;
+      while (e < sorted.size() && sorted[e] == sorted[k]) ++e;
+      pc.visible.push_back(sorted[k]);
+      pc.ray_refs.push_back(uint32_t(e - k));
+      k = e;
+    }
+    // Ids to slots of `visible` (marks_ lends itself as the map and is left zero), so the
+    // frames find a Gaussian's ray count without a search; membership as a bitmap.
+    for (size_t k = 0; k < pc.visible.size(); ++k) marks_[pc.visible[k]] = uint32_t(k);
+    for (uint32_t& id : pc.ray_slots) id = marks_[id];
+    for (uint32_t g : pc.visible) marks_[g] = 0;
+    pc.mark_visible(pc.visible, cloud_.size());
     pc.ready = true;
     summary.seconds_static += seconds_since(start);
   }
@@ -812,9 +831,7 @@ class ObservationRun {
   /// Frustum: the dynamic Gaussians in each view's frustum are the whole change (every view's
   /// rule over one reading of the moving Gaussians).
   std::vector<ViewDelta> frustum_deltas(const FrameGaussians& frame, const std::vector<uint32_t>& views) {
-    std::vector<const Camera*> cams;
-    for (uint32_t c : views) cams.push_back(&cameras_[c]);
-    std::vector<std::vector<uint32_t>> added = frustum_visible(frame, cams, &cloud_.dynamic_ids);
+    std::vector<std::vector<uint32_t>> added = frustum_visible(frame, cameras_, views, &cloud_.dynamic_ids);
     std::vector<ViewDelta> d(views.size());
     for (size_t k = 0; k < views.size(); ++k) d[k].added = std::move(added[k]);
     return d;
@@ -1040,7 +1057,7 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
         swept = swept_dynamic_boxes(cloud, *tracer, run_times);
         summary.seconds_static += seconds_since(start_sweep);
       }
-      for (uint32_t c : views[f]) run.static_answer(*frame, tracer.get(), swept.empty() ? boxes : swept, c, !swept.empty());
+      run.static_answers(*frame, tracer.get(), swept.empty() ? boxes : swept, views[f], !swept.empty());
       std::vector<uint32_t> poses;
       for (uint32_t c : views[f]) poses.push_back(run.pose_index(c));
       std::sort(poses.begin(), poses.end());
@@ -1068,10 +1085,13 @@ ObservationSummary observe(const GaussianCloud& cloud, const std::vector<Camera>
       }
     } else {
       std::fill(counts.begin(), counts.end(), uint16_t(0));
-      for (uint32_t c : views[f]) {
+      std::vector<std::vector<uint32_t>> frustum;  // every view over one reading of the frame
+      if (vis.mode == VisibilityMode::Frustum) frustum = frustum_visible(*frame, cameras, views[f], nullptr);
+      for (size_t k = 0; k < views[f].size(); ++k) {
+        const uint32_t c = views[f][k];
         std::vector<uint32_t> ids;
         switch (vis.mode) {
-          case VisibilityMode::Frustum: ids = frustum_visible(*frame, cameras[c], nullptr); break;
+          case VisibilityMode::Frustum: ids = std::move(frustum[k]); break;
           case VisibilityMode::Exact: ids = exact_visible(*frame, cameras[c], vis.min_weight); break;
           case VisibilityMode::Raytraced:
             ids = raytraced_visible(*tracer, RayGrid(cameras[c], vis.stride, vis.dilate), vis.min_weight, &summary.counters);

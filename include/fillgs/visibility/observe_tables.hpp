@@ -68,10 +68,11 @@ class CompactCountWriter {
   std::map<uint32_t, std::vector<uint16_t>> held_;  ///< key -> its row (moving columns: this frame's)
   std::map<uint32_t, uint32_t> row_of_key_;
   std::vector<int64_t> offsets_;
-  std::vector<uint16_t> scratch_;  // a row as written, and the frame's changes, reused by every frame
+  // Reused by every frame: a row as written, its narrowed bytes, the frame's changes.
+  std::vector<uint16_t> scratch_;
   std::vector<uint8_t> narrowed_;
-  std::vector<uint32_t> change_ids_scratch_;
-  std::vector<uint16_t> change_values_scratch_;
+  std::vector<uint32_t> frame_ids_;
+  std::vector<uint16_t> frame_values_;
   std::unique_ptr<NpyStreamWriter> static_, dynamic_, change_ids_, change_values_;
   size_t frame_ = 0;
 };
