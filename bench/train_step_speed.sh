@@ -6,7 +6,7 @@
 # seconds and peak memory) and, when the step has eval_near, the recorded near metrics: the
 # change keeps the benchmark's records.
 #
-#   bench/train_step_speed.sh --before BIN [--bin BIN] [--root DIR] [--draws N] STEP OUT
+#   bench/train_step_speed.sh --before BIN [--bin BIN] [--root DIR] [--draws N] [--one-core] STEP OUT
 #   bench/train_step_speed.sh [--bin BIN] --smoke OUT
 #
 # STEP: a step folder holding the command.txt of a `fillgs train` (one argument per line, as
@@ -14,7 +14,8 @@
 # backbone's init_points.ply, which git does not keep) must also lie: the folder
 # bench/pool_select.sh ran in. --before BIN: the earlier build's fillgs; --bin BIN: this one's
 # (default build/bin/fillgs). --draws N: a shorter run (--draws-per-view N; no comparison
-# with the records). FILLGS_INSTRUCTION_SET is taken from the step's step.txt, as
+# with the records). --one-core: each training on one core (taskset -c 0; its threads follow
+# the core), as bench/pool_select.sh --jobs runs them. FILLGS_INSTRUCTION_SET is taken from the step's step.txt, as
 # bench/pool_select.sh holds it. Writes OUT/results.md; the
 # models live in OUT/scratch, removed at the end. --smoke: a 48x36 synthetic scene trained
 # 40 iterations as its own step, the same build as before and after.
@@ -25,6 +26,7 @@ after="$root_here/build/bin/fillgs"
 before=
 draws=
 smoke=0
+one_core=0
 args=()
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -33,7 +35,8 @@ while [ $# -gt 0 ]; do
     --bin) after="$(cd "$(dirname "$2")" && pwd)/$(basename "$2")"; shift 2 ;;
     --draws) draws="$2"; shift 2 ;;
     --smoke) smoke=1; shift ;;
-    -h|--help) sed -n '2,22p' "$0"; exit 0 ;;
+    --one-core) one_core=1; shift ;;
+    -h|--help) sed -n '2,24p' "$0"; exit 0 ;;
     -*) echo "bench/train_step_speed.sh: unknown option $1" >&2; exit 2 ;;
     *) args+=("$1"); shift ;;
   esac
@@ -74,6 +77,7 @@ command_for() {  # binary, output folder
       *) a+=("${cmd[i]}") ;;
     esac
   done
+  [ "$one_core" = 1 ] && a=(taskset -c 0 "${a[@]}")
   printf '%s\n' "${a[@]}" --quiet
 }
 declare -A seconds peak
@@ -120,7 +124,7 @@ ratio=$(awk -v a="${seconds[after]}" -v b="${seconds[before]}" 'BEGIN { printf "
 {
   echo "## A benchmark step's training, the earlier build against this one"
   echo
-  echo "step: \`${step_dir}\` ($(grep -c . "$root/$step_dir/command.txt") arguments; draws per view: ${draws:-as recorded})"
+  echo "step: \`${step_dir}\` ($(grep -c . "$root/$step_dir/command.txt") arguments; draws per view: ${draws:-as recorded}; $([ "$one_core" = 1 ] && echo "one core each: taskset -c 0" || echo "threads: every core"))"
   echo "machine: $(cpu_line); commit $(git -C "$root_here" rev-parse --short HEAD 2>/dev/null || echo unknown); $(date -u +%Y-%m-%d)"
   echo "earlier build: the \`fillgs\` of a build of commit $(git -C "$(dirname "$before")" rev-parse --short HEAD 2>/dev/null || echo unknown)"
   echo

@@ -9,6 +9,7 @@
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "render/tile_kernel_simd.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
+#include <hwy/cache_control.h>
 #include <hwy/highway.h>
 
 #include <algorithm>
@@ -105,6 +106,22 @@ inline bool local_box(const TileSplats<float>& S, uint32_t i, const TileWork& t,
   return px0 <= px1 && py0 <= py1;
 }
 
+/// A tile's entries are depth-sorted, so their splats are read in no order the hardware can
+/// predict: without a hint, the first read of each entry's splat, box and channels waits on
+/// memory (about 30 % of both passes' time at the pool benchmark's 160×90, measured with
+/// perf). The kernels ask for the entry kPrefetchAhead places further along the blend order
+/// while they work on this one; the hint changes no value.
+constexpr uint32_t kPrefetchAhead = 8;
+HWY_INLINE void PrefetchEntry(const TileSplats<float>& S, uint32_t i, int C) {
+  const float* sd = &S.splat[6 * size_t(i)];
+  hwy::Prefetch(sd);
+  hwy::Prefetch(sd + 5);  // the six floats may straddle a cache line
+  hwy::Prefetch(&S.extent[2 * size_t(i)]);
+  const float* ch = &S.channels[size_t(i) * C];
+  hwy::Prefetch(ch);
+  hwy::Prefetch(ch + C - 1);
+}
+
 /// One splat broadcast to the lanes: the geometry both passes evaluate, block by block.
 struct SplatLanes {
   hn::Vec<D> mx, my, ca, cb, cc, opacity;
@@ -160,12 +177,14 @@ void ForwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileFo
   const auto zero = hn::Zero(d), one = hn::Set(d, 1.0f);
   const auto max_alpha = hn::Set(d, kMaxAlpha), min_alpha = hn::Set(d, kMinAlpha), min_T = hn::Set(d, kMinTransmittance);
   int n_done = 0;
+  for (uint32_t k = 0; k < std::min(tile.count, kPrefetchAhead); ++k) PrefetchEntry(S, tile.entries[k], C);
   for (uint32_t k = 0; k < tile.count; ++k) {
     if (n_done >= npix) {
       if (out.entry_max) std::fill(out.entry_max + k, out.entry_max + tile.count, 0.0f);
       break;
     }
     const uint32_t i = tile.entries[k];
+    if (k + kPrefetchAhead < tile.count) PrefetchEntry(S, tile.entries[k + kPrefetchAhead], C);
     LocalBox b;
     const bool inside = local_box(S, i, tile, &b);
     if (out.box_pixels) *out.box_pixels += b.box_pixels;
@@ -238,9 +257,11 @@ void BackwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileB
   std::vector<float> channel_acc(size_t(C) * N);  // per channel, lanes
   const auto zero = hn::Zero(d), one = hn::Set(d, 1.0f), minus_half = hn::Set(d, -0.5f);
   const auto max_alpha = hn::Set(d, kMaxAlpha), min_alpha = hn::Set(d, kMinAlpha);
+  for (uint32_t k = tile.count; k-- > tile.count - std::min(tile.count, kPrefetchAhead);) PrefetchEntry(S, tile.entries[k], C);
   for (uint32_t k = tile.count; k-- > 0;) {
     float* rec = io.records + size_t(k) * R;
     const uint32_t i = tile.entries[k];
+    if (k >= kPrefetchAhead) PrefetchEntry(S, tile.entries[k - kPrefetchAhead], C);
     LocalBox b;
     if (!local_box(S, i, tile, &b)) {
       std::fill(rec, rec + R, 0.0f);
