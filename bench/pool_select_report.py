@@ -406,7 +406,7 @@ def main():
                     cells += [fmt(d), "–"]
                     continue
                 m, sd, h, nd = iv
-                verdict[(label, sp)] = abs(m) > h
+                verdict[(label, sp)] = (m - h, m + h)
                 if collect is not None:
                     if not collect or collect[-1][0] != label:
                         collect.append((label, {}))
@@ -430,7 +430,11 @@ def main():
             rows, verdict = interval_rows([(f"positive.K{K}", f"random.K{K}", "positive control minus random")], PRIMARY, intervals)
             lines += ["", "### The positive control", "", "The positive control (the pool photographs nearest the judged cameras, spread over "
                       "the clip) minus random, paired by seed (affine PSNR, dB):", ""] + rows
-            blind = [sp for sp in splits if not verdict.get(("positive control minus random", sp), False)]
+            # Separated means ahead of random: a positive control whose interval lies below 0
+            # does worse than random, which shows no better selection being told apart.
+            bounds = {sp: verdict.get(("positive control minus random", sp)) for sp in splits}
+            blind = [sp for sp in splits if not (bounds[sp] and bounds[sp][0] > 0)]
+            behind = [sp for sp in blind if bounds[sp] and bounds[sp][1] < 0]
             lines += [""]
             if len(paired(f"scratch.positive.K{K}", f"scratch.random.K{K}", splits[0])) < 2:
                 lines.append(f"At K = {K} fewer than two seeds have both runs: no interval yet, so nothing here is ranked.")
@@ -438,6 +442,10 @@ def main():
                 lines.append(f"**At K = {K} the positive control does not separate from random on the {', '.join(blind)} split"
                              f"{'s' if len(blind) > 1 else ''}: there the instrument cannot judge a selection at this budget, and FillGS's "
                              "differences below are printed, not ranked.**")
+                if behind:
+                    lines.append(f"On the {', '.join(behind)} split{'s' if len(behind) > 1 else ''} the positive control is behind random (its "
+                                 "interval below 0): the photographs nearest the judged cameras score worse there than a random choice, "
+                                 "so that split cannot tell a better selection either.")
             else:
                 lines.append(f"At K = {K} the positive control separates from random on every split: the instrument can tell a better selection here.")
         else:

@@ -122,6 +122,26 @@ def test_positive_control_verdict_per_split(tmp_path):
     assert "No positive control at K = 30" in open(os.path.join(root, "results.md")).read()
 
 
+def test_positive_control_behind_random_is_not_separation(tmp_path):
+    """positive - random far: -0.3, -0.5, -0.7 (mean -0.50, SD 0.20, h = 0.497: the interval
+    [-0.997, -0.003] excludes 0 below it). That is a positive control doing worse than random,
+    not an instrument telling a better selection apart: the far split is listed as unable to judge."""
+    root = str(tmp_path / "pool")
+    make_folder(root)
+    for s, delta in ((1, -0.3), (2, -0.5), (3, -0.7)):
+        rnd = json.load(open(os.path.join(root, f"s{s}", "scratch.random.K30", "eval_far", "metrics.json")))["far"]["psnr_affine"]
+        near = json.load(open(os.path.join(root, f"s{s}", "scratch.positive.K30", "eval_near", "metrics.json")))["near"]["psnr_affine"]
+        run(root, s, "scratch.positive.K30", near, rnd + delta, [["9", j, 25] for j in range(30)] + [["3", 0, 25]])
+    r = report(root, "--seeds", "1,2,3")
+    assert r.returncode == 0, r.stderr
+    md = open(os.path.join(root, "results.md")).read()
+    h = T975_DF2 * 0.2 / math.sqrt(3)
+    assert f"**[{-0.5 - h:.2f}, {-0.5 + h:.2f}]**" in line(md, "| positive control minus random |")
+    assert "does not separate from random on the far split: there the instrument cannot judge" in md
+    assert "On the far split the positive control is behind random" in md
+    assert "separates from random on every split" not in md
+
+
 def test_per_camera_window_draws_and_curriculum(tmp_path):
     root = str(tmp_path / "pool")
     make_folder(root)

@@ -15,7 +15,9 @@ set xtics scale 0 ('fillgs' 0, 'random' 1, 'negative' 2, 'interpolation' 3, 'fis
 set xrange [-0.6:7.6]
 set yrange [*<0:0<*]
 set offsets 0, 0, graph 0.08, graph 0.05
-plot 'gain.csv' skip 1 using ($0 - 0.4 + 0.2000):2:(0.3600) with boxes lc rgb '#3c78b4' title 'K = 10', \
-     '' skip 1 using ($0 - 0.4 + 0.2000):2:3 with yerrorbars lc rgb '#404040' pt 7 ps 0 notitle, \
-     'gain.csv' skip 1 using ($0 - 0.4 + 0.6000):4:(0.3600) with boxes lc rgb '#e0872c' title 'K = 30', \
-     '' skip 1 using ($0 - 0.4 + 0.6000):4:5 with yerrorbars lc rgb '#404040' pt 7 ps 0 notitle
+plot 'gain.csv' skip 1 using ($0 - 0.4 + 0.1333):2:(0.2400) with boxes lc rgb '#3c78b4' title 'K = 10', \
+     '' skip 1 using ($0 - 0.4 + 0.1333):2:3 with yerrorbars lc rgb '#404040' pt 7 ps 0 notitle, \
+     'gain.csv' skip 1 using ($0 - 0.4 + 0.4000):4:(0.2400) with boxes lc rgb '#e0872c' title 'K = 30', \
+     '' skip 1 using ($0 - 0.4 + 0.4000):4:5 with yerrorbars lc rgb '#404040' pt 7 ps 0 notitle, \
+     'gain.csv' skip 1 using ($0 - 0.4 + 0.6667):6:(0.2400) with boxes lc rgb '#4aa04a' title 'K = 90', \
+     '' skip 1 using ($0 - 0.4 + 0.6667):6:7 with yerrorbars lc rgb '#404040' pt 7 ps 0 notitle
