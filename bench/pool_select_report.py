@@ -395,7 +395,7 @@ def main():
         """Rows of 'x minus y' differences per split: mean ± SD, 95 % interval (bold where it excludes 0)."""
         rows = ["| difference | " + " | ".join(f"{sp}: mean ± SD | 95 % interval" for sp in splits) + f" | seeds | seeds for ±{TARGET} dB |",
                 "|---|" + "---|---|" * len(splits) + "---|---|"]
-        verdict = {}
+        bounds = {}  # (label, split) -> the 95 % interval's (low, high)
         for x, y, label in pairs:
             cells, n, need = [], 0, []
             for sp in splits:
@@ -406,7 +406,7 @@ def main():
                     cells += [fmt(d), "–"]
                     continue
                 m, sd, h, nd = iv
-                verdict[(label, sp)] = (m - h, m + h)
+                bounds[(label, sp)] = (m - h, m + h)
                 if collect is not None:
                     if not collect or collect[-1][0] != label:
                         collect.append((label, {}))
@@ -415,7 +415,7 @@ def main():
                 cells += [f"{m:.2f} ± {sd:.2f}", f"**{text}**" if abs(m) > h else text]
                 need.append(nd if h > TARGET else n)
             rows.append(f"| {label} | " + " | ".join(cells) + f" | {n} | {max(need) if need and None not in need else '–'} |")
-        return rows, verdict
+        return rows, bounds
 
     chart = []  # (strategy, K, mean gain over the control, its seed spread)
     for K in budgets:
@@ -427,12 +427,12 @@ def main():
         intervals = []
         # 1. Can the instrument separate a better selection at this budget?
         if "positive" in ran and "random" in ran:
-            rows, verdict = interval_rows([(f"positive.K{K}", f"random.K{K}", "positive control minus random")], PRIMARY, intervals)
+            rows, interval_of = interval_rows([(f"positive.K{K}", f"random.K{K}", "positive control minus random")], PRIMARY, intervals)
             lines += ["", "### The positive control", "", "The positive control (the pool photographs nearest the judged cameras, spread over "
                       "the clip) minus random, paired by seed (affine PSNR, dB):", ""] + rows
             # Separated means ahead of random: a positive control whose interval lies below 0
             # does worse than random, which shows no better selection being told apart.
-            bounds = {sp: verdict.get(("positive control minus random", sp)) for sp in splits}
+            bounds = {sp: interval_of.get(("positive control minus random", sp)) for sp in splits}
             blind = [sp for sp in splits if not (bounds[sp] and bounds[sp][0] > 0)]
             behind = [sp for sp in blind if bounds[sp] and bounds[sp][1] < 0]
             lines += [""]

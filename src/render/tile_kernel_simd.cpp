@@ -257,7 +257,7 @@ void BackwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileB
   std::vector<float> channel_acc(size_t(C) * N);  // per channel, lanes
   const auto zero = hn::Zero(d), one = hn::Set(d, 1.0f), minus_half = hn::Set(d, -0.5f);
   const auto max_alpha = hn::Set(d, kMaxAlpha), min_alpha = hn::Set(d, kMinAlpha);
-  for (uint32_t k = tile.count; k-- > tile.count - std::min(tile.count, kPrefetchAhead);) PrefetchEntry(S, tile.entries[k], C);
+  for (uint32_t k = 0; k < std::min(tile.count, kPrefetchAhead); ++k) PrefetchEntry(S, tile.entries[tile.count - 1 - k], C);
   for (uint32_t k = tile.count; k-- > 0;) {
     float* rec = io.records + size_t(k) * R;
     const uint32_t i = tile.entries[k];
