@@ -117,9 +117,11 @@ HWY_INLINE void PrefetchEntry(const TileSplats<float>& S, uint32_t i, int C) {
   hwy::Prefetch(sd);
   hwy::Prefetch(sd + 5);  // the six floats may straddle a cache line
   hwy::Prefetch(&S.extent[2 * size_t(i)]);
-  const float* ch = &S.channels[size_t(i) * C];
-  hwy::Prefetch(ch);
-  hwy::Prefetch(ch + C - 1);
+  if (C > 0) {  // an alpha- or depth-only render has no channel rows (channels is null)
+    const float* ch = &S.channels[size_t(i) * C];
+    hwy::Prefetch(ch);
+    hwy::Prefetch(ch + C - 1);
+  }
 }
 
 /// One splat broadcast to the lanes: the geometry both passes evaluate, block by block.
