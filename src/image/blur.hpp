@@ -27,4 +27,10 @@ const Real* ssim_window() {
 /// Threads over rows (TBB, the caller's arena); the result does not depend on them.
 void blur11_simd(const float* in, int width, int height, float* scratch, float* out);
 
+/// out[p] = window ⊛ (a[p] ⊙ b[p]) for `planes` planes at once (b[p] null: a[p] itself),
+/// each [H][W]: blur11_simd's values of the product planes, bit for bit, in strips of rows
+/// whose intermediate rows stay in the cache (the SSIM's five blurs in one call).
+void blur11_planes_simd(int planes, const float* const* a, const float* const* b, int width, int height, float* const* out);
+
+
 }  // namespace fillgs::image

@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <type_traits>
@@ -62,15 +63,21 @@ double chunked_sum(size_t n, Body&& body) {
 /// freed memory (`fillgs_bench train --only speed --gaussians 100000 --resolution 676x507`).
 template <typename Real>
 struct SsimScratch {
-  std::vector<Real> tmp, xx, yy, xy, mx, my, sxx, syy, sxy, dmu, dvar, dcov, g1, g2, g3;
+  std::vector<Real> tmp, xx, yy, mx, my, sxx, syy, sxy, dmu, dvar, dcov, g1, g2, g3;
 };
 
-/// Separable 11×11 Gaussian filter with zero padding, one plane: the vector kernel for
-/// float unless the scalar reference is selected (raster.hpp, Kernel).
+/// The vector kernel blurs (float, unless the scalar reference is selected: raster.hpp, Kernel).
+template <typename Real>
+bool vector_blur() {
+  if constexpr (std::is_same_v<Real, float>) return resolve_kernel(Kernel::Default) == Kernel::Simd;
+  return false;
+}
+
+/// Separable 11×11 Gaussian filter with zero padding, one plane.
 template <typename Real>
 void blur(const std::vector<Real>& in, int W, int H, std::vector<Real>& tmp, std::vector<Real>& out) {
   if constexpr (std::is_same_v<Real, float>) {
-    if (resolve_kernel(Kernel::Default) == Kernel::Simd) {
+    if (vector_blur<Real>()) {
       tmp.resize(in.size());
       out.resize(in.size());
       image::blur11_simd(in.data(), W, H, tmp.data(), out.data());
@@ -79,6 +86,34 @@ void blur(const std::vector<Real>& in, int W, int H, std::vector<Real>& tmp, std
   }
   blur_pass(in, W, H, true, tmp);
   blur_pass(tmp, W, H, false, out);
+}
+
+/// out[p] = the filter of a[p] ⊙ b[p] (b[p] null: a[p]) for several planes: the vector
+/// kernel's in one pass of strips (blur.hpp), else the products and one blur each.
+template <typename Real, size_t P>
+void blur_planes(const std::array<const std::vector<Real>*, P>& a, const std::array<const std::vector<Real>*, P>& b, int W, int H,
+                 std::vector<Real>& tmp, std::vector<Real>& product, const std::array<std::vector<Real>*, P>& out) {
+  const size_t n = a[0]->size();
+  if constexpr (std::is_same_v<Real, float>) {
+    if (vector_blur<Real>()) {
+      std::array<const float*, P> pa, pb;
+      std::array<float*, P> po;
+      for (size_t p = 0; p < P; ++p) pa[p] = a[p]->data(), pb[p] = b[p] ? b[p]->data() : nullptr, out[p]->resize(n), po[p] = out[p]->data();
+      image::blur11_planes_simd(int(P), pa.data(), pb.data(), W, H, po.data());
+      return;
+    }
+  }
+  for (size_t p = 0; p < P; ++p) {
+    if (!b[p]) {
+      blur(*a[p], W, H, tmp, *out[p]);
+      continue;
+    }
+    product.resize(n);
+    chunked_for(n, [&](size_t i0, size_t i1) {
+      for (size_t i = i0; i < i1; ++i) product[i] = (*a[p])[i] * (*b[p])[i];
+    });
+    blur(product, W, H, tmp, *out[p]);
+  }
 }
 
 /// SSIM map of one channel plane and, when `grad` is given, d(Σ_p c_p·SSIM_p)/dx for the
@@ -91,16 +126,9 @@ double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W,
   static thread_local SsimScratch<Real> scratch;
   SsimScratch<Real>& w = scratch;
   const size_t n = x.size();
-  w.xx.resize(n), w.yy.resize(n), w.xy.resize(n);
-  chunked_for(n, [&](size_t i0, size_t i1) {
-    for (size_t i = i0; i < i1; ++i) w.xx[i] = x[i] * x[i], w.yy[i] = y[i] * y[i], w.xy[i] = x[i] * y[i];
-  });
   const std::vector<Real>&mx = w.mx, &my = w.my, &sxx = w.sxx, &syy = w.syy, &sxy = w.sxy;
-  blur(x, W, H, w.tmp, w.mx);
-  blur(y, W, H, w.tmp, w.my);
-  blur(w.xx, W, H, w.tmp, w.sxx);
-  blur(w.yy, W, H, w.tmp, w.syy);
-  blur(w.xy, W, H, w.tmp, w.sxy);
+  // μx, μy, and the window's sums of x², y², xy.
+  blur_planes<Real, 5>({&x, &y, &x, &y, &x}, {nullptr, nullptr, &x, &y, &y}, W, H, w.tmp, w.xx, {&w.mx, &w.my, &w.sxx, &w.syy, &w.sxy});
   std::vector<Real>&dmu = w.dmu, &dvar = w.dvar, &dcov = w.dcov;
   if (grad) dmu.resize(n), dvar.resize(n), dcov.resize(n);
   const double total = chunked_sum(n, [&](size_t i0, size_t i1) {
@@ -122,13 +150,12 @@ double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W,
   });
   if (grad) {
     // x enters μx, σx² = G*(x²) − μx², σxy = G*(xy) − μxμy; G is symmetric.
-    std::vector<Real>& t1 = w.xx;  // x² is no longer needed
+    std::vector<Real>& t1 = w.xx;
+    t1.resize(n);
     chunked_for(n, [&](size_t i0, size_t i1) {
       for (size_t i = i0; i < i1; ++i) t1[i] = dmu[i] - Real(2) * dvar[i] * mx[i] - dcov[i] * my[i];
     });
-    blur(t1, W, H, w.tmp, w.g1);
-    blur(dvar, W, H, w.tmp, w.g2);
-    blur(dcov, W, H, w.tmp, w.g3);
+    blur_planes<Real, 3>({&t1, &dvar, &dcov}, {nullptr, nullptr, nullptr}, W, H, w.tmp, w.yy, {&w.g1, &w.g2, &w.g3});
     grad->resize(n);
     chunked_for(n, [&](size_t i0, size_t i1) {
       for (size_t i = i0; i < i1; ++i) (*grad)[i] = w.g1[i] + Real(2) * x[i] * w.g2[i] + y[i] * w.g3[i];
