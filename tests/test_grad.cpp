@@ -250,6 +250,62 @@ TEST_CASE("parameter gradients through frame_at(t), motion included, match finit
   }
 }
 
+TEST_CASE("params_at_backward from the state params_at kept gives the gradients it computes alone, bit for bit", "[grad][motion]") {
+  // Float, as training runs it: keyed rotations, scales, opacities and colours, with slerps on
+  // each branch: spherical, nearly equal keys (the normalised lerp), keys on opposite
+  // hemispheres (the flip) and a zero key (no normalisation).
+  ModelParams<float> p = params_from_cloud<float>(random_scene(40, 30, 5));
+  const size_t K = size_t(p.key_count), D = p.dynamic_count(), S = size_t(p.sh_count()) * 3;
+  REQUIRE(D == 30);
+  REQUIRE(!p.key_log_scales.empty());
+  REQUIRE(p.keyed_opacity);
+  p.key_sh.resize(D * K * S);
+  for (size_t i = 0; i < p.key_sh.size(); ++i) p.key_sh[i] = 0.3f * std::sin(float(i));
+  for (size_t k = 0; k < K; ++k)
+    for (int a = 0; a < 4; ++a) {
+      float* q = &p.key_rotations[(0 * K + k) * 4];
+      q[a] = p.key_rotations[a] + 1e-4f * float(k * a);                         // moving Gaussian 0: nearly equal keys
+      p.key_rotations[(1 * K + k) * 4 + size_t(a)] = (k % 2 ? -1.0f : 1.0f) * q[a];  // 1: alternate hemispheres
+      p.key_rotations[(2 * K + k) * 4 + size_t(a)] = 0.0f;                     // 2: zero keys
+    }
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> U(-1.0f, 1.0f);
+  DiffFrameGrad<float> fg;
+  fg.reset(p.size(), p.sh_count(), 0);
+  for (std::vector<float>* v : {&fg.means, &fg.scales, &fg.rotations, &fg.opacities, &fg.sh})
+    for (float& x : *v) x = U(rng);
+  for (const double t : {0.0, 0.2, 0.45, 0.5, 1.0}) {
+    INFO("t = " << t);
+    DiffFrame<float> plain, kept;
+    params_at(p, t, &plain);
+    params_at(p, t, &kept, true);
+    CHECK(kept.key_state.size() == D * 22);
+    CHECK(plain.key_state.empty());
+    // Keeping changes nothing the frame holds.
+    CHECK(plain.means == kept.means);
+    CHECK(plain.scales == kept.scales);
+    CHECK(plain.rotations == kept.rotations);
+    CHECK(plain.opacities == kept.opacities);
+    CHECK(plain.sh_storage == kept.sh_storage);
+    ModelParams<float> alone = p.zeros_like(), from_kept = p.zeros_like(), from_plain = p.zeros_like();
+    params_at_backward(p, t, fg, &alone);
+    params_at_backward(p, t, fg, &from_kept, &kept);
+    params_at_backward(p, t, fg, &from_plain, &plain);  // nothing kept: computed alone
+    const auto a = alone.arrays(), b = from_kept.arrays(), c = from_plain.arrays();
+    for (size_t i = 0; i < a.size(); ++i) {
+      INFO("array " << i);
+      REQUIRE(a[i]->size() == b[i]->size());
+      CHECK(std::memcmp(a[i]->data(), b[i]->data(), a[i]->size() * sizeof(float)) == 0);
+      CHECK(std::memcmp(a[i]->data(), c[i]->data(), a[i]->size() * sizeof(float)) == 0);
+    }
+    // The zero keys' Gaussian gets no rotation gradient; the others do.
+    float zero_keys = 0, others = 0;
+    for (size_t k = 0; k < K * 4; ++k) zero_keys += std::fabs(alone.key_rotations[2 * K * 4 + k]), others += std::fabs(alone.key_rotations[k]);
+    CHECK(zero_keys == 0.0f);
+    CHECK(others > 0.0f);
+  }
+}
+
 namespace {
 
 /// One pixel, Gaussians on its centre at depths 2, 3, 4...: α_i = o_i exactly.

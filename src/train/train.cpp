@@ -525,7 +525,7 @@ void Trainer::step() {
   const std::vector<float> target = refined ? refined->rgb : data_->image(v);
   const float* loss_weights = refined ? refined->weight.data() : nullptr;
   DiffFrame<float> frame;
-  params_at(params_, view.camera.time, &frame);
+  params_at(params_, view.camera.time, &frame, /*keep_for_backward=*/true);
   DiffRenderOptions ro;
   ro.background = options_.background;
   DiffRasterizer<float> ras;
@@ -545,7 +545,7 @@ void Trainer::step() {
   DiffFrameGrad<float> fg;
   ras.backward(dimg.data(), nullptr, nullptr, &fg);
   grad_.set_zeros_like(params_);
-  params_at_backward(params_, view.camera.time, fg, &grad_);
+  params_at_backward(params_, view.camera.time, fg, &grad_, &frame);
 
   // Densification statistics (3DGS: norm of the NDC-space mean gradient, per view seen).
   const int B = std::max(1, options_.time_bins);

@@ -304,6 +304,14 @@ GaussianCloud cloud_from_params(const ModelParams<float>& p) {
   return c;
 }
 
+/// 1 for each moving (keyed) Gaussian, 0 for a static one.
+template <typename Real>
+std::vector<uint8_t> keyed_mask(const ModelParams<Real>& p) {
+  std::vector<uint8_t> keyed(p.size(), 0);
+  for (uint32_t g : p.dynamic_ids) keyed[g] = 1;
+  return keyed;
+}
+
 /// Calls f(j, g, kw) in parallel for every keyed Gaussian: j its index among the moving
 /// ones, g its index, kw the cubic position weights and the key interval at time t.
 template <typename Real, typename F>
@@ -316,11 +324,13 @@ void for_each_keyed(const ModelParams<Real>& p, double t, F&& f) {
 }
 
 template <typename Real>
-void params_at(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
+void params_at(const ModelParams<Real>& p, double t, DiffFrame<Real>* f, bool keep_for_backward) {
   t = std::clamp(t, 0.0, 1.0);
   const size_t N = p.size();
   const int K = p.key_count;
   if (f->size() != N) f->resize(N);
+  f->key_state.resize(keep_for_backward ? p.dynamic_count() * size_t(Slerp<Real>::kState) : 0);
+  f->kept_for_backward = keep_for_backward;
   f->sh_degree = p.sh_degree;
   f->sh = p.sh.data();
   const size_t S = size_t(p.sh_count()) * 3;
@@ -328,11 +338,16 @@ void params_at(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
     f->sh_storage = p.sh;
     f->sh = f->sh_storage.data();
   }
-  // Every Gaussian's own values first; moving ones are overwritten below.
+  // Every Gaussian's own values first, but the mean and rotation of a moving one: its keys
+  // give those below (and its scales, opacity and colour where they are keyed).
+  const std::vector<uint8_t> keyed = keyed_mask(p);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, N, 4096), [&](const tbb::blocked_range<size_t>& r) {
     for (size_t g = r.begin(); g < r.end(); ++g) {
-      for (int k = 0; k < 3; ++k) f->means[3 * g + k] = p.means[3 * g + k], f->scales[3 * g + k] = std::exp(p.log_scales[3 * g + k]);
-      normalize4(&p.rotations[4 * g], &f->rotations[4 * g]);
+      for (int k = 0; k < 3; ++k) f->scales[3 * g + k] = std::exp(p.log_scales[3 * g + k]);
+      if (!keyed[g]) {
+        for (int k = 0; k < 3; ++k) f->means[3 * g + k] = p.means[3 * g + k];
+        normalize4(&p.rotations[4 * g], &f->rotations[4 * g]);
+      }
       f->opacities[g] = sigmoid(p.opacity_logits[g]);
     }
   });
@@ -353,6 +368,7 @@ void params_at(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
     const Real* Q = &p.key_rotations[j * K * 4];
     Slerp<Real> sl;
     sl.forward(Q + 4 * ks.i, Q + 4 * i1, Real(ks.s), &f->rotations[4 * g]);
+    if (keep_for_backward) sl.save(&f->key_state[j * Slerp<Real>::kState]);
     if (!p.key_log_scales.empty()) {
       const Real* S = &p.key_log_scales[j * K * 3];
       for (int a = 0; a < 3; ++a)
@@ -371,13 +387,19 @@ void params_at(const ModelParams<Real>& p, double t, DiffFrame<Real>* f) {
 }
 
 template <typename Real>
-void params_at_backward(const ModelParams<Real>& p, double t, const DiffFrameGrad<Real>& gf, ModelParams<Real>* d) {
+void params_at_backward(const ModelParams<Real>& p, double t, const DiffFrameGrad<Real>& gf, ModelParams<Real>* d,
+                        const DiffFrame<Real>* frame) {
   t = std::clamp(t, 0.0, 1.0);
   const size_t N = p.size();
   const int K = p.key_count;
+  // The forward's values where it kept them (the same parameters and time): its scales and
+  // opacities are exp and sigmoid of what the backward would evaluate, and its slerps' state.
+  const DiffFrame<Real>* kept = frame && frame->kept_for_backward && frame->size() == N &&
+                                        frame->key_state.size() == p.dynamic_count() * size_t(Slerp<Real>::kState)
+                                    ? frame
+                                    : nullptr;
   // Own values (static Gaussians; for moving ones only what keys do not replace).
-  std::vector<uint8_t> keyed(N, 0);
-  for (uint32_t g : p.dynamic_ids) keyed[g] = 1;
+  const std::vector<uint8_t> keyed = keyed_mask(p);
   const size_t S = size_t(p.sh_count()) * 3;
   if (p.key_sh.empty()) {
     for (size_t i = 0; i < gf.sh.size(); ++i) d->sh[i] += gf.sh[i];
@@ -394,9 +416,10 @@ void params_at_backward(const ModelParams<Real>& p, double t, const DiffFrameGra
         normalize4_backward(&p.rotations[4 * g], &gf.rotations[4 * g], &d->rotations[4 * g]);
       }
       if (!keyed[g] || !keyed_scale)
-        for (int k = 0; k < 3; ++k) d->log_scales[3 * g + k] += gf.scales[3 * g + k] * std::exp(p.log_scales[3 * g + k]);
+        for (int k = 0; k < 3; ++k)
+          d->log_scales[3 * g + k] += gf.scales[3 * g + k] * (kept ? kept->scales[3 * g + k] : std::exp(p.log_scales[3 * g + k]));
       if (!keyed[g] || !keyed_opacity) {
-        const Real o = sigmoid(p.opacity_logits[g]);
+        const Real o = kept ? kept->opacities[g] : sigmoid(p.opacity_logits[g]);
         d->opacity_logits[g] += gf.opacities[g] * o * (Real(1) - o);
       }
     }
@@ -416,10 +439,14 @@ void params_at_backward(const ModelParams<Real>& p, double t, const DiffFrameGra
     const Real* Q = &p.key_rotations[j * K * 4];
     Real* dQ = &d->key_rotations[j * K * 4];
     Slerp<Real> sl;
-    Real out[4];
-    sl.forward(Q + 4 * ks.i, Q + 4 * i1, Real(ks.s), out);
+    if (kept) {
+      sl.load(&kept->key_state[j * Slerp<Real>::kState]);
+    } else {
+      Real out[4];
+      sl.forward(Q + 4 * ks.i, Q + 4 * i1, Real(ks.s), out);
+    }
     Real g0[4] = {0, 0, 0, 0}, g1[4] = {0, 0, 0, 0};
-    sl.backward(Q + 4 * ks.i, Q + 4 * i1, &gf.rotations[4 * g], g0, g1);
+    sl.backward(&gf.rotations[4 * g], g0, g1);
     for (int k = 0; k < 4; ++k) dQ[4 * ks.i + k] += g0[k], dQ[4 * i1 + k] += g1[k];
     const Real s = Real(ks.s);
     if (keyed_scale) {
@@ -427,7 +454,7 @@ void params_at_backward(const ModelParams<Real>& p, double t, const DiffFrameGra
       Real* dS = &d->key_log_scales[j * K * 3];
       for (int a = 0; a < 3; ++a) {
         const Real x = S[3 * ks.i + a] + s * (S[3 * i1 + a] - S[3 * ks.i + a]);
-        const Real gx = gf.scales[3 * g + a] * std::exp(x);
+        const Real gx = gf.scales[3 * g + a] * (kept ? kept->scales[3 * g + a] : std::exp(x));
         dS[3 * ks.i + a] += (Real(1) - s) * gx;
         dS[3 * i1 + a] += s * gx;
       }
@@ -435,7 +462,7 @@ void params_at_backward(const ModelParams<Real>& p, double t, const DiffFrameGra
     if (keyed_opacity) {
       const Real* O = &p.key_opacity_logits[j * K];
       Real* dO = &d->key_opacity_logits[j * K];
-      const Real o = sigmoid(O[ks.i] + s * (O[i1] - O[ks.i]));
+      const Real o = kept ? kept->opacities[g] : sigmoid(O[ks.i] + s * (O[i1] - O[ks.i]));
       const Real gx = gf.opacities[g] * o * (Real(1) - o);
       dO[ks.i] += (Real(1) - s) * gx;
       dO[i1] += s * gx;
@@ -458,11 +485,11 @@ template size_t key_every_gaussian<double>(ModelParams<double>&);
 template void add_key_opacities<float>(ModelParams<float>&);
 template void add_key_opacities<double>(ModelParams<double>&);
 template ModelParams<double> params_from_cloud<double>(const GaussianCloud&, int);
-template void params_at<float>(const ModelParams<float>&, double, DiffFrame<float>*);
-template void params_at<double>(const ModelParams<double>&, double, DiffFrame<double>*);
-template void params_at_backward<float>(const ModelParams<float>&, double, const DiffFrameGrad<float>&,
-                                              ModelParams<float>*);
-template void params_at_backward<double>(const ModelParams<double>&, double, const DiffFrameGrad<double>&,
-                                               ModelParams<double>*);
+template void params_at<float>(const ModelParams<float>&, double, DiffFrame<float>*, bool);
+template void params_at<double>(const ModelParams<double>&, double, DiffFrame<double>*, bool);
+template void params_at_backward<float>(const ModelParams<float>&, double, const DiffFrameGrad<float>&, ModelParams<float>*,
+                                        const DiffFrame<float>*);
+template void params_at_backward<double>(const ModelParams<double>&, double, const DiffFrameGrad<double>&, ModelParams<double>*,
+                                         const DiffFrame<double>*);
 
 }  // namespace fillgs

@@ -39,6 +39,10 @@ struct DiffFrame {
   std::vector<Real> opacities;  ///< [N] in (0, 1), temporal factors included
   const Real* sh = nullptr;     ///< [N][(degree+1)²][3], coefficient-major per Gaussian
   std::vector<Real> sh_storage; ///< the frame's own SH where it differs from the model's (keyed colour), else empty
+  /// Kept by params_at for its backward (train_model.hpp, keep_for_backward): each moving
+  /// Gaussian's slerp state; empty otherwise.
+  std::vector<Real> key_state;
+  bool kept_for_backward = false;
   size_t size() const { return opacities.size(); }
   void resize(size_t n) {
     means.assign(3 * n, Real(0));

@@ -95,13 +95,17 @@ ModelParams<Real> params_from_cloud(const GaussianCloud& cloud, int bake_frames 
 /// The cloud of float parameters (canonical mean/rotation of moving ones = first key).
 GaussianCloud cloud_from_params(const ModelParams<float>& params);
 
-/// Gaussians at time t (clamped to [0, 1]). `frame.sh` points into params.sh.
+/// Gaussians at time t (clamped to [0, 1]). `frame.sh` points into params.sh. With
+/// keep_for_backward the frame also keeps what params_at_backward would evaluate again
+/// (each moving Gaussian's slerp state: norms, normalised keys, sines).
 template <typename Real>
-void params_at(const ModelParams<Real>& params, double t, DiffFrame<Real>* frame);
+void params_at(const ModelParams<Real>& params, double t, DiffFrame<Real>* frame, bool keep_for_backward = false);
 
-/// Adds dL/dparams for a loss whose gradient with respect to params_at(t) is `grad`.
+/// Adds dL/dparams for a loss whose gradient with respect to params_at(t) is `grad`. Given
+/// `frame`, params_at(params, t, frame, true)'s (the same parameters and time), it reads the
+/// values the forward kept instead of evaluating them again: the same gradients, bit for bit.
 template <typename Real>
 void params_at_backward(const ModelParams<Real>& params, double t, const DiffFrameGrad<Real>& grad,
-                        ModelParams<Real>* dparams);
+                        ModelParams<Real>* dparams, const DiffFrame<Real>* frame = nullptr);
 
 }  // namespace fillgs
