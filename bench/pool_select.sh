@@ -370,13 +370,11 @@ for f in "$CAMERAS:rig_cameras" "$TEST:judged_cameras"; do
   [ -f "$OUT/${f##*:}.json" ] || { "$FILLGS" cameras --cameras "${f%:*}" --out "$OUT/${f##*:}.tmp.json" >/dev/null && mv "$OUT/${f##*:}.tmp.json" "$OUT/${f##*:}.json"; }
 done
 JUDGED=$(IFS=:; echo "${SPLIT_CAMS[*]}")
-# Per seed, once: the backbone, the control, the dense reference; seed 1 also the backbone
-# trained with the time curriculum, and both judged on the training cameras.
+# Per seed, once: the backbone and the dense reference (the control is a row of its own, below).
 seed_references() {  # seed
   local s=$1
   backbone "$s"
   run_job scratch "$s" dense $TRAIN,$POOL  # the longest: first, when jobs share the cores
-  run_job control_rows "$s"
 }
 control_rows() {  # seed: the control; seed 1 also the curriculum's backbone, both judged on the training cameras
   local s=$1
@@ -411,6 +409,22 @@ strategy_row() {  # seed, strategy, K
   fi
   scratch "$s" "scratch.$st.K$K" $TRAIN --camera-times "$OUT/s$s/choose.$st.K$K/pool_chosen.json"
 }
+# With --jobs, a seed's rows start longest first, so that the row left running alone at the
+# end is a short one: the dense reference, the two choices that cost most (FisherRF's and
+# coverage3d's, 48 s and 18 s of one core in seed 2's K = 30 records), the other rows as
+# listed, then the control (no photographs) and the positive control (no choice to make);
+# seed 1's control row also trains the curriculum's backbone, and starts right after the
+# dense reference. Simulated from seed 2's step times, the seed's end moves from 1,309 s to
+# 1,283 s (bench/results/README.md); the records do not depend on the order.
+JOB_ORDER=()
+for st in fisherrf coverage3d "${STRATEGIES[@]}"; do
+  [[ " ${STRATEGIES[*]} " == *" $st "* && " ${JOB_ORDER[*]} " != *" $st "* && $st != positive ]] && JOB_ORDER+=("$st")
+done
+JOB_ORDER+=(control)
+[[ " ${STRATEGIES[*]} " == *" positive "* ]] && JOB_ORDER+=(positive)
+row_job() {  # seed, row of JOB_ORDER, K
+  if [ "$2" = control ]; then run_job control_rows "$1"; else run_job strategy_row "$1" "$2" "$3"; fi
+}
 # The main protocol: budget by budget as the plan lists them, every seed's rows before the next seed.
 if [ $NO_SCRATCH = 0 ]; then
   for entry in $PLAN; do
@@ -418,7 +432,11 @@ if [ $NO_SCRATCH = 0 ]; then
     IFS=, read -r -a plan_seeds <<<"${entry#*:}"
     for s in "${plan_seeds[@]}"; do
       seed_references "$s"
-      for st in "${STRATEGIES[@]}"; do run_job strategy_row "$s" "$st" "$K"; done
+      [ "$s" = 1 ] && run_job control_rows "$s"  # seed 1's trains two models
+      for row in "${JOB_ORDER[@]}"; do
+        [ "$s" = 1 ] && [ "$row" = control ] && continue
+        row_job "$s" "$row" "$K"
+      done
       wait_jobs
     done
   done
