@@ -414,8 +414,7 @@ strategy_row() {  # seed, strategy, K
 # coverage3d's, 48 s and 18 s of one core in seed 2's K = 30 records), the other rows as
 # listed, then the control (no photographs) and the positive control (no choice to make);
 # seed 1's control row also trains the curriculum's backbone, and starts right after the
-# dense reference. Simulated from seed 2's step times, the seed's end moves from 1,309 s to
-# 1,283 s (bench/results/README.md); the records do not depend on the order.
+# dense reference. The records do not depend on the order.
 JOB_ORDER=()
 for st in fisherrf coverage3d "${STRATEGIES[@]}"; do
   [[ " ${STRATEGIES[*]} " == *" $st "* && " ${JOB_ORDER[*]} " != *" $st "* && $st != positive ]] && JOB_ORDER+=("$st")
