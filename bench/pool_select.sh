@@ -411,7 +411,7 @@ strategy_row() {  # seed, strategy, K
 }
 # With --jobs, a seed's rows start longest first, so that the row left running alone at the
 # end is a short one: the dense reference, the two choices that cost most (FisherRF's and
-# coverage3d's, 48 s and 18 s of one core in seed 2's K = 30 records), the other rows as
+# coverage3d's: 21 s and 10 s in s2/choose.*.K30/summary.json, the next 5 s), the other rows as
 # listed, then the control (no photographs) and the positive control (no choice to make);
 # seed 1's control row also trains the curriculum's backbone, and starts right after the
 # dense reference. The records do not depend on the order.

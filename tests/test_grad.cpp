@@ -12,6 +12,7 @@
 #include "fillgs/train/train_model.hpp"
 #include "fillgs/base/instruction_set.hpp"
 #include "helpers.hpp"
+#include "model/motion_keys.hpp"
 #include "render/splat_backward_rows.hpp"
 
 using namespace fillgs;
@@ -279,8 +280,19 @@ TEST_CASE("params_at_backward from the state params_at kept gives the gradients 
     DiffFrame<float> plain, kept;
     params_at(p, t, &plain);
     params_at(p, t, &kept, true);
-    CHECK(kept.key_state.size() == D * 22);
+    constexpr size_t kState = keys::Slerp<float>::kState;
+    REQUIRE(kept.key_state.size() == D * kState);
     CHECK(plain.key_state.empty());
+    // The slerps meet the branches the keys were built for.
+    keys::Slerp<float> near_equal, opposite, zero_key, apart;
+    near_equal.load(&kept.key_state[0 * kState]);
+    opposite.load(&kept.key_state[1 * kState]);
+    zero_key.load(&kept.key_state[2 * kState]);
+    apart.load(&kept.key_state[3 * kState]);
+    CHECK(near_equal.linear);
+    CHECK(opposite.flipped);
+    CHECK(!keys::normalizable(zero_key.n0));
+    CHECK(!apart.linear);
     // Keeping changes nothing the frame holds.
     CHECK(plain.means == kept.means);
     CHECK(plain.scales == kept.scales);

@@ -300,23 +300,45 @@ TEST_CASE("the SSIM's blur of several product planes in strips gives each plane'
           "[kernel][loss]") {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> U(0.0f, 1.0f);
+  // The window written out here: 11 taps of a Gaussian with σ = 1.5, normalised.
+  double win[11], wsum = 0;
+  for (int i = 0; i < 11; ++i) win[i] = std::exp(-double((i - 5) * (i - 5)) / 4.5), wsum += win[i];
+  for (double& v : win) v /= wsum;
   // Widths below, at and past the lane blocks; heights below, at and past a strip (64 rows).
   for (const auto& [W, H] : std::vector<std::pair<int, int>>{{1, 1}, {3, 7}, {11, 5}, {37, 64}, {70, 65}, {160, 90}, {333, 131}}) {
     const size_t n = size_t(W) * H;
     std::vector<float> x(n), y(n);
     for (size_t i = 0; i < n; ++i) x[i] = U(rng), y[i] = U(rng);
-    // The reference: products formed plane by plane, each blurred alone.
+    // Each plane alone, its product formed first, against the five in one call.
     std::vector<std::vector<float>> product(5, std::vector<float>(n)), one(5, std::vector<float>(n)), many(5, std::vector<float>(n, -1.0f));
-    std::vector<float> scratch(n);
     for (size_t i = 0; i < n; ++i)
       product[0][i] = x[i], product[1][i] = y[i], product[2][i] = x[i] * x[i], product[3][i] = y[i] * y[i], product[4][i] = x[i] * y[i];
-    for (int p = 0; p < 5; ++p) image::blur11_simd(product[size_t(p)].data(), W, H, scratch.data(), one[size_t(p)].data());
+    for (int p = 0; p < 5; ++p) {
+      const float* a1[1] = {product[size_t(p)].data()};
+      const float* b1[1] = {nullptr};
+      float* o1[1] = {one[size_t(p)].data()};
+      image::blur11_planes_simd(1, a1, b1, W, H, o1);
+    }
     const float* a[5] = {x.data(), y.data(), x.data(), y.data(), x.data()};
     const float* b[5] = {nullptr, nullptr, x.data(), y.data(), y.data()};
     float* out[5] = {many[0].data(), many[1].data(), many[2].data(), many[3].data(), many[4].data()};
     image::blur11_planes_simd(5, a, b, W, H, out);
     INFO(W << "x" << H << " on " << simd_target());
     for (int p = 0; p < 5; ++p) CHECK(std::memcmp(one[size_t(p)].data(), many[size_t(p)].data(), n * sizeof(float)) == 0);
+    // The blur itself against the 2D window in double, zero padding: float rounding only.
+    double worst = 0;
+    for (int p = 0; p < 5; ++p)
+      for (int py = 0; py < H; ++py)
+        for (int px = 0; px < W; ++px) {
+          double ref = 0;
+          for (int j = 0; j < 11; ++j)
+            for (int i = 0; i < 11; ++i) {
+              const int qx = px + i - 5, qy = py + j - 5;
+              if (qx >= 0 && qy >= 0 && qx < W && qy < H) ref += win[j] * win[i] * double(product[size_t(p)][size_t(qy) * W + size_t(qx)]);
+            }
+          worst = std::max(worst, std::fabs(ref - double(many[size_t(p)][size_t(py) * W + size_t(px)])));
+        }
+    CHECK(worst < 1e-6);
     // The window is normalised: a constant plane far from the borders keeps its value.
     if (W > 10 && H > 10) {
       std::vector<float> c(n, 0.75f), blurred(n);

@@ -23,14 +23,11 @@ const Real* ssim_window() {
   return window.w;
 }
 
-/// out = window ⊛ in along x then y, one [H][W] plane; `scratch` holds W·H floats.
-/// Threads over rows (TBB, the caller's arena); the result does not depend on them.
-void blur11_simd(const float* in, int width, int height, float* scratch, float* out);
-
-/// out[p] = window ⊛ (a[p] ⊙ b[p]) for `planes` planes at once (b[p] null: a[p] itself),
-/// each [H][W]: blur11_simd's values of the product planes, bit for bit, in strips of rows
-/// whose intermediate rows stay in the cache (the SSIM's five blurs in one call).
+/// out[p] = window ⊛ (a[p] ⊙ b[p]) along x then y, for `planes` [H][W] planes at once (b[p]
+/// null: a[p] itself; the SSIM's five windows in one call), in strips of rows whose row pass
+/// stays in the cache for the column pass. Each plane's values are those of a call for it
+/// alone with its product formed first, and do not depend on the thread count (TBB, the
+/// caller's arena, over strips).
 void blur11_planes_simd(int planes, const float* const* a, const float* const* b, int width, int height, float* const* out);
-
 
 }  // namespace fillgs::image

@@ -81,25 +81,6 @@ HWY_INLINE void BlurColumnRow(const float* w, const float* const* rows, int k0, 
   }
 }
 
-/// The taps of output row y inside an image of H rows.
-inline void column_taps(int y, int H, int* k0, int* k1) { *k0 = std::max(0, 5 - y), *k1 = std::min(kBlurTaps, H - y + 5); }
-
-/// Rows [y0, y1): out[y][x] = Σ_k w_k in[y][x + k − 5], taps outside the row skipped.
-void BlurRows(const float* w, const float* in, int W, int y0, int y1, float* out) {
-  for (int y = y0; y < y1; ++y) BlurRow(w, in + size_t(y) * W, W, out + size_t(y) * W);
-}
-
-/// Rows [y0, y1): out[y][x] = Σ_k w_k in[y + k − 5][x], rows outside the image skipped.
-void BlurColumns(const float* w, const float* in, int W, int H, int y0, int y1, float* out) {
-  const float* rows[kBlurTaps] = {};
-  for (int y = y0; y < y1; ++y) {
-    int k0, k1;
-    column_taps(y, H, &k0, &k1);
-    for (int k = k0; k < k1; ++k) rows[k] = in + size_t(y + k - 5) * W;
-    BlurColumnRow(w, rows, k0, k1, W, out + size_t(y) * W);
-  }
-}
-
 /// Output rows [y0, y1) of every plane of blur11_planes_simd: the row pass of the input
 /// rows they need (y0 − 5 to y1 + 5, within the image) into `strip`, then the column pass
 /// from it. `row` holds one product row.
@@ -122,8 +103,7 @@ void BlurPlanesStrip(const float* w, int planes, const float* const* a, const fl
     }
     const float* rows[kBlurTaps] = {};
     for (int y = y0; y < y1; ++y) {
-      int k0, k1;
-      column_taps(y, H, &k0, &k1);
+      const int k0 = std::max(0, 5 - y), k1 = std::min(kBlurTaps, H - y + 5);  // the taps inside the image
       for (int k = k0; k < k1; ++k) rows[k] = strip + size_t(y + k - 5 - r0) * W;
       BlurColumnRow(w, rows, k0, k1, W, out[p] + size_t(y) * W);
     }
@@ -137,20 +117,7 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace fillgs::image {
 
-HWY_EXPORT(BlurRows);
-HWY_EXPORT(BlurColumns);
 HWY_EXPORT(BlurPlanesStrip);
-
-void blur11_simd(const float* in, int W, int H, float* scratch, float* out) {
-  const float* w = ssim_window<float>();
-  const int grain = std::max(1, 16384 / std::max(1, W));
-  tbb::parallel_for(tbb::blocked_range<int>(0, H, grain), [&](const tbb::blocked_range<int>& r) {
-    HWY_DYNAMIC_DISPATCH(BlurRows)(w, in, W, r.begin(), r.end(), scratch);
-  });
-  tbb::parallel_for(tbb::blocked_range<int>(0, H, grain), [&](const tbb::blocked_range<int>& r) {
-    HWY_DYNAMIC_DISPATCH(BlurColumns)(w, scratch, W, H, r.begin(), r.end(), out);
-  });
-}
 
 void blur11_planes_simd(int planes, const float* const* a, const float* const* b, int W, int H, float* const* out) {
   const float* w = ssim_window<float>();

@@ -63,39 +63,18 @@ double chunked_sum(size_t n, Body&& body) {
 /// freed memory (`fillgs_bench train --only speed --gaussians 100000 --resolution 676x507`).
 template <typename Real>
 struct SsimScratch {
-  std::vector<Real> tmp, xx, yy, mx, my, sxx, syy, sxy, dmu, dvar, dcov, g1, g2, g3;
+  std::vector<Real> tmp, product, mx, my, sxx, syy, sxy, dmu, dvar, dcov, t1, g1, g2, g3;
 };
 
-/// The vector kernel blurs (float, unless the scalar reference is selected: raster.hpp, Kernel).
-template <typename Real>
-bool vector_blur() {
-  if constexpr (std::is_same_v<Real, float>) return resolve_kernel(Kernel::Default) == Kernel::Simd;
-  return false;
-}
-
-/// Separable 11×11 Gaussian filter with zero padding, one plane.
-template <typename Real>
-void blur(const std::vector<Real>& in, int W, int H, std::vector<Real>& tmp, std::vector<Real>& out) {
-  if constexpr (std::is_same_v<Real, float>) {
-    if (vector_blur<Real>()) {
-      tmp.resize(in.size());
-      out.resize(in.size());
-      image::blur11_simd(in.data(), W, H, tmp.data(), out.data());
-      return;
-    }
-  }
-  blur_pass(in, W, H, true, tmp);
-  blur_pass(tmp, W, H, false, out);
-}
-
-/// out[p] = the filter of a[p] ⊙ b[p] (b[p] null: a[p]) for several planes: the vector
-/// kernel's in one pass of strips (blur.hpp), else the products and one blur each.
+/// out[p] = the separable 11×11 Gaussian filter (zero padding) of a[p] ⊙ b[p] (b[p] null:
+/// a[p]) for several planes: the vector kernel's in one pass of strips (blur.hpp), else the
+/// scalar reference, product and two passes per plane.
 template <typename Real, size_t P>
 void blur_planes(const std::array<const std::vector<Real>*, P>& a, const std::array<const std::vector<Real>*, P>& b, int W, int H,
                  std::vector<Real>& tmp, std::vector<Real>& product, const std::array<std::vector<Real>*, P>& out) {
   const size_t n = a[0]->size();
   if constexpr (std::is_same_v<Real, float>) {
-    if (vector_blur<Real>()) {
+    if (resolve_kernel(Kernel::Default) == Kernel::Simd) {  // unless the scalar reference is selected (raster.hpp)
       std::array<const float*, P> pa, pb;
       std::array<float*, P> po;
       for (size_t p = 0; p < P; ++p) pa[p] = a[p]->data(), pb[p] = b[p] ? b[p]->data() : nullptr, out[p]->resize(n), po[p] = out[p]->data();
@@ -104,15 +83,16 @@ void blur_planes(const std::array<const std::vector<Real>*, P>& a, const std::ar
     }
   }
   for (size_t p = 0; p < P; ++p) {
-    if (!b[p]) {
-      blur(*a[p], W, H, tmp, *out[p]);
-      continue;
+    const std::vector<Real>* in = a[p];
+    if (b[p]) {
+      product.resize(n);
+      chunked_for(n, [&](size_t i0, size_t i1) {
+        for (size_t i = i0; i < i1; ++i) product[i] = (*a[p])[i] * (*b[p])[i];
+      });
+      in = &product;
     }
-    product.resize(n);
-    chunked_for(n, [&](size_t i0, size_t i1) {
-      for (size_t i = i0; i < i1; ++i) product[i] = (*a[p])[i] * (*b[p])[i];
-    });
-    blur(product, W, H, tmp, *out[p]);
+    blur_pass(*in, W, H, true, tmp);
+    blur_pass(tmp, W, H, false, *out[p]);
   }
 }
 
@@ -128,7 +108,7 @@ double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W,
   const size_t n = x.size();
   const std::vector<Real>&mx = w.mx, &my = w.my, &sxx = w.sxx, &syy = w.syy, &sxy = w.sxy;
   // μx, μy, and the window's sums of x², y², xy.
-  blur_planes<Real, 5>({&x, &y, &x, &y, &x}, {nullptr, nullptr, &x, &y, &y}, W, H, w.tmp, w.xx, {&w.mx, &w.my, &w.sxx, &w.syy, &w.sxy});
+  blur_planes<Real, 5>({&x, &y, &x, &y, &x}, {nullptr, nullptr, &x, &y, &y}, W, H, w.tmp, w.product, {&w.mx, &w.my, &w.sxx, &w.syy, &w.sxy});
   std::vector<Real>&dmu = w.dmu, &dvar = w.dvar, &dcov = w.dcov;
   if (grad) dmu.resize(n), dvar.resize(n), dcov.resize(n);
   const double total = chunked_sum(n, [&](size_t i0, size_t i1) {
@@ -150,12 +130,12 @@ double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W,
   });
   if (grad) {
     // x enters μx, σx² = G*(x²) − μx², σxy = G*(xy) − μxμy; G is symmetric.
-    std::vector<Real>& t1 = w.xx;
+    std::vector<Real>& t1 = w.t1;
     t1.resize(n);
     chunked_for(n, [&](size_t i0, size_t i1) {
       for (size_t i = i0; i < i1; ++i) t1[i] = dmu[i] - Real(2) * dvar[i] * mx[i] - dcov[i] * my[i];
     });
-    blur_planes<Real, 3>({&t1, &dvar, &dcov}, {nullptr, nullptr, nullptr}, W, H, w.tmp, w.yy, {&w.g1, &w.g2, &w.g3});
+    blur_planes<Real, 3>({&t1, &dvar, &dcov}, {nullptr, nullptr, nullptr}, W, H, w.tmp, w.product, {&w.g1, &w.g2, &w.g3});
     grad->resize(n);
     chunked_for(n, [&](size_t i0, size_t i1) {
       for (size_t i = i0; i < i1; ++i) (*grad)[i] = w.g1[i] + Real(2) * x[i] * w.g2[i] + y[i] * w.g3[i];
