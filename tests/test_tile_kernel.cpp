@@ -12,6 +12,7 @@
 
 #include "fillgs/cli.hpp"
 #include "fillgs/base/fs_util.hpp"
+#include "fillgs/base/threads.hpp"
 #include "fillgs/base/instruction_set.hpp"
 #include "fillgs/io/camera_io.hpp"
 #include "fillgs/render/loss.hpp"
@@ -369,4 +370,78 @@ TEST_CASE("the SSIM's blur of several product planes in strips gives each plane'
   for (float g : grads[0]) scale = std::max(scale, double(std::fabs(g)));
   CHECK(scale > 0);
   CHECK(max_abs_diff(grads[0], grads[1]) <= 1e-5 * scale);
+}
+
+TEST_CASE("the fused vector SSIM loss gives the gradient of whole blurred planes and per-pixel terms bit for bit, at any size and thread count",
+          "[kernel][loss]") {
+  // The reference: the loss written out plane by plane (the form loss.cpp had before the
+  // vector loss was fused), its blurs through blur11_planes_simd (checked against the 2D
+  // window above) and every per-pixel term in float, one operation at a time.
+  auto reference = [](const std::vector<float>& render, const std::vector<float>& target, const float* weights, int W, int H,
+                      std::vector<float>& grad, double* l1, double* ssim) {
+    const size_t P = size_t(W) * H, n = 3 * P;
+    const float l1_scale = float((1.0 - 0.2) / double(n)), ssim_scale = float(0.2 / double(n));
+    grad.assign(n, 0.0f);
+    *l1 = 0, *ssim = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const float d = render[i] - target[i], w = weights ? weights[i / 3] : 1.0f;
+      *l1 += double(w * std::fabs(d));
+      grad[i] = l1_scale * w * (d > 0.0f ? 1.0f : d < 0.0f ? -1.0f : 0.0f);
+    }
+    std::vector<std::vector<float>> m(5, std::vector<float>(P)), t(3, std::vector<float>(P)), g(3, std::vector<float>(P));
+    std::vector<float> x(P), y(P);
+    const float c1 = float(0.01 * 0.01), c2 = float(0.03 * 0.03);
+    for (int c = 0; c < 3; ++c) {
+      for (size_t i = 0; i < P; ++i) x[i] = render[3 * i + size_t(c)], y[i] = target[3 * i + size_t(c)];
+      const float* a[5] = {x.data(), y.data(), x.data(), y.data(), x.data()};
+      const float* b[5] = {nullptr, nullptr, x.data(), y.data(), y.data()};
+      float* out[5] = {m[0].data(), m[1].data(), m[2].data(), m[3].data(), m[4].data()};
+      image::blur11_planes_simd(5, a, b, W, H, out);
+      for (size_t i = 0; i < P; ++i) {
+        const float mx = m[0][i], my = m[1][i], coef = weights ? weights[i] : 1.0f;
+        const float vx = m[2][i] - mx * mx, vy = m[3][i] - my * my, cxy = m[4][i] - mx * my;
+        const float a1 = 2.0f * mx * my + c1, a2 = 2.0f * cxy + c2, b1 = mx * mx + my * my + c1, b2 = vx + vy + c2;
+        const float s = a1 * a2 / (b1 * b2);
+        *ssim += double(coef * s);
+        const float dmu = coef * (2.0f * my * a2 / (b1 * b2) - s * 2.0f * mx / b1), dvar = coef * (-s / b2),
+                    dcov = coef * (2.0f * a1 / (b1 * b2));
+        t[0][i] = dmu - 2.0f * dvar * mx - dcov * my, t[1][i] = dvar, t[2][i] = dcov;
+      }
+      const float* ta[3] = {t[0].data(), t[1].data(), t[2].data()};
+      const float* tb[3] = {nullptr, nullptr, nullptr};
+      float* to[3] = {g[0].data(), g[1].data(), g[2].data()};
+      image::blur11_planes_simd(3, ta, tb, W, H, to);
+      for (size_t i = 0; i < P; ++i) grad[3 * i + size_t(c)] -= ssim_scale * (g[0][i] + 2.0f * x[i] * g[1][i] + y[i] * g[2][i]);
+    }
+    *l1 /= double(n), *ssim /= double(n);
+  };
+  for_each_instruction_set([&](const char* set) {
+    std::mt19937 rng(23);
+    std::uniform_real_distribution<float> U(0.0f, 1.0f);
+    // Widths below, at and past a vector of lanes and the 5-pixel border; heights below the
+    // window, below and past a band (the rings wrap), and a wide short image.
+    for (const auto& [W, H] : std::vector<std::pair<int, int>>{{1, 1}, {2, 3}, {4, 12}, {13, 11}, {17, 40}, {37, 64}, {70, 65}, {160, 90}, {333, 131}, {700, 23}}) {
+      const size_t P = size_t(W) * H;
+      std::vector<float> render(3 * P), target(3 * P), weights(P);
+      for (size_t i = 0; i < 3 * P; ++i) render[i] = U(rng), target[i] = i % 7 == 0 ? render[i] : U(rng);  // some d = 0
+      for (float& w : weights) w = U(rng) < 0.25f ? 0.0f : 2.0f * U(rng);
+      for (const float* wp : {static_cast<const float*>(nullptr), static_cast<const float*>(weights.data())}) {
+        std::vector<float> want;
+        double l1 = 0, ssim = 0;
+        reference(render, target, wp, W, H, want, &l1, &ssim);
+        for (int threads : {1, 2}) {
+          INFO(W << "x" << H << (wp ? " weighted" : "") << ", " << threads << " threads, on " << simd_target() << " (" << set << ")");
+          const ThreadLimit limit(threads);
+          std::vector<float> got(3 * P, -7.0f);
+          const LossValue lv = photometric_loss<float>(render.data(), target.data(), W, H, wp, 0.2, got.data());
+          CHECK(std::memcmp(got.data(), want.data(), got.size() * sizeof(float)) == 0);
+          CHECK(lv.l1 == Approx(l1).epsilon(1e-12));
+          CHECK(lv.ssim == Approx(ssim).epsilon(1e-12));
+          // Without the gradient: the same values.
+          const LossValue value_only = photometric_loss<float>(render.data(), target.data(), W, H, wp, 0.2, nullptr);
+          CHECK(value_only.total == lv.total);
+        }
+      }
+    }
+  });
 }

@@ -81,26 +81,37 @@ HWY_INLINE void BlurColumnRow(const float* w, const float* const* rows, int k0, 
   }
 }
 
+// The row and column passes for other files of the same instruction set (the fused SSIM
+// loss, ssim_simd.cpp, which is compiled without contraction): one definition of each pass,
+// so the blurs there and here give the same values.
+
+/// The row pass of one row of a ⊙ b (b null: a): the product into `product`, then BlurRow.
+void BlurRowOf(const float* w, const float* a, const float* b, int W, float* product, float* out) {
+  if (b) {
+    const hn::ScalableTag<float> d;
+    const int N = int(hn::Lanes(d));
+    int x = 0;
+    for (; x + N <= W; x += N) hn::StoreU(hn::Mul(hn::LoadU(d, a + x), hn::LoadU(d, b + x)), d, product + x);
+    for (; x < W; ++x) product[x] = a[x] * b[x];
+    a = product;
+  }
+  BlurRow(w, a, W, out);
+}
+
+/// The column pass of one output row (BlurColumnRow).
+void BlurColumnRowOf(const float* w, const float* const* rows, int k0, int k1, int W, float* out) {
+  BlurColumnRow(w, rows, k0, k1, W, out);
+}
+
 /// Output rows [y0, y1) of every plane of blur11_planes_simd: the row pass of the input
 /// rows they need (y0 − 5 to y1 + 5, within the image) into `strip`, then the column pass
 /// from it. `row` holds one product row.
 void BlurPlanesStrip(const float* w, int planes, const float* const* a, const float* const* b, int W, int H, int y0, int y1,
                      float* strip, float* row, float* const* out) {
   const int r0 = std::max(0, y0 - 5), r1 = std::min(H, y1 + 5);
-  const hn::ScalableTag<float> d;
-  const int N = int(hn::Lanes(d));
   for (int p = 0; p < planes; ++p) {
-    for (int r = r0; r < r1; ++r) {
-      const float* src = a[p] + size_t(r) * W;
-      if (b[p]) {
-        const float* src_b = b[p] + size_t(r) * W;
-        int x = 0;
-        for (; x + N <= W; x += N) hn::StoreU(hn::Mul(hn::LoadU(d, src + x), hn::LoadU(d, src_b + x)), d, row + x);
-        for (; x < W; ++x) row[x] = src[x] * src_b[x];
-        src = row;
-      }
-      BlurRow(w, src, W, strip + size_t(r - r0) * W);
-    }
+    for (int r = r0; r < r1; ++r)
+      BlurRowOf(w, a[p] + size_t(r) * W, b[p] ? b[p] + size_t(r) * W : nullptr, W, row, strip + size_t(r - r0) * W);
     const float* rows[kBlurTaps] = {};
     for (int y = y0; y < y1; ++y) {
       const int k0 = std::max(0, 5 - y), k1 = std::min(kBlurTaps, H - y + 5);  // the taps inside the image

@@ -16,7 +16,7 @@ namespace fillgs {
 
 namespace {
 
-constexpr double kC1 = 0.01 * 0.01, kC2 = 0.03 * 0.03;
+constexpr double kC1 = image::kSsimC1, kC2 = image::kSsimC2;
 
 /// One 11-tap pass of the window along x (along_x) or y, zero padding.
 template <typename Real>
@@ -67,21 +67,12 @@ struct SsimScratch {
 };
 
 /// out[p] = the separable 11×11 Gaussian filter (zero padding) of a[p] ⊙ b[p] (b[p] null:
-/// a[p]) for several planes: the vector kernel's in one pass of strips (blur.hpp), else the
-/// scalar reference, product and two passes per plane.
+/// a[p]) for several planes: the scalar reference, product and two passes per plane (the
+/// vector kernel's loss is fused_loss below).
 template <typename Real, size_t P>
 void blur_planes(const std::array<const std::vector<Real>*, P>& a, const std::array<const std::vector<Real>*, P>& b, int W, int H,
                  std::vector<Real>& tmp, std::vector<Real>& product, const std::array<std::vector<Real>*, P>& out) {
   const size_t n = a[0]->size();
-  if constexpr (std::is_same_v<Real, float>) {
-    if (resolve_kernel(Kernel::Default) == Kernel::Simd) {  // unless the scalar reference is selected (raster.hpp)
-      std::array<const float*, P> pa, pb;
-      std::array<float*, P> po;
-      for (size_t p = 0; p < P; ++p) pa[p] = a[p]->data(), pb[p] = b[p] ? b[p]->data() : nullptr, out[p]->resize(n), po[p] = out[p]->data();
-      image::blur11_planes_simd(int(P), pa.data(), pb.data(), W, H, po.data());
-      return;
-    }
-  }
   for (size_t p = 0; p < P; ++p) {
     const std::vector<Real>* in = a[p];
     if (b[p]) {
@@ -144,12 +135,77 @@ double ssim_plane(const std::vector<Real>& x, const std::vector<Real>& y, int W,
   return total;
 }
 
+/// The loss from the fused vector pass (image::ssim_loss_simd), for float with the vector
+/// kernel: the same values as the planes below, and the sums in the same order.
+LossValue fused_loss(const float* render, const float* target, int W, int H, const float* weights, double lambda, float* grad) {
+  const size_t P = size_t(W) * H, n = P * 3;
+  static thread_local std::vector<float> planes[3];  // reused (see SsimScratch)
+  float* ssim_out[3];
+  for (int c = 0; c < 3; ++c) planes[c].resize(P), ssim_out[c] = planes[c].data();
+  image::ssim_loss_simd(render, target, weights, W, H, float((1.0 - lambda) / double(n)), float(lambda / double(n)), ssim_out, grad);
+  // Per chunk, in chunked_sum's order: the L1 terms of its pixels' three channels, and each
+  // channel's SSIM terms. Four chunks at a time per thread, so that four chains of dependent
+  // additions overlap.
+  struct Sums {
+    double l1 = 0, ssim[3] = {0, 0, 0};
+  };
+  auto add = [&](Sums& sums, size_t p) {
+    const float w = weights ? weights[p] : 1.0f;
+    for (size_t i = 3 * p; i < 3 * p + 3; ++i) sums.l1 += double(w * std::abs(render[i] - target[i]));
+    for (int c = 0; c < 3; ++c) sums.ssim[c] += double(ssim_out[c][p]);
+  };
+  const size_t chunks = (P + kChunk - 1) / kChunk;
+  std::vector<Sums> partial(chunks);
+  tbb::parallel_for(size_t(0), (chunks + 3) / 4, [&](size_t group) {
+    Sums s0, s1, s2, s3;
+    size_t begin[4], end[4];
+    for (size_t j = 0; j < 4; ++j) begin[j] = std::min(P, (4 * group + j) * kChunk), end[j] = std::min(P, begin[j] + kChunk);
+    const size_t common = std::min({end[0] - begin[0], end[1] - begin[1], end[2] - begin[2], end[3] - begin[3]});
+    for (size_t q = 0; q < common; ++q) add(s0, begin[0] + q), add(s1, begin[1] + q), add(s2, begin[2] + q), add(s3, begin[3] + q);
+    Sums* sums[4] = {&s0, &s1, &s2, &s3};
+    for (size_t j = 0; j < 4 && 4 * group + j < chunks; ++j) {
+      for (size_t p = begin[j] + common; p < end[j]; ++p) add(*sums[j], p);
+      partial[4 * group + j] = *sums[j];
+    }
+  });
+  LossValue lv;
+  double l1 = 0, s = 0;
+  for (const Sums& part : partial) l1 += part.l1;
+  for (int c = 0; c < 3; ++c) {
+    double channel = 0;
+    for (const Sums& part : partial) channel += part.ssim[c];
+    s += channel;
+  }
+  lv.l1 = l1 / double(n);
+  lv.ssim = s / double(n);
+  return lv;
+}
+
+/// (1 − λ)·L1 + λ·(1 − SSIM) from the means; weighted: mean of w·(1 − S) = mean(w) − mean(w·S).
+template <typename Real>
+void set_total(LossValue& lv, const Real* weights, size_t P, double lambda) {
+  double wmean = 1.0;
+  if (weights) {
+    wmean = 0;
+    for (size_t i = 0; i < P; ++i) wmean += double(weights[i]);
+    wmean /= double(P);
+  }
+  lv.total = (1.0 - lambda) * lv.l1 + lambda * (wmean - lv.ssim);
+}
+
 }  // namespace
 
 template <typename Real>
 LossValue photometric_loss(const Real* render, const float* target, int W, int H, const Real* weights,
                            double lambda, Real* grad) {
   const size_t P = size_t(W) * H, n = P * 3;
+  if constexpr (std::is_same_v<Real, float>) {
+    if (resolve_kernel(Kernel::Default) == Kernel::Simd) {  // unless the scalar reference is selected (raster.hpp)
+      LossValue lv = fused_loss(render, target, W, H, weights, lambda, grad);
+      set_total(lv, weights, P, lambda);
+      return lv;
+    }
+  }
   LossValue lv;
   const double l1 = chunked_sum(P, [&](size_t p0, size_t p1) {
     double sum = 0;
@@ -178,14 +234,7 @@ LossValue photometric_loss(const Real* render, const float* target, int W, int H
       });
   }
   lv.ssim = s / double(n);
-  // Weighted 1 − SSIM: mean of w·(1 − S) = mean(w) − mean(w·S).
-  double wmean = 1.0;
-  if (weights) {
-    wmean = 0;
-    for (size_t i = 0; i < P; ++i) wmean += double(weights[i]);
-    wmean /= double(P);
-  }
-  lv.total = (1.0 - lambda) * lv.l1 + lambda * (wmean - lv.ssim);
+  set_total(lv, weights, P, lambda);
   return lv;
 }
 

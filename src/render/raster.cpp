@@ -139,14 +139,28 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
       if (opt.contributors) fwd.contributors = &tile_contrib[t];
       fwd.box_pixels = &tile_box_pixels[t];
       tiles::forward_tile(simd, splats, work, fwd);
-      tiles::for_each_tile_pixel(work, W, [&](int l, size_t o) {
-        auto a = [&](int c) { return acc[size_t(c) * tiles::kTilePixels + l]; };
-        if (opt.rgb)
-          for (int k = 0; k < 3; ++k) out.rgb[o * 3 + k] = a(k) + T[l] * opt.background[k];
-        if (opt.depth) out.depth[o] = a(depth_channel);
-        for (int f = 0; f < F; ++f) out.features[o * F + f] = a(feature_channel + f);
-        out.alpha[o] = 1.0f - T[l];
-      });
+      // The tile's planar sums into the images, a row of the tile at a time.
+      const float* a = acc.data();
+      for (int py = work.y0; py < work.y1; ++py) {
+        const int l0 = (py - work.y0) * kTileSize, n = work.x1 - work.x0;
+        const size_t o0 = size_t(py) * W + size_t(work.x0);
+        if (opt.rgb) {
+          float* rgb = out.rgb.data() + 3 * o0;
+          for (int k = 0; k < 3; ++k) {
+            const float* ak = a + size_t(k) * tiles::kTilePixels + l0;
+            const float bg = opt.background[k];
+            for (int i = 0; i < n; ++i) rgb[3 * i + k] = ak[i] + T[l0 + i] * bg;
+          }
+        }
+        if (opt.depth) std::copy_n(a + size_t(depth_channel) * tiles::kTilePixels + l0, n, out.depth.data() + o0);
+        for (int f = 0; f < F; ++f) {
+          const float* af = a + size_t(feature_channel + f) * tiles::kTilePixels + l0;
+          float* features = out.features.data() + o0 * size_t(F) + size_t(f);
+          for (int i = 0; i < n; ++i) features[size_t(i) * F] = af[i];
+        }
+        float* alpha = out.alpha.data() + o0;
+        for (int i = 0; i < n; ++i) alpha[i] = 1.0f - T[l0 + i];
+      }
     }
   });
 

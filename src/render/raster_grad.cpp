@@ -230,14 +230,25 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
       fwd.acc = acc.data();
       fwd.last = last;
       tiles::forward_tile(simd, splats, work, fwd);
-      tiles::for_each_tile_pixel(work, W, [&](int l, size_t o) {
-        auto a = [&](int c) { return acc[size_t(c) * tiles::kTilePixels + l]; };
-        for (int k = 0; k < 3; ++k) image_[o * 3 + k] = a(k) + T[l] * Real(opt.background[k]);
-        for (int f = 0; f < F; ++f) features_[o * F + f] = a(3 + f);
-        alpha_[o] = Real(1) - T[l];
-        final_T_[o] = T[l];
-        last_entry_[o] = last[l];
-      });
+      // The tile's planar sums into the images, a row of the tile at a time.
+      for (int py = work.y0; py < work.y1; ++py) {
+        const int l0 = (py - work.y0) * kTileSize, n = work.x1 - work.x0;
+        const size_t o0 = size_t(py) * W + size_t(work.x0);
+        Real* image = image_.data() + 3 * o0;
+        for (int k = 0; k < 3; ++k) {
+          const Real* ak = acc.data() + size_t(k) * tiles::kTilePixels + l0;
+          const Real bg = Real(opt.background[k]);
+          for (int i = 0; i < n; ++i) image[3 * i + k] = ak[i] + T[l0 + i] * bg;
+        }
+        for (int f = 0; f < F; ++f) {
+          const Real* af = acc.data() + size_t(3 + f) * tiles::kTilePixels + l0;
+          Real* features = features_.data() + o0 * size_t(F) + size_t(f);
+          for (int i = 0; i < n; ++i) features[size_t(i) * F] = af[i];
+        }
+        Real *alpha = alpha_.data() + o0, *final_T = final_T_.data() + o0;
+        for (int i = 0; i < n; ++i) alpha[i] = Real(1) - T[l0 + i], final_T[i] = T[l0 + i];
+        std::copy_n(last + l0, n, last_entry_.data() + o0);
+      }
     }
   });
 }
