@@ -199,9 +199,10 @@ HWY_EXPORT(SsimLossBand);
 void ssim_loss_simd(const float* render, const float* target, const float* weights, int W, int H, float l1_scale, float ssim_scale,
                     float* const* ssim_out, float* grad) {
   const LossImages im{render, target, weights, W, H, l1_scale, ssim_scale, ssim_out, grad};
-  // Bands of rows, two per thread: each band recomputes 10 rows of its neighbours' row pass
-  // and 5 of their terms, so fewer, taller bands cost less; the values do not depend on them.
-  const int bands = std::clamp(2 * tbb::this_task_arena::max_concurrency(), 1, std::max(1, H / 16));
+  // A band of rows per thread and channel: each band recomputes 10 rows of its neighbours'
+  // row pass and 5 of their terms, so fewer, taller bands cost less; the values do not
+  // depend on them.
+  const int bands = std::clamp(tbb::this_task_arena::max_concurrency(), 1, std::max(1, H / 16));
   const int rows = (H + bands - 1) / bands;
   tbb::parallel_for(tbb::blocked_range<int>(0, 3 * bands, 1), [&](const tbb::blocked_range<int>& r) {
     static thread_local std::vector<float> scratch;
