@@ -297,61 +297,11 @@ TEST_CASE("the vector preprocess writes the scalar preprocess's projection and f
   });
 }
 
-TEST_CASE("the SSIM's blur of several product planes in strips gives each plane's own blur bit for bit, and the vector loss the scalar one's",
-          "[kernel][loss]") {
+TEST_CASE("the vector SSIM loss agrees with the scalar one to float rounding", "[kernel][loss]") {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> U(0.0f, 1.0f);
-  // The window written out here: 11 taps of a Gaussian with σ = 1.5, normalised.
-  double win[11], wsum = 0;
-  for (int i = 0; i < 11; ++i) win[i] = std::exp(-double((i - 5) * (i - 5)) / 4.5), wsum += win[i];
-  for (double& v : win) v /= wsum;
-  // Widths below, at and past the lane blocks; heights below, at and past a strip (64 rows).
-  for (const auto& [W, H] : std::vector<std::pair<int, int>>{{1, 1}, {3, 7}, {11, 5}, {37, 64}, {70, 65}, {160, 90}, {333, 131}}) {
-    const size_t n = size_t(W) * H;
-    std::vector<float> x(n), y(n);
-    for (size_t i = 0; i < n; ++i) x[i] = U(rng), y[i] = U(rng);
-    // Each plane alone, its product formed first, against the five in one call.
-    std::vector<std::vector<float>> product(5, std::vector<float>(n)), one(5, std::vector<float>(n)), many(5, std::vector<float>(n, -1.0f));
-    for (size_t i = 0; i < n; ++i)
-      product[0][i] = x[i], product[1][i] = y[i], product[2][i] = x[i] * x[i], product[3][i] = y[i] * y[i], product[4][i] = x[i] * y[i];
-    for (int p = 0; p < 5; ++p) {
-      const float* a1[1] = {product[size_t(p)].data()};
-      const float* b1[1] = {nullptr};
-      float* o1[1] = {one[size_t(p)].data()};
-      image::blur11_planes_simd(1, a1, b1, W, H, o1);
-    }
-    const float* a[5] = {x.data(), y.data(), x.data(), y.data(), x.data()};
-    const float* b[5] = {nullptr, nullptr, x.data(), y.data(), y.data()};
-    float* out[5] = {many[0].data(), many[1].data(), many[2].data(), many[3].data(), many[4].data()};
-    image::blur11_planes_simd(5, a, b, W, H, out);
-    INFO(W << "x" << H << " on " << simd_target());
-    for (int p = 0; p < 5; ++p) CHECK(std::memcmp(one[size_t(p)].data(), many[size_t(p)].data(), n * sizeof(float)) == 0);
-    // The blur itself against the 2D window in double, zero padding: float rounding only.
-    double worst = 0;
-    for (int p = 0; p < 5; ++p)
-      for (int py = 0; py < H; ++py)
-        for (int px = 0; px < W; ++px) {
-          double ref = 0;
-          for (int j = 0; j < 11; ++j)
-            for (int i = 0; i < 11; ++i) {
-              const int qx = px + i - 5, qy = py + j - 5;
-              if (qx >= 0 && qy >= 0 && qx < W && qy < H) ref += win[j] * win[i] * double(product[size_t(p)][size_t(qy) * W + size_t(qx)]);
-            }
-          worst = std::max(worst, std::fabs(ref - double(many[size_t(p)][size_t(py) * W + size_t(px)])));
-        }
-    CHECK(worst < 1e-6);
-    // The window is normalised: a constant plane far from the borders keeps its value.
-    if (W > 10 && H > 10) {
-      std::vector<float> c(n, 0.75f), blurred(n);
-      const float* ca[1] = {c.data()};
-      const float* cb[1] = {nullptr};
-      float* co[1] = {blurred.data()};
-      image::blur11_planes_simd(1, ca, cb, W, H, co);
-      CHECK(blurred[size_t(H / 2) * W + size_t(W / 2)] == Approx(0.75f).epsilon(1e-6));
-    }
-  }
-  // The loss with the vector blur against the scalar blur (the same sums, with fused
-  // multiply-adds in the vector form): value and gradient agree to float rounding.
+  // The same sums, with fused multiply-adds in the vector form: value and gradient agree to
+  // float rounding.
   const int W = 96, H = 70;
   const size_t P = size_t(W) * H;
   std::vector<float> render(P * 3), target(P * 3), weights(P);
@@ -372,13 +322,33 @@ TEST_CASE("the SSIM's blur of several product planes in strips gives each plane'
   CHECK(max_abs_diff(grads[0], grads[1]) <= 1e-5 * scale);
 }
 
-TEST_CASE("the fused vector SSIM loss gives the gradient of whole blurred planes and per-pixel terms bit for bit, at any size and thread count",
+TEST_CASE("the fused vector SSIM loss gives the gradient of the loss written out plane by plane bit for bit, at any size and thread count",
           "[kernel][loss]") {
-  // The reference: the loss written out plane by plane (the form loss.cpp had before the
-  // vector loss was fused), its blurs through blur11_planes_simd (checked against the 2D
-  // window above) and every per-pixel term in float, one operation at a time.
-  auto reference = [](const std::vector<float>& render, const std::vector<float>& target, const float* weights, int W, int H,
-                      std::vector<float>& grad, double* l1, double* ssim) {
+  // The reference: the loss written out plane by plane, every per-pixel term in float one
+  // operation at a time, each blur output a chain over the taps inside the image in tap
+  // order from zero, with the instruction set's multiply-add: fused (one rounding) on the
+  // AVX targets, a product and then a sum on SSE4 (this file is compiled without FMA, so
+  // `s + w * v` rounds twice).
+  auto blur = [](const std::vector<float>& in, int W, int H, bool fused, std::vector<float>& out) {
+    const float* w = image::ssim_window<float>();
+    auto madd = [fused](float wk, float v, float s) { return fused ? std::fma(wk, v, s) : s + wk * v; };
+    std::vector<float> rows(in.size());
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        float s = 0.0f;
+        for (int k = std::max(0, 5 - x); k < 11 && x + k - 5 < W; ++k) s = madd(w[k], in[size_t(y) * W + size_t(x + k - 5)], s);
+        rows[size_t(y) * W + size_t(x)] = s;
+      }
+    out.assign(in.size(), 0.0f);
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        float s = 0.0f;
+        for (int k = std::max(0, 5 - y); k < 11 && y + k - 5 < H; ++k) s = madd(w[k], rows[size_t(y + k - 5) * W + size_t(x)], s);
+        out[size_t(y) * W + size_t(x)] = s;
+      }
+  };
+  auto reference = [&blur](const std::vector<float>& render, const std::vector<float>& target, const float* weights, int W, int H,
+                           bool fused, std::vector<float>& grad, double* l1, double* ssim) {
     const size_t P = size_t(W) * H, n = 3 * P;
     const float l1_scale = float((1.0 - 0.2) / double(n)), ssim_scale = float(0.2 / double(n));
     grad.assign(n, 0.0f);
@@ -388,15 +358,14 @@ TEST_CASE("the fused vector SSIM loss gives the gradient of whole blurred planes
       *l1 += double(w * std::fabs(d));
       grad[i] = l1_scale * w * (d > 0.0f ? 1.0f : d < 0.0f ? -1.0f : 0.0f);
     }
-    std::vector<std::vector<float>> m(5, std::vector<float>(P)), t(3, std::vector<float>(P)), g(3, std::vector<float>(P));
-    std::vector<float> x(P), y(P);
+    std::vector<std::vector<float>> m(5), t(3, std::vector<float>(P)), g(3);
+    std::vector<float> x(P), y(P), xx(P), yy(P), xy(P);
     const float c1 = float(0.01 * 0.01), c2 = float(0.03 * 0.03);
     for (int c = 0; c < 3; ++c) {
       for (size_t i = 0; i < P; ++i) x[i] = render[3 * i + size_t(c)], y[i] = target[3 * i + size_t(c)];
-      const float* a[5] = {x.data(), y.data(), x.data(), y.data(), x.data()};
-      const float* b[5] = {nullptr, nullptr, x.data(), y.data(), y.data()};
-      float* out[5] = {m[0].data(), m[1].data(), m[2].data(), m[3].data(), m[4].data()};
-      image::blur11_planes_simd(5, a, b, W, H, out);
+      for (size_t i = 0; i < P; ++i) xx[i] = x[i] * x[i], yy[i] = y[i] * y[i], xy[i] = x[i] * y[i];
+      for (const auto& [plane, blurred] : {std::pair{&x, &m[0]}, {&y, &m[1]}, {&xx, &m[2]}, {&yy, &m[3]}, {&xy, &m[4]}})
+        blur(*plane, W, H, fused, *blurred);
       for (size_t i = 0; i < P; ++i) {
         const float mx = m[0][i], my = m[1][i], coef = weights ? weights[i] : 1.0f;
         const float vx = m[2][i] - mx * mx, vy = m[3][i] - my * my, cxy = m[4][i] - mx * my;
@@ -407,17 +376,41 @@ TEST_CASE("the fused vector SSIM loss gives the gradient of whole blurred planes
                     dcov = coef * (2.0f * a1 / (b1 * b2));
         t[0][i] = dmu - 2.0f * dvar * mx - dcov * my, t[1][i] = dvar, t[2][i] = dcov;
       }
-      const float* ta[3] = {t[0].data(), t[1].data(), t[2].data()};
-      const float* tb[3] = {nullptr, nullptr, nullptr};
-      float* to[3] = {g[0].data(), g[1].data(), g[2].data()};
-      image::blur11_planes_simd(3, ta, tb, W, H, to);
+      for (int k = 0; k < 3; ++k) blur(t[size_t(k)], W, H, fused, g[size_t(k)]);
       for (size_t i = 0; i < P; ++i) grad[3 * i + size_t(c)] -= ssim_scale * (g[0][i] + 2.0f * x[i] * g[1][i] + y[i] * g[2][i]);
     }
     *l1 /= double(n), *ssim /= double(n);
   };
   for_each_instruction_set([&](const char* set) {
+    const bool fused = std::string(simd_target()).rfind("AVX", 0) == 0;  // AVX2, AVX3…: FMA
     std::mt19937 rng(23);
     std::uniform_real_distribution<float> U(0.0f, 1.0f);
+    // That rounding of the blur against the 2D window evaluated in double, zero padding:
+    // float rounding only; and a constant plane keeps its value away from the borders.
+    for (const auto& [W, H] : std::vector<std::pair<int, int>>{{1, 1}, {3, 7}, {37, 64}, {70, 65}}) {
+      double win[11], wsum = 0;  // the window written out: σ = 1.5, normalised
+      for (int i = 0; i < 11; ++i) win[i] = std::exp(-double((i - 5) * (i - 5)) / 4.5), wsum += win[i];
+      for (double& v : win) v /= wsum;
+      std::vector<float> in(size_t(W) * H), out;
+      for (float& v : in) v = U(rng);
+      blur(in, W, H, fused, out);
+      double worst = 0;
+      for (int py = 0; py < H; ++py)
+        for (int px = 0; px < W; ++px) {
+          double ref = 0;
+          for (int j = 0; j < 11; ++j)
+            for (int i = 0; i < 11; ++i) {
+              const int qx = px + i - 5, qy = py + j - 5;
+              if (qx >= 0 && qy >= 0 && qx < W && qy < H) ref += win[j] * win[i] * double(in[size_t(qy) * W + size_t(qx)]);
+            }
+          worst = std::max(worst, std::fabs(ref - double(out[size_t(py) * W + size_t(px)])));
+        }
+      CHECK(worst < 1e-6);
+      if (W > 10 && H > 10) {
+        blur(std::vector<float>(in.size(), 0.75f), W, H, fused, out);
+        CHECK(out[size_t(H / 2) * W + size_t(W / 2)] == Approx(0.75f).epsilon(1e-6));
+      }
+    }
     // Widths below, at and past a vector of lanes and the 5-pixel border; heights below the
     // window, below and past a band (the rings wrap), and a wide short image.
     for (const auto& [W, H] : std::vector<std::pair<int, int>>{{1, 1}, {2, 3}, {4, 12}, {13, 11}, {17, 40}, {37, 64}, {70, 65}, {160, 90}, {333, 131}, {700, 23}}) {
@@ -428,7 +421,7 @@ TEST_CASE("the fused vector SSIM loss gives the gradient of whole blurred planes
       for (const float* wp : {static_cast<const float*>(nullptr), static_cast<const float*>(weights.data())}) {
         std::vector<float> want;
         double l1 = 0, ssim = 0;
-        reference(render, target, wp, W, H, want, &l1, &ssim);
+        reference(render, target, wp, W, H, fused, want, &l1, &ssim);
         for (int threads : {1, 2}) {
           INFO(W << "x" << H << (wp ? " weighted" : "") << ", " << threads << " threads, on " << simd_target() << " (" << set << ")");
           const ThreadLimit limit(threads);

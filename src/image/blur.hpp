@@ -1,8 +1,8 @@
 #pragma once
 // The SSIM window as a separable filter: 11 taps, σ = 1.5, zero padding (PyTorch conv2d
-// with padding 5, as the 3DGS loss). The window is defined here once; the vector blur
-// (Google Highway, instruction set chosen at run time) is blur_simd.cpp, the training loss's
-// fused SSIM on it ssim_simd.cpp, the scalar reference the loops in loss.cpp.
+// with padding 5, as the 3DGS loss). The window is defined here once; the training loss's
+// vector SSIM (Google Highway, instruction set chosen at run time) is ssim_simd.cpp, the
+// scalar reference the loops in loss.cpp.
 #include <cmath>
 
 namespace fillgs::image {
@@ -24,19 +24,12 @@ const Real* ssim_window() {
   return window.w;
 }
 
-/// out[p] = window ⊛ (a[p] ⊙ b[p]) along x then y, for `planes` [H][W] planes at once (b[p]
-/// null: a[p] itself; the SSIM's five windows in one call), in strips of rows whose row pass
-/// stays in the cache for the column pass. Each plane's values are those of a call for it
-/// alone with its product formed first, and do not depend on the thread count (TBB, the
-/// caller's arena, over strips). The loss's SSIM uses the same passes fused
-/// (ssim_loss_simd); these whole planes are what the tests check it against.
-void blur11_planes_simd(int planes, const float* const* a, const float* const* b, int width, int height, float* const* out);
-
 /// The float training loss's SSIM part with the vector kernel, fused: for each channel c of
 /// the [H][W][3] images, ssim_out[c][p] = w[p]·SSIM_c(p) (w: weights[p], or 1 when null) and,
 /// when grad is not null, grad[p][c] = l1_scale·w[p]·sign(render − target) − ssim_scale ·
-/// d(Σ_p w[p]·SSIM_c(p))/d render[p][c]: the values of the SSIM's whole planes through
-/// blur11_planes_simd and loss.cpp's per-pixel terms, bit for bit, for any thread count.
+/// d(Σ_p w[p]·SSIM_c(p))/d render[p][c]. Each blur output is a chain of the instruction
+/// set's multiply-add over the taps in order (ssim_simd.cpp), every other operation rounds as
+/// loss.cpp's scalar terms; the values do not depend on the thread count.
 void ssim_loss_simd(const float* render, const float* target, const float* weights, int width, int height, float l1_scale,
                     float ssim_scale, float* const* ssim_out, float* grad);
 

@@ -1,12 +1,13 @@
-// The training loss's SSIM map and gradient for float images, fused (blur.hpp,
-// ssim_loss_simd): the unfused loss (loss.cpp) blurs five whole planes per channel, forms
-// the per-pixel terms in another pass, blurs three more planes and combines them in a
-// third, ~15 plane-sized reads and writes per channel; here each band of rows runs all of
-// it row by row through rings of 11 rows that stay in the cache.
+// The training loss's SSIM map and gradient for float images with the vector kernel,
+// fused (blur.hpp, ssim_loss_simd): each band of rows runs a channel row by row through
+// rings of 11 rows that stay in the cache, where a loss over whole planes (as loss.cpp's
+// scalar reference) writes and reads ~15 planes per channel.
 //
-// The values are the unfused loss's bit for bit: the blurs are blur_simd.cpp's own row and
-// column passes, and this file is compiled without floating-point contraction, so each
-// product and sum of the per-pixel terms rounds as the scalar code of loss.cpp does.
+// Rounding, the same on every path through this file: each blur output is a chain of the
+// instruction set's multiply-add over the taps inside the image, in tap order from zero
+// (fused on AVX2 and AVX-512, a product then a sum on SSE4), its edges included; the file is
+// compiled without contraction, so every other product and sum of the per-pixel terms
+// rounds as loss.cpp's scalar code does.
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "image/ssim_simd.cpp"
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
@@ -17,6 +18,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <vector>
 
@@ -33,9 +35,8 @@ struct LossImages {
   float* grad;             // [H][W][3] or null
 };
 constexpr int kRing = kBlurTaps;  // the rows a column pass reads
-/// A band's working rows are W rounded up to whole vectors (of up to 64 floats), so that
-/// every vector of a row lies inside the row: Highway's masked loads and stores may touch a
-/// whole vector on some instruction sets.
+/// A band's working rows are W rounded up to whole vectors (of up to 64 floats): the
+/// per-pixel loops run whole vectors, the last one past W inside the row.
 inline size_t band_stride(int W) { return (size_t(W) + 63) / 64 * 64; }
 /// The floats of a band's working rows (BandRows) at width W.
 inline size_t band_floats(int W) { return size_t(5 * kRing + 3 * kRing + 4 + 5 + 3 + 3) * band_stride(W); }
@@ -47,9 +48,92 @@ namespace fillgs::image {
 namespace HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
-// blur_simd.cpp's passes, for this instruction set.
-void BlurRowOf(const float* w, const float* a, const float* b, int W, float* product, float* out);
-void BlurColumnRowOf(const float* w, const float* const* rows, int k0, int k1, int W, float* out);
+/// s + w·v rounded as this instruction set's hn::MulAdd rounds it (fused where it has FMA),
+/// for one value: the blurs' edges round as their lanes do.
+HWY_INLINE float MulAdd1(float w, float v, float s) {
+#if HWY_NATIVE_FMA
+  return std::fma(w, v, s);
+#else
+  return s + w * v;
+#endif
+}
+
+/// The row pass of one row: o[x] = Σ_k w_k row[x + k − 5], taps outside the row skipped.
+/// Both passes stay out of line (inlined into the stages, the loss measured slower).
+HWY_NOINLINE void BlurRow(const float* w, const float* row, int W, float* o) {
+  const hn::ScalableTag<float> d;
+  const int N = int(hn::Lanes(d));
+  auto edge = [&](int x) {
+    float s = 0.0f;
+    for (int k = std::max(0, 5 - x); k < kBlurTaps && x + k - 5 < W; ++k) s = MulAdd1(w[k], row[x + k - 5], s);
+    o[x] = s;
+  };
+  int x = 0;
+  for (; x < std::min(5, W); ++x) edge(x);
+  // Four output vectors at a time: each sum is a chain of 11 dependent multiply-adds, and
+  // four independent chains keep the FMA units busy (each still sums its taps in order).
+  for (; x + 4 * N + 5 <= W; x += 4 * N) {
+    auto s0 = hn::Zero(d), s1 = hn::Zero(d), s2 = hn::Zero(d), s3 = hn::Zero(d);
+    for (int k = 0; k < kBlurTaps; ++k) {
+      const auto wk = hn::Set(d, w[k]);
+      const float* r = row + x + k - 5;
+      s0 = hn::MulAdd(wk, hn::LoadU(d, r), s0);
+      s1 = hn::MulAdd(wk, hn::LoadU(d, r + N), s1);
+      s2 = hn::MulAdd(wk, hn::LoadU(d, r + 2 * N), s2);
+      s3 = hn::MulAdd(wk, hn::LoadU(d, r + 3 * N), s3);
+    }
+    hn::StoreU(s0, d, o + x), hn::StoreU(s1, d, o + x + N), hn::StoreU(s2, d, o + x + 2 * N), hn::StoreU(s3, d, o + x + 3 * N);
+  }
+  for (; x + N + 5 <= W; x += N) {
+    auto s = hn::Zero(d);
+    for (int k = 0; k < kBlurTaps; ++k) s = hn::MulAdd(hn::Set(d, w[k]), hn::LoadU(d, row + x + k - 5), s);
+    hn::StoreU(s, d, o + x);
+  }
+  for (; x < W; ++x) edge(x);
+}
+
+/// The row pass of a ⊙ b (b null: a), the product formed into `product` first.
+HWY_INLINE void BlurRowOf(const float* w, const float* a, const float* b, int W, float* product, float* out) {
+  if (b) {
+    const hn::ScalableTag<float> d;
+    const int N = int(hn::Lanes(d));
+    int x = 0;
+    for (; x + N <= W; x += N) hn::StoreU(hn::Mul(hn::LoadU(d, a + x), hn::LoadU(d, b + x)), d, product + x);
+    for (; x < W; ++x) product[x] = a[x] * b[x];
+    a = product;
+  }
+  BlurRow(w, a, W, out);
+}
+
+/// The column pass of one output row: o[x] = Σ_{k0 ≤ k < k1} w_k rows[k][x], where rows[k]
+/// is input row y + k − 5 and [k0, k1) the taps inside the image.
+HWY_NOINLINE void BlurColumnRow(const float* w, const float* const* rows, int k0, int k1, int W, float* o) {
+  const hn::ScalableTag<float> d;
+  const int N = int(hn::Lanes(d));
+  int x = 0;
+  for (; x + 4 * N <= W; x += 4 * N) {  // four independent chains, as in BlurRow
+    auto s0 = hn::Zero(d), s1 = hn::Zero(d), s2 = hn::Zero(d), s3 = hn::Zero(d);
+    for (int k = k0; k < k1; ++k) {
+      const auto wk = hn::Set(d, w[k]);
+      const float* r = rows[k] + x;
+      s0 = hn::MulAdd(wk, hn::LoadU(d, r), s0);
+      s1 = hn::MulAdd(wk, hn::LoadU(d, r + N), s1);
+      s2 = hn::MulAdd(wk, hn::LoadU(d, r + 2 * N), s2);
+      s3 = hn::MulAdd(wk, hn::LoadU(d, r + 3 * N), s3);
+    }
+    hn::StoreU(s0, d, o + x), hn::StoreU(s1, d, o + x + N), hn::StoreU(s2, d, o + x + 2 * N), hn::StoreU(s3, d, o + x + 3 * N);
+  }
+  for (; x + N <= W; x += N) {
+    auto s = hn::Zero(d);
+    for (int k = k0; k < k1; ++k) s = hn::MulAdd(hn::Set(d, w[k]), hn::LoadU(d, rows[k] + x), s);
+    hn::StoreU(s, d, o + x);
+  }
+  for (; x < W; ++x) {
+    float s = 0.0f;
+    for (int k = k0; k < k1; ++k) s = MulAdd1(w[k], rows[k][x], s);
+    o[x] = s;
+  }
+}
 
 /// A band's working rows (band_floats(W) of them): rings of row-pass outputs, indexed by image row modulo 11.
 struct BandRows {
@@ -97,7 +181,7 @@ HWY_INLINE void ColumnPass(const float* win, float* const* rings, int planes, in
   const float* rows[kBlurTaps] = {};
   for (int p = 0; p < planes; ++p) {
     for (int k = k0; k < k1; ++k) rows[k] = rings[p] + size_t((y + k - 5) % kRing) * stride;
-    BlurColumnRowOf(win, rows, k0, k1, W, out[p]);
+    BlurColumnRow(win, rows, k0, k1, W, out[p]);
   }
 }
 
