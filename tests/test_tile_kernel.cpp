@@ -24,6 +24,8 @@
 #include "helpers.hpp"
 #include "image/blur.hpp"
 #include "render/frustum.hpp"
+#include "render/preprocess.hpp"
+#include "render/raster_internal.hpp"
 #include "render/tile_kernel.hpp"
 
 using namespace fillgs;
@@ -293,6 +295,70 @@ TEST_CASE("the vector preprocess writes the scalar preprocess's projection and f
       CHECK(kept > 1000);
       CHECK(N - kept > 1000);
       CHECK(mismatched == 0);
+    }
+  });
+}
+
+TEST_CASE("the vector kernel's pairs binned to their alpha spans: each tile keeps, in order, the entries whose span reaches it, "
+          "and the differentiable forward draws render()'s image bit for bit", "[kernel][data]") {
+  const GaussianCloud c = read_scene(shared_data() + "/scenes/guitar.ply");
+  const ModelParams<float> params = params_from_cloud<float>(c);
+  DiffFrame<float> frame;
+  params_at(params, 0.0, &frame);
+  // render()'s Gaussians as the frame holds them (frame_at normalises rotations in its own order).
+  FrameGaussians g = frame_at(c, 0);
+  for (size_t i = 0; i < c.size(); ++i)
+    for (int k = 0; k < 4; ++k) g.rotations[i][k] = frame.rotations[4 * i + k];
+  for_each_instruction_set([&](const char* set) {
+    for (const auto& [w, h] : {std::pair{320, 240}, std::pair{203, 117}}) {
+      const Camera cam = orbit_camera(c, 0.7, w, h);
+      INFO(set << " (" << kernel_instruction_set() << "), " << w << "x" << h);
+      tiles::SplatSource<float> source;
+      source.count = frame.size();
+      source.sh_degree = frame.sh_degree;
+      source.means = frame.means.data(), source.scales = frame.scales.data(), source.rotations = frame.rotations.data();
+      source.opacities = frame.opacities.data(), source.sh = frame.sh;
+      std::vector<int> radii;
+      std::vector<ProjectedGaussian> proj;
+      std::vector<uint32_t> visible;
+      std::vector<float> splat, extent, colour;
+      tiles::prepare_splats(source, cam, 3, tiles::SplatSetup<float>{&radii, &proj, &visible, &splat, &extent, &colour},
+                            [](size_t, uint32_t, const ProjectedGaussian&, float*) {});
+      std::vector<int32_t> spans(visible.size() * 4);
+      tiles::alpha_spans_simd(splat.data(), extent.data(), 0, visible.size(), spans.data());
+      const internal::TileBins all = internal::bin_tiles(proj, visible, w, h), cut = internal::bin_tiles(proj, visible, w, h, spans.data());
+      REQUIRE(all.start.size() == cut.start.size());
+      // The reference: every pair of the 3-sigma rectangles, kept where the span and the tile
+      // share a pixel (the vector kernel's per-entry cut, written out here).
+      size_t dropped = 0, wrong = 0;
+      for (size_t t = 0; t + 1 < all.start.size(); ++t) {
+        const int x0 = int(t % size_t(all.grid_x)) * kTileSize, y0 = int(t / size_t(all.grid_x)) * kTileSize;
+        const int x1 = std::min(x0 + kTileSize, w) - 1, y1 = std::min(y0 + kTileSize, h) - 1;
+        std::vector<uint32_t> expected;
+        for (uint64_t e = all.start[t]; e < all.start[t + 1]; ++e) {
+          const int32_t* a = &spans[4 * size_t(all.entries[e])];
+          if (std::max(x0, a[0]) <= std::min(x1, a[1]) && std::max(y0, a[2]) <= std::min(y1, a[3]))
+            expected.push_back(all.entries[e]);
+          else
+            ++dropped;
+        }
+        const std::vector<uint32_t> got(cut.entries.begin() + long(cut.start[t]), cut.entries.begin() + long(cut.start[t + 1]));
+        wrong += got != expected;
+      }
+      CHECK(wrong == 0);
+      CHECK(dropped > all.entries.size() / 10);  // measured: about half the pairs at these sizes
+      RenderOptions ro;
+      ro.kernel = Kernel::Simd;
+      ro.background = Vec3f(0.1f, 0.3f, 0.7f);
+      const RenderOutput reference = render(g, cam, ro);
+      DiffRenderOptions dro;
+      dro.kernel = Kernel::Simd;
+      dro.background = ro.background;
+      DiffRasterizer<float> ras;
+      ras.forward(frame, cam, dro);
+      REQUIRE(ras.image().size() == reference.rgb.size());
+      CHECK(std::memcmp(ras.image().data(), reference.rgb.data(), reference.rgb.size() * sizeof(float)) == 0);
+      CHECK(std::memcmp(ras.alpha().data(), reference.alpha.data(), reference.alpha.size() * sizeof(float)) == 0);
     }
   });
 }

@@ -40,7 +40,8 @@ void sort_by_depth(uint64_t* keys, size_t n, std::vector<uint64_t>* scratch) {
 
 }  // namespace
 
-TileBins bin_tiles(const std::vector<ProjectedGaussian>& proj, const std::vector<uint32_t>& visible, int W, int H) {
+TileBins bin_tiles(const std::vector<ProjectedGaussian>& proj, const std::vector<uint32_t>& visible, int W, int H,
+                   const int32_t* spans) {
   TileBins b;
   b.grid_x = (W + kTileSize - 1) / kTileSize;
   b.grid_y = (H + kTileSize - 1) / kTileSize;
@@ -52,11 +53,23 @@ TileBins bin_tiles(const std::vector<ProjectedGaussian>& proj, const std::vector
   // the thread count; then each tile sorts by (depth, index).
   const size_t blocks = std::clamp<size_t>(V / 4096, 1, 64), per_block = (V + blocks - 1) / blocks;
   std::vector<uint32_t> counts(blocks * tiles, 0);  // [block][tile]
+  // A tile of columns [16 t, min(16 t + 16, size)) holds one of the span's [lo, hi].
+  auto holds = [](int t, int size, int lo, int hi) {
+    return std::max(t * kTileSize, lo) <= std::min(std::min(t * kTileSize + kTileSize, size) - 1, hi);
+  };
   auto for_each_pair = [&](size_t block, auto&& visit) {
     for (size_t i = block * per_block; i < std::min(V, (block + 1) * per_block); ++i) {
       const ProjectedGaussian& p = proj[visible[i]];
-      for (int ty = p.rect_min[1]; ty < p.rect_max[1]; ++ty)
-        for (int tx = p.rect_min[0]; tx < p.rect_max[0]; ++tx) visit(size_t(ty) * gx + tx, i, p.depth);
+      int tx0 = p.rect_min[0], tx1 = p.rect_max[0], ty0 = p.rect_min[1], ty1 = p.rect_max[1];
+      if (spans) {  // the tiles that hold a pixel of the span: a contiguous run of the rectangle's
+        const int32_t* a = spans + 4 * i;
+        while (tx0 < tx1 && !holds(tx0, W, a[0], a[1])) ++tx0;
+        while (tx1 > tx0 && !holds(tx1 - 1, W, a[0], a[1])) --tx1;
+        while (ty0 < ty1 && !holds(ty0, H, a[2], a[3])) ++ty0;
+        while (ty1 > ty0 && !holds(ty1 - 1, H, a[2], a[3])) --ty1;
+      }
+      for (int ty = ty0; ty < ty1; ++ty)
+        for (int tx = tx0; tx < tx1; ++tx) visit(size_t(ty) * gx + tx, i, p.depth);
     }
   };
   tbb::parallel_for(size_t(0), blocks, [&](size_t k) {

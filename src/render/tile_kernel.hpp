@@ -33,6 +33,9 @@ struct TileSplats {
   const float* extent = nullptr;   ///< [V][2]: half-width, half-height where α can reach 1/255
   const Real* channels = nullptr;  ///< [V][C]
   int C = 0;
+  /// Optional [V][4]: each splat's α ≥ 1/255 pixels x0, x1, y0, y1 (alpha_spans_simd); null:
+  /// the vector kernel computes them per entry (internal::alpha_pixels, the same code).
+  const int32_t* spans = nullptr;
 };
 
 /// One tile: its pixel rectangle [x0, x1) × [y0, y1) and its entries front to back.
@@ -84,8 +87,11 @@ struct TileBackward {
   const uint32_t* last = nullptr;  ///< [256] from the forward
   const float* dpix = nullptr;     ///< [C][256] dL/d(pixel channel), pixel weights applied
   float background[3] = {0, 0, 0};
-  /// [count][6 + C] per entry: dL/du, dL/dv, dL/dconic (a, b, c), dL/dopacity, dL/dchannel[C]
+  /// Up to [count][6 + C]: dL/du, dL/dv, dL/dconic (a, b, c), dL/dopacity, dL/dchannel[C] of
+  /// each entry that reaches a pixel, packed from the front in the order met (back to front);
+  /// the entries left out reach no pixel, so their records would be zeros.
   float* records = nullptr;
+  uint32_t* ids = nullptr;  ///< [count]: the Gaussian (tile.entries' value) of each record
 };
 
 /// One accepted (Gaussian, pixel) pair met back to front, with what a backward needs.
@@ -158,8 +164,15 @@ void forward_tile(bool simd, const TileSplats<Real>& splats, const TileWork& til
   forward_tile_scalar(splats, tile, out);
 }
 
-/// The vector backward of one tile: per-entry gradient records, back to front.
-void backward_tile_simd(const TileSplats<float>& splats, const TileWork& tile, const TileBackward& io);
+/// The vector backward of one tile: the gradient records of the entries that reach a pixel,
+/// back to front. Returns how many it wrote.
+uint32_t backward_tile_simd(const TileSplats<float>& splats, const TileWork& tile, const TileBackward& io);
+
+/// Each splat's α ≥ 1/255 pixels (internal::alpha_pixels; [V][4] x0, x1, y0, y1) for splats
+/// [begin, end), computed
+/// by the vector kernel's own build (so rounded as its per-entry cut rounds: with fused
+/// multiply-adds where the instruction set has them).
+void alpha_spans_simd(const float* splat, const float* extent, size_t begin, size_t end, int32_t* spans);
 
 /// The instruction set the vector kernel runs with on this machine ("AVX3", "AVX2", ...).
 const char* simd_target_name();

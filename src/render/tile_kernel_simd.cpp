@@ -82,12 +82,8 @@ struct BlockLayout {
   void to_rows(const T* blocks, T* rows, int planes) const { convert(blocks, rows, planes, false); }
 };
 
-/// A splat's pixels in a tile: the α ≥ 1/255 ellipse's own bounding box. pixel_box
-/// (raster_internal.hpp) bounds it with a pixel of margin on each side: alpha_extent's
-/// half-width is sqrt(r²·Σxx) + 1, and sqrt(r²·Σxx) is exactly the ellipse's half-width
-/// (r² = 2 ln(255 o)). The cut drops that margin, loosened by 0.05% (r² by 0.1%) and 1e-3 px
-/// so that rounding never drops a pixel the scalar kernel would blend. False when nothing
-/// is left.
+/// A splat's pixels in a tile: its α ≥ 1/255 pixels (internal::alpha_pixels) within the
+/// tile. False when none is.
 struct LocalBox {
   int lx0, lx1, ly0, ly1;
   uint64_t box_pixels;  // pixels of pixel_box's box before the cut (the scalar kernel's work)
@@ -97,11 +93,13 @@ inline bool local_box(const TileSplats<float>& S, uint32_t i, const TileWork& t,
   int px0, px1, py0, py1;
   internal::pixel_box(sd[0], sd[1], S.extent[2 * i], S.extent[2 * i + 1], t.x0, t.y0, t.x1, t.y1, &px0, &px1, &py0, &py1);
   b->box_pixels = px0 <= px1 && py0 <= py1 ? uint64_t(px1 - px0 + 1) * uint64_t(py1 - py0 + 1) : 0;
-  const float hx = (S.extent[2 * i] - 1.0f) * 1.0005f + 1e-3f, hy = (S.extent[2 * i + 1] - 1.0f) * 1.0005f + 1e-3f;
-  px0 = std::max(px0, int(std::ceil(sd[0] - hx)));
-  px1 = std::min(px1, int(std::floor(sd[0] + hx)));
-  py0 = std::max(py0, int(std::ceil(sd[1] - hy)));
-  py1 = std::min(py1, int(std::floor(sd[1] + hy)));
+  const internal::PixelSpan a =
+      S.spans ? internal::PixelSpan{S.spans[4 * i], S.spans[4 * i + 1], S.spans[4 * i + 2], S.spans[4 * i + 3]}
+              : internal::alpha_pixels(sd[0], sd[1], S.extent[2 * i], S.extent[2 * i + 1]);
+  px0 = std::max(t.x0, a.x0);
+  px1 = std::min(t.x1 - 1, a.x1);
+  py0 = std::max(t.y0, a.y0);
+  py1 = std::min(t.y1 - 1, a.y1);
   b->lx0 = px0 - t.x0, b->lx1 = px1 - t.x0, b->ly0 = py0 - t.y0, b->ly1 = py1 - t.y0;
   return px0 <= px1 && py0 <= py1;
 }
@@ -123,6 +121,20 @@ HWY_INLINE void PrefetchEntry(const TileSplats<float>& S, uint32_t i, int C) {
     hwy::Prefetch(ch + C - 1);
   }
 }
+
+/// A tile's planes of kC channels on the stack (kC = 0: S.C known at run time only, on the heap).
+template <int kC>
+struct ChannelPlanes {
+  HWY_ALIGN float data[kC * kTilePixels];
+  explicit ChannelPlanes(int) {}
+  float* get() { return data; }
+};
+template <>
+struct ChannelPlanes<0> {
+  std::vector<float> data;
+  explicit ChannelPlanes(int planes) : data(size_t(planes) * kTilePixels) {}
+  float* get() { return data.data(); }
+};
 
 /// One splat broadcast to the lanes: the geometry both passes evaluate, block by block.
 struct SplatLanes {
@@ -172,7 +184,9 @@ void ForwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileFo
   HWY_ALIGN int32_t done[kTilePixels], last[kTilePixels];
   HWY_ALIGN float T[kTilePixels], wbuf[kTileSize];
   HWY_ALIGN int32_t lxbuf[kTileSize], lybuf[kTileSize];
-  std::vector<float> acc(size_t(C) * kTilePixels, 0.0f);  // block-major
+  ChannelPlanes<kC> acc_planes(C);  // block-major
+  float* const acc = acc_planes.get();
+  std::fill(acc, acc + size_t(C) * kTilePixels, 0.0f);
   std::fill(T, T + kTilePixels, 1.0f);
   std::fill(done, done + kTilePixels, 0);
   std::fill(last, last + kTilePixels, 0);
@@ -216,7 +230,7 @@ void ForwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileFo
       const auto accept = hn::AndNot(stop, live);
       const auto w = hn::IfThenElseZero(accept, hn::Mul(alpha, Tv));
       for (int c = 0; c < C; ++c) {
-        float* a = acc.data() + size_t(c) * kTilePixels + l;
+        float* a = acc + size_t(c) * kTilePixels + l;
         hn::StoreU(hn::MulAdd(hn::Set(d, ch[c]), w, hn::LoadU(d, a)), d, a);
       }
       hn::StoreU(hn::IfThenElse(accept, test_T, Tv), d, T + l);
@@ -237,13 +251,13 @@ void ForwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileFo
     if (out.entry_max) out.entry_max[k] = hn::GetLane(hn::MaxOfLanes(d, emax));
   }
   L.to_rows(T, out.T, 1);
-  L.to_rows(acc.data(), out.acc, C);
+  L.to_rows(acc, out.acc, C);
   if (out.last) L.to_rows(reinterpret_cast<const uint32_t*>(last), out.last, 1);
 }
 
 /// The backward for kC channels (0: S.C at run time; 3 and 4 unroll the channel loop).
 template <int kC>
-void BackwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileBackward& io) {
+uint32_t BackwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileBackward& io) {
   const D d;
   const DI di;
   const BlockLayout L;
@@ -254,30 +268,39 @@ void BackwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileB
   L.to_blocks(io.final_T, final_T, 1);
   std::copy(final_T, final_T + kTilePixels, T);
   L.to_blocks(reinterpret_cast<const int32_t*>(io.last), last, 1);
-  std::vector<float> dpix(size_t(C) * kTilePixels), behind(size_t(C) * kTilePixels, 0.0f);  // block-major
-  L.to_blocks(io.dpix, dpix.data(), C);
-  std::vector<float> channel_acc(size_t(C) * N);  // per channel, lanes
+  ChannelPlanes<kC> dpix_planes(C), behind_planes(C);  // block-major
+  float* const dpix = dpix_planes.get();
+  float* const behind = behind_planes.get();
+  std::fill(behind, behind + size_t(C) * kTilePixels, 0.0f);
+  L.to_blocks(io.dpix, dpix, C);
+  HWY_ALIGN float channel_acc_lanes[kC ? kC * kTileSize : 1];  // per channel, lanes
+  std::vector<float> channel_acc_heap(kC ? 0 : size_t(C) * N);
+  float* const channel_acc = kC ? channel_acc_lanes : channel_acc_heap.data();
   const auto zero = hn::Zero(d), one = hn::Set(d, 1.0f), minus_half = hn::Set(d, -0.5f);
   const auto max_alpha = hn::Set(d, kMaxAlpha), min_alpha = hn::Set(d, kMinAlpha);
-  for (uint32_t k = 0; k < std::min(tile.count, kPrefetchAhead); ++k) PrefetchEntry(S, tile.entries[tile.count - 1 - k], C);
-  for (uint32_t k = tile.count; k-- > 0;) {
-    float* rec = io.records + size_t(k) * R;
+  // Entries at or behind every pixel's last blended one reach no pixel; nor does one whose
+  // box misses the tile or whose blocks have no live lane. Their records would be zeros (the
+  // sums below start at zero), so none is written: the per-Gaussian sum reads only the rest.
+  uint32_t reached = 0, written = 0;
+  for (int l = 0; l < kTilePixels; ++l) reached = std::max(reached, uint32_t(last[l]));
+  reached = std::min(reached, tile.count);
+  for (uint32_t k = 0; k < std::min(reached, kPrefetchAhead); ++k) PrefetchEntry(S, tile.entries[reached - 1 - k], C);
+  for (uint32_t k = reached; k-- > 0;) {
     const uint32_t i = tile.entries[k];
     if (k >= kPrefetchAhead) PrefetchEntry(S, tile.entries[k - kPrefetchAhead], C);
     LocalBox b;
-    if (!local_box(S, i, tile, &b)) {
-      std::fill(rec, rec + R, 0.0f);
-      continue;
-    }
+    if (!local_box(S, i, tile, &b)) continue;
     const float* ch = &S.channels[size_t(i) * C];
     const SplatLanes g(&S.splat[6 * size_t(i)], b, tile);
     const auto entry = hn::Set(di, int32_t(k));
     auto g_u = zero, g_v = zero, g_a = zero, g_b = zero, g_c = zero, g_o = zero;
-    std::fill(channel_acc.begin(), channel_acc.end(), 0.0f);
+    std::fill(channel_acc, channel_acc + size_t(C) * N, 0.0f);
+    bool reaches = false;
     for_each_block(L, b, g, [&](int l, hn::Vec<DI> lx, hn::Vec<DI> ly, hn::Vec<D> dx, hn::Vec<D> dy) {
       // Reached by the forward: entries [0, last) of the tile were blended at this pixel.
       auto live = hn::RebindMask(d, hn::And(g.in_box(lx, ly), hn::Lt(entry, hn::LoadU(di, last + l))));
       if (hn::AllFalse(d, live)) return;
+      reaches = true;
       const auto power = g.power(dx, dy);
       const auto gauss = ExpNonPositive(d, hn::Min(power, zero));
       const auto oG = hn::Mul(g.opacity, gauss);
@@ -291,10 +314,10 @@ void BackwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileB
       const auto w = hn::IfThenElseZero(live, hn::Mul(alpha, T_front));
       auto dL_dalpha = zero, bg_dot = zero;
       for (int c = 0; c < C; ++c) {
-        const auto dp_c = hn::LoadU(d, dpix.data() + size_t(c) * kTilePixels + l);
-        float* ca_c = channel_acc.data() + size_t(c) * N;
+        const auto dp_c = hn::LoadU(d, dpix + size_t(c) * kTilePixels + l);
+        float* ca_c = channel_acc + size_t(c) * N;
         hn::StoreU(hn::MulAdd(w, dp_c, hn::LoadU(d, ca_c)), d, ca_c);
-        float* bp = behind.data() + size_t(c) * kTilePixels + l;
+        float* bp = behind + size_t(c) * kTilePixels + l;
         const auto bh = hn::LoadU(d, bp), chv = hn::Set(d, ch[c]);
         dL_dalpha = hn::MulAdd(hn::Sub(chv, bh), dp_c, dL_dalpha);
         hn::StoreU(hn::IfThenElse(live, hn::MulAdd(alpha, chv, hn::Mul(transparency, bh)), bh), d, bp);
@@ -313,14 +336,18 @@ void BackwardTileC(const TileSplats<float>& S, const TileWork& tile, const TileB
       g_b = hn::NegMulAdd(dp, hn::Mul(dx, dy), g_b);
       g_c = hn::MulAdd(half_dp, hn::Mul(dy, dy), g_c);
     });
+    if (!reaches) continue;
+    float* rec = io.records + size_t(written) * R;
+    io.ids[written++] = i;
     rec[0] = hn::GetLane(hn::SumOfLanes(d, g_u));
     rec[1] = hn::GetLane(hn::SumOfLanes(d, g_v));
     rec[2] = hn::GetLane(hn::SumOfLanes(d, g_a));
     rec[3] = hn::GetLane(hn::SumOfLanes(d, g_b));
     rec[4] = hn::GetLane(hn::SumOfLanes(d, g_c));
     rec[5] = hn::GetLane(hn::SumOfLanes(d, g_o));
-    for (int c = 0; c < C; ++c) rec[6 + c] = hn::GetLane(hn::SumOfLanes(d, hn::LoadU(d, channel_acc.data() + size_t(c) * N)));
+    for (int c = 0; c < C; ++c) rec[6 + c] = hn::GetLane(hn::SumOfLanes(d, hn::LoadU(d, channel_acc + size_t(c) * N)));
   }
+  return written;
 }
 
 void ForwardTile(const TileSplats<float>& S, const TileWork& tile, const TileForward<float>& out) {
@@ -332,11 +359,18 @@ void ForwardTile(const TileSplats<float>& S, const TileWork& tile, const TileFor
   }
 }
 
-void BackwardTile(const TileSplats<float>& S, const TileWork& tile, const TileBackward& io) {
+uint32_t BackwardTile(const TileSplats<float>& S, const TileWork& tile, const TileBackward& io) {
   switch (S.C) {
     case 3: return BackwardTileC<3>(S, tile, io);
     case 4: return BackwardTileC<4>(S, tile, io);
     default: return BackwardTileC<0>(S, tile, io);
+  }
+}
+
+void AlphaSpans(const float* splat, const float* extent, size_t begin, size_t end, int32_t* spans) {
+  for (size_t i = begin; i < end; ++i) {
+    const internal::PixelSpan a = internal::alpha_pixels(splat[6 * i], splat[6 * i + 1], extent[2 * i], extent[2 * i + 1]);
+    spans[4 * i] = a.x0, spans[4 * i + 1] = a.x1, spans[4 * i + 2] = a.y0, spans[4 * i + 3] = a.y1;
   }
 }
 
@@ -369,6 +403,7 @@ namespace fillgs::tiles {
 
 HWY_EXPORT(ForwardTile);
 HWY_EXPORT(BackwardTile);
+HWY_EXPORT(AlphaSpans);
 HWY_EXPORT(ExpMaxRelativeError);
 HWY_EXPORT(TargetName);
 HWY_EXPORT(LaneCount);
@@ -377,8 +412,12 @@ void forward_tile_simd(const TileSplats<float>& splats, const TileWork& tile, co
   HWY_DYNAMIC_DISPATCH(ForwardTile)(splats, tile, out);
 }
 
-void backward_tile_simd(const TileSplats<float>& splats, const TileWork& tile, const TileBackward& io) {
-  HWY_DYNAMIC_DISPATCH(BackwardTile)(splats, tile, io);
+uint32_t backward_tile_simd(const TileSplats<float>& splats, const TileWork& tile, const TileBackward& io) {
+  return HWY_DYNAMIC_DISPATCH(BackwardTile)(splats, tile, io);
+}
+
+void alpha_spans_simd(const float* splat, const float* extent, size_t begin, size_t end, int32_t* spans) {
+  HWY_DYNAMIC_DISPATCH(AlphaSpans)(splat, extent, begin, end, spans);
 }
 
 double simd_exp_max_relative_error(float lo, int count) { return HWY_DYNAMIC_DISPATCH(ExpMaxRelativeError)(lo, count); }

@@ -114,9 +114,11 @@ class DiffRasterizer {
   /// pair state, channels) and end(entry).
   template <typename MakeVisitor>
   void backward_tiles(MakeVisitor&& make_visitor) const;
-  /// The vector backward (float): gradient records of every tile entry.
-  void backward_tiles_simd(const Real* dL_dimage, const Real* dL_dfeatures, const Real* pixel_weights,
-                           Real* records) const;
+  /// The vector backward (float): the gradient records of the entries that reach a pixel,
+  /// each tile's packed from its first entry's slot, with their visible indices in `ids`
+  /// and their count in `written` (per tile).
+  void backward_tiles_simd(const Real* dL_dimage, const Real* dL_dfeatures, const Real* pixel_weights, Real* records,
+                           uint32_t* ids, uint32_t* written) const;
   tiles::TileWork tile_work(size_t tile) const;
   bool uses_simd() const;
 
@@ -129,6 +131,7 @@ class DiffRasterizer {
   std::vector<Real> colour_;            // per visible: channel values
   std::vector<uint8_t> colour_clamped_; // per visible: rgb clamped at 0 (bit per channel)
   std::vector<float> half_extent_;      // per visible: half_w, half_h (pixels)
+  std::vector<int32_t> alpha_spans_;    // vector kernel, per visible: its α ≥ 1/255 pixels x0, x1, y0, y1
   std::vector<uint64_t> tile_start_;
   std::vector<uint32_t> keys_;          // per tile entry: index into visible_
   std::vector<Real> image_, features_, alpha_, final_T_;
