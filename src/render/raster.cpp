@@ -109,10 +109,15 @@ RenderOutput render(const FrameGaussians& G, const Camera& cam, const RenderOpti
                           for (int f = 0; f < F; ++f) ch[feature_channel + f] = opt.features[size_t(g) * F + f];
                         });
   out.rendered = size_t(std::count_if(out.radii.begin(), out.radii.end(), [](int r) { return r > 0; }));
-  const tiles::TileSplats<float> splats{splat.data(), extent.data(), chan.data(), C};
+  // Each splat's α ≥ 1/255 pixels as the vector kernel cuts its boxes: both kernels blend
+  // only the tiles that hold one of them (the scalar kernel's α test rejects every pixel
+  // outside them; the images are the same as over the whole 3σ rectangles).
+  std::vector<int32_t> spans;
+  tiles::alpha_spans(splat.data(), extent.data(), visible.size(), &spans);
+  const tiles::TileSplats<float> splats{splat.data(), extent.data(), chan.data(), C, spans.data()};
 
   // ---- bin into tiles, front to back per tile ----
-  const internal::TileBins bins = internal::bin_tiles(proj, visible, W, H);
+  const internal::TileBins bins = internal::bin_tiles(proj, visible, W, H, spans.data());
   const int gx = bins.grid_x;
   const size_t tiles = size_t(bins.grid_x) * bins.grid_y;
   out.tile_entries = bins.entries.size();

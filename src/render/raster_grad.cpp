@@ -213,12 +213,7 @@ void DiffRasterizer<Real>::forward(const DiffFrame<Real>& G, const Camera& cam, 
   const bool simd = uses_simd();
   alpha_spans_.clear();
   if constexpr (std::is_same_v<Real, float>) {
-    if (simd) {
-      alpha_spans_.resize(visible_.size() * 4);
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, visible_.size(), 4096), [&](const tbb::blocked_range<size_t>& r) {
-        tiles::alpha_spans_simd(splat_data_.data(), half_extent_.data(), r.begin(), r.end(), alpha_spans_.data());
-      });
-    }
+    if (simd) tiles::alpha_spans(splat_data_.data(), half_extent_.data(), visible_.size(), &alpha_spans_);
   }
   const int32_t* spans = alpha_spans_.empty() ? nullptr : alpha_spans_.data();
   internal::TileBins bins;

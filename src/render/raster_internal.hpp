@@ -28,8 +28,9 @@ struct TileBins {
 };
 /// With `spans` ([V][4]: each splat's α ≥ 1/255 pixels x0, x1, y0, y1 as the vector kernel
 /// reads them, alpha_pixels), a Gaussian is binned only into the tiles that hold one of those
-/// pixels: the vector kernel skips every other pair (its per-entry cut leaves nothing), so
-/// leaving them out changes no value it computes.
+/// pixels: the vector kernel skips every other pair (its per-entry cut leaves nothing) and
+/// the scalar kernel's α test rejects each of their pixels, so leaving them out changes no
+/// value either computes (tests/test_tile_kernel.cpp).
 TileBins bin_tiles(const std::vector<ProjectedGaussian>& projected, const std::vector<uint32_t>& visible, int width,
                    int height, const int32_t* spans = nullptr);
 

@@ -173,6 +173,8 @@ uint32_t backward_tile_simd(const TileSplats<float>& splats, const TileWork& til
 /// by the vector kernel's own build (so rounded as its per-entry cut rounds: with fused
 /// multiply-adds where the instruction set has them).
 void alpha_spans_simd(const float* splat, const float* extent, size_t begin, size_t end, int32_t* spans);
+/// alpha_spans_simd over all `count` splats, in parallel (the caller's arena), into `spans`.
+void alpha_spans(const float* splat, const float* extent, size_t count, std::vector<int32_t>* spans);
 
 /// The instruction set the vector kernel runs with on this machine ("AVX3", "AVX2", ...).
 const char* simd_target_name();

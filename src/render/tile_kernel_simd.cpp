@@ -11,6 +11,8 @@
 #include <hwy/foreach_target.h>  // IWYU pragma: keep
 #include <hwy/cache_control.h>
 #include <hwy/highway.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -418,6 +420,13 @@ uint32_t backward_tile_simd(const TileSplats<float>& splats, const TileWork& til
 
 void alpha_spans_simd(const float* splat, const float* extent, size_t begin, size_t end, int32_t* spans) {
   HWY_DYNAMIC_DISPATCH(AlphaSpans)(splat, extent, begin, end, spans);
+}
+
+void alpha_spans(const float* splat, const float* extent, size_t count, std::vector<int32_t>* spans) {
+  spans->resize(count * 4);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    alpha_spans_simd(splat, extent, r.begin(), r.end(), spans->data());
+  });
 }
 
 double simd_exp_max_relative_error(float lo, int count) { return HWY_DYNAMIC_DISPATCH(ExpMaxRelativeError)(lo, count); }
