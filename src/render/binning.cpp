@@ -38,6 +38,9 @@ void sort_by_depth(uint64_t* keys, size_t n, std::vector<uint64_t>* scratch) {
   if (from != keys) std::copy(from, from + n, keys);
 }
 
+/// floor(v / kTileSize) for any int (the division rounds toward zero).
+int floor_div_tile(int v) { return v >= 0 ? v / kTileSize : -((kTileSize - 1 - v) / kTileSize); }
+
 }  // namespace
 
 TileBins bin_tiles(const std::vector<ProjectedGaussian>& proj, const std::vector<uint32_t>& visible, int W, int H,
@@ -53,26 +56,42 @@ TileBins bin_tiles(const std::vector<ProjectedGaussian>& proj, const std::vector
   // the thread count; then each tile sorts by (depth, index).
   const size_t blocks = std::clamp<size_t>(V / 4096, 1, 64), per_block = (V + blocks - 1) / blocks;
   std::vector<uint32_t> counts(blocks * tiles, 0);  // [block][tile]
-  // A tile of columns [16 t, min(16 t + 16, size)) holds one of the span's [lo, hi].
-  auto holds = [](int t, int size, int lo, int hi) {
-    return std::max(t * kTileSize, lo) <= std::min(std::min(t * kTileSize + kTileSize, size) - 1, hi);
+  // Each visible Gaussian's tiles [tx0, tx1) × [ty0, ty1) and depth, made by the counting
+  // pass and read again by the keys' pass.
+  struct Tiles {
+    int32_t tx0, tx1, ty0, ty1;
+    float depth;
+  };
+  std::vector<Tiles> span_tiles(V);
+  auto tiles_of = [&](size_t i) {
+    const ProjectedGaussian& p = proj[visible[i]];
+    Tiles r{p.rect_min[0], p.rect_max[0], p.rect_min[1], p.rect_max[1], p.depth};
+    if (spans) {
+      // A tile of columns [16 t, min(16 t + 16, size)) holds a pixel of the span [lo, hi]
+      // exactly when lo <= hi, lo < size and floor(lo / 16) <= t <= floor(hi / 16).
+      const int32_t* a = spans + 4 * i;
+      auto cut = [](int32_t* t0, int32_t* t1, int lo, int hi, int size) {
+        if (lo > hi || lo >= size) {
+          *t1 = *t0;
+          return;
+        }
+        *t0 = std::max(*t0, floor_div_tile(lo));
+        *t1 = std::max(*t0, std::min(*t1, floor_div_tile(hi) + 1));
+      };
+      cut(&r.tx0, &r.tx1, a[0], a[1], W);
+      cut(&r.ty0, &r.ty1, a[2], a[3], H);
+    }
+    return r;
   };
   auto for_each_pair = [&](size_t block, auto&& visit) {
     for (size_t i = block * per_block; i < std::min(V, (block + 1) * per_block); ++i) {
-      const ProjectedGaussian& p = proj[visible[i]];
-      int tx0 = p.rect_min[0], tx1 = p.rect_max[0], ty0 = p.rect_min[1], ty1 = p.rect_max[1];
-      if (spans) {  // the tiles that hold a pixel of the span: a contiguous run of the rectangle's
-        const int32_t* a = spans + 4 * i;
-        while (tx0 < tx1 && !holds(tx0, W, a[0], a[1])) ++tx0;
-        while (tx1 > tx0 && !holds(tx1 - 1, W, a[0], a[1])) --tx1;
-        while (ty0 < ty1 && !holds(ty0, H, a[2], a[3])) ++ty0;
-        while (ty1 > ty0 && !holds(ty1 - 1, H, a[2], a[3])) --ty1;
-      }
-      for (int ty = ty0; ty < ty1; ++ty)
-        for (int tx = tx0; tx < tx1; ++tx) visit(size_t(ty) * gx + tx, i, p.depth);
+      const Tiles& r = span_tiles[i];
+      for (int ty = r.ty0; ty < r.ty1; ++ty)
+        for (int tx = r.tx0; tx < r.tx1; ++tx) visit(size_t(ty) * gx + tx, i, r.depth);
     }
   };
   tbb::parallel_for(size_t(0), blocks, [&](size_t k) {
+    for (size_t i = k * per_block; i < std::min(V, (k + 1) * per_block); ++i) span_tiles[i] = tiles_of(i);
     uint32_t* c = &counts[k * tiles];
     for_each_pair(k, [&](size_t t, size_t, float) { ++c[t]; });
   });
