@@ -26,8 +26,8 @@ struct TileBins {
   std::vector<uint64_t> start;
   std::vector<uint32_t> entries;
 };
-/// With `spans` ([V][4]: each splat's α ≥ 1/255 pixels x0, x1, y0, y1 as the vector kernel
-/// reads them, alpha_pixels), a Gaussian is binned only into the tiles that hold one of those
+/// With `spans` ([V][4]: each splat's α ≥ 1/255 pixels x0, x1, y0, y1, tiles::alpha_spans),
+/// a Gaussian is binned only into the tiles that hold one of those
 /// pixels: the vector kernel skips every other pair (its per-entry cut leaves nothing) and
 /// the scalar kernel's α test rejects each of their pixels, so leaving them out changes no
 /// value either computes (tests/test_tile_kernel.cpp).
@@ -49,23 +49,6 @@ inline void pixel_box(float mx, float my, float half_w, float half_h, int x0, in
   *px1 = std::min(x1 - 1, int(std::ceil(mx + half_w)));
   *py0 = std::max(y0, int(std::floor(my - half_h)));
   *py1 = std::min(y1 - 1, int(std::ceil(my + half_h)));
-}
-
-/// The pixels where a splat centred at (mx, my) with alpha_extent's half-extents can reach
-/// α = 1/255, inclusive (empty when x0 > x1 or y0 > y1): pixel_box's bounds cut to the α
-/// ellipse's own box. alpha_extent's half-width is sqrt(r²·Σxx) + 1, and sqrt(r²·Σxx) is
-/// exactly the ellipse's half-width (r² = 2 ln(255 o)); the cut drops that pixel of margin,
-/// loosened by 0.05 % (r² by 0.1 %) and 1e-3 px so that rounding never drops a pixel the
-/// scalar kernel would blend.
-struct PixelSpan {
-  int x0, x1, y0, y1;
-};
-inline PixelSpan alpha_pixels(float mx, float my, float half_w, float half_h) {
-  const float hx = (half_w - 1.0f) * 1.0005f + 1e-3f, hy = (half_h - 1.0f) * 1.0005f + 1e-3f;
-  return {std::max(int(std::floor(mx - half_w)), int(std::ceil(mx - hx))),
-          std::min(int(std::ceil(mx + half_w)), int(std::floor(mx + hx))),
-          std::max(int(std::floor(my - half_h)), int(std::ceil(my - hy))),
-          std::min(int(std::ceil(my + half_h)), int(std::floor(my + hy)))};
 }
 
 }  // namespace fillgs::internal

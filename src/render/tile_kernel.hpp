@@ -33,8 +33,8 @@ struct TileSplats {
   const float* extent = nullptr;   ///< [V][2]: half-width, half-height where α can reach 1/255
   const Real* channels = nullptr;  ///< [V][C]
   int C = 0;
-  /// Optional [V][4]: each splat's α ≥ 1/255 pixels x0, x1, y0, y1 (alpha_spans_simd); null:
-  /// the vector kernel computes them per entry (internal::alpha_pixels, the same code).
+  /// [V][4]: each splat's α ≥ 1/255 pixels x0, x1, y0, y1 (alpha_spans); the vector kernel
+  /// cuts each entry's box to them (the scalar kernel does not read them).
   const int32_t* spans = nullptr;
 };
 
@@ -168,12 +168,13 @@ void forward_tile(bool simd, const TileSplats<Real>& splats, const TileWork& til
 /// back to front. Returns how many it wrote.
 uint32_t backward_tile_simd(const TileSplats<float>& splats, const TileWork& tile, const TileBackward& io);
 
-/// Each splat's α ≥ 1/255 pixels (internal::alpha_pixels; [V][4] x0, x1, y0, y1) for splats
-/// [begin, end), computed
-/// by the vector kernel's own build (so rounded as its per-entry cut rounds: with fused
-/// multiply-adds where the instruction set has them).
-void alpha_spans_simd(const float* splat, const float* extent, size_t begin, size_t end, int32_t* spans);
-/// alpha_spans_simd over all `count` splats, in parallel (the caller's arena), into `spans`.
+/// Each splat's α ≥ 1/255 pixels, [count][4] x0, x1, y0, y1 inclusive (empty when x0 > x1 or
+/// y0 > y1): pixel_box's bounds cut to the α ellipse's own box. alpha_extent's half-width is
+/// sqrt(r²·Σxx) + 1, and sqrt(r²·Σxx) is exactly the ellipse's half-width (r² = 2 ln(255 o));
+/// the cut drops that pixel of margin, loosened by 0.05 % (r² by 0.1 %) and 1e-3 px so that
+/// rounding never drops a pixel the scalar kernel would blend. Computed by the vector
+/// kernel's own build (fused multiply-adds where the instruction set has them), in parallel
+/// in the caller's arena.
 void alpha_spans(const float* splat, const float* extent, size_t count, std::vector<int32_t>* spans);
 
 /// The instruction set the vector kernel runs with on this machine ("AVX3", "AVX2", ...).

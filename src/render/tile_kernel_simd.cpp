@@ -84,8 +84,8 @@ struct BlockLayout {
   void to_rows(const T* blocks, T* rows, int planes) const { convert(blocks, rows, planes, false); }
 };
 
-/// A splat's pixels in a tile: its α ≥ 1/255 pixels (internal::alpha_pixels) within the
-/// tile. False when none is.
+/// A splat's pixels in a tile: its α ≥ 1/255 pixels (alpha_spans) within the tile. False
+/// when none is.
 struct LocalBox {
   int lx0, lx1, ly0, ly1;
   uint64_t box_pixels;  // pixels of pixel_box's box before the cut (the scalar kernel's work)
@@ -95,13 +95,11 @@ inline bool local_box(const TileSplats<float>& S, uint32_t i, const TileWork& t,
   int px0, px1, py0, py1;
   internal::pixel_box(sd[0], sd[1], S.extent[2 * i], S.extent[2 * i + 1], t.x0, t.y0, t.x1, t.y1, &px0, &px1, &py0, &py1);
   b->box_pixels = px0 <= px1 && py0 <= py1 ? uint64_t(px1 - px0 + 1) * uint64_t(py1 - py0 + 1) : 0;
-  const internal::PixelSpan a =
-      S.spans ? internal::PixelSpan{S.spans[4 * i], S.spans[4 * i + 1], S.spans[4 * i + 2], S.spans[4 * i + 3]}
-              : internal::alpha_pixels(sd[0], sd[1], S.extent[2 * i], S.extent[2 * i + 1]);
-  px0 = std::max(t.x0, a.x0);
-  px1 = std::min(t.x1 - 1, a.x1);
-  py0 = std::max(t.y0, a.y0);
-  py1 = std::min(t.y1 - 1, a.y1);
+  const int32_t* a = &S.spans[4 * size_t(i)];
+  px0 = std::max(t.x0, a[0]);
+  px1 = std::min(t.x1 - 1, a[1]);
+  py0 = std::max(t.y0, a[2]);
+  py1 = std::min(t.y1 - 1, a[3]);
   b->lx0 = px0 - t.x0, b->lx1 = px1 - t.x0, b->ly0 = py0 - t.y0, b->ly1 = py1 - t.y0;
   return px0 <= px1 && py0 <= py1;
 }
@@ -124,17 +122,18 @@ HWY_INLINE void PrefetchEntry(const TileSplats<float>& S, uint32_t i, int C) {
   }
 }
 
-/// A tile's planes of kC channels on the stack (kC = 0: S.C known at run time only, on the heap).
-template <int kC>
+/// kC planes of kPer floats each on the stack (kC = 0: the count known at run time only, on
+/// the heap).
+template <int kC, int kPer = kTilePixels>
 struct ChannelPlanes {
-  HWY_ALIGN float data[kC * kTilePixels];
+  HWY_ALIGN float data[kC * kPer];
   explicit ChannelPlanes(int) {}
   float* get() { return data; }
 };
-template <>
-struct ChannelPlanes<0> {
+template <int kPer>
+struct ChannelPlanes<0, kPer> {
   std::vector<float> data;
-  explicit ChannelPlanes(int planes) : data(size_t(planes) * kTilePixels) {}
+  explicit ChannelPlanes(int planes) : data(size_t(planes) * kPer) {}
   float* get() { return data.data(); }
 };
 
@@ -275,9 +274,8 @@ uint32_t BackwardTileC(const TileSplats<float>& S, const TileWork& tile, const T
   float* const behind = behind_planes.get();
   std::fill(behind, behind + size_t(C) * kTilePixels, 0.0f);
   L.to_blocks(io.dpix, dpix, C);
-  HWY_ALIGN float channel_acc_lanes[kC ? kC * kTileSize : 1];  // per channel, lanes
-  std::vector<float> channel_acc_heap(kC ? 0 : size_t(C) * N);
-  float* const channel_acc = kC ? channel_acc_lanes : channel_acc_heap.data();
+  ChannelPlanes<kC, kTileSize> channel_acc_lanes(C);  // per channel, lanes (N <= kTileSize)
+  float* const channel_acc = channel_acc_lanes.get();
   const auto zero = hn::Zero(d), one = hn::Set(d, 1.0f), minus_half = hn::Set(d, -0.5f);
   const auto max_alpha = hn::Set(d, kMaxAlpha), min_alpha = hn::Set(d, kMinAlpha);
   // Entries at or behind every pixel's last blended one reach no pixel; nor does one whose
@@ -369,10 +367,18 @@ uint32_t BackwardTile(const TileSplats<float>& S, const TileWork& tile, const Ti
   }
 }
 
+/// Splats [begin, end)'s α spans (alpha_spans in tile_kernel.hpp). pixel_box's outer bounds
+/// cut by the ellipse's half-extent; `(h − 1)·1.0005 + 1e-3` contracts to a fused multiply-add
+/// on the targets that have one, as this build's kernels always rounded it.
 void AlphaSpans(const float* splat, const float* extent, size_t begin, size_t end, int32_t* spans) {
   for (size_t i = begin; i < end; ++i) {
-    const internal::PixelSpan a = internal::alpha_pixels(splat[6 * i], splat[6 * i + 1], extent[2 * i], extent[2 * i + 1]);
-    spans[4 * i] = a.x0, spans[4 * i + 1] = a.x1, spans[4 * i + 2] = a.y0, spans[4 * i + 3] = a.y1;
+    const float mx = splat[6 * i], my = splat[6 * i + 1], half_w = extent[2 * i], half_h = extent[2 * i + 1];
+    const float hx = (half_w - 1.0f) * 1.0005f + 1e-3f, hy = (half_h - 1.0f) * 1.0005f + 1e-3f;
+    int32_t* a = spans + 4 * i;
+    a[0] = std::max(int(std::floor(mx - half_w)), int(std::ceil(mx - hx)));
+    a[1] = std::min(int(std::ceil(mx + half_w)), int(std::floor(mx + hx)));
+    a[2] = std::max(int(std::floor(my - half_h)), int(std::ceil(my - hy)));
+    a[3] = std::min(int(std::ceil(my + half_h)), int(std::floor(my + hy)));
   }
 }
 
@@ -418,14 +424,10 @@ uint32_t backward_tile_simd(const TileSplats<float>& splats, const TileWork& til
   return HWY_DYNAMIC_DISPATCH(BackwardTile)(splats, tile, io);
 }
 
-void alpha_spans_simd(const float* splat, const float* extent, size_t begin, size_t end, int32_t* spans) {
-  HWY_DYNAMIC_DISPATCH(AlphaSpans)(splat, extent, begin, end, spans);
-}
-
 void alpha_spans(const float* splat, const float* extent, size_t count, std::vector<int32_t>* spans) {
   spans->resize(count * 4);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, count, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    alpha_spans_simd(splat, extent, r.begin(), r.end(), spans->data());
+    HWY_DYNAMIC_DISPATCH(AlphaSpans)(splat, extent, r.begin(), r.end(), spans->data());
   });
 }
 
